@@ -1,0 +1,2 @@
+//! `ickon`: the launcher.
+fn main() {}

@@ -1,0 +1,1 @@
+//! Integration tests of ICKON-rs live in `tests/`; this library holds shared helpers.

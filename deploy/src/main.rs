@@ -1,2 +1,29 @@
-//! `ickon`: the launcher.
-fn main() {}
+//! `ickon`: the launcher of ICKON-rs.
+//!
+//! Thin by design: parse the command line, set up logging, hand over to the
+//! module of the subcommand, and turn its result into an exit code.
+
+mod cli;
+mod replay;
+mod site_cmd;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+fn main() -> ExitCode {
+    let cli = cli::Cli::parse();
+    init_tracing();
+    cli::run(cli)
+}
+
+/// Logs go to stderr so that `--json` output on stdout stays clean;
+/// `RUST_LOG` overrides the default level.
+fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+}

@@ -11,7 +11,11 @@ pub fn wrap_pi(angle_rad: f64) -> f64 {
     }
     let wrapped = (angle_rad + PI).rem_euclid(TAU) - PI;
     // rem_euclid maps +pi to -pi; keep +pi so the interval is (-pi, pi].
-    if wrapped <= -PI { wrapped + TAU } else { wrapped }
+    if wrapped <= -PI {
+        wrapped + TAU
+    } else {
+        wrapped
+    }
 }
 
 /// Re-expresses `measured_rad` by whole turns so that it lies within half a

@@ -1,0 +1,115 @@
+//! Admin queryables under `central/admin/<command>`.
+//!
+//! Queries carry no payload except `reload`, which carries a [`ReloadRequest`].
+//! `status`, `cells`, `robots` and `sync` answer a [`StatusReport`]; `schedule`
+//! answers a [`Schedule`](crate::msg::control::Schedule); `coverage` a
+//! [`CoverageReport`]; `pause`, `resume` and `reload` an [`AdminAck`].
+
+use serde::{Deserialize, Serialize};
+
+use crate::time::Time;
+
+/// Health of one cell as the central unit sees it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellHealth {
+    /// Cell id.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub id: String,
+    /// Whether its liveliness token is present and it takes part in the schedule.
+    pub up: bool,
+    /// The cell's own estimate of its sync error (one sigma), nanoseconds.
+    pub sync_error_ns: i64,
+    /// Estimated offset master minus local clock, nanoseconds.
+    pub offset_ns: i64,
+    /// Last cycle it reported firing.
+    pub last_cycle_fired: u64,
+    /// Cycles fired since it started.
+    pub cycles_fired: u64,
+    /// Cycles in which it was expected to fire and did not.
+    pub cycles_missed: u64,
+}
+
+/// Health of one robot as the central unit sees it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotHealth {
+    /// Robot id.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub id: String,
+    /// Whether its liveliness token is present.
+    pub up: bool,
+    /// Fixes per second over the last few seconds.
+    pub fixes_per_s: f64,
+    /// Estimator named in its last pose.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub estimator: String,
+    /// Whether a pose was received.
+    pub pose_valid: bool,
+    /// Last pose, metres.
+    pub x_m: f64,
+    /// Last pose, metres.
+    pub y_m: f64,
+    /// Last pose, radians.
+    pub theta_rad: f64,
+}
+
+/// Answer to `status`, `cells`, `robots` and `sync`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StatusReport {
+    /// Site name.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub site: String,
+    /// Last cycle triggered.
+    pub cycle: u64,
+    /// Master time when the report was made.
+    pub stamp: Time,
+    /// Whether cycle triggers are paused.
+    pub paused: bool,
+    /// Version of the schedule in force.
+    pub schedule_version: u32,
+    /// Cycles per second of the schedule in force.
+    pub update_rate_hz: f64,
+    /// Every cell of the site.
+    pub cells: Vec<CellHealth>,
+    /// Every robot seen.
+    pub robots: Vec<RobotHealth>,
+}
+
+/// Answer to `coverage`: a grid over the floor, row-major from the lower-left corner.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoverageReport {
+    /// x of the centre of the first grid cell, metres.
+    pub origin_x_m: f64,
+    /// y of the centre of the first grid cell, metres.
+    pub origin_y_m: f64,
+    /// Grid spacing, metres.
+    pub resolution_m: f64,
+    /// Number of columns (along x).
+    pub columns: u32,
+    /// Number of rows (along y).
+    pub rows: u32,
+    /// Transmitters in line of sight at each grid point.
+    pub visible: Vec<u32>,
+    /// Horizontal dilution of precision at each grid point (0 where no fix is possible).
+    pub hdop: Vec<f64>,
+}
+
+/// Query payload of `reload`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReloadRequest {
+    /// Name of the file, for messages.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub file_name: String,
+    /// The new site file (TOML).
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub site_toml: String,
+}
+
+/// Answer to `pause`, `resume` and `reload`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AdminAck {
+    /// Whether the command took effect.
+    pub ok: bool,
+    /// What happened, or every reason it was refused.
+    #[serde(deserialize_with = "crate::wire_string::deserialize_vec")]
+    pub messages: Vec<String>,
+}

@@ -1,0 +1,144 @@
+//! Control plane: central unit <-> cell controllers.
+
+use serde::{Deserialize, Serialize};
+
+use crate::time::{Duration, Time};
+
+/// One row of the transmitter lookup table the MSU uses to turn an id into a position.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TransmitterEntry {
+    /// Transmitter id, as decoded from its burst.
+    pub tx_id: u32,
+    /// Cell the transmitter belongs to.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// Position in the site frame, metres.
+    pub x_m: f64,
+    /// Position in the site frame, metres.
+    pub y_m: f64,
+    /// Height above the floor, metres.
+    pub z_m: f64,
+}
+
+/// `central/site`: the site model and its transmitter lookup table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SiteInfo {
+    /// Site name (the `<site>` of every key).
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub site: String,
+    /// Increases every time the central unit loads a new site file.
+    pub version: u32,
+    /// The site file itself (TOML), so every process validates it with the same code.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub site_toml: String,
+    /// The transmitter lookup table.
+    pub transmitters: Vec<TransmitterEntry>,
+}
+
+/// When one transmitter fires inside a cycle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Emission {
+    /// Transmitter id.
+    pub tx_id: u32,
+    /// Cell of the transmitter.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// Offset of the emission from the cycle start.
+    pub offset: Duration,
+    /// Index of the slot the emission sits in.
+    pub slot: u32,
+}
+
+/// `central/schedule`: the versioned emission schedule of the whole site.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Schedule {
+    /// Version; a new schedule has a higher one.
+    pub version: u32,
+    /// The first cycle this schedule applies to; earlier cycles keep the previous one.
+    pub effective_cycle: u64,
+    /// Time between two cycle starts.
+    pub cycle_period: Duration,
+    /// Length of one slot (longest audible flight time plus the guard).
+    pub slot_length: Duration,
+    /// Every emission of a cycle; cells sharing a slot do not hear each other.
+    pub emissions: Vec<Emission>,
+    /// Cells that take part in this schedule (cells marked down are left out).
+    #[serde(deserialize_with = "crate::wire_string::deserialize_vec")]
+    pub active_cells: Vec<String>,
+}
+
+/// `central/cycle`: the trigger of one cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CycleTrigger {
+    /// Cycle number, increasing by one per cycle.
+    pub cycle: u64,
+    /// Cycle start on the master time base.
+    pub start: Time,
+    /// The schedule version this cycle uses.
+    pub schedule_version: u32,
+}
+
+/// Query payload on `central/clock`: the first timestamp of an NTP-style exchange.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClockRequest {
+    /// Who asks.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// t1: when the request left, on the requester's clock.
+    pub t1: Time,
+}
+
+/// Reply on `central/clock`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ClockReply {
+    /// t1 echoed from the request.
+    pub t1: Time,
+    /// t2: when the request arrived, on the master clock.
+    pub t2: Time,
+    /// t3: when the reply left, on the master clock.
+    pub t3: Time,
+}
+
+/// `cell/<id>/burst`: one transmitter fired.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Burst {
+    /// Cell that fired.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// Transmitter that fired.
+    pub tx_id: u32,
+    /// Cycle number.
+    pub cycle: u64,
+    /// When it should have fired, on the master time base.
+    pub scheduled: Time,
+    /// When it really fired on the true time base (known only to a simulation;
+    /// hardware drivers report their best estimate on the master time base).
+    pub actual: Time,
+}
+
+/// `cell/<id>/status`: a cell controller's health and sync estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellStatus {
+    /// The reporting cell.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// When the report was made, on the master time base as the cell estimates it.
+    pub stamp: Time,
+    /// Estimated offset master minus local clock, nanoseconds.
+    pub offset_ns: i64,
+    /// Estimated drift of the local clock against the master, parts per billion.
+    pub drift_ppb: i64,
+    /// One-sigma uncertainty of the offset estimate, nanoseconds.
+    pub offset_sigma_ns: i64,
+    /// Number of clock samples behind the estimate.
+    pub sync_samples: u32,
+    /// Last cycle in which the cell fired.
+    pub last_cycle_fired: u64,
+    /// Cycles fired since start.
+    pub cycles_fired: u64,
+    /// Slots skipped because their trigger arrived too late.
+    pub slots_skipped: u64,
+    /// Current faults in plain words (empty when healthy).
+    #[serde(deserialize_with = "crate::wire_string::deserialize_vec")]
+    pub faults: Vec<String>,
+}

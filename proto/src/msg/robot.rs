@@ -1,0 +1,150 @@
+//! Per-robot streams: sensors -> MSU agent -> anyone.
+
+use serde::{Deserialize, Serialize};
+
+use crate::time::Time;
+
+/// One ultrasonic arrival as the MSU records it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Arrival {
+    /// Transmitter id decoded from the burst (may be wrong: decoding errors happen).
+    pub tx_id: u32,
+    /// Which of the MSU's receivers heard the burst first (0-based, counter-clockwise).
+    pub receiver_id: u8,
+    /// Time of arrival on the MSU's own clock (the hardware resolves 1 us).
+    pub t_arrival: Time,
+}
+
+/// `robot/<id>/ultrasound`: the arrivals of one cycle.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct UltrasoundArrivals {
+    /// Increases by one per message of this robot, so that a fix and a pose can
+    /// name the arrivals they come from (latency measurement).
+    pub seq: u64,
+    /// Arrivals, in order of arrival.
+    pub arrivals: Vec<Arrival>,
+}
+
+/// `robot/<id>/odom`: the robot's relative positioning unit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Odometry {
+    /// Sample time on the robot's clock.
+    pub stamp: Time,
+    /// Dead-reckoned position in the odometry frame, metres.
+    pub x_m: f64,
+    /// Dead-reckoned position in the odometry frame, metres.
+    pub y_m: f64,
+    /// Dead-reckoned heading in the odometry frame, radians (unwrapped).
+    pub theta_rad: f64,
+    /// Cumulative encoder ticks of the left wheel.
+    pub left_ticks: i64,
+    /// Cumulative encoder ticks of the right wheel.
+    pub right_ticks: i64,
+}
+
+/// `robot/<id>/imu`: the yaw-rate gyro.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Imu {
+    /// Sample time on the robot's clock.
+    pub stamp: Time,
+    /// Angular rate about the vertical axis, rad/s, counter-clockwise positive.
+    pub gyro_z_rad_s: f64,
+}
+
+/// `robot/<id>/range`: obstacle sensors of seed 003.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ObstacleRanges {
+    /// Sample time on the robot's clock.
+    pub stamp: Time,
+    /// Left ultrasonic range (0.2-7.6 m), metres; meaningful when `left_valid`.
+    pub left_m: f64,
+    /// Whether the left sensor saw something in range.
+    pub left_valid: bool,
+    /// Right ultrasonic range (0.2-7.6 m), metres; meaningful when `right_valid`.
+    pub right_m: f64,
+    /// Whether the right sensor saw something in range.
+    pub right_valid: bool,
+    /// Front infrared range (0.04-0.3 m), metres; meaningful when `ir_valid`.
+    pub ir_m: f64,
+    /// Whether the infrared sensor saw something in range.
+    pub ir_valid: bool,
+    /// Heading change planned by obstacle avoidance, radians (seed 003 eq. 18).
+    pub avoidance_angle_rad: f64,
+}
+
+/// Quality of a fix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FixQuality {
+    /// Redundant signals, residuals consistent with the timing noise.
+    Good,
+    /// Just enough signals: no redundancy to check residuals against.
+    Minimal,
+    /// Solved, but residuals larger than the timing noise explains.
+    Suspect,
+}
+
+/// `robot/<id>/fix`: the raw MSU solution of one cycle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Fix {
+    /// Time of the measurement on the MSU clock (the mean arrival time of the cycle).
+    pub stamp: Time,
+    /// `seq` of the [`UltrasoundArrivals`] this fix was solved from.
+    pub arrivals_seq: u64,
+    /// Position, metres.
+    pub x_m: f64,
+    /// Position, metres.
+    pub y_m: f64,
+    /// Height, metres (the known MSU height for a 2D fix).
+    pub z_m: f64,
+    /// Position covariance, 3x3 row-major, m^2.
+    pub covariance: [f64; 9],
+    /// Heading from the first receiver (seed 000 eq. 4-6), radians; meaningful when `heading_valid`.
+    pub heading_rad: f64,
+    /// Whether `heading_rad` holds a value.
+    pub heading_valid: bool,
+    /// Transmitters used in the solution.
+    pub used: Vec<u32>,
+    /// Transmitters heard but rejected (reflection, inconsistency, unknown id).
+    pub rejected: Vec<u32>,
+    /// Range-difference residuals of the used transmitters, metres.
+    pub residuals_m: Vec<f64>,
+    /// Quality flag.
+    pub quality: FixQuality,
+}
+
+/// `robot/<id>/pose`: the fused pose.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotPose {
+    /// Time the pose refers to, on the MSU clock.
+    pub stamp: Time,
+    /// Position, metres.
+    pub x_m: f64,
+    /// Position, metres.
+    pub y_m: f64,
+    /// Heading, radians, wrapped to (-pi, pi].
+    pub theta_rad: f64,
+    /// Covariance of (x, y, theta), 3x3 row-major.
+    pub covariance: [f64; 9],
+    /// Name of the estimator that made it.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub estimator: String,
+    /// `arrivals_seq` of the newest fix the pose has absorbed (0: none yet).
+    pub fix_seq: u64,
+}
+
+/// `sim/truth/<id>`: ground truth, simulation only.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    /// True time of the sample.
+    pub stamp: Time,
+    /// True position of the MSU reference point, metres.
+    pub x_m: f64,
+    /// True position of the MSU reference point, metres.
+    pub y_m: f64,
+    /// True heading, radians, wrapped to (-pi, pi].
+    pub theta_rad: f64,
+    /// Forward speed, m/s.
+    pub v_m_s: f64,
+    /// Turn rate, rad/s.
+    pub omega_rad_s: f64,
+}

@@ -1,0 +1,452 @@
+//! Round trips of every message, bytes written by hand from the CDR rules,
+//! and malformed payloads.
+
+use super::admin::*;
+use super::control::*;
+use super::robot::*;
+use super::ros::*;
+use crate::codec::{DecodeError, decode, encode};
+use crate::time::{Duration, Time};
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+fn round_trip<T: Serialize + DeserializeOwned + PartialEq + std::fmt::Debug>(value: T) {
+    let bytes = encode(&value).expect("encodes");
+    assert_eq!(&bytes[..4], &[0, 1, 0, 0], "little-endian header");
+    let back: T = decode(&bytes).expect("decodes");
+    assert_eq!(back, value);
+    // Every strict prefix is an error, never a panic or a wrong value.
+    for cut in 0..bytes.len() {
+        assert!(
+            decode::<T>(&bytes[..cut]).is_err(),
+            "prefix of {cut} bytes accepted"
+        );
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert_eq!(decode::<T>(&longer), Err(DecodeError::TrailingBytes(1)));
+}
+
+fn sample_schedule() -> Schedule {
+    Schedule {
+        version: 3,
+        effective_cycle: 120,
+        cycle_period: Duration::from_millis(200),
+        slot_length: Duration::from_millis(25),
+        emissions: vec![
+            Emission {
+                tx_id: 11,
+                cell_id: "c1".into(),
+                offset: Duration::ZERO,
+                slot: 0,
+            },
+            Emission {
+                tx_id: 21,
+                cell_id: "c2".into(),
+                offset: Duration::from_millis(25),
+                slot: 1,
+            },
+        ],
+        active_cells: vec!["c1".into(), "c2".into()],
+    }
+}
+
+#[test]
+fn control_messages_round_trip() {
+    round_trip(SiteInfo {
+        site: "lab".into(),
+        version: 1,
+        site_toml: "name = \"lab\"\n".into(),
+        transmitters: vec![TransmitterEntry {
+            tx_id: 11,
+            cell_id: "c1".into(),
+            x_m: 1.0,
+            y_m: -2.5,
+            z_m: 2.8,
+        }],
+    });
+    round_trip(sample_schedule());
+    round_trip(CycleTrigger {
+        cycle: 7,
+        start: Time(123_456_789),
+        schedule_version: 2,
+    });
+    round_trip(ClockRequest {
+        cell_id: "c3".into(),
+        t1: Time(-5),
+    });
+    round_trip(ClockReply {
+        t1: Time(1),
+        t2: Time(2),
+        t3: Time(3),
+    });
+    round_trip(Burst {
+        cell_id: "c1".into(),
+        tx_id: 12,
+        cycle: 9,
+        scheduled: Time(1_000),
+        actual: Time(1_004),
+    });
+    round_trip(CellStatus {
+        cell_id: "c4".into(),
+        stamp: Time(99),
+        offset_ns: -50_000_000,
+        drift_ppb: 100_000,
+        offset_sigma_ns: 12_000,
+        sync_samples: 8,
+        last_cycle_fired: 41,
+        cycles_fired: 40,
+        slots_skipped: 1,
+        faults: vec!["late trigger".into()],
+    });
+}
+
+#[test]
+fn robot_messages_round_trip() {
+    round_trip(UltrasoundArrivals {
+        seq: 5,
+        arrivals: vec![
+            Arrival {
+                tx_id: 11,
+                receiver_id: 0,
+                t_arrival: Time(10_000),
+            },
+            Arrival {
+                tx_id: 12,
+                receiver_id: 5,
+                t_arrival: Time(35_000),
+            },
+        ],
+    });
+    round_trip(Odometry {
+        stamp: Time(1),
+        x_m: 0.5,
+        y_m: 0.25,
+        theta_rad: -3.0,
+        left_ticks: -12,
+        right_ticks: 400_000,
+    });
+    round_trip(Imu {
+        stamp: Time(2),
+        gyro_z_rad_s: 0.01,
+    });
+    round_trip(ObstacleRanges {
+        stamp: Time(3),
+        left_m: 1.5,
+        left_valid: true,
+        right_m: 0.0,
+        right_valid: false,
+        ir_m: 0.1,
+        ir_valid: true,
+        avoidance_angle_rad: 0.2,
+    });
+    round_trip(Fix {
+        stamp: Time(4),
+        arrivals_seq: 5,
+        x_m: 1.0,
+        y_m: 2.0,
+        z_m: 0.4,
+        covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 0.0],
+        heading_rad: 1.0,
+        heading_valid: true,
+        used: vec![11, 12, 13],
+        rejected: vec![14],
+        residuals_m: vec![0.001, -0.002, 0.0005],
+        quality: FixQuality::Suspect,
+    });
+    round_trip(RobotPose {
+        stamp: Time(5),
+        x_m: 1.0,
+        y_m: 2.0,
+        theta_rad: 0.5,
+        covariance: [0.0; 9],
+        estimator: "ickon-akf".into(),
+        fix_seq: 5,
+    });
+    round_trip(Truth {
+        stamp: Time(6),
+        x_m: 1.0,
+        y_m: 2.0,
+        theta_rad: 0.5,
+        v_m_s: 0.3,
+        omega_rad_s: -0.1,
+    });
+}
+
+#[test]
+fn admin_messages_round_trip() {
+    round_trip(StatusReport {
+        site: "lab".into(),
+        cycle: 10,
+        stamp: Time(7),
+        paused: false,
+        schedule_version: 1,
+        update_rate_hz: 5.0,
+        cells: vec![CellHealth {
+            id: "c1".into(),
+            up: true,
+            sync_error_ns: 3_000,
+            offset_ns: 10,
+            last_cycle_fired: 10,
+            cycles_fired: 10,
+            cycles_missed: 0,
+        }],
+        robots: vec![RobotHealth {
+            id: "r1".into(),
+            up: true,
+            fixes_per_s: 4.9,
+            estimator: "ickon-akf".into(),
+            pose_valid: true,
+            x_m: 1.0,
+            y_m: 1.0,
+            theta_rad: 0.0,
+        }],
+    });
+    round_trip(CoverageReport {
+        origin_x_m: 0.125,
+        origin_y_m: 0.125,
+        resolution_m: 0.25,
+        columns: 2,
+        rows: 1,
+        visible: vec![4, 3],
+        hdop: vec![1.2, 1.9],
+    });
+    round_trip(ReloadRequest {
+        file_name: "lab.toml".into(),
+        site_toml: "x".into(),
+    });
+    round_trip(AdminAck {
+        ok: false,
+        messages: vec!["line 3: bad".into(), "line 9: worse".into()],
+    });
+}
+
+#[test]
+fn cycle_trigger_matches_hand_written_cdr() {
+    let msg = CycleTrigger {
+        cycle: 0x0102_0304_0506_0708,
+        start: Time(-2),
+        schedule_version: 0xAABB_CCDD,
+    };
+    #[rustfmt::skip]
+    let expected: Vec<u8> = vec![
+        0x00, 0x01, 0x00, 0x00,                         // encapsulation: CDR_LE
+        0x08, 0x07, 0x06, 0x05, 0x04, 0x03, 0x02, 0x01, // u64 cycle at offset 0
+        0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, // i64 start = -2
+        0xDD, 0xCC, 0xBB, 0xAA,                         // u32 schedule_version
+    ];
+    assert_eq!(encode(&msg).unwrap(), expected);
+    assert_eq!(decode::<CycleTrigger>(&expected).unwrap(), msg);
+}
+
+#[test]
+fn burst_matches_hand_written_cdr() {
+    let msg = Burst {
+        cell_id: "c1".into(),
+        tx_id: 12,
+        cycle: 9,
+        scheduled: Time(1_000),
+        actual: Time(1_004),
+    };
+    let mut expected = vec![0x00, 0x01, 0x00, 0x00]; // header; offsets count from here
+    expected.extend_from_slice(&3u32.to_le_bytes()); // string length, NUL included (0)
+    expected.extend_from_slice(b"c1\0"); // bytes and NUL (4..7)
+    expected.push(0); // pad 7 -> 8 for the u32
+    expected.extend_from_slice(&12u32.to_le_bytes()); // tx_id (8)
+    expected.extend_from_slice(&[0; 4]); // pad 12 -> 16 for the u64
+    expected.extend_from_slice(&9u64.to_le_bytes()); // cycle (16)
+    expected.extend_from_slice(&1_000i64.to_le_bytes()); // scheduled (24)
+    expected.extend_from_slice(&1_004i64.to_le_bytes()); // actual (32)
+    assert_eq!(encode(&msg).unwrap(), expected);
+    assert_eq!(decode::<Burst>(&expected).unwrap(), msg);
+}
+
+#[test]
+fn ultrasound_arrivals_match_hand_written_cdr() {
+    let msg = UltrasoundArrivals {
+        seq: 1,
+        arrivals: vec![
+            Arrival {
+                tx_id: 0x11,
+                receiver_id: 2,
+                t_arrival: Time(0x100),
+            },
+            Arrival {
+                tx_id: 0x12,
+                receiver_id: 3,
+                t_arrival: Time(0x200),
+            },
+        ],
+    };
+    let mut expected = vec![0x00, 0x01, 0x00, 0x00];
+    expected.extend_from_slice(&1u64.to_le_bytes()); // seq at 0
+    expected.extend_from_slice(&2u32.to_le_bytes()); // sequence length at 8
+    // element 0 at 12: u32 tx_id, u8 receiver, pad 17 -> 24, i64 t_arrival
+    expected.extend_from_slice(&0x11u32.to_le_bytes());
+    expected.push(2);
+    expected.extend_from_slice(&[0; 7]);
+    expected.extend_from_slice(&0x100i64.to_le_bytes());
+    // element 1 at 32
+    expected.extend_from_slice(&0x12u32.to_le_bytes());
+    expected.push(3);
+    expected.extend_from_slice(&[0; 3]); // 37 -> 40
+    expected.extend_from_slice(&0x200i64.to_le_bytes());
+    assert_eq!(encode(&msg).unwrap(), expected);
+    assert_eq!(decode::<UltrasoundArrivals>(&expected).unwrap(), msg);
+}
+
+#[test]
+fn ros_pose_with_covariance_has_the_ros2_layout() {
+    let pose = RobotPose {
+        stamp: Time(3_500_000_001),
+        x_m: 1.5,
+        y_m: -2.0,
+        theta_rad: 0.0,
+        covariance: [0.01, 0.0, 0.0, 0.0, 0.02, 0.0, 0.0, 0.0, 0.03],
+        estimator: "ickon-akf".into(),
+        fix_seq: 0,
+    };
+    let ros = PoseWithCovarianceStamped::from_robot_pose(&pose, "map");
+    let bytes = encode(&ros).unwrap();
+    // DESIGN.md section 10: with frame_id "map" the message is 364 bytes.
+    assert_eq!(bytes.len(), 364);
+    let mut expected = vec![0x00, 0x01, 0x00, 0x00];
+    expected.extend_from_slice(&3i32.to_le_bytes());
+    expected.extend_from_slice(&500_000_001u32.to_le_bytes());
+    expected.extend_from_slice(&4u32.to_le_bytes());
+    expected.extend_from_slice(b"map\0");
+    // offset 16 after the frame id: already 8-aligned, no padding
+    for v in [1.5f64, -2.0, 0.0, 0.0, 0.0, 0.0, 1.0] {
+        expected.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in ros.pose.covariance {
+        expected.extend_from_slice(&v.to_le_bytes());
+    }
+    assert_eq!(bytes, expected);
+    assert_eq!(ros.pose.covariance[0], 0.01);
+    assert_eq!(ros.pose.covariance[7], 0.02);
+    assert_eq!(ros.pose.covariance[35], 0.03);
+    assert_eq!(
+        decode::<PoseWithCovarianceStamped>(&bytes)
+            .unwrap()
+            .header
+            .frame_id,
+        "map"
+    );
+}
+
+#[test]
+fn huge_length_prefixes_are_rejected_without_allocating_them() {
+    // A string claiming 4 GiB, a sequence claiming 4 billion elements.
+    let mut bad_string = vec![0x00, 0x01, 0x00, 0x00];
+    bad_string.extend_from_slice(&u32::MAX.to_le_bytes());
+    bad_string.extend_from_slice(b"c1\0");
+    assert!(matches!(
+        decode::<Burst>(&bad_string),
+        Err(DecodeError::Truncated(_))
+    ));
+    let mut bad_seq = vec![0x00, 0x01, 0x00, 0x00];
+    bad_seq.extend_from_slice(&1u64.to_le_bytes());
+    bad_seq.extend_from_slice(&u32::MAX.to_le_bytes());
+    assert!(matches!(
+        decode::<UltrasoundArrivals>(&bad_seq),
+        Err(DecodeError::Truncated(_))
+    ));
+}
+
+#[test]
+fn garbage_is_an_error_not_a_panic() {
+    assert_eq!(
+        decode::<CycleTrigger>(&[]),
+        Err(DecodeError::MissingHeader(0))
+    );
+    assert!(matches!(
+        decode::<CycleTrigger>(&[0x7b, 0x22, 0x61, 0x22, 0, 0]),
+        Err(DecodeError::BadHeader(_))
+    ));
+    // A string without its NUL, and one with invalid UTF-8.
+    let mut no_nul = vec![0x00, 0x01, 0x00, 0x00];
+    no_nul.extend_from_slice(&2u32.to_le_bytes());
+    no_nul.extend_from_slice(b"c1");
+    assert!(matches!(
+        decode::<ClockRequest>(&no_nul),
+        Err(DecodeError::Malformed(_))
+    ));
+    let mut bad_utf8 = vec![0x00, 0x01, 0x00, 0x00];
+    bad_utf8.extend_from_slice(&3u32.to_le_bytes());
+    bad_utf8.extend_from_slice(&[0xff, 0xfe, 0x00]);
+    bad_utf8.extend_from_slice(&[0; 1 + 8]);
+    assert!(matches!(
+        decode::<ClockRequest>(&bad_utf8),
+        Err(DecodeError::Malformed(_))
+    ));
+    // An enum tag out of range.
+    let mut fix = encode(&Fix {
+        stamp: Time(0),
+        arrivals_seq: 0,
+        x_m: 0.0,
+        y_m: 0.0,
+        z_m: 0.0,
+        covariance: [0.0; 9],
+        heading_rad: 0.0,
+        heading_valid: false,
+        used: vec![],
+        rejected: vec![],
+        residuals_m: vec![],
+        quality: FixQuality::Good,
+    })
+    .unwrap();
+    let n = fix.len();
+    fix[n - 4..].copy_from_slice(&77u32.to_le_bytes());
+    assert!(matches!(
+        decode::<Fix>(&fix),
+        Err(DecodeError::Malformed(_))
+    ));
+}
+
+#[test]
+fn big_endian_payloads_decode_too() {
+    let mut be = vec![0x00, 0x00, 0x00, 0x00];
+    be.extend_from_slice(&7u64.to_be_bytes());
+    be.extend_from_slice(&5i64.to_be_bytes());
+    be.extend_from_slice(&1u32.to_be_bytes());
+    let t: CycleTrigger = decode(&be).unwrap();
+    assert_eq!(t.cycle, 7);
+    assert_eq!(t.start, Time(5));
+}
+
+mod random {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
+            let _ = decode::<Schedule>(&bytes);
+            let _ = decode::<Fix>(&bytes);
+            let _ = decode::<StatusReport>(&bytes);
+            let mut with_header = vec![0, 1, 0, 0];
+            with_header.extend_from_slice(&bytes);
+            let _ = decode::<Schedule>(&with_header);
+            let _ = decode::<UltrasoundArrivals>(&with_header);
+            let _ = decode::<SiteInfo>(&with_header);
+        }
+
+        #[test]
+        fn arrivals_round_trip(seq in any::<u64>(), raw in proptest::collection::vec((any::<u32>(), 0u8..6, any::<i64>()), 0..40)) {
+            let msg = UltrasoundArrivals {
+                seq,
+                arrivals: raw.into_iter().map(|(tx_id, receiver_id, t)| Arrival { tx_id, receiver_id, t_arrival: Time(t) }).collect(),
+            };
+            let back: UltrasoundArrivals = decode(&encode(&msg).unwrap()).unwrap();
+            prop_assert_eq!(back, msg);
+        }
+
+        #[test]
+        fn strings_round_trip(s in "\\PC{0,40}") {
+            let msg = ClockRequest { cell_id: s.replace('\0', ""), t1: Time(1) };
+            let back: ClockRequest = decode(&encode(&msg).unwrap()).unwrap();
+            prop_assert_eq!(back, msg);
+        }
+    }
+}

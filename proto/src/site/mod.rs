@@ -1,0 +1,1 @@
+//! The site model (placeholder while it is written).

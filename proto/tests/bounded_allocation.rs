@@ -1,0 +1,65 @@
+//! A length prefix of 4 GiB must not allocate 4 GiB: measured with a counting
+//! allocator, so the claim is checked, not assumed.
+
+// A global allocator cannot be written without `unsafe`; it only forwards to
+// the system allocator and records the largest request.
+#![allow(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use ickon_proto::msg::control::{Burst, SiteInfo};
+use ickon_proto::msg::robot::UltrasoundArrivals;
+
+struct Counting;
+
+static LARGEST: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        LARGEST.fetch_max(new_size, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+const ONE_MIB: usize = 1 << 20;
+
+#[test]
+fn huge_length_prefixes_allocate_at_most_a_mebibyte() {
+    let mut string_4gib = vec![0x00, 0x01, 0x00, 0x00];
+    string_4gib.extend_from_slice(&u32::MAX.to_le_bytes());
+    string_4gib.extend_from_slice(&[b'a'; 64]);
+
+    let mut seq_4g = vec![0x00, 0x01, 0x00, 0x00];
+    seq_4g.extend_from_slice(&1u64.to_le_bytes());
+    seq_4g.extend_from_slice(&u32::MAX.to_le_bytes());
+    seq_4g.extend_from_slice(&[0u8; 64]);
+
+    let mut site_table_4g = vec![0x00, 0x01, 0x00, 0x00];
+    site_table_4g.extend_from_slice(&4u32.to_le_bytes());
+    site_table_4g.extend_from_slice(b"lab\0");
+    site_table_4g.extend_from_slice(&1u32.to_le_bytes()); // version
+    site_table_4g.extend_from_slice(&1u32.to_le_bytes()); // site_toml ""
+    site_table_4g.extend_from_slice(&[0, 0, 0, 0]);
+    site_table_4g.extend_from_slice(&u32::MAX.to_le_bytes()); // transmitters
+
+    LARGEST.store(0, Ordering::Relaxed);
+    assert!(ickon_proto::decode::<Burst>(&string_4gib).is_err());
+    assert!(ickon_proto::decode::<UltrasoundArrivals>(&seq_4g).is_err());
+    assert!(ickon_proto::decode::<SiteInfo>(&site_table_4g).is_err());
+    let largest = LARGEST.load(Ordering::Relaxed);
+    assert!(
+        largest <= ONE_MIB,
+        "decoding a bogus length prefix allocated {largest} bytes"
+    );
+}

@@ -8,7 +8,6 @@ use clap::{Parser, Subcommand};
 use crate::{replay, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
-#[allow(dead_code)] // used once site check and replay land
 pub const EXIT_BAD_INPUT: u8 = 2;
 /// Exit code for a failure at run time (a child died, nobody answered).
 pub const EXIT_FAILURE: u8 = 1;

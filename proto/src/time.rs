@@ -172,9 +172,9 @@ mod tests {
 
     #[test]
     fn seconds_round_trip_to_the_nanosecond() {
-        let t = Time::from_secs_f64(1234.567_890_123);
+        let t = Time::from_secs_f64(1_234.567_890_123);
         assert_eq!(t.as_nanos(), 1_234_567_890_123);
-        assert!((t.as_secs_f64() - 1234.567_890_123).abs() < 1e-9);
+        assert!((t.as_secs_f64() - 1_234.567_890_123).abs() < 1e-9);
     }
 
     #[test]

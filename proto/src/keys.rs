@@ -9,7 +9,7 @@
 //! | `ickon/<site>/central/cycle` | [`msg::control::CycleTrigger`](crate::msg::control::CycleTrigger) |
 //! | `ickon/<site>/central/clock` (queryable) | [`msg::control::ClockRequest`](crate::msg::control::ClockRequest) in, [`msg::control::ClockReply`](crate::msg::control::ClockReply) out |
 //! | `ickon/<site>/central/admin/<command>` (queryables) | [`msg::admin`](crate::msg::admin) |
-//! | `ickon/<site>/alive/central`, `.../alive/cell/<id>`, `.../alive/robot/<id>` | liveliness tokens, no payload |
+//! | `ickon/<site>/alive/central`, `.../alive/cell/<id>`, `.../alive/robot/<id>`, `.../alive/world` | liveliness tokens, no payload (`world`: the simulated world, simulation only) |
 //! | `ickon/<site>/cell/<id>/burst` | [`msg::control::Burst`](crate::msg::control::Burst) |
 //! | `ickon/<site>/cell/<id>/status` | [`msg::control::CellStatus`](crate::msg::control::CellStatus) |
 //! | `ickon/<site>/robot/<id>/ultrasound` | [`msg::robot::UltrasoundArrivals`](crate::msg::robot::UltrasoundArrivals) |
@@ -116,6 +116,8 @@ pub enum Key {
     AliveCell(String),
     /// `alive/robot/<id>`
     AliveRobot(String),
+    /// `alive/world`
+    AliveWorld,
     /// `cell/<id>/burst`
     CellBurst(String),
     /// `cell/<id>/status`
@@ -200,6 +202,11 @@ impl Keys {
         Ok(format!("{}/alive/robot/{robot}", self.prefix))
     }
 
+    /// `ickon/<site>/alive/world`: liveliness token of the simulated world (simulation only).
+    pub fn alive_world(&self) -> String {
+        format!("{}/alive/world", self.prefix)
+    }
+
     /// `ickon/<site>/alive/**`: every liveliness token of the site.
     pub fn alive_all(&self) -> String {
         format!("{}/alive/**", self.prefix)
@@ -268,6 +275,7 @@ impl Keys {
             ["central", "clock"] => Ok(Key::CentralClock),
             ["central", "admin", cmd] => Ok(Key::CentralAdmin(id(cmd)?)),
             ["alive", "central"] => Ok(Key::AliveCentral),
+            ["alive", "world"] => Ok(Key::AliveWorld),
             ["alive", "cell", c] => Ok(Key::AliveCell(id(c)?)),
             ["alive", "robot", r] => Ok(Key::AliveRobot(id(r)?)),
             ["cell", c, "burst"] => Ok(Key::CellBurst(id(c)?)),
@@ -302,6 +310,7 @@ mod tests {
                 Key::CentralAdmin("status".into()),
             ),
             (k.alive_central(), Key::AliveCentral),
+            (k.alive_world(), Key::AliveWorld),
             (k.alive_cell("c1").unwrap(), Key::AliveCell("c1".into())),
             (k.alive_robot("r1").unwrap(), Key::AliveRobot("r1".into())),
             (k.cell_burst("c2").unwrap(), Key::CellBurst("c2".into())),

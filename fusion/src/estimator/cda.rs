@@ -19,7 +19,8 @@
 //!
 //! Per gyro sample: offset and noise calibration at rest (eq. 7-8) over the
 //! first `calibration_samples` readings taken while the encoders report no
-//! motion, then `omega - offset`, zeroed inside the dead band
+//! motion (a reading counts once the encoder step covering it shows no
+//! tick), then `omega - offset`, zeroed inside the dead band
 //! `[-noise, noise]`.
 //!
 //! Per range sample: the obstacle-avoidance heading `theta_oa` (eq. 12-15,
@@ -36,7 +37,8 @@
 //!   trajectory"); the first step of a turn is thus encoder-based.
 //! - A gyro-mode step without any gyro sample falls back to `alpha`.
 //! - If the robot moves before calibration is complete, the calibration is
-//!   closed with the samples collected so far (offset 0, noise 0 if none).
+//!   closed with the samples collected so far (offset 0, noise 0 if none);
+//!   the readings of that first moving step are not integrated.
 //! - The complementary filter is applied at each range sample, with the gyro
 //!   chain's heading as `theta_g` and `a = 0.95`; eq. 12-15 restart from
 //!   the current heading when a manoeuvre begins.
@@ -98,47 +100,89 @@ impl Default for CdaParams {
     }
 }
 
-/// Gyro offset and noise from samples at rest (eq. 7-8). The maximum
-/// deviation from the mean is `max(max - mean, mean - min)`, so no sample
-/// needs to be stored.
+/// Running sum, minimum and maximum of gyro readings.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct GyroCalibration {
+struct RateStats {
     count: u32,
     sum: f64,
     min: f64,
     max: f64,
+}
+
+impl RateStats {
+    const EMPTY: Self = Self {
+        count: 0,
+        sum: 0.0,
+        min: f64::INFINITY,
+        max: f64::NEG_INFINITY,
+    };
+
+    fn add(&mut self, rate: f64) {
+        self.count += 1;
+        self.sum += rate;
+        self.min = self.min.min(rate);
+        self.max = self.max.max(rate);
+    }
+
+    fn merge(&mut self, other: &Self) {
+        self.count += other.count;
+        self.sum += other.sum;
+        self.min = self.min.min(other.min);
+        self.max = self.max.max(other.max);
+    }
+}
+
+/// Gyro offset and noise from samples at rest (eq. 7-8). The maximum
+/// deviation from the mean is `max(max - mean, mean - min)`, so no sample
+/// needs to be stored. A reading counts as "at rest" only once the encoder
+/// step that covers it reports no motion: readings wait in `pending` until
+/// then, and are dropped if the robot moved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct GyroCalibration {
+    at_rest: RateStats,
+    pending: RateStats,
     result: Option<(f64, f64)>,
 }
 
 impl GyroCalibration {
     fn new() -> Self {
         Self {
-            count: 0,
-            sum: 0.0,
-            min: f64::INFINITY,
-            max: f64::NEG_INFINITY,
+            at_rest: RateStats::EMPTY,
+            pending: RateStats::EMPTY,
             result: None,
         }
     }
 
-    fn add(&mut self, rate: f64, target: u32) {
-        self.count += 1;
-        self.sum += rate;
-        self.min = self.min.min(rate);
-        self.max = self.max.max(rate);
-        if self.count >= target {
+    fn add(&mut self, rate: f64) {
+        self.pending.add(rate);
+    }
+
+    /// Called at each encoder step with whether the robot stood still.
+    fn encoder_step(&mut self, still: bool, target: u32) {
+        if self.result.is_some() {
+            return;
+        }
+        if still {
+            let pending = self.pending;
+            self.at_rest.merge(&pending);
+            if self.at_rest.count >= target {
+                self.close();
+            }
+        } else {
             self.close();
         }
+        self.pending = RateStats::EMPTY;
     }
 
     /// Offset (eq. 7) and noise (eq. 8), fixed from now on.
     fn close(&mut self) -> (f64, f64) {
         *self.result.get_or_insert_with(|| {
-            if self.count == 0 {
+            let s = &self.at_rest;
+            if s.count == 0 {
                 return (0.0, 0.0);
             }
-            let offset = self.sum / f64::from(self.count);
-            (offset, (self.max - offset).max(offset - self.min))
+            let offset = s.sum / f64::from(s.count);
+            (offset, (s.max - offset).max(offset - s.min))
         })
     }
 }
@@ -163,7 +207,6 @@ pub struct CdaChain {
     gyro_sum_rad: f64,
     gyro_count: u32,
     last_gyro_s: Option<f64>,
-    at_rest: bool,
     obstacle_rad: Option<f64>,
     theta_reported_rad: f64,
     t_s: f64,
@@ -187,7 +230,6 @@ impl CdaChain {
             gyro_sum_rad: 0.0,
             gyro_count: 0,
             last_gyro_s: None,
-            at_rest: true,
             obstacle_rad: None,
             theta_reported_rad: p.theta_rad,
             t_s: 0.0,
@@ -251,9 +293,8 @@ impl CdaChain {
 
     fn gyro(&mut self, t_s: f64, rate_rad_s: f64) {
         let prev = self.last_gyro_s.replace(t_s);
-        if self.at_rest && self.calibration.result.is_none() {
-            self.calibration
-                .add(rate_rad_s, self.params.calibration_samples);
+        if self.calibration.result.is_none() {
+            self.calibration.add(rate_rad_s);
             return;
         }
         let Some(dt) = prev.map(|p| t_s - p) else {
@@ -286,10 +327,9 @@ impl CdaChain {
     }
 
     fn relative(&mut self, inc: Increment) -> Increment {
-        self.at_rest = inc.distance_m == 0.0 && inc.dtheta_rad == 0.0;
-        if !self.at_rest {
-            self.calibration.close();
-        }
+        let still = inc.distance_m == 0.0 && inc.dtheta_rad == 0.0;
+        self.calibration
+            .encoder_step(still, self.params.calibration_samples);
         let mu1 = self.params.mu_start_deg.to_radians();
         let mu2 = self.params.mu_stop_deg.to_radians();
         self.source = match self.source {

@@ -46,7 +46,7 @@
 //!   `cda-msu`). Odometry poses may replace encoder ticks (then `alpha` is
 //!   their heading difference).
 //! - The covariance grows by first-order propagation of
-//!   [`DeadReckoningNoise`] (not from the seed).
+//!   [`super::DeadReckoningNoise`] (not from the seed).
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -55,6 +55,7 @@ use nalgebra::{Matrix3, Vector3};
 use super::dead_reckoning::{
     DeadReckoningNoise, Increment, IncrementTracker, arc_step, propagate_covariance,
 };
+use super::gyro_calibration::GyroCalibration;
 use super::obstacle_angle::{ObstacleAngle, ObstacleAngleParams, next_angle};
 use super::replay::Core;
 use super::{InitialPose, Input, PoseEstimate};
@@ -97,93 +98,6 @@ impl Default for CdaParams {
             initial_pose: InitialPose::default(),
             history_s: super::registry::default_history_s(),
         }
-    }
-}
-
-/// Running sum, minimum and maximum of gyro readings.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct RateStats {
-    count: u32,
-    sum: f64,
-    min: f64,
-    max: f64,
-}
-
-impl RateStats {
-    const EMPTY: Self = Self {
-        count: 0,
-        sum: 0.0,
-        min: f64::INFINITY,
-        max: f64::NEG_INFINITY,
-    };
-
-    fn add(&mut self, rate: f64) {
-        self.count += 1;
-        self.sum += rate;
-        self.min = self.min.min(rate);
-        self.max = self.max.max(rate);
-    }
-
-    fn merge(&mut self, other: &Self) {
-        self.count += other.count;
-        self.sum += other.sum;
-        self.min = self.min.min(other.min);
-        self.max = self.max.max(other.max);
-    }
-}
-
-/// Gyro offset and noise from samples at rest (eq. 7-8). The maximum
-/// deviation from the mean is `max(max - mean, mean - min)`, so no sample
-/// needs to be stored. A reading counts as "at rest" only once the encoder
-/// step that covers it reports no motion: readings wait in `pending` until
-/// then, and are dropped if the robot moved.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct GyroCalibration {
-    at_rest: RateStats,
-    pending: RateStats,
-    result: Option<(f64, f64)>,
-}
-
-impl GyroCalibration {
-    fn new() -> Self {
-        Self {
-            at_rest: RateStats::EMPTY,
-            pending: RateStats::EMPTY,
-            result: None,
-        }
-    }
-
-    fn add(&mut self, rate: f64) {
-        self.pending.add(rate);
-    }
-
-    /// Called at each encoder step with whether the robot stood still.
-    fn encoder_step(&mut self, still: bool, target: u32) {
-        if self.result.is_some() {
-            return;
-        }
-        if still {
-            let pending = self.pending;
-            self.at_rest.merge(&pending);
-            if self.at_rest.count >= target {
-                self.close();
-            }
-        } else {
-            self.close();
-        }
-        self.pending = RateStats::EMPTY;
-    }
-
-    /// Offset (eq. 7) and noise (eq. 8), fixed from now on.
-    fn close(&mut self) -> (f64, f64) {
-        *self.result.get_or_insert_with(|| {
-            let s = &self.at_rest;
-            if s.count == 0 {
-                return (0.0, 0.0);
-            }
-            let offset = s.sum / f64::from(s.count);
-            (offset, (s.max - offset).max(offset - s.min))
-        })
     }
 }
 

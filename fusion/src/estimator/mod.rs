@@ -38,13 +38,14 @@
 pub mod cda;
 pub mod cda_msu;
 mod dead_reckoning;
+mod gyro_calibration;
 pub mod gyro_ckf;
 pub mod heading_kf;
 pub mod ickon_akf;
 mod input;
 mod kf;
 pub mod msu_raw;
-mod obstacle_angle;
+pub mod obstacle_angle;
 pub mod odometry;
 pub mod position_akf;
 mod registry;
@@ -53,7 +54,7 @@ pub mod replay;
 #[cfg(test)]
 mod tests;
 
-pub use dead_reckoning::{Increment, IncrementTracker};
+pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker};
 pub use input::{
     EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeSample, WheelGeometry,
 };

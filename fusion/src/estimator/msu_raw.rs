@@ -6,7 +6,7 @@
 //!   a heading keeps the previous heading, with a 180 deg standard deviation
 //!   once none was ever received.
 //! - Covariance: the fix's own position covariance (floored to
-//!   [`super::MIN_VARIANCE`], non-PD reports reduced to their diagonal), no
+//!   1e-12, non-PD reports reduced to their diagonal), no
 //!   cross terms with the heading, heading variance
 //!   `heading_sigma_deg^2` (default 30 deg, the receiver spacing of 60 deg
 //!   quantises the heading to +-30 deg).

@@ -58,7 +58,7 @@ impl Default for ObstacleAngleParams {
 
 /// Result of one range sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) enum ObstacleAngle {
+pub enum ObstacleAngle {
     /// Case 1: no manoeuvre in progress.
     Clear,
     /// A manoeuvre in progress with its planned heading, radians.
@@ -67,7 +67,7 @@ pub(crate) enum ObstacleAngle {
 
 /// `theta_oa` given the previous one (or the current heading when no
 /// manoeuvre was in progress) and the ranges.
-pub(crate) fn next_angle(
+pub fn next_angle(
     params: &ObstacleAngleParams,
     previous_rad: f64,
     sample: &RangeSample,

@@ -9,7 +9,7 @@
 //!   eq. 1-6 (`dist = (l + r) / 2`, heading change `(r - l) / W`).
 //! - The first relative source seen is used; the other is then ignored.
 //! - The covariance grows by first-order propagation of
-//!   [`DeadReckoningNoise`]; it is a documented model, not calibrated.
+//!   [`super::DeadReckoningNoise`]; it is a documented model, not calibrated.
 //! - The heading is kept continuous internally and wrapped on output.
 
 use nalgebra::Matrix3;

@@ -134,6 +134,25 @@ mod tests {
     }
 
     #[test]
+    fn config_is_tagged_by_name_and_missing_fields_take_the_seed_defaults() {
+        use serde::Deserialize;
+        use serde::de::IntoDeserializer;
+        use serde::de::value::Error;
+        use std::collections::BTreeMap;
+
+        for name in names() {
+            let map: BTreeMap<&str, &str> = [("name", *name)].into();
+            let config = EstimatorConfig::deserialize(map.into_deserializer())
+                .map_err(|e: Error| e.to_string())
+                .unwrap();
+            assert_eq!(config, EstimatorConfig::default_for(name).unwrap());
+        }
+        let map: BTreeMap<&str, &str> = [("name", "ickon-akf"), ("c_poz", "1")].into();
+        let typo = EstimatorConfig::deserialize(map.into_deserializer());
+        assert!(typo.map_err(|e: Error| e.to_string()).is_err());
+    }
+
+    #[test]
     fn unknown_name_is_a_typed_error() {
         let err = build_by_name("kalman").err().unwrap();
         assert_eq!(err.name, "kalman");

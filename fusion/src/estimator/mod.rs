@@ -37,6 +37,7 @@
 
 pub mod cda;
 pub mod cda_msu;
+mod config_check;
 mod dead_reckoning;
 mod gyro_calibration;
 pub mod gyro_ckf;
@@ -54,6 +55,7 @@ pub mod replay;
 #[cfg(test)]
 mod tests;
 
+pub use config_check::InvalidParameter;
 pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker};
 pub use input::{
     EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeSample, WheelGeometry,

@@ -9,7 +9,6 @@
 //! ```
 //! Missing fields take their defaults; unknown fields are errors.
 
-use super::Estimator;
 use super::cda::{Cda, CdaParams};
 use super::cda_msu::{CdaMsu, CdaMsuParams};
 use super::gyro_ckf::{GyroCkf, GyroCkfParams};
@@ -17,6 +16,7 @@ use super::ickon_akf::{IckonAkf, IckonAkfParams};
 use super::msu_raw::{MsuRaw, MsuRawParams};
 use super::odometry::{Odometry, OdometryParams};
 use super::replay::Replay;
+use super::{Estimator, InvalidParameter};
 
 pub use super::gyro_ckf::two_sensor_heading;
 
@@ -103,8 +103,14 @@ impl EstimatorConfig {
     }
 }
 
-/// Builds the estimator described by `config`.
-pub fn build(config: &EstimatorConfig) -> Box<dyn Estimator> {
+/// Builds the estimator described by `config`, once its parameters are
+/// checked ([`EstimatorConfig::validate`]).
+pub fn build(config: &EstimatorConfig) -> Result<Box<dyn Estimator>, InvalidParameter> {
+    config.validate()?;
+    Ok(build_valid(config))
+}
+
+fn build_valid(config: &EstimatorConfig) -> Box<dyn Estimator> {
     match config {
         EstimatorConfig::Odometry(p) => Box::new(Replay::new(Odometry::new(p), p.history_s)),
         EstimatorConfig::MsuRaw(p) => Box::new(Replay::new(MsuRaw::new(p), p.history_s)),
@@ -117,7 +123,8 @@ pub fn build(config: &EstimatorConfig) -> Box<dyn Estimator> {
 
 /// Builds the estimator called `name` with its default parameters.
 pub fn build_by_name(name: &str) -> Result<Box<dyn Estimator>, UnknownEstimator> {
-    Ok(build(&EstimatorConfig::default_for(name)?))
+    // The seed defaults are valid (tested in `config_check`).
+    Ok(build_valid(&EstimatorConfig::default_for(name)?))
 }
 
 #[cfg(test)]

@@ -61,7 +61,7 @@ fn ickon_akf_steps_match_hand_computation() {
         initial_pose: Some(origin(0.01, 1.0_f64.to_radians())),
         ..IckonAkfParams::default()
     };
-    let mut e = build(&EstimatorConfig::IckonAkf(params));
+    let mut e = build(&EstimatorConfig::IckonAkf(params)).unwrap();
     e.handle(&odo(0.0, 0.0, 0.0, 0.0)).unwrap();
     e.handle(&odo(0.1, 0.1, 0.0, 0.1)).unwrap();
     e.handle(&fix(0.1, 0.12, 0.02, Some(0.3))).unwrap();
@@ -92,7 +92,7 @@ fn gyro_ckf_steps_match_hand_computation() {
         initial_pose: Some(origin(0.01, 0.1)),
         ..GyroCkfParams::default()
     };
-    let mut e = build(&EstimatorConfig::GyroCkf(params));
+    let mut e = build(&EstimatorConfig::GyroCkf(params)).unwrap();
     let dt = 0.01;
     e.handle(&gyro(0.0, 0.2)).unwrap();
     e.handle(&gyro(dt, 0.2)).unwrap();
@@ -155,8 +155,8 @@ fn late_fixes_give_the_same_pose_as_fixes_in_time_order() {
         7,
     );
     for name in names() {
-        let mut a = build(&config(name));
-        let mut b = build(&config(name));
+        let mut a = build(&config(name)).unwrap();
+        let mut b = build(&config(name)).unwrap();
         for i in feed_for(name, &in_order) {
             a.handle(&i).unwrap();
         }
@@ -172,7 +172,7 @@ fn late_fixes_give_the_same_pose_as_fixes_in_time_order() {
 
 #[test]
 fn input_older_than_the_history_is_rejected_and_changes_nothing() {
-    let mut e = build(&config("ickon-akf"));
+    let mut e = build(&config("ickon-akf")).unwrap();
     e.handle(&fix(0.0, 1.0, 1.0, Some(0.0))).unwrap();
     for k in 0..=50 {
         e.handle(&odo(f64::from(k) * 0.1, 0.0, 0.0, 0.0)).unwrap();
@@ -207,7 +207,7 @@ fn non_finite_inputs_are_rejected_and_change_nothing() {
         }),
     ];
     for name in names() {
-        let mut e = build(&config(name));
+        let mut e = build(&config(name)).unwrap();
         e.handle(&fix(0.0, 1.0, 1.0, Some(0.0))).unwrap();
         e.handle(&odo(0.0, 0.0, 0.0, 0.0)).unwrap();
         let before = e.pose();
@@ -227,8 +227,8 @@ fn reset_returns_every_estimator_to_its_constructed_state() {
     };
     let inputs = circling_run(&circle, 10.0, Noise::default(), 3);
     for name in names() {
-        let fresh = build(&config(name));
-        let mut e = build(&config(name));
+        let fresh = build(&config(name)).unwrap();
+        let mut e = build(&config(name)).unwrap();
         for i in feed_for(name, &inputs) {
             e.handle(&i).unwrap();
         }
@@ -244,7 +244,7 @@ fn reset_returns_every_estimator_to_its_constructed_state() {
 #[test]
 fn fix_after_a_long_gap_reinitialises_the_position() {
     for name in ["ickon-akf", "gyro-ckf", "cda-msu"] {
-        let mut e = build(&config(name));
+        let mut e = build(&config(name)).unwrap();
         e.handle(&fix(0.0, 1.0, 1.0, Some(0.0))).unwrap();
         e.handle(&odo(0.0, 0.0, 0.0, 0.0)).unwrap();
         e.handle(&enc(0.0, 0, 0)).unwrap();
@@ -352,7 +352,7 @@ fn cda_complementary_filter_weights_planned_heading_by_one_minus_alpha() {
 
 #[test]
 fn cda_ignores_msu_fixes() {
-    let mut e = build(&config("cda"));
+    let mut e = build(&config("cda")).unwrap();
     let before = e.pose();
     e.handle(&fix(0.0, 3.0, 3.0, Some(1.0))).unwrap();
     assert_eq!(e.pose(), before);

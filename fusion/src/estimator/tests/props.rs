@@ -129,7 +129,7 @@ proptest! {
     #[test]
     fn no_estimator_ever_outputs_nan_or_a_non_pd_covariance(inputs in sequence()) {
         for name in names() {
-            let mut e = build(&config(name));
+            let mut e = build(&config(name)).unwrap();
             for input in &inputs {
                 let _ = e.handle(input);
                 if let Some(p) = e.pose() {

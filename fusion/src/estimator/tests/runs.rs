@@ -104,7 +104,7 @@ fn noiseless_circles_are_tracked_by_every_estimator() {
     };
     let inputs = circling_run(&circle, 60.0, Noise::default(), 1);
     for name in names() {
-        let mut e = build(&config(name));
+        let mut e = build(&config(name)).unwrap();
         let s = run(e.as_mut(), &circle, &feed_for(name, &inputs));
         eprintln!("noiseless {name}: {s:?}");
         assert!(s.poses > 500, "{name}: {s:?}");
@@ -136,7 +136,7 @@ fn ten_minutes_of_circles_never_jump_by_a_turn() {
     };
     let inputs = circling_run(&circle, 600.0, realistic(), 2);
     for name in names() {
-        let mut e = build(&config(name));
+        let mut e = build(&config(name)).unwrap();
         let s = run(e.as_mut(), &circle, &feed_for(name, &inputs));
         eprintln!("realistic {name}: {s:?}");
         if *name != "msu-raw" {

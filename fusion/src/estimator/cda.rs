@@ -45,6 +45,9 @@
 //! - Seed 003 has no absolute positioning: MSU fixes are ignored here (see
 //!   `cda-msu`). Odometry poses may replace encoder ticks (then `alpha` is
 //!   their heading difference).
+//! - Late inputs (a gyro reading delivered after the encoder step that
+//!   covers it, a late range sample) are inserted at their time and the
+//!   later inputs replayed ([`super::replay`]).
 //! - The covariance grows by first-order propagation of
 //!   [`super::DeadReckoningNoise`] (not from the seed).
 

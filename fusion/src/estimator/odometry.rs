@@ -11,6 +11,8 @@
 //! - The covariance grows by first-order propagation of
 //!   [`super::DeadReckoningNoise`]; it is a documented model, not calibrated.
 //! - The heading is kept continuous internally and wrapped on output.
+//! - Late samples are inserted at their time and the later ones replayed
+//!   ([`super::replay`]); fixes, gyro and range inputs are ignored.
 
 use nalgebra::Matrix3;
 

@@ -92,6 +92,7 @@ fn realistic() -> Noise {
         odometry_turn_scale: 0.01,
         fix_sigma_m: 0.03,
         fix_latency_s: 0.1,
+        two_sensor_heading_sigma_rad: None,
     }
 }
 
@@ -152,4 +153,50 @@ fn ten_minutes_of_circles_never_jump_by_a_turn() {
             assert!(s.max_heading_err_deg < 10.0, "{name}: {s:?}");
         }
     }
+}
+
+#[test]
+fn gyro_ckf_removes_the_latency_of_a_two_sensor_heading() {
+    // Seed 002: a precise absolute heading delivered 100 ms late; alone its
+    // error is the rotation during the delay (here 1 rad/s * 0.1 s = 5.7 deg).
+    let circle = Circle {
+        v_m_s: 0.3,
+        omega_rad_s: 1.0,
+        rest_s: 2.0,
+    };
+    let noise = Noise {
+        gyro_bias_rad_s: 0.5_f64.to_radians(),
+        gyro_sigma_rad_s: 0.002,
+        fix_sigma_m: 0.02,
+        fix_latency_s: 0.1,
+        two_sensor_heading_sigma_rad: Some(0.5_f64.to_radians()),
+        ..Noise::default()
+    };
+    let inputs = circling_run(&circle, 120.0, noise, 5);
+    let mut params = crate::estimator::gyro_ckf::GyroCkfParams {
+        heading_sigma_deg: 0.5,
+        ..Default::default()
+    };
+    params.history_s = 1.0;
+    let mut e = build(&EstimatorConfig::GyroCkf(params)).unwrap();
+    let mut worst_late_deg = 0.0_f64;
+    let mut worst_fused_deg = 0.0_f64;
+    for input in feed_for("gyro-ckf", &inputs) {
+        e.handle(&input).unwrap();
+        let Some(p) = e.pose() else { continue };
+        if p.t_s < 20.0 {
+            continue; // let the bias converge
+        }
+        if let Input::Fix(f) = input {
+            // The raw heading compared with the truth at delivery time.
+            let (_, _, now) = circle.truth(f.t_s + noise.fix_latency_s);
+            let late = angle::diff(f.heading_rad.unwrap_or(0.0), now).abs();
+            worst_late_deg = worst_late_deg.max(late.to_degrees());
+        }
+        let (_, _, th) = circle.truth(p.t_s);
+        worst_fused_deg = worst_fused_deg.max(angle::diff(p.theta_rad, th).abs().to_degrees());
+    }
+    eprintln!("late heading max {worst_late_deg:.2} deg, gyro-ckf max {worst_fused_deg:.2} deg");
+    assert!(worst_late_deg > 5.0);
+    assert!(worst_fused_deg < 1.0, "{worst_fused_deg}");
 }

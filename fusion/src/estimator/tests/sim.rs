@@ -27,6 +27,9 @@ pub(super) struct Noise {
     pub fix_sigma_m: f64,
     /// Fix delivery delay after its measurement time.
     pub fix_latency_s: f64,
+    /// Fix heading noise; `None` quantises the heading to the 60 deg
+    /// receiver sectors of seed 000 instead.
+    pub two_sensor_heading_sigma_rad: Option<f64>,
 }
 
 /// Truth at time `t_s`: at rest at (5, 5) heading 0 for `rest_s`, then on
@@ -109,6 +112,10 @@ pub(super) fn circling_run(
         if k % 30 == 0 {
             let (x, y, th) = circle.truth(t);
             let sector = std::f64::consts::FRAC_PI_3;
+            let heading = match noise.two_sensor_heading_sigma_rad {
+                Some(sigma) => th + sigma * unit.sample(&mut rng),
+                None => (th / sector).round() * sector,
+            };
             events.push((
                 t + noise.fix_latency_s,
                 Input::Fix(FixSample {
@@ -116,7 +123,7 @@ pub(super) fn circling_run(
                     x_m: x + noise.fix_sigma_m * unit.sample(&mut rng),
                     y_m: y + noise.fix_sigma_m * unit.sample(&mut rng),
                     covariance: Matrix2::from_diagonal_element(noise.fix_sigma_m.powi(2) + 1e-6),
-                    heading_rad: Some(angle::wrap_pi((th / sector).round() * sector)),
+                    heading_rad: Some(angle::wrap_pi(heading)),
                 }),
             ));
         }

@@ -357,3 +357,23 @@ fn cda_ignores_msu_fixes() {
     e.handle(&fix(0.0, 3.0, 3.0, Some(1.0))).unwrap();
     assert_eq!(e.pose(), before);
 }
+
+#[test]
+fn cda_complementary_filter_crosses_180_degrees_the_short_way() {
+    let mut e = cda(CdaParams {
+        initial_pose: InitialPose {
+            theta_rad: 179.0_f64.to_radians(),
+            ..origin(0.01, 0.01)
+        },
+        ..CdaParams::default()
+    });
+    e.handle(&Input::Range(RangeSample {
+        t_s: 0.05,
+        planned_heading_rad: Some((-179.0_f64).to_radians()),
+        ..RangeSample::default()
+    }))
+    .unwrap();
+    // -179 deg is re-expressed as 181 deg: 0.95 * 179 + 0.05 * 181 = 179.1.
+    let theta = e.pose().unwrap().theta_rad.to_degrees();
+    assert!((theta - 179.1).abs() < 1e-9, "{theta}");
+}

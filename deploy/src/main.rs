@@ -5,6 +5,7 @@
 
 mod cli;
 mod replay;
+mod sim;
 mod site_cmd;
 
 use std::process::ExitCode;

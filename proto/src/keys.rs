@@ -19,6 +19,7 @@
 //! | `ickon/<site>/robot/<id>/fix` | [`msg::robot::Fix`](crate::msg::robot::Fix) |
 //! | `ickon/<site>/robot/<id>/pose` | [`msg::robot::RobotPose`](crate::msg::robot::RobotPose) |
 //! | `ickon/<site>/sim/truth/<id>` | [`msg::robot::Truth`](crate::msg::robot::Truth) |
+//! | `ickon/<site>/sim/probe` | `u64` sequence number: one-hop latency probes of `ickon sim` |
 //!
 //! Identifiers (site, cell and robot ids) are checked by [`validate_id`]: a
 //! non-empty chunk of letters, digits, `-` and `_`, so that no id can smuggle
@@ -126,6 +127,8 @@ pub enum Key {
     Robot(String, RobotTopic),
     /// `sim/truth/<id>`
     SimTruth(String),
+    /// `sim/probe`
+    SimProbe,
 }
 
 /// Builds and parses the keys of one site.
@@ -251,6 +254,12 @@ impl Keys {
         Ok(format!("{}/sim/truth/{robot}", self.prefix))
     }
 
+    /// `ickon/<site>/sim/probe`: latency probes of `ickon sim` (a CDR `u64`
+    /// sequence number), to measure the plain one-hop Zenoh latency of a run.
+    pub fn sim_probe(&self) -> String {
+        format!("{}/sim/probe", self.prefix)
+    }
+
     /// `ickon/<site>/sim/truth/*`: ground truth of every robot.
     pub fn sim_truth_all(&self) -> String {
         format!("{}/sim/truth/*", self.prefix)
@@ -288,6 +297,7 @@ impl Keys {
                 Ok(Key::Robot(id(r)?, topic))
             }
             ["sim", "truth", r] => Ok(Key::SimTruth(id(r)?)),
+            ["sim", "probe"] => Ok(Key::SimProbe),
             _ => Err(unknown()),
         }
     }
@@ -316,6 +326,7 @@ mod tests {
             (k.cell_burst("c2").unwrap(), Key::CellBurst("c2".into())),
             (k.cell_status("c2").unwrap(), Key::CellStatus("c2".into())),
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
+            (k.sim_probe(), Key::SimProbe),
         ];
         for (key, expected) in cases {
             assert_eq!(k.parse(&key).unwrap(), expected, "{key}");

@@ -7,3 +7,4 @@
 //! to `(-pi, pi]` with [`angle::wrap_pi`] wherever they are compared.
 
 pub mod angle;
+pub mod estimator;

@@ -1,0 +1,182 @@
+//! Validation of estimator parameters at the edge, so that a bad config is
+//! reported once by name instead of making every input fail later.
+
+use super::InitialPose;
+use super::cda::CdaParams;
+use super::dead_reckoning::DeadReckoningNoise;
+use super::gyro_ckf::GyroCkfParams;
+use super::heading_kf::HeadingKfParams;
+use super::obstacle_angle::ObstacleAngleParams;
+use super::position_akf::PositionAkfParams;
+use super::registry::EstimatorConfig;
+
+/// A parameter outside its domain.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("estimator `{estimator}`: parameter `{field}` {reason}")]
+pub struct InvalidParameter {
+    /// The estimator name.
+    pub estimator: &'static str,
+    /// The parameter.
+    pub field: &'static str,
+    /// What it must satisfy.
+    pub reason: &'static str,
+}
+
+type Check = Result<(), (&'static str, &'static str)>;
+
+fn positive(field: &'static str, v: f64) -> Check {
+    if v > 0.0 && !v.is_nan() {
+        Ok(())
+    } else {
+        Err((field, "must be positive"))
+    }
+}
+
+fn non_negative(field: &'static str, v: f64) -> Check {
+    if v >= 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err((field, "must be finite and non-negative"))
+    }
+}
+
+fn history(v: f64) -> Check {
+    non_negative("history_s", v)
+}
+
+fn heading(p: &HeadingKfParams) -> Check {
+    positive("heading.sigma_w_deg", p.sigma_w_deg)?;
+    positive("heading.sigma_v_deg", p.sigma_v_deg)?;
+    positive("heading.initial_sigma_deg", p.initial_sigma_deg)
+}
+
+fn position(p: &PositionAkfParams) -> Check {
+    positive("position.q_mm2", p.q_mm2)?;
+    non_negative("position.c_pos", p.c_pos)?;
+    positive("position.r_floor_mm", p.r_floor_mm)?;
+    positive("position.reinit_gap_s", p.reinit_gap_s)
+}
+
+fn initial(p: &InitialPose) -> Check {
+    for (field, v) in [
+        ("initial_pose.x_m", p.x_m),
+        ("initial_pose.y_m", p.y_m),
+        ("initial_pose.theta_rad", p.theta_rad),
+    ] {
+        if !v.is_finite() {
+            return Err((field, "must be finite"));
+        }
+    }
+    positive("initial_pose.sigma_xy_m", p.sigma_xy_m)?;
+    positive("initial_pose.sigma_theta_rad", p.sigma_theta_rad)
+}
+
+fn noise(p: &DeadReckoningNoise) -> Check {
+    non_negative("noise.distance_fraction", p.distance_fraction)?;
+    non_negative("noise.heading_rad_per_m", p.heading_rad_per_m)?;
+    non_negative("noise.heading_rad_per_rad", p.heading_rad_per_rad)
+}
+
+fn obstacle(p: &ObstacleAngleParams) -> Check {
+    positive("obstacle.d_safe_m", p.d_safe_m)?;
+    non_negative("obstacle.k_ultrasonic_m", p.k_ultrasonic_m)?;
+    non_negative("obstacle.k_ir_m", p.k_ir_m)?;
+    non_negative("obstacle.n_ir", p.n_ir)
+}
+
+fn gyro_ckf(p: &GyroCkfParams) -> Check {
+    non_negative("gyro_noise_deg_sqrt_s", p.gyro_noise_deg_sqrt_s)?;
+    non_negative("bias_walk_deg_s_sqrt_s", p.bias_walk_deg_s_sqrt_s)?;
+    positive("initial_bias_sigma_deg_s", p.initial_bias_sigma_deg_s)?;
+    positive("heading_sigma_deg", p.heading_sigma_deg)?;
+    positive("initial_heading_sigma_deg", p.initial_heading_sigma_deg)?;
+    non_negative("max_gyro_gap_s", p.max_gyro_gap_s)?;
+    position(&p.position)?;
+    p.initial_pose.as_ref().map_or(Ok(()), initial)?;
+    history(p.history_s)
+}
+
+fn cda(p: &CdaParams) -> Check {
+    if p.calibration_samples == 0 {
+        return Err(("calibration_samples", "must be at least 1"));
+    }
+    non_negative("mu_stop_deg", p.mu_stop_deg)?;
+    non_negative("mu_start_deg", p.mu_start_deg)?;
+    if p.mu_stop_deg >= p.mu_start_deg {
+        return Err((
+            "mu_stop_deg",
+            "must be below mu_start_deg (seed 003: mu2 << mu1)",
+        ));
+    }
+    if !(0.0..=1.0).contains(&p.complementary_alpha) {
+        return Err(("complementary_alpha", "must be within [0, 1]"));
+    }
+    obstacle(&p.obstacle)?;
+    non_negative("max_gyro_gap_s", p.max_gyro_gap_s)?;
+    noise(&p.noise)?;
+    initial(&p.initial_pose)?;
+    history(p.history_s)
+}
+
+impl EstimatorConfig {
+    /// Checks every parameter is in its domain.
+    pub fn validate(&self) -> Result<(), InvalidParameter> {
+        let check = match self {
+            Self::Odometry(p) => initial(&p.initial_pose)
+                .and_then(|()| noise(&p.noise))
+                .and_then(|()| history(p.history_s)),
+            Self::MsuRaw(p) => positive("heading_sigma_deg", p.heading_sigma_deg)
+                .and_then(|()| history(p.history_s)),
+            Self::IckonAkf(p) => heading(&p.heading)
+                .and_then(|()| position(&p.position))
+                .and_then(|()| p.initial_pose.as_ref().map_or(Ok(()), initial))
+                .and_then(|()| history(p.history_s)),
+            Self::GyroCkf(p) => gyro_ckf(p),
+            Self::Cda(p) => cda(p),
+            Self::CdaMsu(p) => cda(&p.cda)
+                .and_then(|()| heading(&p.heading))
+                .and_then(|()| position(&p.position))
+                .and_then(|()| p.initial_pose.as_ref().map_or(Ok(()), initial))
+                .and_then(|()| history(p.history_s)),
+        };
+        check.map_err(|(field, reason)| InvalidParameter {
+            estimator: self.name(),
+            field,
+            reason,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimator::names;
+
+    #[test]
+    fn seed_defaults_are_valid() {
+        for name in names() {
+            EstimatorConfig::default_for(name)
+                .unwrap()
+                .validate()
+                .unwrap();
+        }
+    }
+
+    #[test]
+    fn inverted_cda_thresholds_are_named_in_the_error() {
+        let config = EstimatorConfig::Cda(CdaParams {
+            mu_start_deg: 0.01,
+            ..CdaParams::default()
+        });
+        let err = config.validate().unwrap_err();
+        assert_eq!((err.estimator, err.field), ("cda", "mu_stop_deg"));
+    }
+
+    #[test]
+    fn nan_noise_is_refused() {
+        let mut p = crate::estimator::ickon_akf::IckonAkfParams::default();
+        p.position.c_pos = f64::NAN;
+        let err = EstimatorConfig::IckonAkf(p).validate().unwrap_err();
+        assert_eq!(err.field, "position.c_pos");
+    }
+}

@@ -1,0 +1,191 @@
+//! The measurements an estimator consumes, and their validation.
+
+use nalgebra::Matrix2;
+
+use super::EstimatorError;
+
+/// Pose reported by the robot's relative positioning unit (seed 000:
+/// `x_b, y_b, gamma_b`), in the robot's own odometry frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometrySample {
+    /// Time of the pose, in seconds.
+    pub t_s: f64,
+    /// `x_b` in metres.
+    pub x_m: f64,
+    /// `y_b` in metres.
+    pub y_m: f64,
+    /// `gamma_b` in radians (may be wrapped or continuous).
+    pub theta_rad: f64,
+}
+
+/// Geometry of a differential drive, carried with the ticks so that the
+/// estimator and the robot never disagree on it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct WheelGeometry {
+    /// Distance between the wheel contact points (seed 003: `W`), in metres.
+    pub wheel_base_m: f64,
+    /// Distance travelled by the left wheel per encoder tick, in metres.
+    pub left_m_per_tick: f64,
+    /// Distance travelled by the right wheel per encoder tick, in metres.
+    pub right_m_per_tick: f64,
+}
+
+/// Cumulative wheel encoder counts (seed 003: `l, r`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EncoderSample {
+    /// Time of the reading, in seconds.
+    pub t_s: f64,
+    /// Cumulative left ticks since power-up (wrapping is the caller's job).
+    pub left_ticks: i64,
+    /// Cumulative right ticks since power-up.
+    pub right_ticks: i64,
+    /// The drive geometry converting ticks to distances.
+    pub geometry: WheelGeometry,
+}
+
+/// A rate-gyro reading about the vertical axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GyroSample {
+    /// Time of the reading, in seconds.
+    pub t_s: f64,
+    /// Yaw rate, counter-clockwise positive, in rad/s (raw: bias included).
+    pub rate_rad_s: f64,
+}
+
+/// An absolute fix from the MSU.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixSample {
+    /// Measurement time (the cycle's emission time, usually older than the
+    /// latest odometry), in seconds.
+    pub t_s: f64,
+    /// Position x in metres.
+    pub x_m: f64,
+    /// Position y in metres.
+    pub y_m: f64,
+    /// Covariance of the position as reported by the solver, in m^2.
+    pub covariance: Matrix2<f64>,
+    /// Heading from the first-hit receiver id (seed 000 eq. 4-6) or from two
+    /// MSUs on one robot (seed 002 eq. 1), in radians; `None` if absent.
+    pub heading_rad: Option<f64>,
+}
+
+/// Obstacle-sensor readings (seed 003 section 3.3). A range is `None` when the
+/// sensor sees nothing within its reach.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RangeSample {
+    /// Time of the readings, in seconds.
+    pub t_s: f64,
+    /// Left ultrasonic range `d_lu`, in metres.
+    pub left_ultrasonic_m: Option<f64>,
+    /// Right ultrasonic range `d_ru`, in metres.
+    pub right_ultrasonic_m: Option<f64>,
+    /// Left infrared range `d_li`, in metres.
+    pub left_ir_m: Option<f64>,
+    /// Right infrared range `d_ri`, in metres.
+    pub right_ir_m: Option<f64>,
+    /// Heading planned by the obstacle-avoidance system, in the world frame,
+    /// in radians, when the planner publishes it; used instead of eq. 12-15.
+    pub planned_heading_rad: Option<f64>,
+}
+
+/// One timestamped measurement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Input {
+    /// Robot odometry pose.
+    Odometry(OdometrySample),
+    /// Wheel encoder ticks.
+    Encoders(EncoderSample),
+    /// Yaw rate.
+    Gyro(GyroSample),
+    /// MSU fix.
+    Fix(FixSample),
+    /// Obstacle ranges.
+    Range(RangeSample),
+}
+
+impl Input {
+    /// The time of the measurement, in seconds.
+    pub fn t_s(&self) -> f64 {
+        match self {
+            Input::Odometry(s) => s.t_s,
+            Input::Encoders(s) => s.t_s,
+            Input::Gyro(s) => s.t_s,
+            Input::Fix(s) => s.t_s,
+            Input::Range(s) => s.t_s,
+        }
+    }
+
+    /// Checks every field is finite and in its domain.
+    pub fn validate(&self) -> Result<(), EstimatorError> {
+        match self {
+            Input::Odometry(s) => {
+                finite("t_s", s.t_s)?;
+                finite("x_m", s.x_m)?;
+                finite("y_m", s.y_m)?;
+                finite("theta_rad", s.theta_rad)
+            }
+            Input::Encoders(s) => {
+                finite("t_s", s.t_s)?;
+                let g = &s.geometry;
+                positive("wheel_base_m", g.wheel_base_m)?;
+                positive("left_m_per_tick", g.left_m_per_tick)?;
+                positive("right_m_per_tick", g.right_m_per_tick)
+            }
+            Input::Gyro(s) => {
+                finite("t_s", s.t_s)?;
+                finite("rate_rad_s", s.rate_rad_s)
+            }
+            Input::Fix(s) => {
+                finite("t_s", s.t_s)?;
+                finite("x_m", s.x_m)?;
+                finite("y_m", s.y_m)?;
+                if !s.covariance.iter().all(|v| v.is_finite()) {
+                    return Err(EstimatorError::NonFinite {
+                        field: "covariance",
+                    });
+                }
+                if let Some(h) = s.heading_rad {
+                    finite("heading_rad", h)?;
+                }
+                Ok(())
+            }
+            Input::Range(s) => {
+                finite("t_s", s.t_s)?;
+                for (field, v) in [
+                    ("left_ultrasonic_m", s.left_ultrasonic_m),
+                    ("right_ultrasonic_m", s.right_ultrasonic_m),
+                    ("left_ir_m", s.left_ir_m),
+                    ("right_ir_m", s.right_ir_m),
+                ] {
+                    if let Some(d) = v {
+                        positive(field, d)?;
+                    }
+                }
+                if let Some(h) = s.planned_heading_rad {
+                    finite("planned_heading_rad", h)?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+fn finite(field: &'static str, v: f64) -> Result<(), EstimatorError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(EstimatorError::NonFinite { field })
+    }
+}
+
+fn positive(field: &'static str, v: f64) -> Result<(), EstimatorError> {
+    finite(field, v)?;
+    if v > 0.0 {
+        Ok(())
+    } else {
+        Err(EstimatorError::OutOfRange {
+            field,
+            reason: "must be positive",
+        })
+    }
+}

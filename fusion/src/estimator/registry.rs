@@ -1,0 +1,167 @@
+//! Estimators by name, with their parameters as serde structs whose
+//! `Default` holds the seeds' values.
+//!
+//! A configuration is tagged by the estimator name, e.g. in TOML:
+//! ```toml
+//! name = "ickon-akf"
+//! [position]
+//! c_pos = 0.025
+//! ```
+//! Missing fields take their defaults; unknown fields are errors.
+
+use super::cda::{Cda, CdaParams};
+use super::cda_msu::{CdaMsu, CdaMsuParams};
+use super::gyro_ckf::{GyroCkf, GyroCkfParams};
+use super::ickon_akf::{IckonAkf, IckonAkfParams};
+use super::msu_raw::{MsuRaw, MsuRawParams};
+use super::odometry::{Odometry, OdometryParams};
+use super::replay::Replay;
+use super::{Estimator, InvalidParameter};
+
+pub use super::gyro_ckf::two_sensor_heading;
+
+/// The estimator names, in the order the evaluator lists them.
+const NAMES: [&str; 6] = [
+    "odometry",
+    "msu-raw",
+    "ickon-akf",
+    "gyro-ckf",
+    "cda",
+    "cda-msu",
+];
+
+/// Default seconds of input history kept for late inputs.
+pub(crate) fn default_history_s() -> f64 {
+    2.0
+}
+
+/// Every estimator name [`build_by_name`] accepts.
+pub fn names() -> &'static [&'static str] {
+    &NAMES
+}
+
+/// The name is not one of [`names`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown estimator `{name}` (known: odometry, msu-raw, ickon-akf, gyro-ckf, cda, cda-msu)")]
+pub struct UnknownEstimator {
+    /// The name asked for.
+    pub name: String,
+}
+
+/// An estimator with its parameters, tagged by name.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "name")]
+pub enum EstimatorConfig {
+    /// `odometry`.
+    #[serde(rename = "odometry")]
+    Odometry(OdometryParams),
+    /// `msu-raw`.
+    #[serde(rename = "msu-raw")]
+    MsuRaw(MsuRawParams),
+    /// `ickon-akf`.
+    #[serde(rename = "ickon-akf")]
+    IckonAkf(IckonAkfParams),
+    /// `gyro-ckf`.
+    #[serde(rename = "gyro-ckf")]
+    GyroCkf(GyroCkfParams),
+    /// `cda`.
+    #[serde(rename = "cda")]
+    Cda(CdaParams),
+    /// `cda-msu`.
+    #[serde(rename = "cda-msu")]
+    CdaMsu(CdaMsuParams),
+}
+
+impl EstimatorConfig {
+    /// The default configuration of the estimator called `name`.
+    pub fn default_for(name: &str) -> Result<Self, UnknownEstimator> {
+        Ok(match name {
+            "odometry" => Self::Odometry(OdometryParams::default()),
+            "msu-raw" => Self::MsuRaw(MsuRawParams::default()),
+            "ickon-akf" => Self::IckonAkf(IckonAkfParams::default()),
+            "gyro-ckf" => Self::GyroCkf(GyroCkfParams::default()),
+            "cda" => Self::Cda(CdaParams::default()),
+            "cda-msu" => Self::CdaMsu(CdaMsuParams::default()),
+            _ => {
+                return Err(UnknownEstimator {
+                    name: name.to_owned(),
+                });
+            }
+        })
+    }
+
+    /// The estimator's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Odometry(_) => "odometry",
+            Self::MsuRaw(_) => "msu-raw",
+            Self::IckonAkf(_) => "ickon-akf",
+            Self::GyroCkf(_) => "gyro-ckf",
+            Self::Cda(_) => "cda",
+            Self::CdaMsu(_) => "cda-msu",
+        }
+    }
+}
+
+/// Builds the estimator described by `config`, once its parameters are
+/// checked ([`EstimatorConfig::validate`]).
+pub fn build(config: &EstimatorConfig) -> Result<Box<dyn Estimator>, InvalidParameter> {
+    config.validate()?;
+    Ok(build_valid(config))
+}
+
+fn build_valid(config: &EstimatorConfig) -> Box<dyn Estimator> {
+    match config {
+        EstimatorConfig::Odometry(p) => Box::new(Replay::new(Odometry::new(p), p.history_s)),
+        EstimatorConfig::MsuRaw(p) => Box::new(Replay::new(MsuRaw::new(p), p.history_s)),
+        EstimatorConfig::IckonAkf(p) => Box::new(Replay::new(IckonAkf::new(p), p.history_s)),
+        EstimatorConfig::GyroCkf(p) => Box::new(Replay::new(GyroCkf::new(p), p.history_s)),
+        EstimatorConfig::Cda(p) => Box::new(Replay::new(Cda::new(p), p.history_s)),
+        EstimatorConfig::CdaMsu(p) => Box::new(Replay::new(CdaMsu::new(p), p.history_s)),
+    }
+}
+
+/// Builds the estimator called `name` with its default parameters.
+pub fn build_by_name(name: &str) -> Result<Box<dyn Estimator>, UnknownEstimator> {
+    // The seed defaults are valid (tested in `config_check`).
+    Ok(build_valid(&EstimatorConfig::default_for(name)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_name_builds_an_estimator_of_that_name() {
+        for name in names() {
+            let e = build_by_name(name).unwrap();
+            assert_eq!(e.name(), *name);
+            assert_eq!(EstimatorConfig::default_for(name).unwrap().name(), *name);
+        }
+    }
+
+    #[test]
+    fn config_is_tagged_by_name_and_missing_fields_take_the_seed_defaults() {
+        use serde::Deserialize;
+        use serde::de::IntoDeserializer;
+        use serde::de::value::Error;
+        use std::collections::BTreeMap;
+
+        for name in names() {
+            let map: BTreeMap<&str, &str> = [("name", *name)].into();
+            let config = EstimatorConfig::deserialize(map.into_deserializer())
+                .map_err(|e: Error| e.to_string())
+                .unwrap();
+            assert_eq!(config, EstimatorConfig::default_for(name).unwrap());
+        }
+        let map: BTreeMap<&str, &str> = [("name", "ickon-akf"), ("c_poz", "1")].into();
+        let typo = EstimatorConfig::deserialize(map.into_deserializer());
+        assert!(typo.map_err(|e: Error| e.to_string()).is_err());
+    }
+
+    #[test]
+    fn unknown_name_is_a_typed_error() {
+        let err = build_by_name("kalman").err().unwrap();
+        assert_eq!(err.name, "kalman");
+    }
+}

@@ -1,0 +1,8 @@
+//! Behaviour tests across all estimators: a small deterministic robot
+//! simulation, hand-computed filter steps, late and bad inputs, and random
+//! input sequences.
+
+mod filters;
+mod props;
+mod runs;
+mod sim;

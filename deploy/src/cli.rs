@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{replay, site_cmd};
+use crate::{eval, replay, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -27,7 +27,7 @@ pub enum Command {
     /// Run the multi-robot simulation as separate processes over a loopback Zenoh mesh.
     Sim,
     /// Evaluate estimators on the simulated world in virtual time (seed 000 tables).
-    Eval,
+    Eval(eval::EvalArgs),
     /// Query and control a running site through the central unit.
     Admin,
     /// Work with site files.
@@ -61,7 +61,8 @@ pub fn run(cli: Cli) -> ExitCode {
             action: SiteAction::Check { file },
         } => site_cmd::check(file.as_deref()),
         Command::Replay { source } => replay::run(source),
-        Command::Sim | Command::Eval | Command::Admin => {
+        Command::Eval(args) => eval::run(args),
+        Command::Sim | Command::Admin => {
             eprintln!("error: this subcommand is not available in this build yet");
             ExitCode::from(EXIT_FAILURE)
         }

@@ -32,6 +32,12 @@ pub struct MsuConfig {
     pub timing_sigma_s: f64,
     /// Largest range residual a used signal may keep, metres (reflection gate).
     pub residual_gate_m: f64,
+    /// Floor area a fix must lie in (`[min_x, min_y]`, `[max_x, max_y]`, metres):
+    /// a solution outside cannot be the robot (a reflection or a wrong root).
+    pub floor_bounds_m: Option<[[f64; 2]; 2]>,
+    /// Largest acceptable one-sigma position uncertainty of a fix, metres
+    /// (larger: degenerate geometry, reported as no fix).
+    pub max_fix_sigma_m: f64,
 }
 
 /// Why a message could not be used.
@@ -95,6 +101,14 @@ impl MsuCore {
         ) else {
             return Ok(None);
         };
+        let inside = self.config.floor_bounds_m.is_none_or(|[lo, hi]| {
+            (lo[0]..=hi[0]).contains(&sol.xy_m[0]) && (lo[1]..=hi[1]).contains(&sol.xy_m[1])
+        });
+        let sigma_m = (sol.cov_xy[0][0] + sol.cov_xy[1][1]).max(0.0).sqrt();
+        let sharp = sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m;
+        if !inside || !sharp {
+            return Ok(None);
+        }
         self.last_fix_xy = Some(sol.xy_m);
         let used: Vec<u32> = sol.used.iter().map(|&i| cycle.signals[i].tx_id).collect();
         let mut rejected = cycle.rejected.clone();

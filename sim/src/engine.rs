@@ -206,6 +206,11 @@ pub fn msu_config(site: &Site, profile: &NoiseProfile, wheels: WheelGeometry) ->
         wheels,
         timing_sigma_s,
         residual_gate_m: (4.0 * timing_sigma_s * site.speed_of_sound_m_s).max(0.05),
+        floor_bounds_m: {
+            let (lo, hi) = site.bounds();
+            Some([lo, hi])
+        },
+        max_fix_sigma_m: 0.5,
     }
 }
 

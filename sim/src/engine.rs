@@ -153,9 +153,15 @@ impl Queue {
 }
 
 /// The estimator configuration used for `name` on a robot starting at `start`:
-/// registry defaults, the known start pose, and the seed-003 curvature
-/// thresholds rescaled from their 10 Hz steps to [`ENCODER_HZ`].
-pub fn estimator_config(name: &str, start: [f64; 3]) -> Result<EstimatorConfig, RunError> {
+/// registry defaults, the known start pose, the gyro noise of the profile's
+/// data sheet for `gyro-ckf` (as a user configures a filter to the sensor
+/// on the robot; small floors keep `ideal` valid), and the seed-003
+/// curvature thresholds rescaled from their 10 Hz steps to [`ENCODER_HZ`].
+pub fn estimator_config(
+    name: &str,
+    start: [f64; 3],
+    profile: &NoiseProfile,
+) -> Result<EstimatorConfig, RunError> {
     let pose = InitialPose {
         x_m: start[0],
         y_m: start[1],
@@ -168,7 +174,13 @@ pub fn estimator_config(name: &str, start: [f64; 3]) -> Result<EstimatorConfig, 
         EstimatorConfig::Odometry(p) => p.initial_pose = pose,
         EstimatorConfig::MsuRaw(_) => {}
         EstimatorConfig::IckonAkf(p) => p.initial_pose = Some(pose),
-        EstimatorConfig::GyroCkf(p) => p.initial_pose = Some(pose),
+        EstimatorConfig::GyroCkf(p) => {
+            let g = &profile.gyro;
+            p.initial_pose = Some(pose);
+            p.gyro_noise_deg_sqrt_s = (g.white_sigma_deg_s / g.rate_hz.max(1.0).sqrt()).max(0.002);
+            p.bias_walk_deg_s_sqrt_s = g.bias_walk_deg_s_sqrt_s.max(0.001);
+            p.initial_bias_sigma_deg_s = g.bias_sigma_deg_s.max(0.05);
+        }
         EstimatorConfig::Cda(p) => {
             p.initial_pose = pose;
             p.mu_start_deg *= per_step;
@@ -248,7 +260,7 @@ pub fn run(
     let msu = msu_config(site, &config.profile, wheels);
     let mut cores = Vec::new();
     for name in &config.estimators {
-        let est = estimator::build(&estimator_config(name, start)?)?;
+        let est = estimator::build(&estimator_config(name, start, &config.profile)?)?;
         let mut core = MsuCore::new(msu.clone(), est);
         core.set_schedule(schedule.clone());
         cores.push(core);

@@ -197,9 +197,9 @@ impl NoiseProfile {
             name: "paper".into(),
             ultrasound: UltrasoundNoise {
                 motion_during_cycle: true,
-                timing_jitter_us: 40.0,
+                timing_jitter_us: 50.0,
                 quantisation_us: 1.0,
-                bearing_sigma_deg: 8.0,
+                bearing_sigma_deg: 15.0,
                 drop_probability: 0.05,
                 blocked_reflection_probability: 0.3,
                 los_reflection_probability: 0.03,

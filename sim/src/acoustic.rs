@@ -170,4 +170,45 @@ mod tests {
         let tau = flight_time_s(tx, 0.0, 343.0, &at);
         assert!((343.0 * tau - distance(tx, at(tau))).abs() < 1e-9);
     }
+
+    #[test]
+    fn arrival_jitter_matches_the_profile_sigma() {
+        let site = Site::default_site();
+        let mut noise = NoiseProfile::ideal().ultrasound;
+        noise.timing_jitter_us = 50.0;
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let c = site.speed_of_sound_m_s;
+        let tx = site.transmitter(22).unwrap();
+        let p = [14.0, 1.2, site.msu.height_m];
+        let exact = distance(tx.position_m, p) / c;
+        let errs: Vec<f64> = (0..5000)
+            .map(|_| {
+                hear(&site, &noise, c, tx, 0.0, &|_t| (p, 0.0), &mut rng)
+                    .unwrap()
+                    .t_true_s
+                    - exact
+            })
+            .collect();
+        let n = errs.len() as f64;
+        let mean = errs.iter().sum::<f64>() / n;
+        let sd = (errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n).sqrt();
+        assert!(mean.abs() < 4.0 * 50e-6 / n.sqrt());
+        assert!((sd / 50e-6 - 1.0).abs() < 0.05, "sd {sd}");
+    }
+
+    #[test]
+    fn drop_rate_matches_the_profile_probability() {
+        let site = Site::default_site();
+        let mut noise = NoiseProfile::ideal().ultrasound;
+        noise.drop_probability = 0.2;
+        let mut rng = ChaCha8Rng::seed_from_u64(10);
+        let c = site.speed_of_sound_m_s;
+        let tx = site.transmitter(22).unwrap();
+        let p = [14.0, 1.2, site.msu.height_m];
+        let lost = (0..10_000)
+            .filter(|_| hear(&site, &noise, c, tx, 0.0, &|_t| (p, 0.0), &mut rng).is_none())
+            .count();
+        // 0.2 +- 4 sigma of a binomial share over 10 000 draws.
+        assert!((lost as f64 / 10_000.0 - 0.2).abs() < 0.016, "{lost} lost");
+    }
 }

@@ -237,4 +237,41 @@ mod tests {
             assert!(t < 1.6 * expected, "{}: {t} s for a tour", route.name);
         }
     }
+
+    #[test]
+    fn wheel_slip_spreads_the_travelled_distance_by_the_profile_sigma() {
+        let site = Site::default_site();
+        let route = site.route("route-1").unwrap();
+        let mut errors = crate::profile::NoiseProfile::ideal().encoders;
+        errors.slip_sigma = 0.02;
+        let mut r = Robot::new(
+            DriveSpec::default(),
+            errors,
+            route,
+            ChaCha8Rng::seed_from_u64(4),
+        );
+        let spec = DriveSpec::default();
+        let mut ratios = Vec::new();
+        for _ in 0..3000 {
+            let before = r.state;
+            r.step(0.01, true);
+            let wheels = 0.5
+                * ((r.state.left_wheel_rad - before.left_wheel_rad)
+                    + (r.state.right_wheel_rad - before.right_wheel_rad))
+                * spec.wheel_radius_m;
+            let moved = (r.state.x_m - before.x_m).hypot(r.state.y_m - before.y_m);
+            // slip_per_rad_s is 0 here, so turning steps count too.
+            if wheels > 1e-3 {
+                ratios.push(moved / wheels - 1.0);
+            }
+        }
+        assert!(ratios.len() > 1000, "{} straight steps", ratios.len());
+        let n = ratios.len() as f64;
+        let mean = ratios.iter().sum::<f64>() / n;
+        let sd = (ratios.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        // The mean of two independent slips: sigma / sqrt(2).
+        let want = 0.02 / 2f64.sqrt();
+        assert!(mean.abs() < 4.0 * want / n.sqrt(), "mean {mean}");
+        assert!((sd / want - 1.0).abs() < 0.1, "sd {sd} want {want}");
+    }
 }

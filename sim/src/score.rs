@@ -50,6 +50,14 @@ pub struct Score {
     /// RMSE of the raw fixes, mm (`msu-raw` only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fix_rmse_mm: Option<f64>,
+    /// Standard deviation of the receiver-id heading of each fix against the
+    /// truth at the fix's own time, degrees (`msu-raw` only): the "absolute
+    /// heading alone" of seed 002 Table 1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_heading_std_deg: Option<f64>,
+    /// Largest absolute receiver-id heading error of a fix, degrees (`msu-raw` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_heading_max_deg: Option<f64>,
     /// Mean error over the mean CRLB of the raw fixes (`msu-raw` and fix-fed estimators).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crlb_ratio: Option<f64>,
@@ -110,9 +118,19 @@ fn fix_errors(fixes: &[FixRecord]) -> Vec<f64> {
         .collect()
 }
 
+fn fix_heading_errors(fixes: &[FixRecord]) -> Vec<f64> {
+    fixes
+        .iter()
+        .filter(|f| f.fix.heading_valid)
+        .map(|f| ickon_fusion::angle::diff(f.fix.heading_rad, f.truth.theta_rad))
+        .collect()
+}
+
 /// Scores every estimator of a run.
 pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Score> {
     let fix_err = fix_errors(&out.fixes);
+    let fix_head = fix_heading_errors(&out.fixes);
+    let fix_head_row = (!fix_head.is_empty()).then(|| row(None, &[], &fix_head));
     let crlbs: Vec<f64> = out
         .fixes
         .iter()
@@ -178,6 +196,8 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                 } else {
                     None
                 },
+                fix_heading_std_deg: fix_head_row.filter(|_| raw).map(|r| r.heading_std_deg),
+                fix_heading_max_deg: fix_head_row.filter(|_| raw).map(|r| r.heading_max_deg),
                 crlb_ratio: if uses_fixes {
                     mean_crlb.map(|c| mean.mean_mm * 1e-3 / c.max(1e-12))
                 } else {

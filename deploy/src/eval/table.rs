@@ -40,6 +40,9 @@ pub fn print(scores: &[&Score], profile: &str, seed: u64, wall: Duration) {
         if let Some(v) = s.fix_rmse_mm {
             extra.push(format!("fix_rmse_mm {v:.2}"));
         }
+        if let (Some(sd), Some(mx)) = (s.fix_heading_std_deg, s.fix_heading_max_deg) {
+            extra.push(format!("fix heading std {sd:.2} deg, max {mx:.1} deg"));
+        }
         if let (Some(r), Some(c)) = (s.crlb_ratio, s.crlb_mm) {
             extra.push(format!("mean/CRLB {r:.2} (CRLB {c:.1} mm)"));
         }

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{replay, sim, site_cmd};
+use crate::{eval, replay, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -27,7 +27,7 @@ pub enum Command {
     /// Run the multi-robot simulation as separate processes over a loopback Zenoh mesh.
     Sim(sim::SimArgs),
     /// Evaluate estimators on the simulated world in virtual time (seed 000 tables).
-    Eval,
+    Eval(eval::EvalArgs),
     /// Query and control a running site through the central unit.
     Admin,
     /// Work with site files.
@@ -62,7 +62,8 @@ pub fn run(cli: Cli) -> ExitCode {
         } => site_cmd::check(file.as_deref()),
         Command::Replay { source } => replay::run(source),
         Command::Sim(args) => sim::run(args),
-        Command::Eval | Command::Admin => {
+        Command::Eval(args) => eval::run(args),
+        Command::Admin => {
             eprintln!("error: this subcommand is not available in this build yet");
             ExitCode::from(EXIT_FAILURE)
         }

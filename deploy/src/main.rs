@@ -4,6 +4,7 @@
 //! module of the subcommand, and turn its result into an exit code.
 
 mod cli;
+mod eval;
 mod replay;
 mod sim;
 mod site_cmd;

@@ -1,1 +1,16 @@
-//! Placeholder until its issue lands.
+//! # ickon-msu
+//!
+//! The mobile sensory unit's software as a sans-IO core: the arrivals of one
+//! cycle are assembled against the schedule ([`assembly`]), solved into a fix
+//! (TDOA, seed 000 eq. 1-3, with the heading from the first receiver, eq.
+//! 4-6), and fed with the robot's odometry, gyro and obstacle ranges into one
+//! estimator ([`core::MsuCore`]). Nothing here reads a clock or touches the
+//! network: the Zenoh adapter (feature `zenoh`) and the virtual-time engine
+//! of `ickon-sim` drive the same core.
+
+pub mod assembly;
+pub mod core;
+mod solve;
+
+pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
+pub use core::{MsuConfig, MsuCore, MsuError};

@@ -1,1 +1,31 @@
-//! Placeholder until its issue lands.
+//! # ickon-sim
+//!
+//! The simulated world that stands in for hardware, and the virtual-time
+//! engine that runs the node cores against it (DESIGN sections 7-8).
+//!
+//! - [`profile`]: named noise profiles (`ideal`, `paper`, `harsh`).
+//! - [`robot`]: a differential drive following a route by pure pursuit.
+//! - [`acoustic`]: sound flight, line of sight, reflections, receiver choice.
+//! - [`sensors`]: gyro, encoders, obstacle rangers.
+//! - [`clock`]: device clocks with offset and drift.
+//! - [`world`]: one robot's world, producing the messages its MSU receives.
+//! - [`engine`]: the discrete-event loop, one MSU core per estimator.
+//! - [`score`]: the seeds' metrics.
+//!
+//! Every random draw comes from a `ChaCha8Rng` stream derived from the run
+//! seed and a label ([`rng::stream`]): the same seed gives the same numbers.
+
+pub mod acoustic;
+pub mod clock;
+pub mod engine;
+pub mod profile;
+pub mod rng;
+pub mod robot;
+pub mod schedule;
+pub mod score;
+pub mod sensors;
+pub mod world;
+
+pub use engine::{RunConfig, RunError, RunOutput, run};
+pub use profile::{NoiseProfile, UnknownProfile};
+pub use score::{Row, Score, score};

@@ -1,0 +1,198 @@
+//! `ickon eval`: estimators on the simulated world in virtual time, scored
+//! as in the seeds (DESIGN section 8).
+//!
+//! Each route runs once per seed on its own thread; every estimator is
+//! hosted by its own MSU core on the same world, so all estimators see the
+//! same measurements. Tables go to stdout (or one JSON document with
+//! `--json`), the progress bar to stderr.
+
+mod plot;
+mod table;
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use ickon_fusion::estimator;
+use ickon_proto::site::Site;
+use ickon_sim::{NoiseProfile, RunConfig, RunOutput, Score};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
+
+/// Arguments of `ickon eval`.
+#[derive(Debug, Clone, Args)]
+pub struct EvalArgs {
+    /// The site file (TOML); the built-in default site when omitted.
+    #[arg(long)]
+    pub site: Option<PathBuf>,
+    /// Estimator name, or `all`.
+    #[arg(long, default_value = "all")]
+    pub estimator: String,
+    /// Route name, or `all`.
+    #[arg(long, default_value = "all")]
+    pub route: String,
+    /// Tours per route.
+    #[arg(long, default_value_t = 10)]
+    pub tours: u32,
+    /// Noise profile: ideal, paper or harsh.
+    #[arg(long, default_value = "paper")]
+    pub profile: String,
+    /// Run seed: the same seed gives the same numbers.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON document on stdout instead of the tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write PNG plots into this directory.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Runs `ickon eval` and returns the exit code.
+pub fn run(args: EvalArgs) -> ExitCode {
+    let (site, _, site_name) = match Site::load_or_default(args.site.as_deref()) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let profile = match NoiseProfile::by_name(&args.profile) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let estimators: Vec<String> = match args.estimator.as_str() {
+        "all" => estimator::names().iter().map(|s| s.to_string()).collect(),
+        name if estimator::names().contains(&name) => vec![name.to_owned()],
+        name => {
+            eprintln!(
+                "error: unknown estimator `{name}` (known: all, {})",
+                estimator::names().join(", ")
+            );
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let routes: Vec<String> = match args.route.as_str() {
+        "all" => site.routes.iter().map(|r| r.name.clone()).collect(),
+        name if site.route(name).is_some() => vec![name.to_owned()],
+        name => {
+            let known: Vec<&str> = site.routes.iter().map(|r| r.name.as_str()).collect();
+            eprintln!(
+                "error: unknown route `{name}` (known: all, {})",
+                known.join(", ")
+            );
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    if args.tours == 0 {
+        eprintln!("error: --tours must be at least 1");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let started = Instant::now();
+    let outputs = match simulate(&site, &routes, &estimators, &profile, &args) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_FAILURE);
+        }
+    };
+    let scores: Vec<Vec<Score>> = outputs
+        .iter()
+        .map(|o| ickon_sim::score(o, site.speed_of_sound_m_s, site.msu.height_m))
+        .collect();
+    let flat: Vec<&Score> = reorder(&scores, &estimators);
+    if args.json {
+        let doc = serde_json::json!({
+            "site": site.name,
+            "site_file": site_name,
+            "profile": profile.name,
+            "seed": args.seed,
+            "tours": args.tours,
+            "results": flat,
+        });
+        println!("{doc}");
+    } else {
+        table::print(&flat, &profile.name, args.seed, started.elapsed());
+    }
+    if let Some(dir) = &args.plot {
+        if let Err(e) = plot::write_all(dir, &outputs, &scores, &flat) {
+            eprintln!("error: cannot write plots to {}: {e}", dir.display());
+            return ExitCode::from(EXIT_FAILURE);
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// Scores ordered by estimator, then route.
+fn reorder<'a>(scores: &'a [Vec<Score>], estimators: &[String]) -> Vec<&'a Score> {
+    let mut out = Vec::new();
+    for name in estimators {
+        for per_route in scores {
+            out.extend(per_route.iter().filter(|s| &s.estimator == name));
+        }
+    }
+    out
+}
+
+/// A bar that starts hidden: it is shown once the run has lasted a second.
+fn progress_bar(steps: u64) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(Some(steps), ProgressDrawTarget::hidden());
+    if let Ok(style) = ProgressStyle::with_template("{elapsed:>4} [{bar:40}] {percent:>3}% {msg}") {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    pb
+}
+
+fn simulate(
+    site: &Site,
+    routes: &[String],
+    estimators: &[String],
+    profile: &NoiseProfile,
+    args: &EvalArgs,
+) -> Result<Vec<RunOutput>, ickon_sim::RunError> {
+    const STEPS: u64 = 1000;
+    let pb = progress_bar(STEPS * routes.len() as u64);
+    // With --json and stderr not a terminal, nobody watches: stay hidden.
+    let may_show = !args.json || std::io::stderr().is_terminal();
+    let started = Instant::now();
+    let results: Vec<_> = std::thread::scope(|scope| {
+        let handles: Vec<_> = routes
+            .iter()
+            .map(|route| {
+                let pb = pb.clone();
+                let config = RunConfig {
+                    route: route.clone(),
+                    tours: args.tours,
+                    profile: profile.clone(),
+                    seed: args.seed,
+                    estimators: estimators.to_vec(),
+                };
+                scope.spawn(move || {
+                    let mut done = 0u64;
+                    ickon_sim::run(site, &config, &mut |f| {
+                        let now = (f * STEPS as f64) as u64;
+                        pb.inc(now.saturating_sub(done));
+                        done = done.max(now);
+                        // Only runs longer than a second get a bar.
+                        if may_show && pb.is_hidden() && started.elapsed() > Duration::from_secs(1)
+                        {
+                            pb.set_draw_target(ProgressDrawTarget::stderr());
+                        }
+                    })
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+            .collect()
+    });
+    pb.finish_and_clear();
+    results.into_iter().collect()
+}

@@ -1,0 +1,88 @@
+//! The text tables of `ickon eval` (seed 000 Tables 1-2, seed 002 Table 1).
+
+use std::time::Duration;
+
+use ickon_sim::{Row, Score};
+
+fn line(label: &str, r: &Row) -> String {
+    format!(
+        "{label:>5} {:8.1} {:8.1} {:6.1} {:6.1} {:7.1} {:8.1} {:8.2} {:8.2} {:8.2}",
+        r.mean_mm,
+        r.std_mm,
+        r.under_30,
+        r.under_60,
+        r.under_100,
+        r.rmse_mm,
+        r.heading_mean_deg,
+        r.heading_std_deg,
+        r.heading_max_deg
+    )
+}
+
+/// Prints one table per estimator and route, then the summary of the means.
+pub fn print(scores: &[&Score], profile: &str, seed: u64, wall: Duration) {
+    for s in scores {
+        println!(
+            "\n{} on {} (profile {profile}, seed {seed})",
+            s.estimator, s.route
+        );
+        println!(
+            " tour  mean_mm   std_mm  <30mm  <60mm  <100mm  rmse_mm head_avg head_std head_max"
+        );
+        for r in &s.tours {
+            println!("{}", line(&r.tour.unwrap_or(0).to_string(), r));
+        }
+        println!("{}", line("mean", &s.mean));
+        let mut extra = Vec::new();
+        if let Some(v) = s.fix_mean_mm {
+            extra.push(format!("fix_mean_mm {v:.2}"));
+        }
+        if let Some(v) = s.fix_rmse_mm {
+            extra.push(format!("fix_rmse_mm {v:.2}"));
+        }
+        if let (Some(sd), Some(mx)) = (s.fix_heading_std_deg, s.fix_heading_max_deg) {
+            extra.push(format!("fix heading std {sd:.2} deg, max {mx:.1} deg"));
+        }
+        if let (Some(r), Some(c)) = (s.crlb_ratio, s.crlb_mm) {
+            extra.push(format!("mean/CRLB {r:.2} (CRLB {c:.1} mm)"));
+        }
+        if !extra.is_empty() {
+            println!("      {}", extra.join(", "));
+        }
+    }
+    println!("\nsummary: mean error mm (share under 100 mm %) [heading std deg]");
+    let mut routes: Vec<&str> = Vec::new();
+    for s in scores {
+        if !routes.contains(&s.route.as_str()) {
+            routes.push(&s.route);
+        }
+    }
+    print!("{:>10}", "");
+    for r in &routes {
+        print!(" {r:>22}");
+    }
+    println!();
+    let mut names: Vec<&str> = Vec::new();
+    for s in scores {
+        if !names.contains(&s.estimator.as_str()) {
+            names.push(&s.estimator);
+        }
+    }
+    for n in names {
+        print!("{n:>10}");
+        for r in &routes {
+            match scores.iter().find(|s| s.estimator == n && s.route == *r) {
+                Some(s) => print!(
+                    " {:>22}",
+                    format!(
+                        "{:.1} ({:.0}) [{:.2}]",
+                        s.mean.mean_mm, s.mean.under_100, s.mean.heading_std_deg
+                    )
+                ),
+                None => print!(" {:>22}", "-"),
+            }
+        }
+        println!();
+    }
+    println!("\nwall time {:.1} s", wall.as_secs_f64());
+}

@@ -1,0 +1,214 @@
+//! Scoring as in the seeds (DESIGN section 8): at each reference point, the
+//! Euclidean error between the estimate and the truth; per tour the mean,
+//! standard deviation and shares under 30/60/100 mm (seed 000 Tables 1-2),
+//! RMSE, and the heading error (seed 002 Table 1); raw fixes on their own.
+
+use serde::Serialize;
+
+use crate::engine::{FixRecord, RunOutput};
+
+/// One row of the table: a tour, or the mean row.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Row {
+    /// Tour number, from 1 (absent on the mean row).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tour: Option<u32>,
+    /// Mean position error, mm.
+    pub mean_mm: f64,
+    /// Standard deviation of the position error, mm.
+    pub std_mm: f64,
+    /// Share of reference points under 30 mm, percent.
+    pub under_30: f64,
+    /// Share under 60 mm, percent.
+    pub under_60: f64,
+    /// Share under 100 mm, percent.
+    pub under_100: f64,
+    /// Root mean square position error, mm.
+    pub rmse_mm: f64,
+    /// Mean absolute heading error, degrees.
+    pub heading_mean_deg: f64,
+    /// Standard deviation of the signed heading error, degrees.
+    pub heading_std_deg: f64,
+    /// Largest absolute heading error, degrees.
+    pub heading_max_deg: f64,
+}
+
+/// The score of one estimator on one route.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Score {
+    /// Estimator name.
+    pub estimator: String,
+    /// Route name.
+    pub route: String,
+    /// Per tour.
+    pub tours: Vec<Row>,
+    /// Mean row: the mean of the tour rows (as seed 000), RMSE and heading over all points.
+    pub mean: Row,
+    /// Raw fixes against the truth at their own time, mm (`msu-raw` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_mean_mm: Option<f64>,
+    /// RMSE of the raw fixes, mm (`msu-raw` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_rmse_mm: Option<f64>,
+    /// Standard deviation of the receiver-id heading of each fix against the
+    /// truth at the fix's own time, degrees (`msu-raw` only): the "absolute
+    /// heading alone" of seed 002 Table 1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_heading_std_deg: Option<f64>,
+    /// Largest absolute receiver-id heading error of a fix, degrees (`msu-raw` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_heading_max_deg: Option<f64>,
+    /// Mean error over the mean CRLB of the raw fixes (`msu-raw` and fix-fed estimators).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub crlb_ratio: Option<f64>,
+    /// Mean CRLB of the raw fixes, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub crlb_mm: Option<f64>,
+}
+
+fn row(tour: Option<u32>, pos_m: &[f64], head_rad: &[f64]) -> Row {
+    let n = pos_m.len().max(1) as f64;
+    let mean = pos_m.iter().sum::<f64>() / n;
+    let var = pos_m.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n;
+    let share = |lim: f64| 100.0 * pos_m.iter().filter(|e| **e < lim).count() as f64 / n;
+    let nh = head_rad.len().max(1) as f64;
+    let hmean = head_rad.iter().sum::<f64>() / nh;
+    Row {
+        tour,
+        mean_mm: 1e3 * mean,
+        std_mm: 1e3 * var.sqrt(),
+        under_30: share(0.03),
+        under_60: share(0.06),
+        under_100: share(0.1),
+        rmse_mm: 1e3 * (pos_m.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
+        heading_mean_deg: (head_rad.iter().map(|h| h.abs()).sum::<f64>() / nh).to_degrees(),
+        heading_std_deg: (head_rad.iter().map(|h| (h - hmean).powi(2)).sum::<f64>() / nh)
+            .sqrt()
+            .to_degrees(),
+        heading_max_deg: head_rad
+            .iter()
+            .fold(0.0f64, |m, h| m.max(h.abs()))
+            .to_degrees(),
+    }
+}
+
+/// A 2D position CRLB for range differences with noise `sigma_range_m`:
+/// `sqrt(trace)` of the position block of `(H^T H)^-1 sigma^2`, `H` rows
+/// `[u_x, u_y, 1]` (unit vector from transmitter to MSU, common offset).
+pub fn crlb_2d_m(tx_m: &[[f64; 3]], p_m: [f64; 3], sigma_range_m: f64) -> Option<f64> {
+    if tx_m.len() < 3 {
+        return None;
+    }
+    let mut f = nalgebra::Matrix3::<f64>::zeros();
+    for t in tx_m {
+        let d = [p_m[0] - t[0], p_m[1] - t[1], p_m[2] - t[2]];
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-9);
+        let h = nalgebra::Vector3::new(d[0] / r, d[1] / r, 1.0);
+        f += h * h.transpose();
+    }
+    let inv = f.try_inverse()?;
+    let v = (inv[(0, 0)] + inv[(1, 1)]) * sigma_range_m * sigma_range_m;
+    (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+}
+
+fn fix_errors(fixes: &[FixRecord]) -> Vec<f64> {
+    fixes
+        .iter()
+        .map(|f| (f.fix.x_m - f.truth.x_m).hypot(f.fix.y_m - f.truth.y_m))
+        .collect()
+}
+
+fn fix_heading_errors(fixes: &[FixRecord]) -> Vec<f64> {
+    fixes
+        .iter()
+        .filter(|f| f.fix.heading_valid)
+        .map(|f| ickon_fusion::angle::diff(f.fix.heading_rad, f.truth.theta_rad))
+        .collect()
+}
+
+/// Scores every estimator of a run.
+pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Score> {
+    let fix_err = fix_errors(&out.fixes);
+    let fix_head = fix_heading_errors(&out.fixes);
+    let fix_head_row = (!fix_head.is_empty()).then(|| row(None, &[], &fix_head));
+    let crlbs: Vec<f64> = out
+        .fixes
+        .iter()
+        .filter_map(|f| {
+            crlb_2d_m(
+                &f.used_tx_m,
+                [f.truth.x_m, f.truth.y_m, height_m],
+                out.timing_sigma_s * speed_of_sound_m_s,
+            )
+        })
+        .collect();
+    let mean_crlb = (!crlbs.is_empty()).then(|| crlbs.iter().sum::<f64>() / crlbs.len() as f64);
+    let fix_mean =
+        (!fix_err.is_empty()).then(|| fix_err.iter().sum::<f64>() / fix_err.len() as f64);
+    out.config
+        .estimators
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let mut all_pos = Vec::new();
+            let mut all_head = Vec::new();
+            let mut tours = Vec::new();
+            for tour in 1..=out.config.tours {
+                let mut pos = Vec::new();
+                let mut head = Vec::new();
+                for r in out.refs.iter().filter(|r| r.tour == tour) {
+                    // Before initialisation an estimator has no answer: count it as
+                    // far off as its first answer would be unknown, i.e. skip it.
+                    if let Some(e) = r.estimates[k] {
+                        pos.push((e[0] - r.truth.x_m).hypot(e[1] - r.truth.y_m));
+                        head.push(ickon_fusion::angle::diff(e[2], r.truth.theta_rad));
+                    }
+                }
+                tours.push(row(Some(tour), &pos, &head));
+                all_pos.extend(pos);
+                all_head.extend(head);
+            }
+            let nt = tours.len().max(1) as f64;
+            let avg = |f: fn(&Row) -> f64| tours.iter().map(f).sum::<f64>() / nt;
+            let overall = row(None, &all_pos, &all_head);
+            let mean = Row {
+                tour: None,
+                mean_mm: avg(|r| r.mean_mm),
+                std_mm: avg(|r| r.std_mm),
+                under_30: avg(|r| r.under_30),
+                under_60: avg(|r| r.under_60),
+                under_100: avg(|r| r.under_100),
+                ..overall
+            };
+            let raw = name == "msu-raw";
+            let uses_fixes = !matches!(name.as_str(), "odometry" | "cda");
+            Score {
+                estimator: name.clone(),
+                route: out.config.route.clone(),
+                tours,
+                mean,
+                fix_mean_mm: if raw { fix_mean.map(|v| v * 1e3) } else { None },
+                fix_rmse_mm: if raw && !fix_err.is_empty() {
+                    Some(
+                        1e3 * (fix_err.iter().map(|e| e * e).sum::<f64>() / fix_err.len() as f64)
+                            .sqrt(),
+                    )
+                } else {
+                    None
+                },
+                fix_heading_std_deg: fix_head_row.filter(|_| raw).map(|r| r.heading_std_deg),
+                fix_heading_max_deg: fix_head_row.filter(|_| raw).map(|r| r.heading_max_deg),
+                crlb_ratio: if uses_fixes {
+                    mean_crlb.map(|c| mean.mean_mm * 1e-3 / c.max(1e-12))
+                } else {
+                    None
+                },
+                crlb_mm: if uses_fixes {
+                    mean_crlb.map(|c| c * 1e3)
+                } else {
+                    None
+                },
+            }
+        })
+        .collect()
+}

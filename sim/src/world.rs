@@ -1,0 +1,304 @@
+//! The simulated world of one robot: its true motion and history, its
+//! sensors, its MSU clock, and the cells' emissions as it hears them.
+
+use std::collections::VecDeque;
+
+use ickon_proto::msg::control::Schedule;
+use ickon_proto::msg::robot::{Arrival, Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
+use ickon_proto::site::{Route, Site, speed_of_sound_at};
+use ickon_proto::time::Time;
+use rand_chacha::ChaCha8Rng;
+
+use crate::acoustic::{self, Heard};
+use crate::clock::DeviceClock;
+use crate::profile::NoiseProfile;
+use crate::rng;
+use crate::robot::{DriveSpec, Robot};
+use crate::sensors::{self, Gyro, RangerMount};
+
+/// A true pose at a true time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthSample {
+    /// True time, seconds.
+    pub t_s: f64,
+    /// Position, metres.
+    pub x_m: f64,
+    /// Position, metres.
+    pub y_m: f64,
+    /// Heading, radians, continuous.
+    pub theta_rad: f64,
+}
+
+/// One robot in the world.
+pub struct World {
+    site: Site,
+    profile: NoiseProfile,
+    /// The robot.
+    pub robot: Robot,
+    /// Drive geometry.
+    pub drive: DriveSpec,
+    history: VecDeque<TruthSample>,
+    gyro: Gyro,
+    last_gyro_theta: f64,
+    /// The MSU's (and robot computer's) clock.
+    pub msu_clock: DeviceClock,
+    cell_error_s: Vec<f64>,
+    acoustic_rng: ChaCha8Rng,
+    cells_rng: ChaCha8Rng,
+    ranger_rng: ChaCha8Rng,
+    c_true_m_s: f64,
+    odom: [f64; 3],
+    last_ticks: (i64, i64),
+    seq: u64,
+}
+
+impl World {
+    /// The world of one robot on `route`, its random streams derived from `seed`.
+    pub fn new(site: &Site, route: &Route, profile: &NoiseProfile, seed: u64) -> Self {
+        let drive = DriveSpec::default();
+        let robot = Robot::new(
+            drive,
+            profile.encoders,
+            route,
+            rng::stream(seed, "robot/slip"),
+        );
+        let mut clock_rng = rng::stream(seed, "robot/clock");
+        let msu_clock = DeviceClock {
+            offset_s: rng::normal(&mut clock_rng, profile.clocks.msu_offset_sigma_ms) * 1e-3,
+            drift: rng::normal(&mut clock_rng, profile.clocks.msu_drift_sigma_ppm) * 1e-6,
+        };
+        // The MSU assumes the site's speed of sound; the air is off by the profile's error.
+        let t_c = site.temperature_c.unwrap_or(20.0);
+        let c_true_m_s = site.speed_of_sound_m_s
+            * speed_of_sound_at(t_c + profile.ultrasound.temperature_error_c)
+            / speed_of_sound_at(t_c);
+        let s = robot.state;
+        let mut w = Self {
+            site: site.clone(),
+            profile: profile.clone(),
+            robot,
+            drive,
+            history: VecDeque::new(),
+            gyro: Gyro::new(profile.gyro, rng::stream(seed, "robot/gyro")),
+            last_gyro_theta: s.theta_rad,
+            msu_clock,
+            cell_error_s: vec![0.0; site.cells.len()],
+            acoustic_rng: rng::stream(seed, "robot/ultrasound"),
+            cells_rng: rng::stream(seed, "cells/sync"),
+            ranger_rng: rng::stream(seed, "robot/rangers"),
+            c_true_m_s,
+            odom: [s.x_m, s.y_m, s.theta_rad],
+            last_ticks: (0, 0),
+            seq: 0,
+        };
+        w.resync_cells();
+        w.record(0.0);
+        w
+    }
+
+    /// The current true pose.
+    pub fn truth(&self, t_s: f64) -> TruthSample {
+        let s = self.robot.state;
+        TruthSample {
+            t_s,
+            x_m: s.x_m,
+            y_m: s.y_m,
+            theta_rad: s.theta_rad,
+        }
+    }
+
+    fn record(&mut self, t_s: f64) {
+        let sample = self.truth(t_s);
+        self.history.push_back(sample);
+        while self.history.front().is_some_and(|f| f.t_s < t_s - 3.0) {
+            self.history.pop_front();
+        }
+    }
+
+    /// The true pose at `t_s`, interpolated in the last seconds of history.
+    pub fn truth_at(&self, t_s: f64) -> TruthSample {
+        let h = &self.history;
+        let i = h.partition_point(|s| s.t_s < t_s);
+        match (i.checked_sub(1).and_then(|j| h.get(j)), h.get(i)) {
+            (Some(a), Some(b)) if b.t_s > a.t_s => {
+                let f = (t_s - a.t_s) / (b.t_s - a.t_s);
+                TruthSample {
+                    t_s,
+                    x_m: a.x_m + f * (b.x_m - a.x_m),
+                    y_m: a.y_m + f * (b.y_m - a.y_m),
+                    theta_rad: a.theta_rad + f * (b.theta_rad - a.theta_rad),
+                }
+            }
+            (_, Some(b)) => TruthSample { t_s, ..*b },
+            (Some(a), None) => TruthSample { t_s, ..*a },
+            (None, None) => self.truth(t_s),
+        }
+    }
+
+    /// Advances the robot to `t_s` by `dt_s`.
+    pub fn step(&mut self, t_s: f64, dt_s: f64, drive: bool) {
+        self.robot.step(dt_s, drive);
+        self.record(t_s);
+    }
+
+    /// Draws new residual synchronisation errors for every cell.
+    pub fn resync_cells(&mut self) {
+        let sigma = self.profile.clocks.cell_sync_sigma_us;
+        for e in &mut self.cell_error_s {
+            *e = rng::normal(&mut self.cells_rng, sigma) * 1e-6;
+        }
+    }
+
+    /// A gyro reading at `t_s`: the mean true rate since the previous one, plus noise.
+    pub fn gyro(&mut self, t_s: f64, dt_s: f64) -> Imu {
+        let theta = self.robot.state.theta_rad;
+        let omega = (theta - self.last_gyro_theta) / dt_s;
+        self.last_gyro_theta = theta;
+        Imu {
+            stamp: self.msu_clock.stamp(t_s),
+            gyro_z_rad_s: self.gyro.sample(omega, dt_s),
+        }
+    }
+
+    /// The wheel encoders and the robot's own dead reckoning at `t_s`.
+    pub fn odometry(&mut self, t_s: f64) -> Odometry {
+        let s = self.robot.state;
+        let left = sensors::ticks(s.left_wheel_rad, self.drive.ticks_per_turn);
+        let right = sensors::ticks(s.right_wheel_rad, self.drive.ticks_per_turn);
+        let m = self.drive.m_per_tick();
+        let dl = (left - self.last_ticks.0) as f64 * m;
+        let dr = (right - self.last_ticks.1) as f64 * m;
+        self.last_ticks = (left, right);
+        let dth = (dr - dl) / self.drive.wheel_base_m;
+        let mid = self.odom[2] + 0.5 * dth;
+        self.odom[0] += 0.5 * (dl + dr) * mid.cos();
+        self.odom[1] += 0.5 * (dl + dr) * mid.sin();
+        self.odom[2] += dth;
+        Odometry {
+            stamp: self.msu_clock.stamp(t_s),
+            x_m: self.odom[0],
+            y_m: self.odom[1],
+            theta_rad: self.odom[2],
+            left_ticks: left,
+            right_ticks: right,
+        }
+    }
+
+    /// The obstacle sensors at `t_s`.
+    pub fn ranges(&mut self, t_s: f64) -> ObstacleRanges {
+        let s = self.robot.state;
+        let r = sensors::sample_ranges(
+            &self.site,
+            &RangerMount::default(),
+            &self.profile.obstacles,
+            [s.x_m, s.y_m, s.theta_rad],
+            &mut self.ranger_rng,
+        );
+        let ir = match (r.left_ir_m, r.right_ir_m) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        ObstacleRanges {
+            stamp: self.msu_clock.stamp(t_s),
+            left_m: r.left_ultrasonic_m.unwrap_or(0.0),
+            left_valid: r.left_ultrasonic_m.is_some(),
+            right_m: r.right_ultrasonic_m.unwrap_or(0.0),
+            right_valid: r.right_ultrasonic_m.is_some(),
+            ir_m: ir.unwrap_or(0.0),
+            ir_valid: ir.is_some(),
+            avoidance_angle_rad: 0.0,
+        }
+    }
+
+    /// Everything the MSU hears of the cycle that started at true master time
+    /// `start_s`; call once the last burst of the cycle has had time to arrive.
+    pub fn cycle_arrivals(&mut self, schedule: &Schedule, start_s: f64) -> UltrasoundArrivals {
+        let emissions: Vec<(usize, f64)> = schedule
+            .emissions
+            .iter()
+            .filter_map(|e| {
+                let tx = self
+                    .site
+                    .transmitters
+                    .iter()
+                    .position(|t| t.id == e.tx_id)?;
+                let cell = self.site.cells.iter().position(|c| c.id == e.cell_id)?;
+                Some((
+                    tx,
+                    start_s + e.offset.as_secs_f64() + self.cell_error_s[cell],
+                ))
+            })
+            .collect();
+        let heard = if self.profile.ultrasound.motion_during_cycle {
+            let mut rng = self.acoustic_rng.clone();
+            let heard = self.hear_all(&emissions, None, &mut rng);
+            self.acoustic_rng = rng;
+            heard
+        } else {
+            // Frozen robot: at the mean arrival time, found by fixed-point
+            // iteration (arrival times move by v/c per metre of motion).
+            let mut t_ref = start_s + 0.5 * schedule.cycle_period.as_secs_f64();
+            for _ in 0..4 {
+                let mut trial = self.acoustic_rng.clone();
+                let h = self.hear_all(&emissions, Some(t_ref), &mut trial);
+                if !h.is_empty() {
+                    t_ref = h.iter().map(|a| a.t_true_s).sum::<f64>() / h.len() as f64;
+                }
+            }
+            let mut rng = self.acoustic_rng.clone();
+            let heard = self.hear_all(&emissions, Some(t_ref), &mut rng);
+            self.acoustic_rng = rng;
+            heard
+        };
+        let q_s = self.profile.ultrasound.quantisation_us * 1e-6;
+        let mut arrivals: Vec<Arrival> = heard
+            .iter()
+            .map(|h| {
+                let mut local = self.msu_clock.local_s(h.t_true_s);
+                if q_s > 0.0 {
+                    local = (local / q_s).round() * q_s;
+                }
+                Arrival {
+                    tx_id: h.tx_id,
+                    receiver_id: h.receiver_id,
+                    t_arrival: Time::from_secs_f64(local),
+                }
+            })
+            .collect();
+        arrivals.sort_by_key(|a| a.t_arrival);
+        self.seq += 1;
+        UltrasoundArrivals {
+            seq: self.seq,
+            arrivals,
+        }
+    }
+
+    fn hear_all(
+        &self,
+        emissions: &[(usize, f64)],
+        frozen_at: Option<f64>,
+        rng: &mut ChaCha8Rng,
+    ) -> Vec<Heard> {
+        let h = self.site.msu.height_m;
+        let frozen = frozen_at.map(|t| self.truth_at(t));
+        let pose_at = |t: f64| {
+            let s = frozen.unwrap_or_else(|| self.truth_at(t));
+            ([s.x_m, s.y_m, h], s.theta_rad)
+        };
+        emissions
+            .iter()
+            .filter_map(|&(tx, t_emit)| {
+                let tx = &self.site.transmitters[tx];
+                acoustic::hear(
+                    &self.site,
+                    &self.profile.ultrasound,
+                    self.c_true_m_s,
+                    tx,
+                    t_emit,
+                    &pose_at,
+                    rng,
+                )
+            })
+            .collect()
+    }
+}

@@ -189,10 +189,18 @@ pub fn estimator_config(
 
 /// The MSU configuration for a site and profile.
 pub fn msu_config(site: &Site, profile: &NoiseProfile, wheels: WheelGeometry) -> MsuConfig {
+    MsuConfig::for_site(site, timing_sigma_s(profile), wheels)
+}
+
+/// The one-sigma timing noise of one arrival under `profile` (jitter and
+/// quantisation), as the MSU's data sheet would state it; at least 1 us.
+pub fn timing_sigma_s(profile: &NoiseProfile) -> f64 {
     let u = &profile.ultrasound;
     let q = u.quantisation_us;
-    let timing_sigma_s = (u.timing_jitter_us.powi(2) + q * q / 12.0).sqrt().max(1.0) * 1e-6;
-    MsuConfig::for_site(site, timing_sigma_s, wheels)
+    (u.timing_jitter_us * u.timing_jitter_us + q * q / 12.0)
+        .sqrt()
+        .max(1.0)
+        * 1e-6
 }
 
 /// Runs one robot on `config.route` for `config.tours` tours; `progress` is

@@ -19,6 +19,8 @@
 pub mod acoustic;
 pub mod clock;
 pub mod engine;
+#[cfg(feature = "zenoh")]
+pub mod node;
 pub mod profile;
 pub mod realtime;
 pub mod rng;

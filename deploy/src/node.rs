@@ -3,45 +3,22 @@
 //! needs no other binary; they run the same library code as the standalone
 //! binaries meant for deployment.
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Subcommand};
 use ickon_fusion::estimator::{EstimatorConfig, WheelGeometry};
+use ickon_runtime::NodeArgs;
 use ickon_sim::profile::NoiseProfile;
 
 use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
 
-/// Connection flags shared by every node (the same as Zenoh's own examples).
-#[derive(Debug, Clone, Args)]
-pub struct MeshArgs {
-    /// A Zenoh configuration file (JSON5); the flags below override it.
-    #[arg(short = 'c', long = "config")]
-    pub config: Option<PathBuf>,
-    /// Endpoints to connect to, e.g. `tcp/127.0.0.1:7447`.
-    #[arg(short = 'e', long = "connect")]
-    pub connect: Vec<String>,
-    /// Endpoints to listen on, e.g. `tcp/127.0.0.1:0`.
-    #[arg(short = 'l', long = "listen")]
-    pub listen: Vec<String>,
-    /// Turn multicast scouting off (isolated meshes, tests).
-    #[arg(long)]
-    pub no_multicast_scouting: bool,
-    /// Site name, the `<site>` of every key.
-    #[arg(long, default_value = "lab")]
-    pub site_name: String,
-    /// Site file (accepted for symmetry; the world and MSU agents take the
-    /// site from the central unit).
-    #[arg(long)]
-    pub site: Option<PathBuf>,
-    /// Stop when the parent process (the launcher) goes away.
-    #[arg(long)]
-    pub exit_with_parent: bool,
-}
-
 /// The roles a node can play.
 #[derive(Debug, Subcommand)]
 pub enum Role {
+    /// The central unit.
+    Central(ickon_central::node::CentralArgs),
+    /// One cell controller.
+    Cell(ickon_cell::node::CellArgs),
     /// The simulated world.
     World(WorldArgs),
     /// One robot's MSU agent.
@@ -53,7 +30,7 @@ pub enum Role {
 pub struct WorldArgs {
     /// Connection flags.
     #[command(flatten)]
-    pub mesh: MeshArgs,
+    pub mesh: NodeArgs,
     /// Robots to simulate, comma-separated ids.
     #[arg(long, value_delimiter = ',', required = true)]
     pub robots: Vec<String>,
@@ -70,7 +47,7 @@ pub struct WorldArgs {
 pub struct MsuArgs {
     /// Connection flags.
     #[command(flatten)]
-    pub mesh: MeshArgs,
+    pub mesh: NodeArgs,
     /// The robot this agent serves.
     #[arg(long)]
     pub robot: String,
@@ -91,57 +68,13 @@ pub struct MsuArgs {
     pub m_per_tick: Option<f64>,
 }
 
-fn zenoh_config(mesh: &MeshArgs) -> anyhow::Result<zenoh::Config> {
-    let mut config = match &mesh.config {
-        Some(path) => zenoh::Config::from_file(path)
-            .map_err(|e| anyhow::anyhow!("Zenoh config {}: {e}", path.display()))?,
-        None => zenoh::Config::default(),
-    };
-    let mut set = |k: &str, v: String| {
-        config
-            .insert_json5(k, &v)
-            .map_err(|e| anyhow::anyhow!("Zenoh config {k}: {e}"))
-    };
-    if !mesh.connect.is_empty() {
-        set("connect/endpoints", serde_json::to_string(&mesh.connect)?)?;
-    }
-    if !mesh.listen.is_empty() {
-        set("listen/endpoints", serde_json::to_string(&mesh.listen)?)?;
-    }
-    if mesh.no_multicast_scouting {
-        set("scouting/multicast/enabled", "false".into())?;
-    }
-    Ok(config)
-}
-
-/// Completes on Ctrl-C, SIGTERM, or (with `exit_with_parent`) when the parent goes away.
-async fn shutdown_signal(exit_with_parent: bool) {
-    let parent = std::os::unix::process::parent_id();
-    let orphaned = async move {
-        loop {
-            tokio::time::sleep(std::time::Duration::from_millis(250)).await;
-            if exit_with_parent && std::os::unix::process::parent_id() != parent {
-                return;
-            }
-        }
-    };
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        _ = term => {}
-        _ = orphaned => {}
-    }
-}
-
 /// Runs one node and returns the exit code.
 pub fn run(role: Role) -> ExitCode {
+    let role = match role {
+        Role::Central(args) => return ickon_central::node::main_with(args),
+        Role::Cell(args) => return ickon_cell::node::main_with(args),
+        other => other,
+    };
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -164,6 +97,7 @@ pub fn run(role: Role) -> ExitCode {
 
 async fn run_role(role: Role) -> anyhow::Result<ExitCode> {
     match role {
+        Role::Central(_) | Role::Cell(_) => unreachable!("handled in run"),
         Role::World(args) => {
             let profile = match NoiseProfile::by_name(&args.profile) {
                 Ok(p) => p,
@@ -172,21 +106,14 @@ async fn run_role(role: Role) -> anyhow::Result<ExitCode> {
                     return Ok(ExitCode::from(EXIT_BAD_INPUT));
                 }
             };
-            let session = zenoh::open(zenoh_config(&args.mesh)?)
-                .await
-                .map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
+            let session = args.mesh.open().await?;
             let settings = ickon_sim::node::WorldSettings {
                 site_name: args.mesh.site_name.clone(),
                 robots: args.robots,
                 profile,
                 seed: args.seed,
             };
-            let result = ickon_sim::node::run(
-                &session,
-                settings,
-                shutdown_signal(args.mesh.exit_with_parent),
-            )
-            .await;
+            let result = ickon_sim::node::run(&session, settings, args.mesh.shutdown()).await;
             let _ = session.close().await;
             result.map(|_| ExitCode::SUCCESS)
         }
@@ -209,9 +136,7 @@ async fn run_role(role: Role) -> anyhow::Result<ExitCode> {
             };
             let drive = ickon_sim::robot::DriveSpec::default();
             let m_per_tick = args.m_per_tick.unwrap_or_else(|| drive.m_per_tick());
-            let session = zenoh::open(zenoh_config(&args.mesh)?)
-                .await
-                .map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
+            let session = args.mesh.open().await?;
             let settings = ickon_msu::node::MsuSettings {
                 site_name: args.mesh.site_name.clone(),
                 robot: args.robot,
@@ -224,12 +149,7 @@ async fn run_role(role: Role) -> anyhow::Result<ExitCode> {
                     right_m_per_tick: m_per_tick,
                 },
             };
-            let result = ickon_msu::node::run(
-                &session,
-                settings,
-                shutdown_signal(args.mesh.exit_with_parent),
-            )
-            .await;
+            let result = ickon_msu::node::run(&session, settings, args.mesh.shutdown()).await;
             let _ = session.close().await;
             result.map(|_| ExitCode::SUCCESS)
         }

@@ -12,6 +12,7 @@ use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::{decode, encode};
+use ickon_runtime::{fetch, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
@@ -19,8 +20,6 @@ use crate::{MsuConfig, MsuCore};
 
 /// How often the site and schedule are asked for until the central unit answers.
 const FETCH_RETRY: Duration = Duration::from_millis(500);
-/// How long one query may take.
-const QUERY_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// What an MSU agent needs besides its session.
 #[derive(Debug, Clone)]
@@ -55,38 +54,6 @@ pub struct MsuCounters {
     pub refused_inputs: u64,
 }
 
-fn zerr(e: zenoh::Error) -> anyhow::Error {
-    anyhow::anyhow!("{e}")
-}
-
-/// Asks `key` until a decodable reply of type `T` arrives or `shutdown` fires.
-async fn fetch<T: serde::de::DeserializeOwned>(
-    session: &Session,
-    key: &str,
-    shutdown: &mut (impl Future<Output = ()> + Unpin),
-) -> anyhow::Result<Option<T>> {
-    loop {
-        let replies = session
-            .get(key)
-            .timeout(QUERY_TIMEOUT)
-            .await
-            .map_err(zerr)?;
-        while let Ok(reply) = replies.recv_async().await {
-            if let Ok(sample) = reply.result() {
-                match decode::<T>(&sample.payload().to_bytes()) {
-                    Ok(v) => return Ok(Some(v)),
-                    Err(e) => tracing::warn!("undecodable reply on {key}: {e}"),
-                }
-            }
-        }
-        tracing::info!("waiting for the central unit to answer {key}");
-        tokio::select! {
-            _ = &mut *shutdown => return Ok(None),
-            _ = tokio::time::sleep(FETCH_RETRY) => {}
-        }
-    }
-}
-
 /// Runs the agent until `shutdown` completes; returns its counters.
 pub async fn run(
     session: &Session,
@@ -102,7 +69,15 @@ pub async fn run(
         .await
         .map_err(zerr)?;
 
-    let Some(info) = fetch::<SiteInfo>(session, &keys.central_site(), &mut shutdown).await? else {
+    let Some(info) = fetch::<SiteInfo>(
+        session,
+        &keys.central_site(),
+        None,
+        FETCH_RETRY,
+        &mut shutdown,
+    )
+    .await?
+    else {
         return Ok(MsuCounters::default());
     };
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
@@ -128,8 +103,14 @@ pub async fn run(
         .declare_subscriber(keys.central_schedule())
         .await
         .map_err(zerr)?;
-    let Some(schedule) =
-        fetch::<Schedule>(session, &keys.central_schedule(), &mut shutdown).await?
+    let Some(schedule) = fetch::<Schedule>(
+        session,
+        &keys.central_schedule(),
+        None,
+        FETCH_RETRY,
+        &mut shutdown,
+    )
+    .await?
     else {
         return Ok(MsuCounters::default());
     };

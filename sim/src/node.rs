@@ -5,13 +5,14 @@
 //! times on it, and the robots' own clocks are simulated on top of it.
 
 use std::future::Future;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
+use ickon_runtime::{fetch, system_now, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Publisher;
 
@@ -36,45 +37,6 @@ pub struct WorldSettings {
     pub seed: u64,
 }
 
-fn zerr(e: zenoh::Error) -> anyhow::Error {
-    anyhow::anyhow!("{e}")
-}
-
-/// The system clock as a [`Time`] since the Unix epoch: the true time base of
-/// a real-time simulation.
-pub fn system_now() -> Time {
-    let ns = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos());
-    Time::from_nanos(i64::try_from(ns).unwrap_or(i64::MAX))
-}
-
-async fn fetch<T: serde::de::DeserializeOwned>(
-    session: &Session,
-    key: &str,
-    shutdown: &mut (impl Future<Output = ()> + Unpin),
-) -> anyhow::Result<Option<T>> {
-    loop {
-        let replies = session
-            .get(key)
-            .timeout(Duration::from_secs(2))
-            .await
-            .map_err(zerr)?;
-        while let Ok(reply) = replies.recv_async().await {
-            if let Ok(sample) = reply.result() {
-                match decode::<T>(&sample.payload().to_bytes()) {
-                    Ok(v) => return Ok(Some(v)),
-                    Err(e) => tracing::warn!("undecodable reply on {key}: {e}"),
-                }
-            }
-        }
-        tokio::select! {
-            _ = &mut *shutdown => return Ok(None),
-            _ = tokio::time::sleep(FETCH_RETRY) => {}
-        }
-    }
-}
-
 /// One robot's publishers.
 struct RobotPublishers {
     ultrasound: Publisher<'static>,
@@ -97,7 +59,15 @@ pub async fn run(
         .declare_token(keys.alive_world())
         .await
         .map_err(zerr)?;
-    let Some(info) = fetch::<SiteInfo>(session, &keys.central_site(), &mut shutdown).await? else {
+    let Some(info) = fetch::<SiteInfo>(
+        session,
+        &keys.central_site(),
+        None,
+        FETCH_RETRY,
+        &mut shutdown,
+    )
+    .await?
+    else {
         return Ok(0);
     };
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
@@ -110,8 +80,14 @@ pub async fn run(
         .declare_subscriber(keys.cell_burst_all())
         .await
         .map_err(zerr)?;
-    if let Some(schedule) =
-        fetch::<Schedule>(session, &keys.central_schedule(), &mut shutdown).await?
+    if let Some(schedule) = fetch::<Schedule>(
+        session,
+        &keys.central_schedule(),
+        None,
+        FETCH_RETRY,
+        &mut shutdown,
+    )
+    .await?
     {
         world.set_schedule(&schedule);
     }

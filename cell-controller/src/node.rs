@@ -1,0 +1,274 @@
+//! The cell controller as a Zenoh node: keeps its clock synchronised over
+//! `central/clock`, plans the bursts of every `central/cycle` trigger, fires
+//! them through a [`TransmitterDriver`], and reports bursts and status.
+//!
+//! The simulation driver stands in for the transmitter hardware, which fires
+//! on its own clock with microsecond precision once programmed: the burst
+//! report carries the true time at which the cell's clock reads the
+//! programmed local time. The process only has to get the report out before
+//! the sound could arrive, so the operating system's timer jitter does not
+//! enter the measurement; the synchronisation error does.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::future::Future;
+use std::process::ExitCode;
+use std::time::Duration as StdDuration;
+
+use clap::Args;
+use ickon_proto::keys::Keys;
+use ickon_proto::msg::control::{
+    Burst, CellStatus, ClockReply, ClockRequest, CycleTrigger, Schedule,
+};
+use ickon_proto::time::{Duration, Time};
+use ickon_proto::{decode, encode};
+use ickon_runtime::{NodeArgs, SimulatedClock, query_once, zerr};
+use zenoh::Session;
+use zenoh::qos::{CongestionControl, Priority};
+
+use crate::sync::{ClockSample, SyncConfig, SyncSlave};
+use crate::timer::{BurstTimer, PlannedBurst, TransmitterDriver};
+
+/// Arguments of `ickon-cell` (and `ickon node cell`).
+#[derive(Debug, Clone, Args)]
+pub struct CellArgs {
+    /// Connection and simulation flags.
+    #[command(flatten)]
+    pub node: NodeArgs,
+    /// The cell this controller drives.
+    #[arg(long)]
+    pub cell: String,
+}
+
+/// Clock exchanges at start-up come this often...
+const FAST_SYNC: StdDuration = StdDuration::from_millis(100);
+/// ...for this many exchanges, then every [`SLOW_SYNC`].
+const FAST_SYNC_COUNT: u32 = 15;
+/// Steady-state clock exchange period.
+const SLOW_SYNC: StdDuration = StdDuration::from_millis(500);
+/// Status reports this often.
+const STATUS_EVERY: StdDuration = StdDuration::from_secs(1);
+
+/// The simulation's transmitter driver: records each burst with its true
+/// emission time (see the module documentation).
+struct SimulatedDriver {
+    cell_id: String,
+    clock: SimulatedClock,
+    fired: Vec<Burst>,
+}
+
+impl TransmitterDriver for SimulatedDriver {
+    fn fire(&mut self, b: &PlannedBurst) {
+        self.fired.push(Burst {
+            cell_id: self.cell_id.clone(),
+            tx_id: b.tx_id,
+            cycle: b.cycle,
+            scheduled: b.master,
+            actual: self.clock.true_time(b.local),
+        });
+    }
+}
+
+/// Runs the cell controller as a process until Ctrl-C/SIGTERM.
+pub fn main_with(args: CellArgs) -> ExitCode {
+    if let Err(e) = ickon_proto::keys::validate_id(&args.cell) {
+        eprintln!("error: --cell: {e}");
+        return ExitCode::from(2);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(async {
+        let session = args.node.open().await?;
+        let r = run(&session, &args, args.node.shutdown()).await;
+        let _ = session.close().await;
+        r
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+async fn exchange(
+    session: &Session,
+    keys: &Keys,
+    cell: &str,
+    clock: &SimulatedClock,
+) -> anyhow::Result<Option<ClockSample>> {
+    let t1 = clock.now();
+    let request = encode(&ClockRequest {
+        cell_id: cell.to_string(),
+        t1,
+    })?;
+    let reply: Option<ClockReply> = query_once(
+        session,
+        &keys.central_clock(),
+        Some(request),
+        StdDuration::from_millis(500),
+    )
+    .await?;
+    let t4 = clock.now();
+    Ok(reply.filter(|r| r.t1 == t1).map(|r| ClockSample {
+        t1,
+        t2: r.t2,
+        t3: r.t3,
+        t4,
+    }))
+}
+
+/// Drives cell `args.cell` until `shutdown` completes.
+pub async fn run(
+    session: &Session,
+    args: &CellArgs,
+    shutdown: impl Future<Output = ()>,
+) -> anyhow::Result<()> {
+    let mut shutdown = Box::pin(shutdown);
+    let keys = Keys::new(&args.node.site_name)?;
+    let cell = args.cell.as_str();
+    let clock = args.node.clock();
+    let mut driver = SimulatedDriver {
+        cell_id: cell.to_string(),
+        clock,
+        fired: Vec::new(),
+    };
+    let mut sync = SyncSlave::new(SyncConfig::default());
+    let mut timer = BurstTimer::new(cell, Duration::from_millis(1));
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_cell(cell)?)
+        .await
+        .map_err(zerr)?;
+    let triggers = session
+        .declare_subscriber(keys.central_cycle())
+        .await
+        .map_err(zerr)?;
+    let schedules = session
+        .declare_subscriber(keys.central_schedule())
+        .await
+        .map_err(zerr)?;
+    let burst_pub = session
+        .declare_publisher(keys.cell_burst(cell)?)
+        .express(true)
+        .priority(Priority::RealTime)
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(zerr)?;
+    let status_pub = session
+        .declare_publisher(keys.cell_status(cell)?)
+        .await
+        .map_err(zerr)?;
+
+    let mut pending: BinaryHeap<Reverse<(Time, u32, u64, Time)>> = BinaryHeap::new();
+    let mut exchanges = 0u32;
+    let mut next_sync = tokio::time::Instant::now();
+    let mut status_tick = tokio::time::interval(STATUS_EVERY);
+    let (mut cycles_fired, mut last_cycle_fired, mut skipped) = (0u64, 0u64, 0u64);
+    let mut faults: Vec<String> = Vec::new();
+    tracing::info!(
+        "cell {cell}: up, clock offset {} us, drift {} ppm",
+        args.node.clock_offset_us,
+        args.node.clock_drift_ppm
+    );
+
+    loop {
+        let next_fire = pending
+            .peek()
+            .map(|Reverse((local, ..))| local.since(clock.now()).to_std());
+        tokio::select! {
+            _ = &mut shutdown => break,
+            _ = tokio::time::sleep(next_fire.unwrap_or(StdDuration::from_secs(3600))), if next_fire.is_some() => {
+                let now = clock.now();
+                let mut fired_cycles = Vec::new();
+                while let Some(Reverse((local, tx_id, cycle, master))) = pending.peek().copied() {
+                    if local > now {
+                        break;
+                    }
+                    pending.pop();
+                    driver.fire(&PlannedBurst { tx_id, cycle, master, local });
+                    fired_cycles.push(cycle);
+                }
+                for b in driver.fired.drain(..) {
+                    burst_pub.put(encode(&b)?).await.map_err(zerr)?;
+                }
+                for c in fired_cycles {
+                    if c != last_cycle_fired || cycles_fired == 0 {
+                        cycles_fired += 1;
+                        last_cycle_fired = c;
+                    }
+                }
+            }
+            _ = tokio::time::sleep_until(next_sync) => {
+                match exchange(session, &keys, cell, &clock).await {
+                    Ok(Some(sample)) => { sync.add(sample); }
+                    Ok(None) => tracing::debug!("cell {cell}: no clock reply"),
+                    Err(e) => tracing::debug!("cell {cell}: clock exchange failed: {e}"),
+                }
+                exchanges += 1;
+                next_sync = tokio::time::Instant::now() + if exchanges < FAST_SYNC_COUNT { FAST_SYNC } else { SLOW_SYNC };
+            }
+            Ok(s) = schedules.recv_async() => {
+                match decode::<Schedule>(&s.payload().to_bytes()) {
+                    Ok(schedule) => timer.add_schedule(schedule),
+                    Err(e) => tracing::warn!("cell {cell}: undecodable schedule: {e}"),
+                }
+            }
+            Ok(s) = triggers.recv_async() => {
+                let trigger = match decode::<CycleTrigger>(&s.payload().to_bytes()) {
+                    Ok(t) => t,
+                    Err(e) => { tracing::warn!("cell {cell}: undecodable trigger: {e}"); continue; }
+                };
+                if !timer.has_schedule(trigger.schedule_version) {
+                    // A cell that started late (or missed a put) asks for the schedule.
+                    if let Ok(Some(s)) = query_once::<Schedule>(session, &keys.central_schedule(), None, StdDuration::from_millis(200)).await {
+                        timer.add_schedule(s);
+                    }
+                }
+                match timer.plan(&trigger, sync.estimate().as_ref(), clock.now()) {
+                    Ok(plan) => {
+                        if plan.skipped > 0 {
+                            tracing::warn!("cell {cell}: cycle {}: {} slots skipped (trigger too late)", trigger.cycle, plan.skipped);
+                        }
+                        skipped += plan.skipped;
+                        for b in plan.bursts {
+                            pending.push(Reverse((b.local, b.tx_id, b.cycle, b.master)));
+                        }
+                        faults.clear();
+                    }
+                    Err(e) => {
+                        tracing::debug!("cell {cell}: cycle {} not fired: {e}", trigger.cycle);
+                        faults = vec![e.to_string()];
+                    }
+                }
+            }
+            _ = status_tick.tick() => {
+                let est = sync.estimate();
+                let status = CellStatus {
+                    cell_id: cell.to_string(),
+                    stamp: est.map_or(clock.now(), |e| e.to_master(clock.now())),
+                    offset_ns: est.map_or(0, |e| e.offset_ns.round() as i64),
+                    drift_ppb: est.map_or(0, |e| (e.drift * 1e9).round() as i64),
+                    offset_sigma_ns: est.map_or(0, |e| e.sigma_ns.round() as i64),
+                    sync_samples: u32::try_from(sync.len()).unwrap_or(u32::MAX),
+                    last_cycle_fired,
+                    cycles_fired,
+                    slots_skipped: skipped,
+                    faults: faults.clone(),
+                };
+                status_pub.put(encode(&status)?).await.map_err(zerr)?;
+            }
+        }
+    }
+    Ok(())
+}

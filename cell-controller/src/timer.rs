@@ -1,0 +1,209 @@
+//! The burst timer: which of this cell's transmitters fire when in a cycle,
+//! on the local clock, and which slots must be skipped because the trigger
+//! came too late. A slot is never fired late: a late burst would be heard as
+//! a wrong time difference by every robot.
+
+use std::collections::BTreeMap;
+
+use ickon_proto::msg::control::{CycleTrigger, Schedule};
+use ickon_proto::time::{Duration, Time};
+
+use crate::sync::SyncEstimate;
+
+/// One burst to fire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlannedBurst {
+    /// Transmitter.
+    pub tx_id: u32,
+    /// Cycle number.
+    pub cycle: u64,
+    /// When to fire, on the master time base.
+    pub master: Time,
+    /// When to fire, on the local clock.
+    pub local: Time,
+}
+
+/// The plan of one trigger.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Plan {
+    /// Bursts to fire, in time order.
+    pub bursts: Vec<PlannedBurst>,
+    /// Slots skipped because their time had passed (or nearly).
+    pub skipped: u64,
+}
+
+/// Why a trigger cannot be planned.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TimerError {
+    /// The trigger names a schedule version this cell does not have.
+    #[error("schedule version {0} is unknown to this cell")]
+    UnknownSchedule(u32),
+    /// The clock is not synchronised yet.
+    #[error("clock not synchronised yet")]
+    NotSynchronised,
+}
+
+/// Keeps the schedules a trigger may name and plans bursts.
+#[derive(Debug, Clone)]
+pub struct BurstTimer {
+    cell_id: String,
+    schedules: BTreeMap<u32, Schedule>,
+    /// A burst must be planned at least this long before it fires.
+    pub margin: Duration,
+}
+
+/// Schedules older than the newest by more than this many versions are dropped.
+const KEPT_VERSIONS: u32 = 8;
+
+impl BurstTimer {
+    /// A timer for `cell_id`.
+    pub fn new(cell_id: &str, margin: Duration) -> Self {
+        Self {
+            cell_id: cell_id.to_string(),
+            schedules: BTreeMap::new(),
+            margin,
+        }
+    }
+
+    /// Remembers a schedule.
+    pub fn add_schedule(&mut self, schedule: Schedule) {
+        let newest = schedule.version;
+        self.schedules.insert(schedule.version, schedule);
+        self.schedules
+            .retain(|v, _| *v + KEPT_VERSIONS > newest || *v == newest);
+    }
+
+    /// Whether a schedule version is known.
+    pub fn has_schedule(&self, version: u32) -> bool {
+        self.schedules.contains_key(&version)
+    }
+
+    /// The bursts this cell fires for `trigger`, given the local time now.
+    pub fn plan(
+        &self,
+        trigger: &CycleTrigger,
+        sync: Option<&SyncEstimate>,
+        local_now: Time,
+    ) -> Result<Plan, TimerError> {
+        let schedule = self
+            .schedules
+            .get(&trigger.schedule_version)
+            .ok_or(TimerError::UnknownSchedule(trigger.schedule_version))?;
+        let sync = sync.ok_or(TimerError::NotSynchronised)?;
+        let mut plan = Plan::default();
+        for e in schedule
+            .emissions
+            .iter()
+            .filter(|e| e.cell_id == self.cell_id)
+        {
+            let master = trigger.start + e.offset;
+            let local = sync.to_local(master);
+            if local < local_now + self.margin {
+                plan.skipped += 1;
+            } else {
+                plan.bursts.push(PlannedBurst {
+                    tx_id: e.tx_id,
+                    cycle: trigger.cycle,
+                    master,
+                    local,
+                });
+            }
+        }
+        plan.bursts.sort_by_key(|b| b.local);
+        Ok(plan)
+    }
+}
+
+/// What sits between the timer and the transmitters.
+pub trait TransmitterDriver {
+    /// Fires transmitter `tx_id` now (at local time `local`); `master` is when
+    /// it was scheduled on the master time base.
+    fn fire(&mut self, burst: &PlannedBurst);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ickon_proto::msg::control::Emission;
+
+    fn schedule() -> Schedule {
+        let e = |tx_id, cell: &str, ms| Emission {
+            tx_id,
+            cell_id: cell.into(),
+            offset: Duration::from_millis(ms),
+            slot: 0,
+        };
+        Schedule {
+            version: 4,
+            effective_cycle: 0,
+            cycle_period: Duration::from_millis(200),
+            slot_length: Duration::from_millis(25),
+            emissions: vec![e(11, "c1", 0), e(12, "c1", 25), e(21, "c2", 0)],
+            active_cells: vec!["c1".into(), "c2".into()],
+        }
+    }
+
+    fn sync(offset_ms: i64) -> SyncEstimate {
+        SyncEstimate {
+            reference: Time(0),
+            offset_ns: (offset_ms * 1_000_000) as f64,
+            drift: 0.0,
+            sigma_ns: 1_000.0,
+            samples: 8,
+        }
+    }
+
+    #[test]
+    fn bursts_are_planned_on_the_local_clock() {
+        let mut t = BurstTimer::new("c1", Duration::from_millis(1));
+        t.add_schedule(schedule());
+        let trigger = CycleTrigger {
+            cycle: 3,
+            start: Time::from_nanos(1_000_000_000),
+            schedule_version: 4,
+        };
+        // master = local + 40 ms.
+        let plan = t.plan(&trigger, Some(&sync(40)), Time(0)).unwrap();
+        assert_eq!(plan.skipped, 0);
+        let ids: Vec<u32> = plan.bursts.iter().map(|b| b.tx_id).collect();
+        assert_eq!(ids, vec![11, 12]);
+        assert_eq!(plan.bursts[0].local, Time::from_nanos(960_000_000));
+        assert_eq!(plan.bursts[1].master, Time::from_nanos(1_025_000_000));
+    }
+
+    #[test]
+    fn slots_whose_time_has_passed_are_skipped_not_fired_late() {
+        let mut t = BurstTimer::new("c1", Duration::from_millis(1));
+        t.add_schedule(schedule());
+        let trigger = CycleTrigger {
+            cycle: 3,
+            start: Time::from_nanos(1_000_000_000),
+            schedule_version: 4,
+        };
+        let plan = t
+            .plan(&trigger, Some(&sync(0)), Time::from_nanos(1_010_000_000))
+            .unwrap();
+        assert_eq!(plan.skipped, 1);
+        assert_eq!(plan.bursts.len(), 1);
+        assert_eq!(plan.bursts[0].tx_id, 12);
+    }
+
+    #[test]
+    fn unknown_schedule_and_no_sync_are_errors() {
+        let mut t = BurstTimer::new("c1", Duration::from_millis(1));
+        let trigger = CycleTrigger {
+            cycle: 0,
+            start: Time(0),
+            schedule_version: 4,
+        };
+        assert_eq!(
+            t.plan(&trigger, Some(&sync(0)), Time(0)),
+            Err(TimerError::UnknownSchedule(4))
+        );
+        t.add_schedule(schedule());
+        assert_eq!(
+            t.plan(&trigger, None, Time(0)),
+            Err(TimerError::NotSynchronised)
+        );
+    }
+}

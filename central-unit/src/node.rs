@@ -1,0 +1,247 @@
+//! The central unit as a Zenoh node: serves the site, the schedule and the
+//! master clock, publishes cycle triggers, watches liveliness, bursts, cell
+//! status and robot output, and answers the admin queryables. All decisions
+//! are the [`CentralCore`]'s; this loop only moves bytes.
+
+use std::future::Future;
+use std::process::ExitCode;
+
+use clap::Args;
+use ickon_proto::keys::{Key, Keys, RobotTopic};
+use ickon_proto::msg::admin::ReloadRequest;
+use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest};
+use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::site::Site;
+use ickon_proto::{decode, encode};
+use ickon_runtime::{NodeArgs, system_now, zerr};
+use zenoh::Session;
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::query::Query;
+use zenoh::sample::SampleKind;
+
+use crate::core::{CentralConfig, CentralCore, Output};
+
+/// Arguments of `ickon-central` (and `ickon node central`).
+#[derive(Debug, Clone, Args)]
+pub struct CentralArgs {
+    /// Connection and simulation flags.
+    #[command(flatten)]
+    pub node: NodeArgs,
+}
+
+/// Runs the central unit as a process: loads the site, opens the session,
+/// serves until Ctrl-C/SIGTERM. Exit code 2 for a bad site file.
+pub fn main_with(args: CentralArgs) -> ExitCode {
+    let (site, text, name) = match Site::load_or_default(args.node.site.as_deref()) {
+        Ok(loaded) => loaded,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(async {
+        let session = args.node.open().await?;
+        tracing::info!("central unit for site {:?} from {name}", site.name);
+        let r = run(&session, site, text, args.node.shutdown()).await;
+        let _ = session.close().await;
+        r
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+async fn reply<T: serde::Serialize>(query: &Query, value: &T) -> anyhow::Result<()> {
+    query
+        .reply(query.key_expr().clone(), encode(value)?)
+        .await
+        .map_err(zerr)
+}
+
+/// Serves `site` until `shutdown` completes.
+pub async fn run(
+    session: &Session,
+    site: Site,
+    site_toml: String,
+    shutdown: impl Future<Output = ()>,
+) -> anyhow::Result<()> {
+    let mut shutdown = Box::pin(shutdown);
+    let keys = Keys::new(&site.name)?;
+    let mut core = CentralCore::new(site, site_toml, CentralConfig::default(), system_now())?;
+    let s = core.latest_schedule();
+    tracing::info!(
+        "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",
+        s.version,
+        s.emissions.len(),
+        s.slot_length,
+        s.cycle_period,
+        crate::schedule::update_rate_hz(s)
+    );
+
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_central())
+        .await
+        .map_err(zerr)?;
+    let site_q = session
+        .declare_queryable(keys.central_site())
+        .await
+        .map_err(zerr)?;
+    let schedule_q = session
+        .declare_queryable(keys.central_schedule())
+        .await
+        .map_err(zerr)?;
+    let clock_q = session
+        .declare_queryable(keys.central_clock())
+        .await
+        .map_err(zerr)?;
+    let admin_q = session
+        .declare_queryable(keys.central_admin_all())
+        .await
+        .map_err(zerr)?;
+    let cycle_pub = session
+        .declare_publisher(keys.central_cycle())
+        .express(true)
+        .priority(Priority::RealTime)
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(zerr)?;
+    let schedule_pub = session
+        .declare_publisher(keys.central_schedule())
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(zerr)?;
+    let alive = session
+        .liveliness()
+        .declare_subscriber(keys.alive_all())
+        .history(true)
+        .await
+        .map_err(zerr)?;
+    let status_sub = session
+        .declare_subscriber(keys.cell_status_all())
+        .await
+        .map_err(zerr)?;
+    let burst_sub = session
+        .declare_subscriber(keys.cell_burst_all())
+        .await
+        .map_err(zerr)?;
+    let pose_sub = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
+        .await
+        .map_err(zerr)?;
+    let fix_sub = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Fix))
+        .await
+        .map_err(zerr)?;
+
+    loop {
+        let wake = core.next_wake().since(system_now()).to_std();
+        let outputs = tokio::select! {
+            _ = &mut shutdown => break,
+            _ = tokio::time::sleep(wake) => core.tick(system_now()),
+            Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await?; Vec::new() }
+            Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await?; Vec::new() }
+            Ok(q) = clock_q.recv_async() => {
+                let t2 = system_now();
+                match q.payload().map(|p| decode::<ClockRequest>(&p.to_bytes())) {
+                    Some(Ok(req)) => reply(&q, &CentralCore::clock_reply(req.t1, t2, system_now())).await?,
+                    _ => tracing::warn!("clock query without a valid request"),
+                }
+                Vec::new()
+            }
+            Ok(q) = admin_q.recv_async() => answer_admin(&keys, &mut core, &q).await?,
+            Ok(s) = alive.recv_async() => {
+                let up = s.kind() == SampleKind::Put;
+                match keys.parse(s.key_expr().as_str()) {
+                    Ok(Key::AliveCell(id)) => core.cell_alive(&id, up),
+                    Ok(Key::AliveRobot(id)) => core.robot_alive(&id, up),
+                    _ => {}
+                }
+                Vec::new()
+            }
+            Ok(s) = status_sub.recv_async() => {
+                match decode::<CellStatus>(&s.payload().to_bytes()) {
+                    Ok(st) => core.on_cell_status(st),
+                    Err(e) => tracing::warn!("undecodable status on {}: {e}", s.key_expr()),
+                }
+                Vec::new()
+            }
+            Ok(s) = burst_sub.recv_async() => {
+                match decode::<Burst>(&s.payload().to_bytes()) {
+                    Ok(b) => core.on_burst(&b),
+                    Err(e) => tracing::warn!("undecodable burst on {}: {e}", s.key_expr()),
+                }
+                Vec::new()
+            }
+            Ok(s) = pose_sub.recv_async() => {
+                if let (Ok(Key::Robot(id, _)), Ok(p)) = (keys.parse(s.key_expr().as_str()), decode::<RobotPose>(&s.payload().to_bytes())) {
+                    core.on_pose(&id, p);
+                }
+                Vec::new()
+            }
+            Ok(s) = fix_sub.recv_async() => {
+                if let Ok(Key::Robot(id, _)) = keys.parse(s.key_expr().as_str()) {
+                    core.on_fix(&id, system_now());
+                }
+                Vec::new()
+            }
+        };
+        for o in outputs {
+            match o {
+                Output::Trigger(t) => cycle_pub.put(encode(&t)?).await.map_err(zerr)?,
+                Output::Schedule(s) => schedule_pub.put(encode(&s)?).await.map_err(zerr)?,
+            }
+        }
+    }
+    Ok(())
+}
+
+async fn answer_admin(
+    keys: &Keys,
+    core: &mut CentralCore,
+    q: &Query,
+) -> anyhow::Result<Vec<Output>> {
+    let Ok(Key::CentralAdmin(command)) = keys.parse(q.key_expr().as_str()) else {
+        return Ok(Vec::new());
+    };
+    let now = system_now();
+    let mut outputs = Vec::new();
+    match command.as_str() {
+        "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await?,
+        "schedule" => reply(q, core.latest_schedule()).await?,
+        "pause" => reply(q, &core.set_paused(true)).await?,
+        "resume" => reply(q, &core.set_paused(false)).await?,
+        "reload" => {
+            let request = q.payload().map(|p| decode::<ReloadRequest>(&p.to_bytes()));
+            let ack = match request {
+                Some(Ok(r)) => {
+                    let (ack, out) = core.reload(&r.site_toml, &r.file_name);
+                    outputs.extend(out);
+                    ack
+                }
+                _ => ickon_proto::msg::admin::AdminAck {
+                    ok: false,
+                    messages: vec!["reload needs a ReloadRequest payload".into()],
+                },
+            };
+            reply(q, &ack).await?;
+        }
+        other => tracing::warn!("unknown admin command {other:?}"),
+    }
+    Ok(outputs)
+}

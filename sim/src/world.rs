@@ -73,8 +73,16 @@ impl World {
             * speed_of_sound_at(t_c + profile.ultrasound.temperature_error_c)
             / speed_of_sound_at(t_c);
         let s = robot.state;
+        // The world's transmitters hang where they really are; the MSU's table keeps the surveyed values.
+        let mut true_site = site.clone();
+        let mut survey_rng = rng::stream(seed, "site/survey");
+        for t in &mut true_site.transmitters {
+            for k in 0..3 {
+                t.position_m[k] += rng::normal(&mut survey_rng, profile.ultrasound.survey_sigma_m);
+            }
+        }
         let mut w = Self {
-            site: site.clone(),
+            site: true_site,
             profile: profile.clone(),
             robot,
             drive,

@@ -19,8 +19,8 @@
 //!
 //! Per gyro sample: offset and noise calibration at rest (eq. 7-8) over the
 //! first `calibration_samples` readings taken while the encoders report no
-//! motion (a reading counts once the encoder step covering it shows no
-//! tick), then `omega - offset`, zeroed inside the dead band
+//! motion (a reading counts once the encoder step covering it and the next
+//! one show no tick), then `omega - offset`, zeroed inside the dead band
 //! `[-noise, noise]`.
 //!
 //! Per range sample: the obstacle-avoidance heading `theta_oa` (eq. 12-15,

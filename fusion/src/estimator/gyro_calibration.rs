@@ -35,11 +35,15 @@ impl RateStats {
 /// Gyro offset and noise from samples at rest (eq. 7-8). The maximum
 /// deviation from the mean is `max(max - mean, mean - min)`, so no sample
 /// needs to be stored. A reading counts as "at rest" only once the encoder
-/// step that covers it reports no motion: readings wait in `pending` until
-/// then, and are dropped if the robot moved.
+/// step that covers it and the step after it both report no motion (a guard
+/// band: a single reading taken as the robot starts to turn would otherwise
+/// enter eq. 8's maximum and widen the dead band to the turn rate itself).
+/// Readings wait in `pending` and `guarded` until then, and are dropped if
+/// the robot moved.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct GyroCalibration {
     at_rest: RateStats,
+    guarded: RateStats,
     pending: RateStats,
     pub(crate) result: Option<(f64, f64)>,
 }
@@ -48,6 +52,7 @@ impl GyroCalibration {
     pub(crate) fn new() -> Self {
         Self {
             at_rest: RateStats::EMPTY,
+            guarded: RateStats::EMPTY,
             pending: RateStats::EMPTY,
             result: None,
         }
@@ -63,12 +68,14 @@ impl GyroCalibration {
             return;
         }
         if still {
-            let pending = self.pending;
-            self.at_rest.merge(&pending);
+            let guarded = self.guarded;
+            self.at_rest.merge(&guarded);
+            self.guarded = self.pending;
             if self.at_rest.count >= target {
                 self.close();
             }
         } else {
+            self.guarded = RateStats::EMPTY;
             self.close();
         }
         self.pending = RateStats::EMPTY;

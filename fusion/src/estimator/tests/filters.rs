@@ -280,12 +280,13 @@ fn cda_calibrates_gyro_offset_and_noise_at_rest() {
     for (k, rate) in [0.01, 0.03, 0.02].into_iter().enumerate() {
         e.handle(&gyro(0.01 * (k + 1) as f64, rate)).unwrap();
     }
+    e.handle(&enc(0.1, 0, 0)).unwrap();
     assert_eq!(
         e.core().chain().gyro_calibration(),
         None,
-        "not yet confirmed at rest"
+        "not yet confirmed at rest by the next step"
     );
-    e.handle(&enc(0.1, 0, 0)).unwrap();
+    e.handle(&enc(0.2, 0, 0)).unwrap();
     let (offset, noise) = e.core().chain().gyro_calibration().unwrap();
     // Eq. 7: mean 0.02; eq. 8: max |w - offset| = 0.01.
     assert!((offset - 0.02).abs() < 1e-15 && (noise - 0.01).abs() < 1e-15);
@@ -301,6 +302,20 @@ fn cda_readings_while_moving_are_not_calibration() {
 }
 
 #[test]
+fn cda_reading_just_before_motion_is_kept_out_of_calibration() {
+    let mut e = cda(CdaParams::default());
+    e.handle(&enc(0.0, 0, 0)).unwrap();
+    e.handle(&gyro(0.05, 0.01)).unwrap();
+    e.handle(&enc(0.1, 0, 0)).unwrap();
+    // The robot starts turning at 0.2 s: the encoders see it one step late.
+    e.handle(&gyro(0.15, 0.01)).unwrap();
+    e.handle(&gyro(0.2, 0.5)).unwrap();
+    e.handle(&enc(0.2, 0, 0)).unwrap();
+    e.handle(&enc(0.3, 100, 120)).unwrap();
+    assert_eq!(e.core().chain().gyro_calibration(), Some((0.01, 0.0)));
+}
+
+#[test]
 fn cda_switches_to_gyro_in_a_turn_and_back_on_a_straight() {
     let mut e = cda(CdaParams {
         calibration_samples: 1,
@@ -309,8 +324,9 @@ fn cda_switches_to_gyro_in_a_turn_and_back_on_a_straight() {
     e.handle(&enc(0.0, 0, 0)).unwrap();
     e.handle(&gyro(0.05, 0.0)).unwrap();
     e.handle(&enc(0.1, 0, 0)).unwrap();
+    e.handle(&enc(0.2, 0, 0)).unwrap();
     let source = |e: &Replay<Cda>| e.core().chain().source();
-    let (mut l, mut r, mut t) = (0_i64, 0_i64, 0.1);
+    let (mut l, mut r, mut t) = (0_i64, 0_i64, 0.2);
     let mut drive = |e: &mut Replay<Cda>, dl: i64, dr: i64, rate: f64| {
         for k in 1..=10 {
             e.handle(&gyro(t + 0.01 * f64::from(k), rate)).unwrap();
@@ -356,4 +372,24 @@ fn cda_ignores_msu_fixes() {
     let before = e.pose();
     e.handle(&fix(0.0, 3.0, 3.0, Some(1.0))).unwrap();
     assert_eq!(e.pose(), before);
+}
+
+#[test]
+fn cda_complementary_filter_crosses_180_degrees_the_short_way() {
+    let mut e = cda(CdaParams {
+        initial_pose: InitialPose {
+            theta_rad: 179.0_f64.to_radians(),
+            ..origin(0.01, 0.01)
+        },
+        ..CdaParams::default()
+    });
+    e.handle(&Input::Range(RangeSample {
+        t_s: 0.05,
+        planned_heading_rad: Some((-179.0_f64).to_radians()),
+        ..RangeSample::default()
+    }))
+    .unwrap();
+    // -179 deg is re-expressed as 181 deg: 0.95 * 179 + 0.05 * 181 = 179.1.
+    let theta = e.pose().unwrap().theta_rad.to_degrees();
+    assert!((theta - 179.1).abs() < 1e-9, "{theta}");
 }

@@ -93,6 +93,7 @@ fn realistic() -> Noise {
         fix_sigma_m: 0.03,
         fix_latency_s: 0.1,
         two_sensor_heading_sigma_rad: None,
+        reflection_every: None,
     }
 }
 
@@ -199,4 +200,31 @@ fn gyro_ckf_removes_the_latency_of_a_two_sensor_heading() {
     eprintln!("late heading max {worst_late_deg:.2} deg, gyro-ckf max {worst_fused_deg:.2} deg");
     assert!(worst_late_deg > 5.0);
     assert!(worst_fused_deg < 1.0, "{worst_fused_deg}");
+}
+
+#[test]
+fn adaptive_r_shrugs_off_reflected_fixes() {
+    // Seed 000 eq. 19: a fix far from the filter gets R ~ residual^2, so a
+    // reflection 1 m off barely moves the estimate.
+    let circle = Circle {
+        v_m_s: 0.3,
+        omega_rad_s: 0.3,
+        rest_s: 1.0,
+    };
+    let noise = Noise {
+        reflection_every: Some((10, 1.0)),
+        ..realistic()
+    };
+    let inputs = circling_run(&circle, 120.0, noise, 11);
+    let stats = |name: &str| {
+        let mut e = build(&config(name)).unwrap();
+        run(e.as_mut(), &circle, &feed_for(name, &inputs))
+    };
+    let raw = stats("msu-raw");
+    for name in ["ickon-akf", "gyro-ckf", "cda-msu"] {
+        let fused = stats(name);
+        eprintln!("reflections: msu-raw {raw:?}\n{name} {fused:?}");
+        assert!(raw.max_position_err_m > 0.9);
+        assert!(fused.max_position_err_m < 0.15, "{name}: {fused:?}");
+    }
 }

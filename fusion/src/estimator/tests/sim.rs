@@ -30,6 +30,8 @@ pub(super) struct Noise {
     /// Fix heading noise; `None` quantises the heading to the 60 deg
     /// receiver sectors of seed 000 instead.
     pub two_sensor_heading_sigma_rad: Option<f64>,
+    /// Every n-th fix is shifted by this many metres along x (a reflection).
+    pub reflection_every: Option<(i64, f64)>,
 }
 
 /// Truth at time `t_s`: at rest at (5, 5) heading 0 for `rest_s`, then on
@@ -116,11 +118,15 @@ pub(super) fn circling_run(
                 Some(sigma) => th + sigma * unit.sample(&mut rng),
                 None => (th / sector).round() * sector,
             };
+            let reflected = match noise.reflection_every {
+                Some((n, offset_m)) if (k / 30) % n == n - 1 => offset_m,
+                _ => 0.0,
+            };
             events.push((
                 t + noise.fix_latency_s,
                 Input::Fix(FixSample {
                     t_s: t,
-                    x_m: x + noise.fix_sigma_m * unit.sample(&mut rng),
+                    x_m: x + reflected + noise.fix_sigma_m * unit.sample(&mut rng),
                     y_m: y + noise.fix_sigma_m * unit.sample(&mut rng),
                     covariance: Matrix2::from_diagonal_element(noise.fix_sigma_m.powi(2) + 1e-6),
                     heading_rad: Some(angle::wrap_pi(heading)),

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{eval, replay, site_cmd};
+use crate::{eval, replay, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -25,7 +25,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Run the multi-robot simulation as separate processes over a loopback Zenoh mesh.
-    Sim,
+    Sim(sim::SimArgs),
     /// Evaluate estimators on the simulated world in virtual time (seed 000 tables).
     Eval(eval::EvalArgs),
     /// Query and control a running site through the central unit.
@@ -61,8 +61,9 @@ pub fn run(cli: Cli) -> ExitCode {
             action: SiteAction::Check { file },
         } => site_cmd::check(file.as_deref()),
         Command::Replay { source } => replay::run(source),
+        Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),
-        Command::Sim | Command::Admin => {
+        Command::Admin => {
             eprintln!("error: this subcommand is not available in this build yet");
             ExitCode::from(EXIT_FAILURE)
         }

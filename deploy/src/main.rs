@@ -6,6 +6,7 @@
 mod cli;
 mod eval;
 mod replay;
+mod sim;
 mod site_cmd;
 
 use std::process::ExitCode;

@@ -9,7 +9,7 @@
 //! | `ickon/<site>/central/cycle` | [`msg::control::CycleTrigger`](crate::msg::control::CycleTrigger) |
 //! | `ickon/<site>/central/clock` (queryable) | [`msg::control::ClockRequest`](crate::msg::control::ClockRequest) in, [`msg::control::ClockReply`](crate::msg::control::ClockReply) out |
 //! | `ickon/<site>/central/admin/<command>` (queryables) | [`msg::admin`](crate::msg::admin) |
-//! | `ickon/<site>/alive/central`, `.../alive/cell/<id>`, `.../alive/robot/<id>` | liveliness tokens, no payload |
+//! | `ickon/<site>/alive/central`, `.../alive/cell/<id>`, `.../alive/robot/<id>`, `.../alive/world` | liveliness tokens, no payload (`world`: the simulated world, simulation only) |
 //! | `ickon/<site>/cell/<id>/burst` | [`msg::control::Burst`](crate::msg::control::Burst) |
 //! | `ickon/<site>/cell/<id>/status` | [`msg::control::CellStatus`](crate::msg::control::CellStatus) |
 //! | `ickon/<site>/robot/<id>/ultrasound` | [`msg::robot::UltrasoundArrivals`](crate::msg::robot::UltrasoundArrivals) |
@@ -19,6 +19,7 @@
 //! | `ickon/<site>/robot/<id>/fix` | [`msg::robot::Fix`](crate::msg::robot::Fix) |
 //! | `ickon/<site>/robot/<id>/pose` | [`msg::robot::RobotPose`](crate::msg::robot::RobotPose) |
 //! | `ickon/<site>/sim/truth/<id>` | [`msg::robot::Truth`](crate::msg::robot::Truth) |
+//! | `ickon/<site>/sim/probe` | `u64` sequence number: one-hop latency probes of `ickon sim` |
 //!
 //! Identifiers (site, cell and robot ids) are checked by [`validate_id`]: a
 //! non-empty chunk of letters, digits, `-` and `_`, so that no id can smuggle
@@ -116,6 +117,8 @@ pub enum Key {
     AliveCell(String),
     /// `alive/robot/<id>`
     AliveRobot(String),
+    /// `alive/world`
+    AliveWorld,
     /// `cell/<id>/burst`
     CellBurst(String),
     /// `cell/<id>/status`
@@ -124,6 +127,8 @@ pub enum Key {
     Robot(String, RobotTopic),
     /// `sim/truth/<id>`
     SimTruth(String),
+    /// `sim/probe`
+    SimProbe,
 }
 
 /// Builds and parses the keys of one site.
@@ -200,6 +205,11 @@ impl Keys {
         Ok(format!("{}/alive/robot/{robot}", self.prefix))
     }
 
+    /// `ickon/<site>/alive/world`: liveliness token of the simulated world (simulation only).
+    pub fn alive_world(&self) -> String {
+        format!("{}/alive/world", self.prefix)
+    }
+
     /// `ickon/<site>/alive/**`: every liveliness token of the site.
     pub fn alive_all(&self) -> String {
         format!("{}/alive/**", self.prefix)
@@ -244,6 +254,12 @@ impl Keys {
         Ok(format!("{}/sim/truth/{robot}", self.prefix))
     }
 
+    /// `ickon/<site>/sim/probe`: latency probes of `ickon sim` (a CDR `u64`
+    /// sequence number), to measure the plain one-hop Zenoh latency of a run.
+    pub fn sim_probe(&self) -> String {
+        format!("{}/sim/probe", self.prefix)
+    }
+
     /// `ickon/<site>/sim/truth/*`: ground truth of every robot.
     pub fn sim_truth_all(&self) -> String {
         format!("{}/sim/truth/*", self.prefix)
@@ -268,6 +284,7 @@ impl Keys {
             ["central", "clock"] => Ok(Key::CentralClock),
             ["central", "admin", cmd] => Ok(Key::CentralAdmin(id(cmd)?)),
             ["alive", "central"] => Ok(Key::AliveCentral),
+            ["alive", "world"] => Ok(Key::AliveWorld),
             ["alive", "cell", c] => Ok(Key::AliveCell(id(c)?)),
             ["alive", "robot", r] => Ok(Key::AliveRobot(id(r)?)),
             ["cell", c, "burst"] => Ok(Key::CellBurst(id(c)?)),
@@ -280,6 +297,7 @@ impl Keys {
                 Ok(Key::Robot(id(r)?, topic))
             }
             ["sim", "truth", r] => Ok(Key::SimTruth(id(r)?)),
+            ["sim", "probe"] => Ok(Key::SimProbe),
             _ => Err(unknown()),
         }
     }
@@ -302,11 +320,13 @@ mod tests {
                 Key::CentralAdmin("status".into()),
             ),
             (k.alive_central(), Key::AliveCentral),
+            (k.alive_world(), Key::AliveWorld),
             (k.alive_cell("c1").unwrap(), Key::AliveCell("c1".into())),
             (k.alive_robot("r1").unwrap(), Key::AliveRobot("r1".into())),
             (k.cell_burst("c2").unwrap(), Key::CellBurst("c2".into())),
             (k.cell_status("c2").unwrap(), Key::CellStatus("c2".into())),
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
+            (k.sim_probe(), Key::SimProbe),
         ];
         for (key, expected) in cases {
             assert_eq!(k.parse(&key).unwrap(), expected, "{key}");

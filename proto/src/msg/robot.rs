@@ -137,6 +137,9 @@ pub struct RobotPose {
 pub struct Truth {
     /// True time of the sample.
     pub stamp: Time,
+    /// The same instant on the robot's own clock (which stamps its odometry,
+    /// arrivals and poses), so observers can align poses with the truth.
+    pub robot_clock: Time,
     /// True position of the MSU reference point, metres.
     pub x_m: f64,
     /// True position of the MSU reference point, metres.

@@ -165,6 +165,7 @@ fn robot_messages_round_trip() {
     });
     round_trip(Truth {
         stamp: Time(6),
+        robot_clock: Time(-6),
         x_m: 1.0,
         y_m: 2.0,
         theta_rad: 0.5,

@@ -1,0 +1,319 @@
+//! What `ickon sim` measures while the mesh runs: pose error against truth,
+//! fix and pose counts, arrival-to-pose latency, and what each cell fired.
+//! Pure bookkeeping, fed by the launcher's subscribers.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
+use std::time::Instant;
+
+use ickon_proto::msg::control::Burst;
+use ickon_proto::msg::robot::{RobotPose, Truth};
+use ickon_proto::time::Time;
+use serde::Serialize;
+
+/// How much truth history is kept per robot to interpolate at pose stamps.
+const TRUTH_HISTORY: usize = 2_000;
+/// Arrival messages remembered per robot to match poses to (latency).
+const ARRIVALS_REMEMBERED: usize = 256;
+/// Poses in the first seconds of a run are not scored: estimators start from
+/// the configured pose and need a few fixes to converge.
+pub const WARM_UP_S: f64 = 3.0;
+
+/// The `p`-th percentile (0..=100) of `values` by nearest rank; `None` when empty.
+pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let rank = ((p / 100.0) * sorted.len() as f64).ceil() as usize;
+    Some(sorted[rank.clamp(1, sorted.len()) - 1])
+}
+
+/// Measurements of one robot.
+#[derive(Debug, Default)]
+pub struct RobotStats {
+    truth: VecDeque<Truth>,
+    arrivals_seen: VecDeque<(u64, Instant)>,
+    latest_fix_seq_scored: u64,
+    first_pose_stamp: Option<Time>,
+    /// Fixes received.
+    pub fixes: u64,
+    /// Poses received.
+    pub poses: u64,
+    /// Arrival messages received.
+    pub arrival_messages: u64,
+    errors_m: Vec<f64>,
+    latencies_us: Vec<f64>,
+    /// Error of the newest scored pose, metres.
+    pub current_error_m: Option<f64>,
+    fix_times: VecDeque<Instant>,
+}
+
+impl RobotStats {
+    /// Records a truth sample.
+    pub fn on_truth(&mut self, truth: Truth) {
+        if self.truth.len() == TRUTH_HISTORY {
+            self.truth.pop_front();
+        }
+        self.truth.push_back(truth);
+    }
+
+    /// Records an arrival message received at `at`.
+    pub fn on_arrivals(&mut self, seq: u64, at: Instant) {
+        self.arrival_messages += 1;
+        if self.arrivals_seen.len() == ARRIVALS_REMEMBERED {
+            self.arrivals_seen.pop_front();
+        }
+        self.arrivals_seen.push_back((seq, at));
+    }
+
+    /// Records a fix received at `at`.
+    pub fn on_fix(&mut self, at: Instant) {
+        self.fixes += 1;
+        self.fix_times.push_back(at);
+        while self
+            .fix_times
+            .front()
+            .is_some_and(|t| at.duration_since(*t).as_secs_f64() > 2.0)
+        {
+            self.fix_times.pop_front();
+        }
+    }
+
+    /// Fixes per second over the last two seconds.
+    pub fn fixes_per_s(&self) -> f64 {
+        self.fix_times.len() as f64 / 2.0
+    }
+
+    /// Records a pose received at `at`: scores it against the truth at its
+    /// stamp, and the latency from the arrivals of its newest fix.
+    pub fn on_pose(&mut self, pose: &RobotPose, at: Instant) {
+        self.poses += 1;
+        let first = *self.first_pose_stamp.get_or_insert(pose.stamp);
+        if pose.fix_seq > self.latest_fix_seq_scored {
+            self.latest_fix_seq_scored = pose.fix_seq;
+            if let Some((_, t)) = self.arrivals_seen.iter().find(|(s, _)| *s == pose.fix_seq) {
+                self.latencies_us
+                    .push(at.duration_since(*t).as_secs_f64() * 1e6);
+            }
+        }
+        if let Some((x, y)) = self.truth_at(pose.stamp) {
+            let err = ((pose.x_m - x).powi(2) + (pose.y_m - y).powi(2)).sqrt();
+            self.current_error_m = Some(err);
+            if pose.stamp.since(first).as_secs_f64() >= WARM_UP_S {
+                self.errors_m.push(err);
+            }
+        }
+    }
+
+    /// Truth position at `stamp` on the robot's clock, interpolated; `None`
+    /// outside the kept history.
+    fn truth_at(&self, stamp: Time) -> Option<(f64, f64)> {
+        let idx = self.truth.partition_point(|t| t.robot_clock <= stamp);
+        if idx == 0 || idx == self.truth.len() {
+            return None;
+        }
+        let (a, b) = (&self.truth[idx - 1], &self.truth[idx]);
+        let span = b.robot_clock.since(a.robot_clock).as_nanos();
+        if span <= 0 || span > 1_000_000_000 {
+            return None;
+        }
+        let w = stamp.since(a.robot_clock).as_nanos() as f64 / span as f64;
+        Some((a.x_m + w * (b.x_m - a.x_m), a.y_m + w * (b.y_m - a.y_m)))
+    }
+
+    /// The summary of this robot.
+    pub fn summary(&self, id: &str) -> RobotSummary {
+        let n = self.errors_m.len() as f64;
+        let mean = (n > 0.0).then(|| self.errors_m.iter().sum::<f64>() / n);
+        let rmse = (n > 0.0).then(|| (self.errors_m.iter().map(|e| e * e).sum::<f64>() / n).sqrt());
+        RobotSummary {
+            id: id.to_string(),
+            fixes: self.fixes,
+            poses: self.poses,
+            arrival_messages: self.arrival_messages,
+            scored_poses: self.errors_m.len() as u64,
+            mean_mm: mean.map(|m| m * 1e3),
+            rmse_mm: rmse.map(|m| m * 1e3),
+            p95_mm: percentile(&self.errors_m, 95.0).map(|m| m * 1e3),
+            latency_p50_us: percentile(&self.latencies_us, 50.0),
+            latency_p99_us: percentile(&self.latencies_us, 99.0),
+        }
+    }
+}
+
+/// What each cell fired.
+#[derive(Debug, Default)]
+pub struct CellStats {
+    cycles: BTreeSet<u64>,
+    bursts: u64,
+    sync_errors_us: Vec<f64>,
+}
+
+impl CellStats {
+    /// Records a burst report.
+    pub fn on_burst(&mut self, burst: &Burst) {
+        self.bursts += 1;
+        self.cycles.insert(burst.cycle);
+        let err_ns = burst.actual.as_nanos() - burst.scheduled.as_nanos();
+        self.sync_errors_us.push(err_ns.unsigned_abs() as f64 / 1e3);
+    }
+
+    /// Cycles in which the cell fired.
+    pub fn cycles_fired(&self) -> u64 {
+        self.cycles.len() as u64
+    }
+
+    /// The summary of this cell.
+    pub fn summary(&self, id: &str) -> CellSummary {
+        CellSummary {
+            id: id.to_string(),
+            cycles_fired: self.cycles_fired(),
+            bursts: self.bursts,
+            sync_error_us: percentile(&self.sync_errors_us, 99.0),
+            sync_error_max_us: self.sync_errors_us.iter().copied().reduce(f64::max),
+        }
+    }
+}
+
+/// One robot in the run summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct RobotSummary {
+    /// Robot id.
+    pub id: String,
+    /// Fixes received.
+    pub fixes: u64,
+    /// Poses received.
+    pub poses: u64,
+    /// Ultrasound arrival messages received (one per cycle heard).
+    pub arrival_messages: u64,
+    /// Poses scored against truth (after the warm-up).
+    pub scored_poses: u64,
+    /// Mean position error, mm.
+    pub mean_mm: Option<f64>,
+    /// Root-mean-square position error, mm.
+    pub rmse_mm: Option<f64>,
+    /// 95th percentile of the position error, mm.
+    pub p95_mm: Option<f64>,
+    /// Median latency from the arrivals being published to the pose using them, us.
+    pub latency_p50_us: Option<f64>,
+    /// 99th percentile of that latency, us.
+    pub latency_p99_us: Option<f64>,
+}
+
+/// One cell in the run summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct CellSummary {
+    /// Cell id.
+    pub id: String,
+    /// Cycles in which it fired.
+    pub cycles_fired: u64,
+    /// Bursts it fired.
+    pub bursts: u64,
+    /// 99th percentile of |actual - scheduled| emission time, us.
+    pub sync_error_us: Option<f64>,
+    /// Largest |actual - scheduled| emission time, us.
+    pub sync_error_max_us: Option<f64>,
+}
+
+/// Everything measured in one run.
+#[derive(Debug, Default)]
+pub struct RunStats {
+    /// Per robot, by id.
+    pub robots: BTreeMap<String, RobotStats>,
+    /// Per cell, by id.
+    pub cells: BTreeMap<String, CellStats>,
+    /// One-hop Zenoh latencies measured alongside, us.
+    pub hop_latencies_us: Vec<f64>,
+    /// Messages that could not be decoded, per key.
+    pub bad_messages: HashMap<String, u64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth(t_s: f64, x: f64) -> Truth {
+        Truth {
+            stamp: Time::from_secs_f64(t_s),
+            robot_clock: Time::from_secs_f64(t_s + 100.0),
+            x_m: x,
+            y_m: 0.0,
+            theta_rad: 0.0,
+            v_m_s: 1.0,
+            omega_rad_s: 0.0,
+        }
+    }
+
+    fn pose(t_robot_s: f64, x: f64, fix_seq: u64) -> RobotPose {
+        RobotPose {
+            stamp: Time::from_secs_f64(t_robot_s),
+            x_m: x,
+            y_m: 0.0,
+            theta_rad: 0.0,
+            covariance: [0.0; 9],
+            estimator: "test".into(),
+            fix_seq,
+        }
+    }
+
+    #[test]
+    fn percentile_by_nearest_rank() {
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(percentile(&v, 50.0), Some(50.0));
+        assert_eq!(percentile(&v, 99.0), Some(99.0));
+        assert_eq!(percentile(&v, 100.0), Some(100.0));
+        assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    #[test]
+    fn poses_are_scored_against_truth_on_the_robot_clock() {
+        let mut r = RobotStats::default();
+        for k in 0..200 {
+            let t = k as f64 * 0.05;
+            r.on_truth(truth(t, t)); // x = t metres
+        }
+        let now = Instant::now();
+        // The robot clock runs 100 s ahead of true time; a pose 20 mm off.
+        r.on_pose(&pose(100.0, 0.0, 0), now);
+        r.on_pose(&pose(105.0, 5.02, 0), now);
+        let s = r.summary("r1");
+        assert_eq!(s.poses, 2);
+        assert_eq!(s.scored_poses, 1, "the first pose is inside the warm-up");
+        assert!((s.mean_mm.unwrap() - 20.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn latency_counts_each_fix_once() {
+        let mut r = RobotStats::default();
+        let t0 = Instant::now();
+        r.on_arrivals(7, t0);
+        let later = t0 + std::time::Duration::from_micros(800);
+        r.on_pose(&pose(1.0, 0.0, 7), later);
+        r.on_pose(
+            &pose(1.1, 0.0, 7),
+            later + std::time::Duration::from_millis(100),
+        );
+        let s = r.summary("r1");
+        assert_eq!(s.latency_p50_us.map(|v| v.round()), Some(800.0));
+        assert_eq!(s.latency_p99_us.map(|v| v.round()), Some(800.0));
+    }
+
+    #[test]
+    fn cells_count_distinct_cycles_and_sync_error() {
+        let mut c = CellStats::default();
+        for (cycle, err) in [(1u64, 30i64), (1, -50), (2, 10)] {
+            c.on_burst(&Burst {
+                cell_id: "c1".into(),
+                tx_id: 11,
+                cycle,
+                scheduled: Time(1_000_000),
+                actual: Time(1_000_000 + err * 1_000),
+            });
+        }
+        let s = c.summary("c1");
+        assert_eq!(s.cycles_fired, 2);
+        assert_eq!(s.bursts, 3);
+        assert_eq!(s.sync_error_max_us, Some(50.0));
+    }
+}

@@ -1,0 +1,591 @@
+//! `ickon sim`: the whole system as separate OS processes over a loopback
+//! Zenoh mesh, started and stopped with one command.
+//!
+//! The launcher spawns itself as `ickon node <role>` for the central unit, one
+//! cell controller per cell, the world, and one MSU agent per robot: the same
+//! library code as the standalone `ickon-central`, `ickon-cell`, `ickon-world`
+//! and `ickon-msu` binaries, so that `cargo run -p ickon -- sim` needs no other
+//! build step. Every node is a Zenoh peer listening on its own loopback port
+//! and connecting to the central unit's; multicast scouting is off so that two
+//! runs on one machine never meet. The launcher watches the mesh with its own
+//! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
+//! status line, and a summary at the end.
+
+mod metrics;
+mod supervisor;
+
+pub use metrics::{CellSummary, RobotSummary};
+
+use std::path::PathBuf;
+use std::process::{Command, ExitCode};
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use ickon_proto::keys::{Key, Keys, RobotTopic};
+use ickon_proto::msg::control::Burst;
+use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
+use ickon_proto::site::Site;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use zenoh::sample::SampleKind;
+
+use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
+use metrics::RunStats;
+
+/// Arguments of `ickon sim`.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// Site file (TOML); the built-in lab site when omitted.
+    #[arg(long)]
+    pub site: Option<PathBuf>,
+    /// Number of robots: the first N robots of the site, each on its own route.
+    #[arg(long, default_value_t = 3)]
+    pub robots: usize,
+    /// How long to run once every node is live, seconds.
+    #[arg(long, default_value_t = 30.0)]
+    pub duration: f64,
+    /// Estimator every MSU agent runs.
+    #[arg(long, default_value = "ickon-akf")]
+    pub estimator: String,
+    /// Noise profile of the simulated world: ideal, paper or harsh.
+    #[arg(long, default_value = "paper")]
+    pub profile: String,
+    /// Seed of every random draw (world noise, injected clock errors).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON document on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How long the nodes get to come up and announce themselves.
+const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
+/// How long the nodes get to stop after SIGTERM before they are killed.
+const STOP_GRACE: Duration = Duration::from_secs(5);
+/// Injected clock errors of cells and robots: up to this offset...
+const MAX_CLOCK_OFFSET_US: f64 = 50_000.0;
+/// ...and this drift.
+const MAX_CLOCK_DRIFT_PPM: f64 = 100.0;
+
+/// The JSON document of `ickon sim --json`.
+#[derive(Debug, Serialize)]
+struct SimReport {
+    site: String,
+    profile: String,
+    estimator: String,
+    seed: u64,
+    duration_s: f64,
+    zenoh_hop_p50_us: Option<f64>,
+    zenoh_hop_p99_us: Option<f64>,
+    robots: Vec<RobotSummary>,
+    cells: Vec<CellSummary>,
+    bad_messages: u64,
+}
+
+/// Runs `ickon sim` and returns the exit code.
+pub fn run(args: SimArgs) -> ExitCode {
+    let (site, _text, _name) = match Site::load_or_default(args.site.as_deref()) {
+        Ok(loaded) => loaded,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    if args.robots == 0 || args.robots > site.robots.len() {
+        eprintln!(
+            "error: --robots {} is not possible: the site {:?} has {} robots (1 to {})",
+            args.robots,
+            site.name,
+            site.robots.len(),
+            site.robots.len()
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
+        eprintln!("error: --duration must be between 0 and 86400 seconds");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::from(EXIT_FAILURE);
+        }
+    };
+    match runtime.block_on(run_mesh(&args, &site)) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(EXIT_FAILURE)
+        }
+    }
+}
+
+/// A free loopback TCP port (bound and released; the node binds it right after).
+fn free_port() -> std::io::Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
+
+/// The `ickon node <role>` command line shared by every node of the mesh.
+fn node_command(
+    args: &SimArgs,
+    role: &str,
+    central: &str,
+    listen: &str,
+) -> anyhow::Result<Command> {
+    let exe = std::env::current_exe()?;
+    let mut cmd = Command::new(exe);
+    cmd.args(["node", role, "--no-multicast-scouting", "--listen", listen]);
+    if !central.is_empty() {
+        cmd.args(["--connect", central]);
+    }
+    if let Some(site) = &args.site {
+        cmd.arg("--site").arg(site);
+    }
+    cmd.arg("--exit-with-parent");
+    Ok(cmd)
+}
+
+async fn open_observer(central: &str) -> anyhow::Result<zenoh::Session> {
+    let mut config = zenoh::Config::default();
+    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
+        c.insert_json5(k, v)
+            .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
+    };
+    set(&mut config, "mode", "\"peer\"")?;
+    set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
+    set(
+        &mut config,
+        "connect/endpoints",
+        &format!("[\"{central}\"]"),
+    )?;
+    set(&mut config, "scouting/multicast/enabled", "false")?;
+    zenoh::open(config)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot open the observer's Zenoh session: {e}"))
+}
+
+/// Stream of the injected clock errors, so that changing the world's noise
+/// streams never changes the clocks.
+const CLOCK_STREAM: u64 = 0xC10C_C10C;
+
+fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
+    let offset_us = rng.random_range(-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US);
+    let drift_ppm = rng.random_range(-MAX_CLOCK_DRIFT_PPM..=MAX_CLOCK_DRIFT_PPM);
+    [
+        "--clock-offset-us".into(),
+        format!("{offset_us:.0}"),
+        "--clock-drift-ppm".into(),
+        format!("{drift_ppm:.1}"),
+    ]
+}
+
+async fn run_mesh(args: &SimArgs, site: &Site) -> anyhow::Result<ExitCode> {
+    let keys = Keys::new(&site.name)?;
+    let central = format!("tcp/127.0.0.1:{}", free_port()?);
+    let robots: Vec<String> = site
+        .robots
+        .iter()
+        .take(args.robots)
+        .map(|r| r.id.clone())
+        .collect();
+    let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
+    let mut sup = supervisor::Supervisor::new();
+
+    sup.spawn("central", node_command(args, "central", "", &central)?)?;
+    let session = open_observer(&central).await?;
+    let alive = session
+        .liveliness()
+        .declare_subscriber(keys.alive_all())
+        .history(true)
+        .await
+        .map_err(|e| anyhow::anyhow!("liveliness subscriber: {e}"))?;
+    for cell in &site.cells {
+        let mut cmd = node_command(args, "cell", &central, "tcp/127.0.0.1:0")?;
+        cmd.args(["--cell", &cell.id])
+            .args(clock_flags(&mut clocks));
+        sup.spawn(&format!("cell {}", cell.id), cmd)?;
+    }
+    let mut world = node_command(args, "world", &central, "tcp/127.0.0.1:0")?;
+    world.args([
+        "--robots",
+        &robots.join(","),
+        "--profile",
+        &args.profile,
+        "--seed",
+        &args.seed.to_string(),
+    ]);
+    sup.spawn("world", world)?;
+    for robot in &robots {
+        let mut cmd = node_command(args, "msu", &central, "tcp/127.0.0.1:0")?;
+        cmd.args(["--robot", robot, "--estimator", &args.estimator]);
+        sup.spawn(&format!("msu {robot}"), cmd)?;
+    }
+
+    // Wait until every node has announced itself, or one died, or time is up.
+    let mut expected: std::collections::BTreeSet<String> = std::iter::once(keys.alive_central())
+        .chain(std::iter::once(keys.alive_world()))
+        .chain(
+            site.cells
+                .iter()
+                .map(|c| keys.alive_cell(&c.id))
+                .collect::<Result<Vec<_>, _>>()?,
+        )
+        .chain(
+            robots
+                .iter()
+                .map(|r| keys.alive_robot(r))
+                .collect::<Result<Vec<_>, _>>()?,
+        )
+        .collect();
+    let started = Instant::now();
+    let quiet = args.json && !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    if !quiet {
+        eprintln!(
+            "ickon sim: site {:?}, {} cells, {} robots, estimator {}, profile {}, seed {}; waiting for {} nodes",
+            site.name,
+            site.cells.len(),
+            robots.len(),
+            args.estimator,
+            args.profile,
+            args.seed,
+            sup.len()
+        );
+    }
+    while !expected.is_empty() {
+        if let Some(dead) = sup.first_dead() {
+            sup.stop_all(STOP_GRACE);
+            eprintln!("error: node {} {} during start-up", dead.name, dead.status);
+            return Ok(ExitCode::from(EXIT_FAILURE));
+        }
+        if started.elapsed() > STARTUP_TIMEOUT {
+            sup.stop_all(STOP_GRACE);
+            let missing: Vec<String> = expected.into_iter().collect();
+            anyhow::bail!(
+                "nodes not live after {} s: {}",
+                STARTUP_TIMEOUT.as_secs(),
+                missing.join(", ")
+            );
+        }
+        if let Ok(Ok(sample)) =
+            tokio::time::timeout(Duration::from_millis(100), alive.recv_async()).await
+        {
+            if sample.kind() == SampleKind::Put {
+                expected.remove(sample.key_expr().as_str());
+            }
+        }
+    }
+    if !quiet {
+        eprintln!(
+            "ickon sim: all {} nodes live after {:.1} s; running for {} s (Ctrl-C stops early)",
+            sup.len(),
+            started.elapsed().as_secs_f64(),
+            args.duration
+        );
+    }
+
+    let outcome = observe(
+        args, site, &keys, &session, &central, &alive, &mut sup, quiet,
+    )
+    .await;
+    let killed = sup.stop_all(STOP_GRACE);
+    let _ = session.close().await;
+    let (stats, failure) = outcome?;
+    if !killed.is_empty() {
+        eprintln!(
+            "warning: nodes that did not stop within {} s were killed: {}",
+            STOP_GRACE.as_secs(),
+            killed.join(", ")
+        );
+    }
+    let report = SimReport {
+        site: site.name.clone(),
+        profile: args.profile.clone(),
+        estimator: args.estimator.clone(),
+        seed: args.seed,
+        duration_s: args.duration,
+        zenoh_hop_p50_us: metrics::percentile(&stats.hop_latencies_us, 50.0),
+        zenoh_hop_p99_us: metrics::percentile(&stats.hop_latencies_us, 99.0),
+        robots: robots
+            .iter()
+            .map(|r| {
+                stats
+                    .robots
+                    .get(r)
+                    .map(|s| s.summary(r))
+                    .unwrap_or_else(|| metrics::RobotStats::default().summary(r))
+            })
+            .collect(),
+        cells: site
+            .cells
+            .iter()
+            .map(|c| {
+                stats
+                    .cells
+                    .get(&c.id)
+                    .map(|s| s.summary(&c.id))
+                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id))
+            })
+            .collect(),
+        bad_messages: stats.bad_messages.values().sum(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", render_report(&report));
+    }
+    match failure {
+        Some(why) => {
+            eprintln!("error: {why}");
+            Ok(ExitCode::from(EXIT_FAILURE))
+        }
+        None => Ok(ExitCode::SUCCESS),
+    }
+}
+
+/// Decodes a payload, counting what cannot be decoded instead of failing.
+fn decode_or_count<T: serde::de::DeserializeOwned>(
+    stats: &mut RunStats,
+    key: &str,
+    payload: &[u8],
+) -> Option<T> {
+    match ickon_proto::decode(payload) {
+        Ok(v) => Some(v),
+        Err(e) => {
+            tracing::warn!("undecodable message on {key}: {e}");
+            *stats.bad_messages.entry(key.to_string()).or_default() += 1;
+            None
+        }
+    }
+}
+
+/// Watches the running mesh until the duration is over, Ctrl-C, or a node dies.
+/// Returns what was measured and, if the run failed, why.
+#[allow(clippy::too_many_arguments)]
+async fn observe(
+    args: &SimArgs,
+    site: &Site,
+    keys: &Keys,
+    session: &zenoh::Session,
+    central: &str,
+    alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    sup: &mut supervisor::Supervisor,
+    quiet: bool,
+) -> anyhow::Result<(RunStats, Option<String>)> {
+    let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    let bursts = session
+        .declare_subscriber(keys.cell_burst_all())
+        .await
+        .map_err(z)?;
+    let arrivals = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Ultrasound))
+        .await
+        .map_err(z)?;
+    let fixes = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Fix))
+        .await
+        .map_err(z)?;
+    let poses = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
+        .await
+        .map_err(z)?;
+    let truth = session
+        .declare_subscriber(keys.sim_truth_all())
+        .await
+        .map_err(z)?;
+
+    // The plain one-hop latency: a second session in this process subscribes
+    // to probes the observer publishes; both share this process's clock.
+    let probe_session = open_observer(central).await?;
+    let probe_sub = probe_session
+        .declare_subscriber(keys.sim_probe())
+        .await
+        .map_err(z)?;
+    let probe_pub = session
+        .declare_publisher(keys.sim_probe())
+        .express(true)
+        .await
+        .map_err(z)?;
+    let mut probes_sent: std::collections::HashMap<u64, Instant> = Default::default();
+    let mut probe_seq = 0u64;
+
+    let mut stats = RunStats::default();
+    for r in site.robots.iter().take(args.robots) {
+        stats.robots.insert(r.id.clone(), Default::default());
+    }
+    let started = Instant::now();
+    let end = tokio::time::Instant::now() + Duration::from_secs_f64(args.duration);
+    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
+    let mut probe_tick = tokio::time::interval(Duration::from_millis(100));
+    let mut last_burst: std::collections::HashMap<String, Instant> = Default::default();
+    let failure = loop {
+        tokio::select! {
+            _ = tokio::time::sleep_until(end) => break None,
+            _ = tokio::signal::ctrl_c() => {
+                if !quiet { eprintln!("\nickon sim: interrupted, stopping every node"); }
+                break Some("interrupted by Ctrl-C".to_string());
+            }
+            Ok(s) = alive.recv_async() => {
+                if s.kind() == SampleKind::Delete {
+                    tracing::warn!("{} went away", s.key_expr());
+                }
+            }
+            Ok(s) = bursts.recv_async() => {
+                let key = s.key_expr().as_str().to_string();
+                if let Some(b) = decode_or_count::<Burst>(&mut stats, &key, &s.payload().to_bytes()) {
+                    last_burst.insert(b.cell_id.clone(), Instant::now());
+                    stats.cells.entry(b.cell_id.clone()).or_default().on_burst(&b);
+                }
+            }
+            Ok(s) = arrivals.recv_async() => {
+                let at = Instant::now();
+                let key = s.key_expr().as_str().to_string();
+                if let (Ok(Key::Robot(id, _)), Some(m)) = (keys.parse(&key), decode_or_count::<UltrasoundArrivals>(&mut stats, &key, &s.payload().to_bytes())) {
+                    stats.robots.entry(id).or_default().on_arrivals(m.seq, at);
+                }
+            }
+            Ok(s) = fixes.recv_async() => {
+                let at = Instant::now();
+                let key = s.key_expr().as_str().to_string();
+                if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
+                    if decode_or_count::<ickon_proto::msg::robot::Fix>(&mut stats, &key, &s.payload().to_bytes()).is_some() {
+                        stats.robots.entry(id).or_default().on_fix(at);
+                    }
+                }
+            }
+            Ok(s) = poses.recv_async() => {
+                let at = Instant::now();
+                let key = s.key_expr().as_str().to_string();
+                if let (Ok(Key::Robot(id, _)), Some(p)) = (keys.parse(&key), decode_or_count::<RobotPose>(&mut stats, &key, &s.payload().to_bytes())) {
+                    stats.robots.entry(id).or_default().on_pose(&p, at);
+                }
+            }
+            Ok(s) = truth.recv_async() => {
+                let key = s.key_expr().as_str().to_string();
+                if let (Ok(Key::SimTruth(id)), Some(t)) = (keys.parse(&key), decode_or_count::<Truth>(&mut stats, &key, &s.payload().to_bytes())) {
+                    stats.robots.entry(id).or_default().on_truth(t);
+                }
+            }
+            Ok(s) = probe_sub.recv_async() => {
+                let at = Instant::now();
+                if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes()) {
+                    if let Some(sent) = probes_sent.remove(&seq) {
+                        stats.hop_latencies_us.push(at.duration_since(sent).as_secs_f64() * 1e6);
+                    }
+                }
+            }
+            _ = probe_tick.tick() => {
+                probe_seq += 1;
+                probes_sent.insert(probe_seq, Instant::now());
+                if let Ok(bytes) = ickon_proto::encode(&probe_seq) {
+                    let _ = probe_pub.put(bytes).await;
+                }
+                probes_sent.retain(|_, t| t.elapsed() < Duration::from_secs(5));
+            }
+            _ = status_tick.tick() => {
+                if let Some(dead) = sup.first_dead() {
+                    break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
+                }
+                if !quiet {
+                    eprint!("\r{}", status_line(&stats, &last_burst, site.cells.len(), started));
+                }
+            }
+        }
+    };
+    if !quiet {
+        eprintln!();
+    }
+    let _ = probe_session.close().await;
+    Ok((stats, failure))
+}
+
+fn status_line(
+    stats: &RunStats,
+    last_burst: &std::collections::HashMap<String, Instant>,
+    cells: usize,
+    started: Instant,
+) -> String {
+    let firing = last_burst
+        .values()
+        .filter(|t| t.elapsed() < Duration::from_secs(2))
+        .count();
+    let robots: Vec<String> = stats
+        .robots
+        .iter()
+        .map(|(id, r)| {
+            let err = r
+                .current_error_m
+                .map(|e| format!("{:>4.0} mm", e * 1e3))
+                .unwrap_or_else(|| "   - mm".into());
+            format!("{id} {:>4.1} fix/s {err}", r.fixes_per_s())
+        })
+        .collect();
+    format!(
+        "[{:>5.0} s] {} | cells firing {firing}/{cells}   ",
+        started.elapsed().as_secs_f64(),
+        robots.join(" | ")
+    )
+}
+
+fn render_report(r: &SimReport) -> String {
+    use std::fmt::Write;
+    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+    let us = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0}"));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s",
+        r.site, r.estimator, r.profile, r.seed, r.duration_s
+    );
+    let _ = writeln!(
+        out,
+        "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12}",
+        "robot", "fixes", "poses", "mean mm", "rmse mm", "p95 mm", "lat p50 us", "lat p99 us"
+    );
+    for x in &r.robots {
+        let _ = writeln!(
+            out,
+            "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12}",
+            x.id,
+            x.fixes,
+            x.poses,
+            mm(x.mean_mm),
+            mm(x.rmse_mm),
+            mm(x.p95_mm),
+            us(x.latency_p50_us),
+            us(x.latency_p99_us)
+        );
+    }
+    let _ = writeln!(
+        out,
+        "zenoh one-hop latency: p50 {} us, p99 {} us",
+        us(r.zenoh_hop_p50_us),
+        us(r.zenoh_hop_p99_us)
+    );
+    let _ = writeln!(
+        out,
+        "{:<6} {:>12} {:>8} {:>16} {:>16}",
+        "cell", "cycles fired", "bursts", "sync err p99 us", "sync err max us"
+    );
+    for c in &r.cells {
+        let _ = writeln!(
+            out,
+            "{:<6} {:>12} {:>8} {:>16} {:>16}",
+            c.id,
+            c.cycles_fired,
+            c.bursts,
+            us(c.sync_error_us),
+            us(c.sync_error_max_us)
+        );
+    }
+    if r.bad_messages > 0 {
+        let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);
+    }
+    out
+}

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{eval, replay, sim, site_cmd};
+use crate::{eval, node, replay, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -36,6 +36,14 @@ pub enum Command {
         #[command(subcommand)]
         action: SiteAction,
     },
+    /// Run one node of the mesh (used by `ickon sim`; the standalone binaries
+    /// do the same for deployment).
+    #[command(hide = true)]
+    Node {
+        /// The role of the node.
+        #[command(subcommand)]
+        role: node::Role,
+    },
     /// Replay recorded measurements through the positioning stack.
     Replay {
         /// Which recorded data set.
@@ -63,6 +71,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Replay { source } => replay::run(source),
         Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Node { role } => node::run(role),
         Command::Admin => {
             eprintln!("error: this subcommand is not available in this build yet");
             ExitCode::from(EXIT_FAILURE)

@@ -5,6 +5,7 @@
 
 mod cli;
 mod eval;
+mod node;
 mod replay;
 mod sim;
 mod site_cmd;

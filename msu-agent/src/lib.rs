@@ -9,8 +9,12 @@
 //! of `ickon-sim` drive the same core.
 
 pub mod assembly;
+mod config;
 pub mod core;
+#[cfg(feature = "zenoh")]
+pub mod node;
 mod solve;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
+pub use config::DEFAULT_MAX_FIX_SIGMA_M;
 pub use core::{MsuConfig, MsuCore, MsuError};

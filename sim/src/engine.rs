@@ -7,9 +7,9 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use ickon_fusion::estimator::{self, EstimatorConfig, InitialPose, WheelGeometry};
+use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
 use ickon_msu::{MsuConfig, MsuCore};
-use ickon_proto::msg::control::{Schedule, TransmitterEntry};
+use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::Fix;
 use ickon_proto::site::Site;
 
@@ -17,13 +17,13 @@ use crate::profile::NoiseProfile;
 use crate::world::{TruthSample, World};
 
 /// Physics step, seconds.
-const PHYSICS_DT_S: f64 = 0.005;
+pub(crate) const PHYSICS_DT_S: f64 = 0.005;
 /// Wheel encoder / odometry rate, Hz.
 pub const ENCODER_HZ: f64 = 50.0;
 /// Obstacle sensor rate, Hz.
-const RANGES_HZ: f64 = 10.0;
+pub(crate) const RANGES_HZ: f64 = 10.0;
 /// Seconds the robot stands still at the start (gyro calibration of seed 003).
-const REST_S: f64 = 2.0;
+pub(crate) const REST_S: f64 = 2.0;
 /// Seconds between two samples of the plotted traces.
 const TRACE_DT_S: f64 = 0.25;
 
@@ -164,32 +164,24 @@ pub fn estimator_config(
     start: [f64; 3],
     profile: &NoiseProfile,
 ) -> Result<EstimatorConfig, RunError> {
-    let pose = InitialPose {
-        x_m: start[0],
-        y_m: start[1],
-        theta_rad: start[2],
-        ..InitialPose::default()
-    };
     let mut c = EstimatorConfig::default_for(name)?;
+    c.set_initial_pose(start);
     let per_step = 10.0 / ENCODER_HZ;
     match &mut c {
-        EstimatorConfig::Odometry(p) => p.initial_pose = pose,
-        EstimatorConfig::MsuRaw(_) => {}
-        EstimatorConfig::IckonAkf(p) => p.initial_pose = Some(pose),
+        EstimatorConfig::Odometry(_)
+        | EstimatorConfig::MsuRaw(_)
+        | EstimatorConfig::IckonAkf(_) => {}
         EstimatorConfig::GyroCkf(p) => {
             let g = &profile.gyro;
-            p.initial_pose = Some(pose);
             p.gyro_noise_deg_sqrt_s = (g.white_sigma_deg_s / g.rate_hz.max(1.0).sqrt()).max(0.002);
             p.bias_walk_deg_s_sqrt_s = g.bias_walk_deg_s_sqrt_s.max(0.001);
             p.initial_bias_sigma_deg_s = g.bias_sigma_deg_s.max(0.05);
         }
         EstimatorConfig::Cda(p) => {
-            p.initial_pose = pose;
             p.mu_start_deg *= per_step;
             p.mu_stop_deg *= per_step;
         }
         EstimatorConfig::CdaMsu(p) => {
-            p.initial_pose = Some(pose);
             p.cda.mu_start_deg *= per_step;
             p.cda.mu_stop_deg *= per_step;
         }
@@ -199,33 +191,18 @@ pub fn estimator_config(
 
 /// The MSU configuration for a site and profile.
 pub fn msu_config(site: &Site, profile: &NoiseProfile, wheels: WheelGeometry) -> MsuConfig {
+    MsuConfig::for_site(site, timing_sigma_s(profile), wheels)
+}
+
+/// The one-sigma timing noise of one arrival under `profile` (jitter and
+/// quantisation), as the MSU's data sheet would state it; at least 1 us.
+pub fn timing_sigma_s(profile: &NoiseProfile) -> f64 {
     let u = &profile.ultrasound;
     let q = u.quantisation_us;
-    let timing_sigma_s = (u.timing_jitter_us.powi(2) + q * q / 12.0).sqrt().max(1.0) * 1e-6;
-    MsuConfig {
-        speed_of_sound_m_s: site.speed_of_sound_m_s,
-        height_m: site.msu.height_m,
-        receiver_angles_rad: site.msu.receiver_angles_rad.clone(),
-        transmitters: site
-            .transmitters
-            .iter()
-            .map(|t| TransmitterEntry {
-                tx_id: t.id,
-                cell_id: t.cell.clone(),
-                x_m: t.position_m[0],
-                y_m: t.position_m[1],
-                z_m: t.position_m[2],
-            })
-            .collect(),
-        wheels,
-        timing_sigma_s,
-        residual_gate_m: (4.0 * timing_sigma_s * site.speed_of_sound_m_s).max(0.05),
-        floor_bounds_m: {
-            let (lo, hi) = site.bounds();
-            Some([lo, hi])
-        },
-        max_fix_sigma_m: 0.5,
-    }
+    (u.timing_jitter_us * u.timing_jitter_us + q * q / 12.0)
+        .sqrt()
+        .max(1.0)
+        * 1e-6
 }
 
 /// Runs one robot on `config.route` for `config.tours` tours; `progress` is

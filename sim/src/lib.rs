@@ -11,6 +11,7 @@
 //! - [`world`]: one robot's world, producing the messages its MSU receives.
 //! - [`engine`]: the discrete-event loop, one MSU core per estimator.
 //! - [`score`]: the seeds' metrics.
+//! - [`realtime`]: the same world driven by the wall clock and real burst reports.
 //!
 //! Every random draw comes from a `ChaCha8Rng` stream derived from the run
 //! seed and a label ([`rng::stream`]): the same seed gives the same numbers.
@@ -18,7 +19,10 @@
 pub mod acoustic;
 pub mod clock;
 pub mod engine;
+#[cfg(feature = "zenoh")]
+pub mod node;
 pub mod profile;
+pub mod realtime;
 pub mod rng;
 pub mod robot;
 pub mod schedule;

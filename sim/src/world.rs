@@ -242,24 +242,54 @@ impl World {
                 ))
             })
             .collect();
+        self.hear_cycle(
+            &emissions,
+            start_s + 0.5 * schedule.cycle_period.as_secs_f64(),
+        )
+    }
+
+    /// Everything the MSU hears of emissions at known true times
+    /// `(tx_id, t_emit_s)`: the real-time world, fed by the cells' burst
+    /// reports, calls this once the last burst of a cycle has had time to
+    /// arrive. Ids not in the site are ignored.
+    pub fn arrivals_from_emissions(&mut self, emissions: &[(u32, f64)]) -> UltrasoundArrivals {
+        let indexed: Vec<(usize, f64)> = emissions
+            .iter()
+            .filter_map(|&(id, t)| {
+                let tx = self.site.transmitters.iter().position(|x| x.id == id)?;
+                Some((tx, t))
+            })
+            .collect();
+        let mid = if indexed.is_empty() {
+            0.0
+        } else {
+            indexed.iter().map(|e| e.1).sum::<f64>() / indexed.len() as f64
+        };
+        self.hear_cycle(&indexed, mid)
+    }
+
+    /// The arrivals of emissions `(transmitter index, true emission time)`;
+    /// `t_guess_s` starts the search for the mean arrival time when the robot
+    /// is frozen during the cycle.
+    fn hear_cycle(&mut self, emissions: &[(usize, f64)], t_guess_s: f64) -> UltrasoundArrivals {
         let heard = if self.profile.ultrasound.motion_during_cycle {
             let mut rng = self.acoustic_rng.clone();
-            let heard = self.hear_all(&emissions, None, &mut rng);
+            let heard = self.hear_all(emissions, None, &mut rng);
             self.acoustic_rng = rng;
             heard
         } else {
             // Frozen robot: at the mean arrival time, found by fixed-point
             // iteration (arrival times move by v/c per metre of motion).
-            let mut t_ref = start_s + 0.5 * schedule.cycle_period.as_secs_f64();
+            let mut t_ref = t_guess_s;
             for _ in 0..4 {
                 let mut trial = self.acoustic_rng.clone();
-                let h = self.hear_all(&emissions, Some(t_ref), &mut trial);
+                let h = self.hear_all(emissions, Some(t_ref), &mut trial);
                 if !h.is_empty() {
                     t_ref = h.iter().map(|a| a.t_true_s).sum::<f64>() / h.len() as f64;
                 }
             }
             let mut rng = self.acoustic_rng.clone();
-            let heard = self.hear_all(&emissions, Some(t_ref), &mut rng);
+            let heard = self.hear_all(emissions, Some(t_ref), &mut rng);
             self.acoustic_rng = rng;
             heard
         };

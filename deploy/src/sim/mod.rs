@@ -101,6 +101,17 @@ pub fn run(args: SimArgs) -> ExitCode {
         );
         return ExitCode::from(EXIT_BAD_INPUT);
     }
+    let profile = match ickon_sim::profile::NoiseProfile::by_name(&args.profile) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    if let Err(e) = ickon_fusion::estimator::EstimatorConfig::default_for(&args.estimator) {
+        eprintln!("error: {e}");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
         eprintln!("error: --duration must be between 0 and 86400 seconds");
         return ExitCode::from(EXIT_BAD_INPUT);
@@ -116,7 +127,7 @@ pub fn run(args: SimArgs) -> ExitCode {
             return ExitCode::from(EXIT_FAILURE);
         }
     };
-    match runtime.block_on(run_mesh(&args, &site)) {
+    match runtime.block_on(run_mesh(&args, &site, &profile)) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
@@ -135,6 +146,7 @@ fn free_port() -> std::io::Result<u16> {
 /// The `ickon node <role>` command line shared by every node of the mesh.
 fn node_command(
     args: &SimArgs,
+    site: &Site,
     role: &str,
     central: &str,
     listen: &str,
@@ -142,6 +154,7 @@ fn node_command(
     let exe = std::env::current_exe()?;
     let mut cmd = Command::new(exe);
     cmd.args(["node", role, "--no-multicast-scouting", "--listen", listen]);
+    cmd.args(["--site-name", &site.name]);
     if !central.is_empty() {
         cmd.args(["--connect", central]);
     }
@@ -186,7 +199,11 @@ fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
     ]
 }
 
-async fn run_mesh(args: &SimArgs, site: &Site) -> anyhow::Result<ExitCode> {
+async fn run_mesh(
+    args: &SimArgs,
+    site: &Site,
+    profile: &ickon_sim::profile::NoiseProfile,
+) -> anyhow::Result<ExitCode> {
     let keys = Keys::new(&site.name)?;
     let central = format!("tcp/127.0.0.1:{}", free_port()?);
     let robots: Vec<String> = site
@@ -198,7 +215,10 @@ async fn run_mesh(args: &SimArgs, site: &Site) -> anyhow::Result<ExitCode> {
     let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
     let mut sup = supervisor::Supervisor::new();
 
-    sup.spawn("central", node_command(args, "central", "", &central)?)?;
+    sup.spawn(
+        "central",
+        node_command(args, site, "central", "", &central)?,
+    )?;
     let session = open_observer(&central).await?;
     let alive = session
         .liveliness()
@@ -207,12 +227,12 @@ async fn run_mesh(args: &SimArgs, site: &Site) -> anyhow::Result<ExitCode> {
         .await
         .map_err(|e| anyhow::anyhow!("liveliness subscriber: {e}"))?;
     for cell in &site.cells {
-        let mut cmd = node_command(args, "cell", &central, "tcp/127.0.0.1:0")?;
+        let mut cmd = node_command(args, site, "cell", &central, "tcp/127.0.0.1:0")?;
         cmd.args(["--cell", &cell.id])
             .args(clock_flags(&mut clocks));
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }
-    let mut world = node_command(args, "world", &central, "tcp/127.0.0.1:0")?;
+    let mut world = node_command(args, site, "world", &central, "tcp/127.0.0.1:0")?;
     world.args([
         "--robots",
         &robots.join(","),
@@ -223,8 +243,20 @@ async fn run_mesh(args: &SimArgs, site: &Site) -> anyhow::Result<ExitCode> {
     ]);
     sup.spawn("world", world)?;
     for robot in &robots {
-        let mut cmd = node_command(args, "msu", &central, "tcp/127.0.0.1:0")?;
-        cmd.args(["--robot", robot, "--estimator", &args.estimator]);
+        let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
+        // The same estimator set-up as `ickon eval`: the robot's start pose
+        // and the profile's sensor data sheet.
+        let start = site
+            .robots
+            .iter()
+            .find(|r| &r.id == robot)
+            .map_or([0.0; 3], |r| r.start);
+        let config = ickon_sim::engine::estimator_config(&args.estimator, start, profile)?;
+        let timing_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
+        cmd.args(["--robot", robot, "--estimator", &args.estimator])
+            .arg("--estimator-json")
+            .arg(serde_json::to_string(&config)?)
+            .args(["--timing-sigma-us", &format!("{timing_us:.3}")]);
         sup.spawn(&format!("msu {robot}"), cmd)?;
     }
 

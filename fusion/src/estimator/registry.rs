@@ -17,6 +17,7 @@ use super::msu_raw::{MsuRaw, MsuRawParams};
 use super::odometry::{Odometry, OdometryParams};
 use super::replay::Replay;
 use super::{Estimator, InvalidParameter};
+use crate::estimator::InitialPose;
 
 pub use super::gyro_ckf::two_sensor_heading;
 
@@ -88,6 +89,25 @@ impl EstimatorConfig {
                 });
             }
         })
+    }
+
+    /// Sets where the robot starts (`[x_m, y_m, theta_rad]`), keeping the
+    /// configured start uncertainty; `msu-raw` has no start pose and ignores it.
+    pub fn set_initial_pose(&mut self, start: [f64; 3]) {
+        let with = |p: Option<InitialPose>| InitialPose {
+            x_m: start[0],
+            y_m: start[1],
+            theta_rad: start[2],
+            ..p.unwrap_or_default()
+        };
+        match self {
+            Self::Odometry(p) => p.initial_pose = with(Some(p.initial_pose)),
+            Self::MsuRaw(_) => {}
+            Self::IckonAkf(p) => p.initial_pose = Some(with(p.initial_pose)),
+            Self::GyroCkf(p) => p.initial_pose = Some(with(p.initial_pose)),
+            Self::Cda(p) => p.initial_pose = with(Some(p.initial_pose)),
+            Self::CdaMsu(p) => p.initial_pose = Some(with(p.initial_pose)),
+        }
     }
 
     /// The estimator's name.

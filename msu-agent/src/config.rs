@@ -1,0 +1,47 @@
+//! Building an [`MsuConfig`] from the site model, shared by the MSU agent
+//! process and the virtual-time engine so that both solve alike.
+
+use ickon_fusion::estimator::WheelGeometry;
+use ickon_proto::msg::control::TransmitterEntry;
+use ickon_proto::site::Site;
+
+use crate::core::MsuConfig;
+
+/// Largest one-sigma position uncertainty a fix may have before it counts as
+/// degenerate geometry, metres.
+pub const DEFAULT_MAX_FIX_SIGMA_M: f64 = 0.5;
+
+impl MsuConfig {
+    /// The MSU configuration for `site`: its speed of sound, MSU geometry,
+    /// transmitter table and floor bounds; `timing_sigma_s` is the one-sigma
+    /// timing noise of one arrival (the MSU's data sheet), `wheels` the robot's
+    /// nominal drive geometry.
+    pub fn for_site(site: &Site, timing_sigma_s: f64, wheels: WheelGeometry) -> MsuConfig {
+        MsuConfig {
+            speed_of_sound_m_s: site.speed_of_sound_m_s,
+            height_m: site.msu.height_m,
+            receiver_angles_rad: site.msu.receiver_angles_rad.clone(),
+            transmitters: site
+                .transmitters
+                .iter()
+                .map(|t| TransmitterEntry {
+                    tx_id: t.id,
+                    cell_id: t.cell.clone(),
+                    x_m: t.position_m[0],
+                    y_m: t.position_m[1],
+                    z_m: t.position_m[2],
+                })
+                .collect(),
+            wheels,
+            timing_sigma_s,
+            // Four sigma of range noise, and never below 5 cm: residuals smaller
+            // than that are not reflections worth losing a signal over.
+            residual_gate_m: (4.0 * timing_sigma_s * site.speed_of_sound_m_s).max(0.05),
+            floor_bounds_m: {
+                let (lo, hi) = site.bounds();
+                Some([lo, hi])
+            },
+            max_fix_sigma_m: DEFAULT_MAX_FIX_SIGMA_M,
+        }
+    }
+}

@@ -1,0 +1,254 @@
+//! The MSU agent as a Zenoh node: fetches the site and the schedule from the
+//! central unit, follows schedule changes, feeds its robot's messages to an
+//! [`MsuCore`], and publishes fixes and poses. The core does the work; this
+//! module only moves bytes.
+
+use std::future::Future;
+use std::time::Duration;
+
+use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
+use ickon_proto::keys::{Keys, RobotTopic};
+use ickon_proto::msg::control::{Schedule, SiteInfo};
+use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
+use ickon_proto::site::Site;
+use ickon_proto::{decode, encode};
+use zenoh::Session;
+use zenoh::qos::{CongestionControl, Priority};
+
+use crate::{MsuConfig, MsuCore};
+
+/// How often the site and schedule are asked for until the central unit answers.
+const FETCH_RETRY: Duration = Duration::from_millis(500);
+/// How long one query may take.
+const QUERY_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// What an MSU agent needs besides its session.
+#[derive(Debug, Clone)]
+pub struct MsuSettings {
+    /// Site name (the `<site>` of every key).
+    pub site_name: String,
+    /// Robot id.
+    pub robot: String,
+    /// Estimator configuration (name and parameters); `None`: the registry
+    /// defaults of `estimator_name`, starting at the robot's start pose.
+    pub estimator: Option<EstimatorConfig>,
+    /// Estimator name, used when `estimator` is `None`.
+    pub estimator_name: String,
+    /// One-sigma timing noise of one arrival, seconds.
+    pub timing_sigma_s: f64,
+    /// The robot's nominal drive geometry.
+    pub wheels: WheelGeometry,
+}
+
+/// Counters of one agent's run, logged at the end.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct MsuCounters {
+    /// Arrival messages received.
+    pub arrival_messages: u64,
+    /// Fixes published.
+    pub fixes: u64,
+    /// Poses published.
+    pub poses: u64,
+    /// Messages that could not be decoded (dropped).
+    pub bad_messages: u64,
+    /// Inputs the core or the estimator refused (dropped).
+    pub refused_inputs: u64,
+}
+
+fn zerr(e: zenoh::Error) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
+}
+
+/// Asks `key` until a decodable reply of type `T` arrives or `shutdown` fires.
+async fn fetch<T: serde::de::DeserializeOwned>(
+    session: &Session,
+    key: &str,
+    shutdown: &mut (impl Future<Output = ()> + Unpin),
+) -> anyhow::Result<Option<T>> {
+    loop {
+        let replies = session
+            .get(key)
+            .timeout(QUERY_TIMEOUT)
+            .await
+            .map_err(zerr)?;
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result() {
+                match decode::<T>(&sample.payload().to_bytes()) {
+                    Ok(v) => return Ok(Some(v)),
+                    Err(e) => tracing::warn!("undecodable reply on {key}: {e}"),
+                }
+            }
+        }
+        tracing::info!("waiting for the central unit to answer {key}");
+        tokio::select! {
+            _ = &mut *shutdown => return Ok(None),
+            _ = tokio::time::sleep(FETCH_RETRY) => {}
+        }
+    }
+}
+
+/// Runs the agent until `shutdown` completes; returns its counters.
+pub async fn run(
+    session: &Session,
+    settings: MsuSettings,
+    shutdown: impl Future<Output = ()>,
+) -> anyhow::Result<MsuCounters> {
+    let mut shutdown = Box::pin(shutdown);
+    let keys = Keys::new(&settings.site_name)?;
+    let robot = settings.robot.as_str();
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_robot(robot)?)
+        .await
+        .map_err(zerr)?;
+
+    let Some(info) = fetch::<SiteInfo>(session, &keys.central_site(), &mut shutdown).await? else {
+        return Ok(MsuCounters::default());
+    };
+    let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
+    let spec = site
+        .robots
+        .iter()
+        .find(|r| r.id == robot)
+        .ok_or_else(|| anyhow::anyhow!("robot {robot:?} is not in site {:?}", site.name))?;
+    let config = match settings.estimator.clone() {
+        Some(c) => c,
+        None => {
+            let mut c = EstimatorConfig::default_for(&settings.estimator_name)?;
+            c.set_initial_pose(spec.start);
+            c
+        }
+    };
+    let estimator = estimator::build(&config)?;
+    let mut core = MsuCore::new(
+        MsuConfig::for_site(&site, settings.timing_sigma_s, settings.wheels),
+        estimator,
+    );
+    let schedule_sub = session
+        .declare_subscriber(keys.central_schedule())
+        .await
+        .map_err(zerr)?;
+    let Some(schedule) =
+        fetch::<Schedule>(session, &keys.central_schedule(), &mut shutdown).await?
+    else {
+        return Ok(MsuCounters::default());
+    };
+    tracing::info!(
+        "robot {robot}: site {:?} v{}, schedule v{}, estimator {}",
+        site.name,
+        info.version,
+        schedule.version,
+        core.estimator_name()
+    );
+    core.set_schedule(schedule);
+
+    let sub = |topic| keys.robot(robot, topic);
+    let ultrasound = session
+        .declare_subscriber(sub(RobotTopic::Ultrasound)?)
+        .await
+        .map_err(zerr)?;
+    let odom = session
+        .declare_subscriber(sub(RobotTopic::Odom)?)
+        .await
+        .map_err(zerr)?;
+    let imu = session
+        .declare_subscriber(sub(RobotTopic::Imu)?)
+        .await
+        .map_err(zerr)?;
+    let range = session
+        .declare_subscriber(sub(RobotTopic::Range)?)
+        .await
+        .map_err(zerr)?;
+    let fix_pub = session
+        .declare_publisher(sub(RobotTopic::Fix)?)
+        .express(true)
+        .priority(Priority::InteractiveHigh)
+        .await
+        .map_err(zerr)?;
+    let pose_pub = session
+        .declare_publisher(sub(RobotTopic::Pose)?)
+        .express(true)
+        .priority(Priority::InteractiveHigh)
+        .congestion_control(CongestionControl::Drop)
+        .await
+        .map_err(zerr)?;
+
+    let mut n = MsuCounters::default();
+    macro_rules! decoded {
+        ($sample:expr, $t:ty) => {
+            match decode::<$t>(&$sample.payload().to_bytes()) {
+                Ok(v) => Some(v),
+                Err(e) => {
+                    n.bad_messages += 1;
+                    tracing::debug!("dropped undecodable {}: {e}", $sample.key_expr());
+                    None
+                }
+            }
+        };
+    }
+    loop {
+        tokio::select! {
+            _ = &mut shutdown => break,
+            Ok(s) = schedule_sub.recv_async() => {
+                if let Some(schedule) = decoded!(s, Schedule) {
+                    tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
+                    core.set_schedule(schedule);
+                }
+            }
+            Ok(s) = ultrasound.recv_async() => {
+                if let Some(msg) = decoded!(s, UltrasoundArrivals) {
+                    n.arrival_messages += 1;
+                    match core.on_arrivals(&msg) {
+                        Ok(Some(fix)) => {
+                            fix_pub.put(encode(&fix)?).await.map_err(zerr)?;
+                            n.fixes += 1;
+                            // Publish the pose that absorbed the fix at once:
+                            // this is the latency a user of the pose sees.
+                            if let Some(pose) = core.pose() {
+                                pose_pub.put(encode(&pose)?).await.map_err(zerr)?;
+                                n.poses += 1;
+                            }
+                        }
+                        Ok(None) => {}
+                        Err(e) => {
+                            n.refused_inputs += 1;
+                            tracing::debug!("robot {robot}: cycle {} not used: {e}", msg.seq);
+                        }
+                    }
+                }
+            }
+            Ok(s) = odom.recv_async() => {
+                if let Some(msg) = decoded!(s, Odometry) {
+                    match core.on_odometry(&msg) {
+                        Ok(()) => {
+                            if let Some(pose) = core.pose() {
+                                pose_pub.put(encode(&pose)?).await.map_err(zerr)?;
+                                n.poses += 1;
+                            }
+                        }
+                        Err(e) => {
+                            n.refused_inputs += 1;
+                            tracing::debug!("robot {robot}: odometry refused: {e}");
+                        }
+                    }
+                }
+            }
+            Ok(s) = imu.recv_async() => {
+                if let Some(msg) = decoded!(s, Imu) {
+                    if core.on_imu(&msg).is_err() {
+                        n.refused_inputs += 1;
+                    }
+                }
+            }
+            Ok(s) = range.recv_async() => {
+                if let Some(msg) = decoded!(s, ObstacleRanges) {
+                    if core.on_range(&msg).is_err() {
+                        n.refused_inputs += 1;
+                    }
+                }
+            }
+        }
+    }
+    tracing::info!("robot {robot}: stopping: {n:?}");
+    Ok(n)
+}

@@ -1,0 +1,196 @@
+//! The world as a Zenoh node (`ickon node world`): the [`RealtimeWorld`]
+//! driven by the system clock, fed with the cells' burst reports, publishing
+//! each robot's sensors and the ground truth. In a real-time simulation the
+//! system clock is the true time base: the cells report their actual emission
+//! times on it, and the robots' own clocks are simulated on top of it.
+
+use std::future::Future;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use ickon_proto::keys::{Keys, RobotTopic};
+use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
+use ickon_proto::site::Site;
+use ickon_proto::time::Time;
+use ickon_proto::{decode, encode};
+use zenoh::Session;
+use zenoh::pubsub::Publisher;
+
+use crate::profile::NoiseProfile;
+use crate::realtime::{RealtimeWorld, WorldOutput};
+
+/// Physics and sensors advance this often.
+const TICK: Duration = Duration::from_millis(5);
+/// How often the site and schedule are asked for until the central unit answers.
+const FETCH_RETRY: Duration = Duration::from_millis(500);
+
+/// What the world process needs besides its session.
+#[derive(Debug, Clone)]
+pub struct WorldSettings {
+    /// Site name (the `<site>` of every key).
+    pub site_name: String,
+    /// Robots to simulate.
+    pub robots: Vec<String>,
+    /// Noise profile.
+    pub profile: NoiseProfile,
+    /// Run seed.
+    pub seed: u64,
+}
+
+fn zerr(e: zenoh::Error) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
+}
+
+/// The system clock as a [`Time`] since the Unix epoch: the true time base of
+/// a real-time simulation.
+pub fn system_now() -> Time {
+    let ns = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    Time::from_nanos(i64::try_from(ns).unwrap_or(i64::MAX))
+}
+
+async fn fetch<T: serde::de::DeserializeOwned>(
+    session: &Session,
+    key: &str,
+    shutdown: &mut (impl Future<Output = ()> + Unpin),
+) -> anyhow::Result<Option<T>> {
+    loop {
+        let replies = session
+            .get(key)
+            .timeout(Duration::from_secs(2))
+            .await
+            .map_err(zerr)?;
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result() {
+                match decode::<T>(&sample.payload().to_bytes()) {
+                    Ok(v) => return Ok(Some(v)),
+                    Err(e) => tracing::warn!("undecodable reply on {key}: {e}"),
+                }
+            }
+        }
+        tokio::select! {
+            _ = &mut *shutdown => return Ok(None),
+            _ = tokio::time::sleep(FETCH_RETRY) => {}
+        }
+    }
+}
+
+/// One robot's publishers.
+struct RobotPublishers {
+    ultrasound: Publisher<'static>,
+    odom: Publisher<'static>,
+    imu: Publisher<'static>,
+    range: Publisher<'static>,
+    truth: Publisher<'static>,
+}
+
+/// Runs the world until `shutdown` completes; returns the bursts it heard.
+pub async fn run(
+    session: &Session,
+    settings: WorldSettings,
+    shutdown: impl Future<Output = ()>,
+) -> anyhow::Result<u64> {
+    let mut shutdown = Box::pin(shutdown);
+    let keys = Keys::new(&settings.site_name)?;
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_world())
+        .await
+        .map_err(zerr)?;
+    let Some(info) = fetch::<SiteInfo>(session, &keys.central_site(), &mut shutdown).await? else {
+        return Ok(0);
+    };
+    let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
+    let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)?;
+    let schedule_sub = session
+        .declare_subscriber(keys.central_schedule())
+        .await
+        .map_err(zerr)?;
+    let bursts = session
+        .declare_subscriber(keys.cell_burst_all())
+        .await
+        .map_err(zerr)?;
+    if let Some(schedule) =
+        fetch::<Schedule>(session, &keys.central_schedule(), &mut shutdown).await?
+    {
+        world.set_schedule(&schedule);
+    }
+    let mut pubs = Vec::new();
+    for id in world.robot_ids() {
+        let publisher = |key: String| session.declare_publisher(key).express(true);
+        pubs.push(RobotPublishers {
+            ultrasound: publisher(keys.robot(id, RobotTopic::Ultrasound)?)
+                .await
+                .map_err(zerr)?,
+            odom: publisher(keys.robot(id, RobotTopic::Odom)?)
+                .await
+                .map_err(zerr)?,
+            imu: publisher(keys.robot(id, RobotTopic::Imu)?)
+                .await
+                .map_err(zerr)?,
+            range: publisher(keys.robot(id, RobotTopic::Range)?)
+                .await
+                .map_err(zerr)?,
+            truth: publisher(keys.sim_truth(id)?).await.map_err(zerr)?,
+        });
+    }
+    tracing::info!(
+        "world: {} robots on site {:?}, profile {}",
+        pubs.len(),
+        site.name,
+        settings.profile.name
+    );
+
+    let t0 = system_now();
+    let seconds = |t: Time| t.since(t0).as_secs_f64();
+    let mut tick = tokio::time::interval(TICK);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut out = Vec::new();
+    let mut bursts_heard = 0u64;
+    loop {
+        tokio::select! {
+            _ = &mut shutdown => break,
+            Ok(s) = schedule_sub.recv_async() => {
+                match decode::<Schedule>(&s.payload().to_bytes()) {
+                    Ok(schedule) => world.set_schedule(&schedule),
+                    Err(e) => tracing::warn!("undecodable schedule: {e}"),
+                }
+            }
+            Ok(s) = bursts.recv_async() => {
+                match decode::<Burst>(&s.payload().to_bytes()) {
+                    Ok(b) => {
+                        bursts_heard += 1;
+                        world.on_burst(b.cycle, b.tx_id, seconds(b.actual));
+                    }
+                    Err(e) => tracing::warn!("undecodable burst on {}: {e}", s.key_expr()),
+                }
+            }
+            _ = tick.tick() => {
+                world.advance(seconds(system_now()), &mut out);
+                for o in out.drain(..) {
+                    publish(&pubs, o, t0).await?;
+                }
+            }
+        }
+    }
+    Ok(bursts_heard)
+}
+
+async fn publish(pubs: &[RobotPublishers], output: WorldOutput, t0: Time) -> anyhow::Result<()> {
+    let (robot, bytes, publisher) = match &output {
+        WorldOutput::Imu(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.imu)),
+        WorldOutput::Odometry(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.odom)),
+        WorldOutput::Ranges(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.range)),
+        WorldOutput::Arrivals(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.ultrasound)),
+        WorldOutput::Truth(i, m) => {
+            // Truth goes out on the true time base (the system clock).
+            let mut t = *m;
+            t.stamp = Time::from_nanos(t0.as_nanos().saturating_add(t.stamp.as_nanos()));
+            (*i, encode(&t)?, pubs.get(*i).map(|p| &p.truth))
+        }
+    };
+    match publisher {
+        Some(p) => p.put(bytes).await.map_err(zerr),
+        None => anyhow::bail!("world output for unknown robot index {robot}"),
+    }
+}

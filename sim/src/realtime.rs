@@ -1,0 +1,342 @@
+//! The world in real time: the same [`World`] as the virtual-time engine, but
+//! driven by the wall clock and fed with the cells' real burst reports, so
+//! that the cell controllers and MSU agents can run as separate processes.
+//!
+//! [`RealtimeWorld`] is a pure state machine: [`RealtimeWorld::on_burst`]
+//! records an emission, [`RealtimeWorld::advance`] moves every robot to a
+//! time and returns what its sensors produced on the way (gyro, odometry,
+//! obstacle ranges, truth, and the arrivals of every cycle whose sound has
+//! arrived). Times are true seconds since the world started; the adapter
+//! owns the clock.
+
+use std::collections::BTreeMap;
+
+use ickon_proto::msg::control::Schedule;
+use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals};
+use ickon_proto::site::Site;
+use ickon_proto::time::Time;
+
+use crate::engine::{ENCODER_HZ, PHYSICS_DT_S, RANGES_HZ, REST_S};
+use crate::profile::NoiseProfile;
+use crate::world::World;
+
+/// Truth samples per second published for observers.
+pub const TRUTH_HZ: f64 = 50.0;
+/// Extra wait after the last possible arrival before a cycle is delivered.
+const DELIVERY_MARGIN_S: f64 = 0.002;
+
+/// Why a real-time world could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RealtimeError {
+    /// A robot id not in the site.
+    #[error("robot {0:?} is not in the site (known: {1})")]
+    UnknownRobot(String, String),
+    /// A robot whose route is not in the site (the site validator prevents this).
+    #[error("robot {0:?} drives unknown route {1:?}")]
+    UnknownRoute(String, String),
+}
+
+/// What the world produced, for one robot (index into [`RealtimeWorld::robot_ids`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum WorldOutput {
+    /// A gyro sample.
+    Imu(usize, Imu),
+    /// Wheel odometry.
+    Odometry(usize, Odometry),
+    /// Obstacle ranges.
+    Ranges(usize, ObstacleRanges),
+    /// Ground truth.
+    Truth(usize, Truth),
+    /// The arrivals of one cycle.
+    Arrivals(usize, UltrasoundArrivals),
+}
+
+#[derive(Debug, Default)]
+struct PendingCycle {
+    emissions: Vec<(u32, f64)>,
+    first_s: f64,
+    last_s: f64,
+}
+
+/// Every simulated robot of a real-time run.
+pub struct RealtimeWorld {
+    ids: Vec<String>,
+    worlds: Vec<World>,
+    gyro_dt_s: f64,
+    t_s: f64,
+    next_gyro_s: f64,
+    next_odom_s: f64,
+    next_ranges_s: f64,
+    next_truth_s: f64,
+    pending: BTreeMap<u64, PendingCycle>,
+    last_delivered: Option<u64>,
+    emissions_per_cycle: Option<usize>,
+    period_s: f64,
+    max_flight_s: f64,
+}
+
+/// Decorrelates the random streams of the robots of one run.
+fn robot_seed(seed: u64, index: usize) -> u64 {
+    seed ^ (index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+impl RealtimeWorld {
+    /// The world of the robots `robot_ids` of `site`, each on its own route.
+    pub fn new(
+        site: &Site,
+        robot_ids: &[String],
+        profile: &NoiseProfile,
+        seed: u64,
+    ) -> Result<Self, RealtimeError> {
+        let mut worlds = Vec::new();
+        for (i, id) in robot_ids.iter().enumerate() {
+            let spec = site.robots.iter().find(|r| &r.id == id).ok_or_else(|| {
+                let known: Vec<&str> = site.robots.iter().map(|r| r.id.as_str()).collect();
+                RealtimeError::UnknownRobot(id.clone(), known.join(", "))
+            })?;
+            let route = site
+                .route(&spec.route)
+                .ok_or_else(|| RealtimeError::UnknownRoute(id.clone(), spec.route.clone()))?;
+            worlds.push(World::new(site, route, profile, robot_seed(seed, i)));
+        }
+        let max_flight_s = (profile.ultrasound.max_range_m
+            + profile.ultrasound.reflection_extra_m[1])
+            / site.speed_of_sound_m_s;
+        let gyro_dt_s = 1.0 / profile.gyro.rate_hz.max(1.0);
+        Ok(Self {
+            ids: robot_ids.to_vec(),
+            worlds,
+            gyro_dt_s,
+            t_s: 0.0,
+            next_gyro_s: gyro_dt_s,
+            next_odom_s: 1.0 / ENCODER_HZ,
+            next_ranges_s: 1.0 / RANGES_HZ,
+            next_truth_s: 0.0,
+            pending: BTreeMap::new(),
+            last_delivered: None,
+            emissions_per_cycle: None,
+            period_s: 1.0,
+            max_flight_s,
+        })
+    }
+
+    /// The robots, in the order of the indices in [`WorldOutput`].
+    pub fn robot_ids(&self) -> &[String] {
+        &self.ids
+    }
+
+    /// The schedule in force: how many bursts make a complete cycle, and how
+    /// long to wait for a cycle whose bursts do not all come (a dead cell).
+    pub fn set_schedule(&mut self, schedule: &Schedule) {
+        self.emissions_per_cycle = Some(schedule.emissions.len());
+        self.period_s = schedule.cycle_period.as_secs_f64().max(1e-3);
+    }
+
+    /// Records that transmitter `tx_id` fired in `cycle` at true time `t_emit_s`.
+    /// Bursts of cycles already delivered, and non-finite times, are ignored.
+    pub fn on_burst(&mut self, cycle: u64, tx_id: u32, t_emit_s: f64) {
+        if !t_emit_s.is_finite() {
+            return;
+        }
+        if self.last_delivered.is_some_and(|d| cycle <= d) {
+            return;
+        }
+        let p = self.pending.entry(cycle).or_insert_with(|| PendingCycle {
+            first_s: t_emit_s,
+            last_s: t_emit_s,
+            ..PendingCycle::default()
+        });
+        p.first_s = p.first_s.min(t_emit_s);
+        p.last_s = p.last_s.max(t_emit_s);
+        p.emissions.push((tx_id, t_emit_s));
+    }
+
+    /// Moves every robot to true time `t_s`, appending what the sensors produced.
+    pub fn advance(&mut self, t_s: f64, out: &mut Vec<WorldOutput>) {
+        while self.t_s + PHYSICS_DT_S <= t_s {
+            self.t_s += PHYSICS_DT_S;
+            let t = self.t_s;
+            for w in &mut self.worlds {
+                w.step(t, PHYSICS_DT_S, t > REST_S);
+            }
+            if t >= self.next_gyro_s {
+                self.next_gyro_s += self.gyro_dt_s;
+                for (i, w) in self.worlds.iter_mut().enumerate() {
+                    out.push(WorldOutput::Imu(i, w.gyro(t, self.gyro_dt_s)));
+                }
+            }
+            if t >= self.next_odom_s {
+                self.next_odom_s += 1.0 / ENCODER_HZ;
+                for (i, w) in self.worlds.iter_mut().enumerate() {
+                    out.push(WorldOutput::Odometry(i, w.odometry(t)));
+                }
+            }
+            if t >= self.next_ranges_s {
+                self.next_ranges_s += 1.0 / RANGES_HZ;
+                for (i, w) in self.worlds.iter_mut().enumerate() {
+                    out.push(WorldOutput::Ranges(i, w.ranges(t)));
+                }
+            }
+            if t >= self.next_truth_s {
+                self.next_truth_s += 1.0 / TRUTH_HZ;
+                for (i, w) in self.worlds.iter().enumerate() {
+                    let s = w.robot.state;
+                    out.push(WorldOutput::Truth(
+                        i,
+                        Truth {
+                            stamp: Time::from_secs_f64(t),
+                            robot_clock: w.msu_clock.stamp(t),
+                            x_m: s.x_m,
+                            y_m: s.y_m,
+                            theta_rad: ickon_fusion::angle::wrap_pi(s.theta_rad),
+                            v_m_s: s.v_m_s,
+                            omega_rad_s: s.omega_rad_s,
+                        },
+                    ));
+                }
+            }
+            self.deliver_due(out);
+        }
+    }
+
+    /// Delivers every cycle whose sound has certainly arrived: all its bursts
+    /// are in and the farthest flight is over, or it waited a whole period
+    /// beyond its first burst (bursts of a dead cell never come).
+    fn deliver_due(&mut self, out: &mut Vec<WorldOutput>) {
+        let now = self.t_s;
+        let due: Vec<u64> = self
+            .pending
+            .iter()
+            .filter(|(_, p)| {
+                let heard_all = now >= p.last_s + self.max_flight_s + DELIVERY_MARGIN_S;
+                let complete = self
+                    .emissions_per_cycle
+                    .is_some_and(|n| p.emissions.len() >= n);
+                let timed_out = now >= p.first_s + self.period_s + self.max_flight_s;
+                heard_all && (complete || timed_out)
+            })
+            .map(|(&k, _)| k)
+            .collect();
+        for k in due {
+            if let Some(p) = self.pending.remove(&k) {
+                self.last_delivered = Some(self.last_delivered.map_or(k, |d| d.max(k)));
+                for (i, w) in self.worlds.iter_mut().enumerate() {
+                    out.push(WorldOutput::Arrivals(
+                        i,
+                        w.arrivals_from_emissions(&p.emissions),
+                    ));
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ickon_proto::msg::control::Emission;
+    use ickon_proto::time::Duration;
+
+    fn setup(profile: &str) -> (Site, RealtimeWorld, Schedule) {
+        let site = Site::default_site();
+        let profile = NoiseProfile::by_name(profile).unwrap();
+        let ids = vec!["r3".to_string(), "r4".to_string()];
+        let world = RealtimeWorld::new(&site, &ids, &profile, 7).unwrap();
+        let schedule = crate::schedule::sequential_schedule(&site);
+        (site, world, schedule)
+    }
+
+    fn count(out: &[WorldOutput]) -> [usize; 5] {
+        let mut n = [0; 5];
+        for o in out {
+            let k = match o {
+                WorldOutput::Imu(..) => 0,
+                WorldOutput::Odometry(..) => 1,
+                WorldOutput::Ranges(..) => 2,
+                WorldOutput::Truth(..) => 3,
+                WorldOutput::Arrivals(..) => 4,
+            };
+            n[k] += 1;
+        }
+        n
+    }
+
+    #[test]
+    fn sensors_come_at_their_rates_for_every_robot() {
+        let (_, mut world, _) = setup("paper");
+        let mut out = Vec::new();
+        world.advance(1.0, &mut out);
+        let [imu, odom, ranges, truth, arrivals] = count(&out);
+        // Two robots; one second; the first sample of each stream is one step in.
+        assert!((198..=200).contains(&imu), "{imu}");
+        assert!((98..=100).contains(&odom), "{odom}");
+        assert!((18..=20).contains(&ranges), "{ranges}");
+        assert!((98..=100).contains(&truth), "{truth}");
+        assert_eq!(arrivals, 0, "no bursts, no arrivals");
+    }
+
+    #[test]
+    fn a_complete_cycle_is_delivered_once_its_sound_has_arrived() {
+        let (site, mut world, schedule) = setup("ideal");
+        world.set_schedule(&schedule);
+        let start = 3.0;
+        for e in &schedule.emissions {
+            world.on_burst(1, e.tx_id, start + e.offset.as_secs_f64());
+        }
+        let mut out = Vec::new();
+        let last = schedule
+            .emissions
+            .iter()
+            .map(|e| e.offset.as_secs_f64())
+            .fold(0.0, f64::max);
+        world.advance(start + last, &mut out);
+        assert_eq!(count(&out)[4], 0, "delivered before the last flight ended");
+        world.advance(start + last + 0.1, &mut out);
+        let arrivals: Vec<&UltrasoundArrivals> = out
+            .iter()
+            .filter_map(|o| match o {
+                WorldOutput::Arrivals(_, a) => Some(a),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(arrivals.len(), 2, "one message per robot");
+        // Robot r3 on the rectangle in cell c3 hears its cell's four transmitters.
+        let heard: Vec<u32> = arrivals[0].arrivals.iter().map(|a| a.tx_id).collect();
+        for id in [31, 32, 33, 34] {
+            assert!(heard.contains(&id), "{id} not heard: {heard:?}");
+        }
+        assert!(site.transmitter(31).is_some());
+        // Bursts of a delivered cycle are ignored.
+        world.on_burst(1, 31, start);
+        world.advance(start + 2.0, &mut out);
+        assert_eq!(count(&out)[4], 2);
+    }
+
+    #[test]
+    fn a_cycle_missing_bursts_is_delivered_after_a_period() {
+        let (_, mut world, mut schedule) = setup("ideal");
+        schedule.emissions.push(Emission {
+            tx_id: 99,
+            cell_id: "ghost".into(),
+            offset: Duration::ZERO,
+            slot: 0,
+        });
+        world.set_schedule(&schedule);
+        world.on_burst(5, 31, 3.0);
+        let mut out = Vec::new();
+        world.advance(3.2, &mut out);
+        assert_eq!(count(&out)[4], 0, "still waiting for the missing bursts");
+        world.advance(3.0 + schedule.cycle_period.as_secs_f64() + 0.2, &mut out);
+        assert_eq!(count(&out)[4], 2);
+    }
+
+    #[test]
+    fn unknown_robots_are_refused_by_name() {
+        let site = Site::default_site();
+        let profile = NoiseProfile::by_name("paper").unwrap();
+        let err = RealtimeWorld::new(&site, &["r9".to_string()], &profile, 1)
+            .err()
+            .unwrap();
+        assert!(err.to_string().contains("r9"));
+    }
+}

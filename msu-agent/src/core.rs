@@ -237,3 +237,131 @@ fn centroid(signals: &[crate::assembly::Signal]) -> [f64; 2] {
         signals.iter().map(|s| s.tx_m[1]).sum::<f64>() / n,
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ickon_fusion::estimator::build_by_name;
+    use ickon_proto::msg::control::Emission;
+    use ickon_proto::msg::robot::Arrival;
+    use ickon_proto::time::{Duration, Time};
+
+    const C: f64 = 343.0;
+    const TX: [(u32, [f64; 3]); 5] = [
+        (1, [0.0, 0.0, 2.8]),
+        (2, [5.0, 0.0, 2.6]),
+        (3, [5.0, 4.0, 2.8]),
+        (4, [0.0, 4.0, 2.6]),
+        (5, [2.5, 2.0, 2.7]),
+    ];
+
+    fn core() -> MsuCore {
+        let config = MsuConfig {
+            speed_of_sound_m_s: C,
+            height_m: 0.5,
+            receiver_angles_rad: (0..6).map(|i| f64::from(i) * 60f64.to_radians()).collect(),
+            transmitters: TX
+                .iter()
+                .map(|(id, p)| TransmitterEntry {
+                    tx_id: *id,
+                    cell_id: "a".into(),
+                    x_m: p[0],
+                    y_m: p[1],
+                    z_m: p[2],
+                })
+                .collect(),
+            wheels: WheelGeometry {
+                wheel_base_m: 0.33,
+                left_m_per_tick: 1e-4,
+                right_m_per_tick: 1e-4,
+            },
+            timing_sigma_s: 10e-6,
+            residual_gate_m: 0.05,
+            floor_bounds_m: Some([[0.0, 0.0], [5.0, 4.0]]),
+            max_fix_sigma_m: 0.5,
+        };
+        let mut core = MsuCore::new(config, build_by_name("msu-raw").unwrap());
+        core.set_schedule(Schedule {
+            version: 1,
+            effective_cycle: 0,
+            cycle_period: Duration::from_millis(200),
+            slot_length: Duration::from_millis(40),
+            emissions: TX
+                .iter()
+                .enumerate()
+                .map(|(i, (id, _))| Emission {
+                    tx_id: *id,
+                    cell_id: "a".into(),
+                    offset: Duration::from_millis(40 * i as i64),
+                    slot: i as u32,
+                })
+                .collect(),
+            active_cells: vec!["a".into()],
+        });
+        core
+    }
+
+    fn arrivals(p: [f64; 3], late_m: &[(u32, f64)]) -> UltrasoundArrivals {
+        let start_s = 10.0;
+        let arrivals = TX
+            .iter()
+            .enumerate()
+            .map(|(i, (id, t))| {
+                let d =
+                    ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2) + (p[2] - t[2]).powi(2)).sqrt();
+                let extra = late_m
+                    .iter()
+                    .find(|(k, _)| k == id)
+                    .map_or(0.0, |(_, e)| *e);
+                Arrival {
+                    tx_id: *id,
+                    receiver_id: 0,
+                    t_arrival: Time::from_secs_f64(start_s + 0.04 * i as f64 + (d + extra) / C),
+                }
+            })
+            .collect();
+        UltrasoundArrivals { seq: 7, arrivals }
+    }
+
+    #[test]
+    fn exact_arrivals_give_an_exact_fix_and_the_estimator_takes_it() {
+        let mut core = core();
+        let fix = core
+            .on_arrivals(&arrivals([1.7, 2.9, 0.5], &[]))
+            .unwrap()
+            .unwrap();
+        assert!(
+            (fix.x_m - 1.7).abs() < 1e-5 && (fix.y_m - 2.9).abs() < 1e-5,
+            "{fix:?}"
+        );
+        assert_eq!(fix.used.len(), 5);
+        assert_eq!(fix.quality, FixQuality::Good);
+        let pose = core.pose().unwrap();
+        assert!((pose.x_m - 1.7).abs() < 1e-5);
+        assert_eq!(pose.fix_seq, 7);
+    }
+
+    #[test]
+    fn a_reflected_arrival_is_rejected_when_the_others_agree() {
+        let mut core = core();
+        let fix = core
+            .on_arrivals(&arrivals([3.2, 1.1, 0.5], &[(3, 0.6)]))
+            .unwrap()
+            .unwrap();
+        assert_eq!(fix.rejected, vec![3]);
+        assert!(
+            (fix.x_m - 3.2).abs() < 1e-4 && (fix.y_m - 1.1).abs() < 1e-4,
+            "{fix:?}"
+        );
+    }
+
+    #[test]
+    fn arrivals_before_any_schedule_are_an_error() {
+        let mut c = core();
+        c.schedule = None;
+        assert_eq!(
+            c.on_arrivals(&arrivals([1.0, 1.0, 0.5], &[])),
+            Err(MsuError::NoSchedule)
+        );
+    }
+}

@@ -86,6 +86,8 @@ pub struct FixRecord {
     pub truth: TruthSample,
     /// Positions of the transmitters used, metres.
     pub used_tx_m: Vec<[f64; 3]>,
+    /// True time the fix became available (the cycle's arrivals were complete), seconds.
+    pub available_s: f64,
 }
 
 /// One point of a plotted trace.
@@ -357,6 +359,7 @@ pub fn run(
                         truth: world.truth_at(t_true),
                         fix,
                         used_tx_m,
+                        available_s: t,
                     });
                 }
             }

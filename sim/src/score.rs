@@ -58,6 +58,12 @@ pub struct Score {
     /// Largest absolute receiver-id heading error of a fix, degrees (`msu-raw` only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fix_heading_max_deg: Option<f64>,
+    /// Fixes per second of simulated time (`msu-raw` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_rate_hz: Option<f64>,
+    /// Mean time from a fix's measurement to its availability, ms (`msu-raw` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fix_latency_ms: Option<f64>,
     /// Mean error over the mean CRLB of the raw fixes (`msu-raw` and fix-fed estimators).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crlb_ratio: Option<f64>,
@@ -198,6 +204,16 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                 },
                 fix_heading_std_deg: fix_head_row.filter(|_| raw).map(|r| r.heading_std_deg),
                 fix_heading_max_deg: fix_head_row.filter(|_| raw).map(|r| r.heading_max_deg),
+                fix_rate_hz: (raw && out.virtual_s > 0.0)
+                    .then(|| out.fixes.len() as f64 / out.virtual_s),
+                fix_latency_ms: (raw && !out.fixes.is_empty()).then(|| {
+                    1e3 * out
+                        .fixes
+                        .iter()
+                        .map(|f| f.available_s - f.truth.t_s)
+                        .sum::<f64>()
+                        / out.fixes.len() as f64
+                }),
                 crlb_ratio: if uses_fixes {
                     mean_crlb.map(|c| mean.mean_mm * 1e-3 / c.max(1e-12))
                 } else {

@@ -1,4 +1,6 @@
-//! The simulated world of one robot: its true motion and history, its
+//! The simulated world of one robot (its random streams are labelled by its
+//! route, so robots on different routes draw independent numbers while the
+//! site-wide errors, survey and cell sync, are shared): its true motion and history, its
 //! sensors, its MSU clock, and the cells' emissions as it hears them.
 
 use std::collections::VecDeque;
@@ -60,9 +62,9 @@ impl World {
             drive,
             profile.encoders,
             route,
-            rng::stream(seed, "robot/slip"),
+            rng::stream(seed, &format!("robot/{}/slip", route.name)),
         );
-        let mut clock_rng = rng::stream(seed, "robot/clock");
+        let mut clock_rng = rng::stream(seed, &format!("robot/{}/clock", route.name));
         let msu_clock = DeviceClock {
             offset_s: rng::normal(&mut clock_rng, profile.clocks.msu_offset_sigma_ms) * 1e-3,
             drift: rng::normal(&mut clock_rng, profile.clocks.msu_drift_sigma_ppm) * 1e-6,
@@ -73,19 +75,30 @@ impl World {
             * speed_of_sound_at(t_c + profile.ultrasound.temperature_error_c)
             / speed_of_sound_at(t_c);
         let s = robot.state;
+        // The world's transmitters hang where they really are; the MSU's table keeps the surveyed values.
+        let mut true_site = site.clone();
+        let mut survey_rng = rng::stream(seed, "site/survey");
+        for t in &mut true_site.transmitters {
+            for k in 0..3 {
+                t.position_m[k] += rng::normal(&mut survey_rng, profile.ultrasound.survey_sigma_m);
+            }
+        }
         let mut w = Self {
-            site: site.clone(),
+            site: true_site,
             profile: profile.clone(),
             robot,
             drive,
             history: VecDeque::new(),
-            gyro: Gyro::new(profile.gyro, rng::stream(seed, "robot/gyro")),
+            gyro: Gyro::new(
+                profile.gyro,
+                rng::stream(seed, &format!("robot/{}/gyro", route.name)),
+            ),
             last_gyro_theta: s.theta_rad,
             msu_clock,
             cell_error_s: vec![0.0; site.cells.len()],
-            acoustic_rng: rng::stream(seed, "robot/ultrasound"),
+            acoustic_rng: rng::stream(seed, &format!("robot/{}/ultrasound", route.name)),
             cells_rng: rng::stream(seed, "cells/sync"),
-            ranger_rng: rng::stream(seed, "robot/rangers"),
+            ranger_rng: rng::stream(seed, &format!("robot/{}/rangers", route.name)),
             c_true_m_s,
             odom: [s.x_m, s.y_m, s.theta_rad],
             last_ticks: (0, 0),

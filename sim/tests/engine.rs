@@ -75,4 +75,15 @@ fn one_tour_of_route_one_scores_sixty_reference_points_per_estimator() {
         );
         assert!(s.mean.mean_mm.is_finite());
     }
+    let mean = |name: &str| {
+        scores
+            .iter()
+            .find(|s| s.estimator == name)
+            .unwrap()
+            .mean
+            .mean_mm
+    };
+    // Seed 000's ordering already shows on one tour.
+    assert!(mean("ickon-akf") < mean("msu-raw"));
+    assert!(mean("msu-raw") < mean("odometry"));
 }

@@ -40,6 +40,9 @@ pub fn print(scores: &[&Score], profile: &str, seed: u64, wall: Duration) {
         if let Some(v) = s.fix_rmse_mm {
             extra.push(format!("fix_rmse_mm {v:.2}"));
         }
+        if let (Some(hz), Some(ms)) = (s.fix_rate_hz, s.fix_latency_ms) {
+            extra.push(format!("fixes {hz:.2} Hz, latency {ms:.0} ms"));
+        }
         if let (Some(sd), Some(mx)) = (s.fix_heading_std_deg, s.fix_heading_max_deg) {
             extra.push(format!("fix heading std {sd:.2} deg, max {mx:.1} deg"));
         }

@@ -62,6 +62,9 @@ pub enum RunError {
     /// Zero tours asked for.
     #[error("at least one tour is needed")]
     NoTours,
+    /// The site cannot be scheduled.
+    #[error(transparent)]
+    Schedule(#[from] ickon_central::ScheduleError),
 }
 
 /// The truth and every estimate when the robot passed one reference point.
@@ -226,7 +229,8 @@ pub fn run(
                 .collect::<Vec<_>>()
                 .join(", "),
         })?;
-    let schedule = crate::schedule::sequential_schedule(site);
+    let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
+    let schedule = ickon_central::compute_schedule(site, &all_cells, 1, 0)?;
     let mut world = World::new(site, route, &config.profile, config.seed);
     let s0 = world.robot.state;
     let start = [s0.x_m, s0.y_m, s0.theta_rad];

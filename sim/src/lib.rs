@@ -25,7 +25,6 @@ pub mod profile;
 pub mod realtime;
 pub mod rng;
 pub mod robot;
-pub mod schedule;
 pub mod score;
 pub mod sensors;
 pub mod world;

@@ -198,8 +198,10 @@ impl NoiseProfile {
     /// paper --estimator ickon-akf --route route-1|route-2` for seeds 1-4
     /// and moving them until every seed's mean rows fell inside the seed's
     /// range with a margin (50-110 mm, 75-95 % under 100 mm): detection
-    /// jitter 60 us (between one and three 25 us carrier periods; 30 us gave
-    /// means under 50 mm, 70 us pushed route-2 under 75 %), transmitter
+    /// jitter 70 us (between one and three 25 us carrier periods; first set
+    /// to 60 us with a one-slot-per-transmitter schedule, raised when the
+    /// central unit's colouring scheduler made cycles 30 % shorter and the
+    /// means fell under 50 mm on two seeds), transmitter
     /// survey error 1 cm per axis (2 cm made the result depend too much on
     /// one seed's draw), 2 % of direct paths replaced by a reflection, 30 %
     /// of blocked transmitters heard by a reflection 5-150 cm longer, 5 %
@@ -212,7 +214,7 @@ impl NoiseProfile {
             name: "paper".into(),
             ultrasound: UltrasoundNoise {
                 motion_during_cycle: true,
-                timing_jitter_us: 60.0,
+                timing_jitter_us: 70.0,
                 quantisation_us: 1.0,
                 bearing_sigma_deg: 15.0,
                 drop_probability: 0.05,

@@ -242,7 +242,8 @@ mod tests {
         let profile = NoiseProfile::by_name(profile).unwrap();
         let ids = vec!["r3".to_string(), "r4".to_string()];
         let world = RealtimeWorld::new(&site, &ids, &profile, 7).unwrap();
-        let schedule = crate::schedule::sequential_schedule(&site);
+        let cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
+        let schedule = ickon_central::compute_schedule(&site, &cells, 1, 0).unwrap();
         (site, world, schedule)
     }
 

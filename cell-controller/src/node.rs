@@ -43,7 +43,7 @@ pub struct CellArgs {
 /// Clock exchanges at start-up come this often...
 const FAST_SYNC: StdDuration = StdDuration::from_millis(100);
 /// ...for this many exchanges, then every [`SLOW_SYNC`].
-const FAST_SYNC_COUNT: u32 = 15;
+const FAST_SYNC_COUNT: u32 = 30;
 /// Steady-state clock exchange period.
 const SLOW_SYNC: StdDuration = StdDuration::from_millis(500);
 /// Status reports this often.

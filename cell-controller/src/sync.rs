@@ -94,7 +94,7 @@ impl Default for SyncConfig {
         Self {
             window: 40,
             best: 12,
-            min_drift_span_s: 3.0,
+            min_drift_span_s: 1.0,
         }
     }
 }

@@ -14,6 +14,8 @@ use serde::Serialize;
 const TRUTH_HISTORY: usize = 2_000;
 /// Arrival messages remembered per robot to match poses to (latency).
 const ARRIVALS_REMEMBERED: usize = 256;
+/// Truth is extrapolated at most this far past its newest sample, seconds.
+const MAX_EXTRAPOLATION_S: f64 = 0.05;
 /// Poses in the first seconds of a run are not scored: estimators start from
 /// the configured pose and need a few fixes to converge.
 pub const WARM_UP_S: f64 = 3.0;
@@ -110,10 +112,17 @@ impl RobotStats {
     /// outside the kept history.
     fn truth_at(&self, stamp: Time) -> Option<(f64, f64)> {
         let idx = self.truth.partition_point(|t| t.robot_clock <= stamp);
-        if idx == 0 || idx == self.truth.len() {
-            return None;
-        }
-        let (a, b) = (&self.truth[idx - 1], &self.truth[idx]);
+        let a = self.truth.get(idx.checked_sub(1)?)?;
+        let Some(b) = self.truth.get(idx) else {
+            // Newer than the newest truth (the pose and the truth of one
+            // instant race over the mesh): extrapolate briefly along the motion.
+            let dt = stamp.since(a.robot_clock).as_secs_f64();
+            if dt > MAX_EXTRAPOLATION_S {
+                return None;
+            }
+            let d = a.v_m_s * dt;
+            return Some((a.x_m + d * a.theta_rad.cos(), a.y_m + d * a.theta_rad.sin()));
+        };
         let span = b.robot_clock.since(a.robot_clock).as_nanos();
         if span <= 0 || span > 1_000_000_000 {
             return None;
@@ -281,6 +290,14 @@ mod tests {
         assert_eq!(s.poses, 2);
         assert_eq!(s.scored_poses, 1, "the first pose is inside the warm-up");
         assert!((s.mean_mm.unwrap() - 20.0).abs() < 1e-6);
+        // At the newest truth sample itself, and a little past it.
+        let last = 199.0 * 0.05;
+        r.on_pose(&pose(100.0 + last, last, 0), now);
+        r.on_pose(&pose(100.0 + last + 0.02, last + 0.02, 0), now);
+        r.on_pose(&pose(100.0 + last + 0.5, 0.0, 0), now);
+        let s = r.summary("r1");
+        assert_eq!(s.scored_poses, 3, "far past the truth is not scored");
+        assert!((s.mean_mm.unwrap() - 20.0 / 3.0).abs() < 1e-6);
     }
 
     #[test]

@@ -525,7 +525,13 @@ async fn observe(
                     break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
                 }
                 if !quiet {
-                    eprint!("\r{}", status_line(&stats, &last_burst, site.cells.len(), started));
+                    let line = status_line(&stats, &last_burst, site.cells.len(), started);
+                    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+                        eprint!("\r{line}");
+                    } else if started.elapsed().as_secs() % 5 == 0 {
+                        // A log, not a terminal: a line every five seconds.
+                        eprintln!("{}", line.trim_end());
+                    }
                 }
             }
         }

@@ -8,3 +8,4 @@
 
 pub mod angle;
 pub mod estimator;
+pub mod tdoa;

@@ -47,12 +47,9 @@ use super::replay::Core;
 use super::{InitialPose, Input, PoseEstimate};
 use crate::angle;
 
-/// Seed 002 eq. 1: heading of a vehicle from the positions of two sensors on
-/// it, `theta = atan2(y2 - y1, x2 - x1) + pi/2` (sensor 2 on the right of
-/// sensor 1 when looking forward), wrapped to `(-pi, pi]`.
-pub fn two_sensor_heading(x1_m: f64, y1_m: f64, x2_m: f64, y2_m: f64) -> f64 {
-    angle::wrap_pi((y2_m - y1_m).atan2(x2_m - x1_m) + std::f64::consts::FRAC_PI_2)
-}
+/// Seed 002 eq. 1, kept at this path; the implementation lives with the
+/// other positioning headings in [`crate::tdoa`].
+pub use crate::tdoa::two_sensor_heading;
 
 /// Parameters of `gyro-ckf`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

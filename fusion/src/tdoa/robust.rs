@@ -1,0 +1,260 @@
+//! [`solve`]: the closed form and refinement wrapped in reflection
+//! rejection.
+//!
+//! A reflected arrival travels further than the direct path, so its
+//! pseudo-range is too long: rejection looks for *late* signals.
+//! 1. Physical check, no statistics: `rho_i - rho_j <= |s_i - s_j|` for
+//!    every pair (plus `sqrt(2)` gates of noise). The signal that is the
+//!    longer side of the most violations goes first, until none is left.
+//! 2. Consensus: while some residual exceeds the gate and redundancy
+//!    remains, solve once without each signal. The removal that leaves the
+//!    smallest residual sum names the suspect; it goes if its residual
+//!    against the others' fix is beyond the gate (and late, by default).
+//!    When removal leaves no redundancy every subset fits exactly, so a
+//!    signal goes only if it is the single one whose residual is off:
+//!    otherwise the data cannot tell which signal is wrong and the fix
+//!    stays [`Quality::Suspect`].
+//! 3. Roots and refined fixes outside the allowed area are discarded.
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::closed_form::closed_form_subset;
+use super::refine::{linearise, refine_subset};
+use super::residuals::{self, Stats};
+use super::signal::{self, Signal, Subset};
+use super::{Fix, Quality, RejectReason, Rejection, SolveError, SolverConfig};
+
+/// A fix over one subset, before it is turned into a [`Fix`].
+#[derive(Debug, Clone, Copy)]
+struct Estimate {
+    position_m: Vector3<f64>,
+    /// `(J^T J)^-1`, the covariance per unit range variance.
+    unit_covariance: Matrix3<f64>,
+    stats: Stats,
+    alternative_m: Option<Vector3<f64>>,
+    iterations: u32,
+}
+
+/// Fix from the signals of one cycle: checks, physical rejection, closed
+/// form, refinement, leave-one-out rejection.
+pub fn solve(signals: &[Signal], config: &SolverConfig) -> Result<Fix, SolveError> {
+    config.validate()?;
+    let need = config.mode.min_signals();
+    signal::validate(signals, need)?;
+    let gate_m = config.gate_m();
+    let mut set = Subset::first(signals.len());
+    let mut rejected = Vec::new();
+    physical_check(
+        signals,
+        &mut set,
+        gate_m * std::f64::consts::SQRT_2,
+        &mut rejected,
+    );
+    if set.len() < need {
+        return Err(SolveError::TooFewConsistent {
+            got: set.len(),
+            need,
+            rejected,
+        });
+    }
+    let mut current = estimate(signals, set, config, gate_m);
+    let mut removed = 0;
+    loop {
+        let fits = matches!(&current, Ok(e) if e.stats.max_abs_m() <= gate_m);
+        if fits || set.len() <= need || removed >= config.max_rejections {
+            break;
+        }
+        let Some((k, residual_m, est)) =
+            leave_one_out(signals, set, config, gate_m, current.is_err())
+        else {
+            break;
+        };
+        rejected.push(Rejection {
+            tx_id: signals[k].tx_id,
+            reason: RejectReason::Residual { residual_m },
+        });
+        set = set.without(k);
+        current = Ok(est);
+        removed += 1;
+    }
+    Ok(into_fix(signals, set, config, current?, rejected, gate_m))
+}
+
+/// Drops the longer side of range differences longer than their baseline.
+fn physical_check(signals: &[Signal], set: &mut Subset, tol_m: f64, out: &mut Vec<Rejection>) {
+    loop {
+        // (index, violations, largest excess, partner)
+        let mut worst: Option<(usize, u32, f64, usize)> = None;
+        for i in set.iter() {
+            let (mut count, mut excess, mut partner) = (0, 0.0, i);
+            for j in set.iter() {
+                let diff = signals[i].pseudo_range_m - signals[j].pseudo_range_m - tol_m;
+                // The square root only for the rare pairs that may violate.
+                if diff > 0.0 && diff * diff > (signals[i].tx_m - signals[j].tx_m).norm_squared() {
+                    let e = diff - (signals[i].tx_m - signals[j].tx_m).norm();
+                    count += 1;
+                    if e > excess {
+                        (excess, partner) = (e, j);
+                    }
+                }
+            }
+            let better = worst.is_none_or(|(_, c, x, _)| (count, excess) > (c, x));
+            if count > 0 && better {
+                worst = Some((i, count, excess, partner));
+            }
+        }
+        let Some((i, _, excess_m, partner)) = worst else {
+            return;
+        };
+        out.push(Rejection {
+            tx_id: signals[i].tx_id,
+            reason: RejectReason::ExceedsBaseline {
+                other_tx_id: signals[partner].tx_id,
+                excess_m,
+            },
+        });
+        *set = set.without(i);
+    }
+}
+
+/// Closed form, root choice by the allowed area, optional refinement.
+fn estimate(
+    signals: &[Signal],
+    set: Subset,
+    config: &SolverConfig,
+    gate_m: f64,
+) -> Result<Estimate, SolveError> {
+    let mode = config.mode;
+    let inside = |p: &Vector3<f64>| config.allowed_area_m.is_none_or(|a| a.contains(p, mode));
+    let outside = |p: Vector3<f64>| SolveError::OutsideAllowedArea {
+        position_m: p.into(),
+    };
+    let cf = closed_form_subset(signals, set, mode)?;
+    let mut roots = cf.candidates().filter(|c| inside(&c.position_m));
+    let chosen = *roots.next().ok_or_else(|| outside(cf.best.position_m))?;
+    let alternative_m = roots
+        .next()
+        .filter(|o| o.stats.max_abs_m() <= gate_m)
+        .map(|o| o.position_m);
+    let (position_m, info, iterations) = if config.refine {
+        let r = refine_subset(signals, set, mode, chosen.position_m, config.max_iterations)?;
+        if !inside(&r.position_m) {
+            return Err(outside(r.position_m));
+        }
+        (r.position_m, r.at.info, r.iterations)
+    } else {
+        let lin = linearise(signals, set, mode, &chosen.position_m, chosen.bias_m);
+        (chosen.position_m, lin.info, 0)
+    };
+    let unit_covariance = info
+        .cholesky()
+        .ok_or(SolveError::SingularInformation)?
+        .inverse();
+    Ok(Estimate {
+        position_m,
+        unit_covariance,
+        stats: residuals::stats(signals, set, &position_m, chosen.bias_m),
+        alternative_m,
+        iterations,
+    })
+}
+
+/// The signal to drop, its residual against the others' fix, and that fix.
+///
+/// With redundancy left after the removal, the removal that leaves the
+/// smallest residual sum names the suspect, and it is dropped only if its
+/// own residual is off in the direction the config allows: an early outlier
+/// under `late_only` must not get good signals dropped in its place.
+/// Without redundancy left every subset fits exactly, so the direction alone
+/// must single out one signal.
+fn leave_one_out(
+    signals: &[Signal],
+    set: Subset,
+    config: &SolverConfig,
+    gate_m: f64,
+    all_failed: bool,
+) -> Option<(usize, f64, Estimate)> {
+    let exact_after = set.len() - 1 == config.mode.min_signals();
+    let off = |residual_m: f64| {
+        // When the full set has no fix at all, any subset that has one is
+        // evidence against the signal it leaves out.
+        all_failed
+            || if config.late_only {
+                residual_m > gate_m
+            } else {
+                residual_m.abs() > gate_m
+            }
+    };
+    let mut best: Option<(usize, f64, Estimate)> = None;
+    let mut off_count = 0;
+    for k in set.iter() {
+        let Ok(est) = estimate(signals, set.without(k), config, gate_m) else {
+            continue;
+        };
+        let residual_m = residuals::residual(&signals[k], &est.position_m, est.stats.bias_m);
+        if exact_after {
+            if !off(residual_m) {
+                continue;
+            }
+            off_count += 1;
+        }
+        if best
+            .as_ref()
+            .is_none_or(|b| est.stats.ssr_m2 < b.2.stats.ssr_m2)
+        {
+            best = Some((k, residual_m, est));
+        }
+    }
+    match best {
+        Some(b) if exact_after && off_count == 1 => Some(b),
+        Some(b) if !exact_after && off(b.1) => Some(b),
+        _ => None,
+    }
+}
+
+fn into_fix(
+    signals: &[Signal],
+    set: Subset,
+    config: &SolverConfig,
+    est: Estimate,
+    rejected: Vec<Rejection>,
+    gate_m: f64,
+) -> Fix {
+    let redundancy = set.len() - config.mode.min_signals();
+    let sigma2 = config.sigma_range_m * config.sigma_range_m;
+    // With redundancy the residuals estimate the noise themselves; a fix
+    // whose residuals say "noisier than configured" gets a wider covariance.
+    let variance = if redundancy > 0 {
+        sigma2.max(est.stats.ssr_m2 / redundancy as f64)
+    } else {
+        sigma2
+    };
+    let mut covariance_m2 = est.unit_covariance * variance;
+    if config.mode.height_m().is_some() {
+        covariance_m2.fixed_view_mut::<1, 3>(2, 0).fill(0.0);
+        covariance_m2.fixed_view_mut::<3, 1>(0, 2).fill(0.0);
+    }
+    let quality = if est.stats.max_abs_m() > gate_m {
+        Quality::Suspect
+    } else if est.alternative_m.is_some() {
+        Quality::Ambiguous
+    } else if redundancy == 0 {
+        Quality::Minimal
+    } else {
+        Quality::Good
+    };
+    Fix {
+        position_m: est.position_m,
+        covariance_m2,
+        bias_m: est.stats.bias_m,
+        used_tx_ids: set.of(signals).map(|s| s.tx_id).collect(),
+        residuals_m: set
+            .of(signals)
+            .map(|s| residuals::residual(s, &est.position_m, est.stats.bias_m))
+            .collect(),
+        rejected,
+        quality,
+        alternative_m: est.alternative_m,
+        iterations: est.iterations,
+    }
+}

@@ -204,7 +204,8 @@ impl CdaChain {
                 let inc = self.increments.step(input)?;
                 Some(self.relative(inc))
             }
-            Input::Fix(_) => None,
+            // cda has no absolute positioning: fixes and range differences are ignored.
+            Input::Fix(_) | Input::RangeDifference(_) => None,
         }
     }
 

@@ -9,6 +9,7 @@ use super::heading_kf::HeadingKfParams;
 use super::obstacle_angle::ObstacleAngleParams;
 use super::position_akf::PositionAkfParams;
 use super::registry::EstimatorConfig;
+use super::tdoa_ekf::TdoaEkfParams;
 
 /// A parameter outside its domain.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -29,6 +30,14 @@ fn positive(field: &'static str, v: f64) -> Check {
         Ok(())
     } else {
         Err((field, "must be positive"))
+    }
+}
+
+fn finite_positive(field: &'static str, v: f64) -> Check {
+    if v > 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err((field, "must be finite and positive"))
     }
 }
 
@@ -118,6 +127,28 @@ fn cda(p: &CdaParams) -> Check {
     history(p.history_s)
 }
 
+fn tdoa_ekf(p: &TdoaEkfParams) -> Check {
+    p.initial_pose.as_ref().map_or(Ok(()), initial)?;
+    if !p.receiver_height_m.is_finite() {
+        return Err(("receiver_height_m", "must be finite"));
+    }
+    noise(&p.noise)?;
+    non_negative("max_gyro_gap_s", p.max_gyro_gap_s)?;
+    positive("gate_sigma", p.gate_sigma)?;
+    p.recovery.check()?;
+    if p.start_transmitters < 2 {
+        return Err((
+            "start_transmitters",
+            "must be at least 2 (one range difference names two)",
+        ));
+    }
+    finite_positive("start_sigma_xy_m", p.start_sigma_xy_m)?;
+    finite_positive("heading_chord_m", p.heading_chord_m)?;
+    finite_positive("settled_sigma_m", p.settled_sigma_m)?;
+    finite_positive("track_heading_sigma_deg", p.track_heading_sigma_deg)?;
+    history(p.history_s)
+}
+
 impl EstimatorConfig {
     /// Checks every parameter is in its domain.
     pub fn validate(&self) -> Result<(), InvalidParameter> {
@@ -138,6 +169,7 @@ impl EstimatorConfig {
                 .and_then(|()| position(&p.position))
                 .and_then(|()| p.initial_pose.as_ref().map_or(Ok(()), initial))
                 .and_then(|()| history(p.history_s)),
+            Self::TdoaEkf(p) => tdoa_ekf(p),
         };
         check.map_err(|(field, reason)| InvalidParameter {
             estimator: self.name(),

@@ -233,7 +233,7 @@ impl Core for GyroCkf {
                 }
                 self.position.correct(fix);
             }
-            Input::Range(_) => return,
+            Input::Range(_) | Input::RangeDifference(_) => return,
         }
         self.t_s = self.t_s.max(input.t_s());
     }

@@ -157,7 +157,7 @@ impl Core for IckonAkf {
                 }
             }
             Input::Fix(fix) => self.fusion.fix(fix),
-            Input::Gyro(_) | Input::Range(_) => {}
+            Input::Gyro(_) | Input::Range(_) | Input::RangeDifference(_) => {}
         }
     }
 

@@ -88,6 +88,53 @@ pub struct RangeSample {
     pub planned_heading_rad: Option<f64>,
 }
 
+/// One time difference of arrival, already turned into a difference of
+/// distances: `|p - b| - |p - a| = d_m` where `p` is the receiver and `a`,
+/// `b` the two transmitters (B minus A). A tightly-coupled filter fuses
+/// each one on its own, so no complete set of signals is needed for a fix.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeDifferenceSample {
+    /// Time of the measurement (arrival of the later signal), in seconds.
+    pub t_s: f64,
+    /// Position of transmitter A in the world frame, metres.
+    pub a_m: [f64; 3],
+    /// Position of transmitter B in the world frame, metres.
+    pub b_m: [f64; 3],
+    /// `|p - b| - |p - a|`, in metres.
+    pub d_m: f64,
+    /// Standard deviation of `d_m`, in metres.
+    pub sigma_m: f64,
+}
+
+impl RangeDifferenceSample {
+    /// From a time difference `dt_s = t_b - t_a` (emission offsets already
+    /// removed) and its standard deviation, at the propagation speed
+    /// `speed_m_s` (speed of sound for ultrasound, of light for radio).
+    pub fn from_time_difference(
+        t_s: f64,
+        a_m: [f64; 3],
+        b_m: [f64; 3],
+        dt_s: f64,
+        sigma_s: f64,
+        speed_m_s: f64,
+    ) -> Self {
+        Self {
+            t_s,
+            a_m,
+            b_m,
+            d_m: dt_s * speed_m_s,
+            sigma_m: sigma_s * speed_m_s,
+        }
+    }
+
+    /// The distance between the two transmitters, in metres: no receiver
+    /// can measure a larger `|d_m|`.
+    pub fn baseline_m(&self) -> f64 {
+        let d: [f64; 3] = std::array::from_fn(|k| self.b_m[k] - self.a_m[k]);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    }
+}
+
 /// One timestamped measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Input {
@@ -101,6 +148,8 @@ pub enum Input {
     Fix(FixSample),
     /// Obstacle ranges.
     Range(RangeSample),
+    /// One range difference between two transmitters (tightly coupled).
+    RangeDifference(RangeDifferenceSample),
 }
 
 impl Input {
@@ -112,6 +161,7 @@ impl Input {
             Input::Gyro(s) => s.t_s,
             Input::Fix(s) => s.t_s,
             Input::Range(s) => s.t_s,
+            Input::RangeDifference(s) => s.t_s,
         }
     }
 
@@ -165,6 +215,17 @@ impl Input {
                     finite("planned_heading_rad", h)?;
                 }
                 Ok(())
+            }
+            Input::RangeDifference(s) => {
+                finite("t_s", s.t_s)?;
+                for v in s.a_m {
+                    finite("a_m", v)?;
+                }
+                for v in s.b_m {
+                    finite("b_m", v)?;
+                }
+                finite("d_m", s.d_m)?;
+                positive("sigma_m", s.sigma_m)
             }
         }
     }

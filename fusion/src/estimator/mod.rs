@@ -1,7 +1,7 @@
 //! Pose estimators: the seeds' fusion pipelines behind one trait.
 //!
 //! Every estimator consumes timestamped [`Input`]s (odometry poses, encoder
-//! ticks, gyro rates, MSU fixes, obstacle ranges) and answers the current
+//! ticks, gyro rates, MSU fixes, obstacle ranges, range differences) and answers the current
 //! [`PoseEstimate`] (`x, y, theta` with a 3x3 covariance). Nothing here reads
 //! a clock: time is the `t_s` carried by each input.
 //!
@@ -13,6 +13,7 @@
 //! | `gyro-ckf` | seed 002 s7-10, eq. 1, 3-11 | [`gyro_ckf`] |
 //! | `cda` | seed 003 s3-4, eq. 1-18 | [`cda`] |
 //! | `cda-msu` | seed 003 heading chain + seed 000 position AKF | [`cda_msu`] |
+//! | `tdoa-ekf` | ours: each range difference fused on its own | [`tdoa_ekf`] |
 //!
 //! Build one by name with [`build_by_name`], or from an [`EstimatorConfig`]
 //! (serde, tagged by `name`) with [`build`].
@@ -51,6 +52,7 @@ pub mod odometry;
 pub mod position_akf;
 mod registry;
 pub mod replay;
+pub mod tdoa_ekf;
 
 #[cfg(test)]
 mod tests;
@@ -58,7 +60,8 @@ mod tests;
 pub use config_check::InvalidParameter;
 pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker};
 pub use input::{
-    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeSample, WheelGeometry,
+    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
+    RangeSample, WheelGeometry,
 };
 pub use registry::{
     EstimatorConfig, UnknownEstimator, build, build_by_name, names, two_sensor_heading,

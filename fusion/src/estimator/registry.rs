@@ -16,19 +16,21 @@ use super::ickon_akf::{IckonAkf, IckonAkfParams};
 use super::msu_raw::{MsuRaw, MsuRawParams};
 use super::odometry::{Odometry, OdometryParams};
 use super::replay::Replay;
+use super::tdoa_ekf::{TdoaEkf, TdoaEkfParams};
 use super::{Estimator, InvalidParameter};
 use crate::estimator::InitialPose;
 
 pub use super::gyro_ckf::two_sensor_heading;
 
 /// The estimator names, in the order the evaluator lists them.
-const NAMES: [&str; 6] = [
+const NAMES: [&str; 7] = [
     "odometry",
     "msu-raw",
     "ickon-akf",
     "gyro-ckf",
     "cda",
     "cda-msu",
+    "tdoa-ekf",
 ];
 
 /// Default seconds of input history kept for late inputs.
@@ -43,7 +45,9 @@ pub fn names() -> &'static [&'static str] {
 
 /// The name is not one of [`names`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown estimator `{name}` (known: odometry, msu-raw, ickon-akf, gyro-ckf, cda, cda-msu)")]
+#[error(
+    "unknown estimator `{name}` (known: odometry, msu-raw, ickon-akf, gyro-ckf, cda, cda-msu, tdoa-ekf)"
+)]
 pub struct UnknownEstimator {
     /// The name asked for.
     pub name: String,
@@ -71,6 +75,9 @@ pub enum EstimatorConfig {
     /// `cda-msu`.
     #[serde(rename = "cda-msu")]
     CdaMsu(CdaMsuParams),
+    /// `tdoa-ekf` (ground robot).
+    #[serde(rename = "tdoa-ekf")]
+    TdoaEkf(TdoaEkfParams),
 }
 
 impl EstimatorConfig {
@@ -83,6 +90,7 @@ impl EstimatorConfig {
             "gyro-ckf" => Self::GyroCkf(GyroCkfParams::default()),
             "cda" => Self::Cda(CdaParams::default()),
             "cda-msu" => Self::CdaMsu(CdaMsuParams::default()),
+            "tdoa-ekf" => Self::TdoaEkf(TdoaEkfParams::default()),
             _ => {
                 return Err(UnknownEstimator {
                     name: name.to_owned(),
@@ -107,6 +115,7 @@ impl EstimatorConfig {
             Self::GyroCkf(p) => p.initial_pose = Some(with(p.initial_pose)),
             Self::Cda(p) => p.initial_pose = with(Some(p.initial_pose)),
             Self::CdaMsu(p) => p.initial_pose = Some(with(p.initial_pose)),
+            Self::TdoaEkf(p) => p.initial_pose = Some(with(p.initial_pose)),
         }
     }
 
@@ -119,6 +128,7 @@ impl EstimatorConfig {
             Self::GyroCkf(_) => "gyro-ckf",
             Self::Cda(_) => "cda",
             Self::CdaMsu(_) => "cda-msu",
+            Self::TdoaEkf(_) => "tdoa-ekf",
         }
     }
 }
@@ -138,6 +148,7 @@ fn build_valid(config: &EstimatorConfig) -> Box<dyn Estimator> {
         EstimatorConfig::GyroCkf(p) => Box::new(Replay::new(GyroCkf::new(p), p.history_s)),
         EstimatorConfig::Cda(p) => Box::new(Replay::new(Cda::new(p), p.history_s)),
         EstimatorConfig::CdaMsu(p) => Box::new(Replay::new(CdaMsu::new(p), p.history_s)),
+        EstimatorConfig::TdoaEkf(p) => Box::new(Replay::new(TdoaEkf::new(p), p.history_s)),
     }
 }
 

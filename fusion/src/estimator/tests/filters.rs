@@ -205,6 +205,13 @@ fn non_finite_inputs_are_rejected_and_change_nothing() {
                 ..GEOMETRY
             },
         }),
+        Input::RangeDifference(crate::estimator::RangeDifferenceSample {
+            t_s: 1.0,
+            a_m: [0.0, 0.0, 2.5],
+            b_m: [10.0, 0.0, 2.5],
+            d_m: f64::NAN,
+            sigma_m: 0.02,
+        }),
     ];
     for name in names() {
         let mut e = build(&config(name)).unwrap();

@@ -7,8 +7,8 @@ use proptest::prelude::*;
 
 use super::runs::config;
 use crate::estimator::{
-    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeSample, WheelGeometry, build,
-    names,
+    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
+    RangeSample, WheelGeometry, build, names,
 };
 
 fn number() -> BoxedStrategy<f64> {
@@ -92,6 +92,21 @@ fn input(t_s: f64) -> BoxedStrategy<Input> {
                     left_ir_m: li,
                     right_ir_m: ri,
                     planned_heading_rad: planned,
+                })
+            }),
+        (
+            [number(), number(), number()],
+            [number(), number(), number()],
+            number(),
+            number()
+        )
+            .prop_map(move |(a_m, b_m, d_m, sigma_m)| {
+                Input::RangeDifference(RangeDifferenceSample {
+                    t_s,
+                    a_m,
+                    b_m,
+                    d_m,
+                    sigma_m,
                 })
             }),
     ]

@@ -19,6 +19,7 @@ pub(super) fn config(name: &str) -> EstimatorConfig {
     match &mut c {
         EstimatorConfig::Odometry(p) => p.initial_pose = START,
         EstimatorConfig::Cda(p) => p.initial_pose = START,
+        EstimatorConfig::TdoaEkf(p) => p.initial_pose = Some(START),
         _ => {}
     }
     c
@@ -94,6 +95,7 @@ fn realistic() -> Noise {
         fix_latency_s: 0.1,
         two_sensor_heading_sigma_rad: None,
         reflection_every: None,
+        range_difference_sigma_m: 0.02,
     }
 }
 
@@ -227,4 +229,47 @@ fn adaptive_r_shrugs_off_reflected_fixes() {
         assert!(raw.max_position_err_m > 0.9);
         assert!(fused.max_position_err_m < 0.15, "{name}: {fused:?}");
     }
+}
+
+#[test]
+fn tdoa_ekf_holds_the_circle_with_range_differences_despite_a_biased_gyro() {
+    // 0.5 deg/s of gyro bias and 1 % odometry turn drift over ten minutes:
+    // dead reckoning wanders off, the range differences hold the pose.
+    let circle = Circle {
+        v_m_s: 0.3,
+        omega_rad_s: 0.5,
+        rest_s: 2.0,
+    };
+    let inputs = circling_run(&circle, 600.0, realistic(), 4);
+    let stats = |name: &str| {
+        let mut e = build(&config(name)).unwrap();
+        run(e.as_mut(), &circle, &feed_for(name, &inputs))
+    };
+    let odometry = stats("odometry");
+    let tdoa = stats("tdoa-ekf");
+    eprintln!("odometry {odometry:?}\ntdoa-ekf {tdoa:?}");
+    assert!(tdoa.mean_position_err_m < 0.03, "{tdoa:?}");
+    assert!(tdoa.max_heading_err_deg < 10.0, "{tdoa:?}");
+    assert!(odometry.mean_position_err_m > 5.0 * tdoa.mean_position_err_m);
+}
+
+#[test]
+fn tdoa_ekf_without_a_start_pose_finds_the_robot_from_the_transmitters() {
+    let circle = Circle {
+        v_m_s: 0.3,
+        omega_rad_s: 0.5,
+        rest_s: 2.0,
+    };
+    let inputs = circling_run(&circle, 60.0, realistic(), 5);
+    let mut e = build(&EstimatorConfig::default_for("tdoa-ekf").unwrap()).unwrap();
+    for input in feed_for("tdoa-ekf", &inputs) {
+        e.handle(&input).unwrap();
+    }
+    let p = e.pose().unwrap();
+    let (x, y, th) = circle.truth(p.t_s);
+    assert!((p.x_m - x).hypot(p.y_m - y) < 0.05, "{p:?} vs {x}, {y}");
+    assert!(
+        angle::diff(p.theta_rad, th).abs() < 10_f64.to_radians(),
+        "{p:?}"
+    );
 }

@@ -8,7 +8,8 @@ use rand_distr::{Distribution, Normal};
 
 use crate::angle;
 use crate::estimator::{
-    EncoderSample, FixSample, GyroSample, Input, OdometrySample, WheelGeometry,
+    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
+    WheelGeometry,
 };
 
 pub(super) const GEOMETRY: WheelGeometry = WheelGeometry {
@@ -32,7 +33,20 @@ pub(super) struct Noise {
     pub two_sensor_heading_sigma_rad: Option<f64>,
     /// Every n-th fix is shifted by this many metres along x (a reflection).
     pub reflection_every: Option<(i64, f64)>,
+    /// Noise of each range difference, metres.
+    pub range_difference_sigma_m: f64,
 }
+
+/// Four transmitters on the ceiling of a 10 x 10 m room, around the circle.
+pub(super) const TRANSMITTERS: [[f64; 3]; 4] = [
+    [0.0, 0.0, 2.5],
+    [10.0, 0.0, 2.5],
+    [10.0, 10.0, 2.5],
+    [0.0, 10.0, 2.5],
+];
+
+/// Height of the simulated receiver, metres (the `tdoa-ekf` default).
+pub(super) const RECEIVER_HEIGHT_M: f64 = 0.5;
 
 /// Truth at time `t_s`: at rest at (5, 5) heading 0 for `rest_s`, then on
 /// a circle of radius `v/omega` turning left.
@@ -112,6 +126,23 @@ pub(super) fn circling_run(
             ));
         }
         if k % 30 == 0 {
+            let (x, y, _) = circle.truth(t);
+            let p = nalgebra::Vector3::new(x, y, RECEIVER_HEIGHT_M);
+            let range = |c: [f64; 3]| (p - nalgebra::Vector3::from(c)).norm();
+            // One cycle: transmitter 0 is the reference of the three others.
+            for b in &TRANSMITTERS[1..] {
+                let sigma = noise.range_difference_sigma_m;
+                events.push((
+                    t + noise.fix_latency_s,
+                    Input::RangeDifference(RangeDifferenceSample {
+                        t_s: t,
+                        a_m: TRANSMITTERS[0],
+                        b_m: *b,
+                        d_m: range(*b) - range(TRANSMITTERS[0]) + sigma * unit.sample(&mut rng),
+                        sigma_m: sigma.max(0.001),
+                    }),
+                ));
+            }
             let (x, y, th) = circle.truth(t);
             let sector = std::f64::consts::FRAC_PI_3;
             let heading = match noise.two_sensor_heading_sigma_rad {

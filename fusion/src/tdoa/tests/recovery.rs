@@ -157,3 +157,22 @@ fn refinement_agrees_with_the_closed_form_on_noisy_data_and_fits_better() {
         }
     }
 }
+
+#[test]
+fn solve_without_refinement_returns_the_closed_form_fix() {
+    let p = Vector3::new(1.2, 3.9, 0.6);
+    let mode = Mode::TwoD { height_m: 0.6 };
+    let signals = signals_at(&ceiling(5), p, 0.3);
+    let config = SolverConfig {
+        mode,
+        refine: false,
+        ..SolverConfig::default()
+    };
+    let fix = solve(&signals, &config).unwrap();
+    let cf = closed_form(&signals, mode).unwrap();
+    assert_eq!(fix.iterations, 0);
+    assert_eq!(fix.position_m, cf.best.position_m);
+    assert!((fix.position_m - p).norm() < EXACT_M);
+    assert_eq!(fix.covariance_m2[(2, 2)], 0.0);
+    assert!(fix.covariance_xy_m2().determinant() > 0.0);
+}

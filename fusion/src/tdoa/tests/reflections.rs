@@ -156,3 +156,23 @@ fn allowed_area_picks_the_root_inside_when_two_fit() {
     assert_eq!(fix.quality, Quality::Minimal);
     assert_eq!(fix.alternative_m, None);
 }
+
+#[test]
+fn reports_what_was_rejected_when_too_few_consistent_signals_remain() {
+    let p = Vector3::new(2.5, 2.0, 0.4);
+    let mut s = signals_at(&ceiling(4), p, 0.0);
+    s[0].pseudo_range_m += 30.0;
+    s[2].pseudo_range_m += 40.0;
+    match solve(&s, &cfg(Mode::TwoD { height_m: 0.4 })) {
+        Err(SolveError::TooFewConsistent {
+            got: 2,
+            need: 3,
+            rejected,
+        }) => {
+            let mut ids: Vec<_> = rejected.iter().map(|r| r.tx_id).collect();
+            ids.sort_unstable();
+            assert_eq!(ids, [s[0].tx_id, s[2].tx_id]);
+        }
+        other => panic!("{other:?}"),
+    }
+}

@@ -1,0 +1,305 @@
+//! Reading the UTIL extracts (`../shared/data/util/README.md`): the anchor
+//! file whole (it is small), the measurement file as a stream of rows.
+//!
+//! A measurement row carries two independent streams that only share the
+//! row index: a TDOA (`idA,idB,tdoa_meas,t_tdoa`) and a truth pose
+//! (`pose_x,pose_y,pose_z,t_pose`); the shorter stream leaves its columns
+//! blank at the end. Columns are found by name in the header. Every problem
+//! is reported with the file and the line (1 = the header).
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// What is wrong with an input file; the text names the file and the line.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    /// The file cannot be opened or read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A column the format needs is not in the header.
+    #[error("{}:1: column `{column}` is missing from the header", path.display())]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The missing column.
+        column: &'static str,
+    },
+    /// A line cannot be read as the format says.
+    #[error("{}:{line}: {message}", path.display())]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// Line number, 1-based (the header is line 1).
+        line: u64,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// One TDOA measurement: `|p - anchor_b| - |p - anchor_a| = d_m`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TdoaRow {
+    /// Anchor A.
+    pub id_a: u32,
+    /// Anchor B.
+    pub id_b: u32,
+    /// Range difference B minus A, metres.
+    pub d_m: f64,
+    /// Time on the tag's clock, seconds.
+    pub t_s: f64,
+}
+
+/// One motion-capture pose of the body centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthRow {
+    /// Time on the tag's clock, seconds.
+    pub t_s: f64,
+    /// Body centre, metres.
+    pub position_m: [f64; 3],
+}
+
+/// One line of the measurement file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// Line number in the file.
+    pub line: u64,
+    /// The TDOA of this line, unless that stream has ended.
+    pub tdoa: Option<TdoaRow>,
+    /// The truth of this line, unless that stream has ended.
+    pub truth: Option<TruthRow>,
+}
+
+/// The anchors of one constellation, by id, metres.
+pub fn read_anchors(path: &Path, constellation: u32) -> Result<HashMap<u32, [f64; 3]>, InputError> {
+    let mut reader = Table::open(path, &["constellation", "anchor_id", "x", "y", "z"])?;
+    let mut anchors = HashMap::new();
+    while let Some(fields) = reader.next_record()? {
+        let line = reader.line();
+        let c: u32 = reader.parse(&fields, 0, line)?;
+        let id: u32 = reader.parse(&fields, 1, line)?;
+        let p = [
+            reader.number(&fields, 2, line)?,
+            reader.number(&fields, 3, line)?,
+            reader.number(&fields, 4, line)?,
+        ];
+        if c == constellation && anchors.insert(id, p).is_some() {
+            return Err(reader.malformed(line, format!("anchor {id} appears twice")));
+        }
+    }
+    if anchors.is_empty() {
+        return Err(InputError::Malformed {
+            path: path.to_owned(),
+            line: reader.line(),
+            message: format!("no anchor of constellation {constellation}"),
+        });
+    }
+    Ok(anchors)
+}
+
+/// The measurement file, read one line at a time.
+pub struct UtilReader {
+    table: Table,
+    last_tdoa_s: f64,
+    last_truth_s: f64,
+}
+
+const DATA_COLUMNS: [&str; 8] = [
+    "idA",
+    "idB",
+    "tdoa_meas",
+    "t_tdoa",
+    "pose_x",
+    "pose_y",
+    "pose_z",
+    "t_pose",
+];
+
+impl UtilReader {
+    /// Opens `path` and checks its header.
+    pub fn open(path: &Path) -> Result<Self, InputError> {
+        Ok(Self {
+            table: Table::open(path, &DATA_COLUMNS)?,
+            last_tdoa_s: f64::NEG_INFINITY,
+            last_truth_s: f64::NEG_INFINITY,
+        })
+    }
+
+    /// The file being read.
+    pub fn path(&self) -> &Path {
+        &self.table.path
+    }
+
+    /// The next line, `None` at the end of the file. Each stream must be in
+    /// time order; a stream's four fields are all present or all blank.
+    pub fn next_row(&mut self) -> Result<Option<Row>, InputError> {
+        let Some(f) = self.table.next_record()? else {
+            return Ok(None);
+        };
+        let line = self.table.line();
+        let t = &self.table;
+        let tdoa = if t.all_blank(&f, 0..4) {
+            None
+        } else {
+            let row = TdoaRow {
+                id_a: t.parse(&f, 0, line)?,
+                id_b: t.parse(&f, 1, line)?,
+                d_m: t.number(&f, 2, line)?,
+                t_s: t.number(&f, 3, line)?,
+            };
+            if row.t_s < self.last_tdoa_s {
+                return Err(t.malformed(line, "t_tdoa goes back in time".into()));
+            }
+            self.last_tdoa_s = row.t_s;
+            Some(row)
+        };
+        let truth = if t.all_blank(&f, 4..8) {
+            None
+        } else {
+            let row = TruthRow {
+                t_s: t.number(&f, 7, line)?,
+                position_m: [
+                    t.number(&f, 4, line)?,
+                    t.number(&f, 5, line)?,
+                    t.number(&f, 6, line)?,
+                ],
+            };
+            if row.t_s < self.last_truth_s {
+                return Err(t.malformed(line, "t_pose goes back in time".into()));
+            }
+            self.last_truth_s = row.t_s;
+            Some(row)
+        };
+        Ok(Some(Row { line, tdoa, truth }))
+    }
+}
+
+/// A CSV file with named columns, streamed record by record.
+struct Table {
+    path: PathBuf,
+    reader: csv::Reader<Box<dyn Read>>,
+    /// Position in the record of each wanted column, in the wanted order.
+    index: Vec<usize>,
+    names: Vec<&'static str>,
+    record: csv::StringRecord,
+}
+
+impl Table {
+    fn open(path: &Path, columns: &[&'static str]) -> Result<Self, InputError> {
+        let file = File::open(path).map_err(|source| InputError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let boxed: Box<dyn Read> = Box::new(std::io::BufReader::new(file));
+        let mut reader = csv::ReaderBuilder::new().flexible(true).from_reader(boxed);
+        let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
+        let mut index = Vec::with_capacity(columns.len());
+        for &column in columns {
+            match header.iter().position(|h| h.trim() == column) {
+                Some(i) => index.push(i),
+                None => {
+                    return Err(InputError::MissingColumn {
+                        path: path.to_owned(),
+                        column,
+                    });
+                }
+            }
+        }
+        Ok(Self {
+            path: path.to_owned(),
+            reader,
+            index,
+            names: columns.to_vec(),
+            record: csv::StringRecord::new(),
+        })
+    }
+
+    /// Line of the last record read.
+    fn line(&self) -> u64 {
+        self.record.position().map_or(1, |p| p.line())
+    }
+
+    /// The wanted fields of the next record, trimmed.
+    fn next_record(&mut self) -> Result<Option<Vec<String>>, InputError> {
+        let more = self
+            .reader
+            .read_record(&mut self.record)
+            .map_err(|e| csv_error(&self.path, e))?;
+        if !more {
+            return Ok(None);
+        }
+        let line = self.line();
+        let mut fields = Vec::with_capacity(self.index.len());
+        for (&i, name) in self.index.iter().zip(&self.names) {
+            match self.record.get(i) {
+                Some(v) => fields.push(v.trim().to_owned()),
+                None => {
+                    return Err(self.malformed(line, format!("column `{name}` is missing")));
+                }
+            }
+        }
+        Ok(Some(fields))
+    }
+
+    fn all_blank(&self, fields: &[String], range: std::ops::Range<usize>) -> bool {
+        fields[range].iter().all(|f| f.is_empty())
+    }
+
+    fn parse<T: std::str::FromStr>(
+        &self,
+        f: &[String],
+        k: usize,
+        line: u64,
+    ) -> Result<T, InputError> {
+        f[k].parse().map_err(|_| {
+            self.malformed(
+                line,
+                format!("`{}` = `{}` is not a valid id", self.names[k], f[k]),
+            )
+        })
+    }
+
+    /// A finite number.
+    fn number(&self, f: &[String], k: usize, line: u64) -> Result<f64, InputError> {
+        match f[k].parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => Err(self.malformed(
+                line,
+                format!("`{}` = `{}` is not finite", self.names[k], f[k]),
+            )),
+            Err(_) => Err(self.malformed(
+                line,
+                format!("`{}` = `{}` is not a number", self.names[k], f[k]),
+            )),
+        }
+    }
+
+    fn malformed(&self, line: u64, message: String) -> InputError {
+        InputError::Malformed {
+            path: self.path.clone(),
+            line,
+            message,
+        }
+    }
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> InputError {
+    let line = e.position().map_or(1, |p| p.line());
+    match e.into_kind() {
+        csv::ErrorKind::Io(source) => InputError::Io {
+            path: path.to_owned(),
+            source,
+        },
+        kind => InputError::Malformed {
+            path: path.to_owned(),
+            line,
+            message: format!("{kind:?}"),
+        },
+    }
+}

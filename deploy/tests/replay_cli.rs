@@ -1,0 +1,219 @@
+//! `ickon replay util` on the real UTIL flights in `../shared/data/util/`
+//! (relative to the repository root): the JSON shape, the accuracy targets
+//! of issue 8, and bad input (exit code 2 with the file and line named).
+//!
+//! A debug build replays a prefix of each flight (`--max-seconds`) to stay
+//! within seconds; one test replays a whole flight, and the targets on
+//! whole flights are checked by `full_flights_meet_the_targets`, which is
+//! cheap in a release build (`cargo test --release`) and still well under
+//! a minute in debug.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/util")
+        .join(name)
+}
+
+fn ickon() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ickon"))
+}
+
+fn replay(flight: &str, constellation: &str, extra: &[&str]) -> Output {
+    let mut cmd = ickon();
+    cmd.args(["replay", "util", "--data"])
+        .arg(data(flight))
+        .arg("--anchors")
+        .arg(data("anchors.csv"))
+        .args(["--constellation", constellation, "--json"])
+        .args(extra);
+    cmd.output().unwrap()
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn estimator<'a>(doc: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    doc["estimators"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == name)
+        .unwrap_or_else(|| panic!("no {name} in {doc}"))
+}
+
+#[test]
+fn json_names_the_file_and_scores_both_estimators() {
+    let out = replay("const1-trial1-tdoa2.csv", "1", &["--max-seconds", "20"]);
+    let doc = json(&out);
+    assert!(
+        doc["file"]
+            .as_str()
+            .unwrap()
+            .ends_with("const1-trial1-tdoa2.csv")
+    );
+    for name in ["tdoa-ekf", "window-gn"] {
+        let e = estimator(&doc, name);
+        for key in [
+            "rmse_3d_m",
+            "rmse_xy_m",
+            "mean_3d_m",
+            "p95_3d_m",
+            "max_3d_m",
+        ] {
+            let v = e[key].as_f64().unwrap();
+            assert!(v > 0.0 && v < 1.0, "{name} {key} = {v}");
+        }
+        let rmse = e["rmse_3d_m"].as_f64().unwrap();
+        assert!(e["rmse_xy_m"].as_f64().unwrap() <= rmse);
+        assert!(e["p95_3d_m"].as_f64().unwrap() <= e["max_3d_m"].as_f64().unwrap());
+        let rejected = e["rejected_pct"].as_f64().unwrap();
+        assert!((0.0..5.0).contains(&rejected), "{name}: {rejected}");
+    }
+    // About 20 s at ~450 measurements/s; the EKF answers each one.
+    let n = doc["measurements"].as_u64().unwrap();
+    assert!((8_000..10_000).contains(&n), "{n}");
+    let ekf = estimator(&doc, "tdoa-ekf");
+    assert_eq!(ekf["estimates"].as_u64(), Some(n));
+    assert!(ekf["output_rate_hz"].as_f64().unwrap() > 400.0);
+    let window = estimator(&doc, "window-gn")["output_rate_hz"]
+        .as_f64()
+        .unwrap();
+    assert!((9.0..11.0).contains(&window), "{window}");
+}
+
+#[test]
+fn tdoa3_outliers_are_rejected_and_do_not_spoil_the_estimate() {
+    let doc = json(&replay(
+        "const1-trial1-tdoa3.csv",
+        "1",
+        &["--max-seconds", "40"],
+    ));
+    let ekf = estimator(&doc, "tdoa-ekf");
+    // The file has ~1.6 % gross outliers (over 0.5 m off the truth).
+    assert!(ekf["rejected_pct"].as_f64().unwrap() > 1.0, "{ekf}");
+    assert!(ekf["max_3d_m"].as_f64().unwrap() < 0.5, "{ekf}");
+    assert!(ekf["rmse_3d_m"].as_f64().unwrap() < 0.12, "{ekf}");
+}
+
+/// The targets of issue 8 on whole flights: 3D RMSE at most 0.09 m on
+/// both TDoA2 flights and 0.10 m on the TDoA3 flight, for the causal
+/// filter with its one parameter set.
+#[test]
+fn full_flights_meet_the_targets() {
+    for (flight, constellation, target_m) in [
+        ("const1-trial1-tdoa2.csv", "1", 0.09),
+        ("const2-trial1-tdoa2.csv", "2", 0.09),
+        ("const1-trial1-tdoa3.csv", "1", 0.10),
+    ] {
+        let doc = json(&replay(flight, constellation, &[]));
+        let ekf = estimator(&doc, "tdoa-ekf");
+        let rmse = ekf["rmse_3d_m"].as_f64().unwrap();
+        eprintln!("{flight}: {ekf}");
+        assert!(rmse <= target_m, "{flight}: {rmse} > {target_m}");
+        // The whole flight is scored, not a part of it.
+        assert!(doc["duration_s"].as_f64().unwrap() > 120.0);
+        assert!(ekf["unscored"].as_u64().unwrap() < 100, "{ekf}");
+    }
+}
+
+#[test]
+fn plot_writes_the_trajectory_and_the_error_pictures() {
+    let dir = std::env::temp_dir().join(format!("ickon-replay-plot-{}", std::process::id()));
+    let dir_s = dir.to_str().unwrap();
+    let out = replay(
+        "const2-trial1-tdoa2.csv",
+        "2",
+        &["--max-seconds", "10", "--plot", dir_s],
+    );
+    json(&out);
+    for name in ["trajectory", "error"] {
+        let file = dir.join(format!("const2-trial1-tdoa2_{name}.png"));
+        let size = std::fs::metadata(&file).unwrap().len();
+        assert!(size > 1000, "{}", file.display());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Writes `content` into a fresh temporary file.
+fn temp_file(name: &str, content: &str) -> PathBuf {
+    let path = std::env::temp_dir().join(format!("ickon-replay-{}-{name}", std::process::id()));
+    std::fs::write(&path, content).unwrap();
+    path
+}
+
+fn bad(data: &PathBuf, anchors: &PathBuf) -> String {
+    let out = ickon()
+        .args(["replay", "util", "--data"])
+        .arg(data)
+        .arg("--anchors")
+        .arg(anchors)
+        .args(["--constellation", "1"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(out.stdout.is_empty());
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+const HEADER: &str = "idA,idB,tdoa_meas,t_tdoa,pose_x,pose_y,pose_z,t_pose\n";
+const ROW: &str = "0,1,0.5,0.01,1.0,0.0,1.0,0.01\n";
+
+#[test]
+fn bad_input_exits_with_code_two_naming_file_and_line() {
+    let anchors = data("anchors.csv");
+    let missing = PathBuf::from("/nonexistent/flight.csv");
+    let err = bad(&missing, &anchors);
+    assert!(err.contains("/nonexistent/flight.csv"), "{err}");
+
+    let no_column = temp_file("nocol.csv", "idA,idB,t_tdoa,pose_x,pose_y,pose_z,t_pose\n");
+    let err = bad(&no_column, &anchors);
+    assert!(
+        err.contains("nocol.csv:1") && err.contains("tdoa_meas"),
+        "{err}"
+    );
+
+    let unknown = temp_file("unknown.csv", &format!("{HEADER}{ROW}0,9,0.5,0.02,,,,\n"));
+    let err = bad(&unknown, &anchors);
+    assert!(
+        err.contains("unknown.csv:3") && err.contains("anchor 9"),
+        "{err}"
+    );
+
+    let nan = temp_file("nan.csv", &format!("{HEADER}{ROW}0,1,NaN,0.02,,,,\n"));
+    let err = bad(&nan, &anchors);
+    assert!(
+        err.contains("nan.csv:3") && err.contains("tdoa_meas"),
+        "{err}"
+    );
+
+    let garbled = temp_file(
+        "garbled.csv",
+        &format!("{HEADER}{ROW}{ROW}0,1,0.5,abc,,,,\n"),
+    );
+    let err = bad(&garbled, &anchors);
+    assert!(
+        err.contains("garbled.csv:4") && err.contains("t_tdoa"),
+        "{err}"
+    );
+
+    let flight = temp_file("ok.csv", &format!("{HEADER}{ROW}"));
+    let bad_anchors = temp_file("anchors.csv", "constellation,anchor_id,x,y\n1,0,0,0\n");
+    let err = bad(&flight, &bad_anchors);
+    assert!(
+        err.contains("anchors.csv:1") && err.contains("`z`"),
+        "{err}"
+    );
+
+    for p in [no_column, unknown, nan, garbled, flight, bad_anchors] {
+        std::fs::remove_file(p).unwrap();
+    }
+}

@@ -75,6 +75,11 @@ struct SimReport {
     estimator: String,
     seed: u64,
     duration_s: f64,
+    /// Cycles per second of the schedule with every cell up: the fixes each
+    /// robot can get per second at most.
+    update_rate_hz: f64,
+    /// The central unit's endpoint (tells this run's processes apart).
+    central_endpoint: String,
     zenoh_hop_p50_us: Option<f64>,
     zenoh_hop_p99_us: Option<f64>,
     robots: Vec<RobotSummary>,
@@ -205,6 +210,9 @@ async fn run_mesh(
     profile: &ickon_sim::profile::NoiseProfile,
 ) -> anyhow::Result<ExitCode> {
     let keys = Keys::new(&site.name)?;
+    let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
+    let update_rate_hz =
+        ickon_central::update_rate_hz(&ickon_central::compute_schedule(site, &all_cells, 1, 0)?);
     let central = format!("tcp/127.0.0.1:{}", free_port()?);
     let robots: Vec<String> = site
         .robots
@@ -251,7 +259,12 @@ async fn run_mesh(
             .iter()
             .find(|r| &r.id == robot)
             .map_or([0.0; 3], |r| r.start);
-        let config = ickon_sim::engine::estimator_config(&args.estimator, start, profile)?;
+        let config = ickon_sim::engine::estimator_config(
+            &args.estimator,
+            start,
+            site.msu.height_m,
+            profile,
+        )?;
         let timing_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
         cmd.args(["--robot", robot, "--estimator", &args.estimator])
             .arg("--estimator-json")
@@ -342,6 +355,8 @@ async fn run_mesh(
         estimator: args.estimator.clone(),
         seed: args.seed,
         duration_s: args.duration,
+        update_rate_hz,
+        central_endpoint: central.clone(),
         zenoh_hop_p50_us: metrics::percentile(&stats.hop_latencies_us, 50.0),
         zenoh_hop_p99_us: metrics::percentile(&stats.hop_latencies_us, 99.0),
         robots: robots
@@ -578,8 +593,8 @@ fn render_report(r: &SimReport) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s",
-        r.site, r.estimator, r.profile, r.seed, r.duration_s
+        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s, {:.2} cycles/s",
+        r.site, r.estimator, r.profile, r.seed, r.duration_s, r.update_rate_hz
     );
     let _ = writeln!(
         out,

@@ -1,0 +1,94 @@
+//! The whole mesh as separate processes (`ickon sim`): central unit, four
+//! cells, the world and two MSU agents on a loopback Zenoh mesh for 15 s.
+//! Checks accuracy, fix rate, that every cell fired, and that no process of
+//! the run is left behind.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+/// Mesh duration once every node is live, seconds.
+const DURATION_S: f64 = 15.0;
+
+/// Processes whose command line mentions `needle` (this run's central endpoint).
+fn processes_mentioning(needle: &str) -> Vec<u32> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    dir.filter_map(|e| e.ok())
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|pid| {
+            std::fs::read(format!("/proc/{pid}/cmdline"))
+                .map(|c| {
+                    String::from_utf8_lossy(&c)
+                        .replace('\0', " ")
+                        .contains(needle)
+                })
+                .unwrap_or(false)
+        })
+        .collect()
+}
+
+#[test]
+fn two_robots_on_the_full_mesh_are_accurate_and_every_process_stops() {
+    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
+        .args(["sim", "--robots", "2", "--json", "--seed", "2"])
+        .args(["--duration", &DURATION_S.to_string()])
+        .output()
+        .expect("ickon sim starts");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "ickon sim failed:\n{stderr}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stderr}"));
+
+    let rate_hz = doc["update_rate_hz"].as_f64().expect("update rate");
+    assert!(rate_hz > 1.0, "{doc}");
+    let robots = doc["robots"].as_array().expect("robots");
+    assert_eq!(robots.len(), 2, "{doc}");
+    for r in robots {
+        let mean_mm = r["mean_mm"].as_f64().unwrap_or(f64::INFINITY);
+        assert!(
+            mean_mm < 150.0,
+            "robot {}: mean {mean_mm} mm\n{doc}",
+            r["id"]
+        );
+        // Every cycle can give a fix; at least 80 % of them must.
+        let fixes = r["fixes"].as_f64().unwrap_or(0.0);
+        let expected = rate_hz * DURATION_S;
+        assert!(
+            fixes >= 0.8 * expected,
+            "robot {}: {fixes} fixes of {expected:.0} possible\n{doc}",
+            r["id"]
+        );
+        assert!(r["poses"].as_u64().unwrap_or(0) > fixes as u64, "{doc}");
+        assert!(r["latency_p50_us"].as_f64().is_some(), "{doc}");
+    }
+    let cells = doc["cells"].as_array().expect("cells");
+    assert_eq!(cells.len(), 4, "{doc}");
+    for c in cells {
+        let fired = c["cycles_fired"].as_f64().unwrap_or(0.0);
+        assert!(
+            fired >= 0.8 * rate_hz * DURATION_S,
+            "cell {} fired {fired} cycles\n{doc}",
+            c["id"]
+        );
+    }
+    assert_eq!(doc["bad_messages"], 0, "{doc}");
+
+    // Clean shutdown: nothing of this run survives the launcher.
+    let endpoint = doc["central_endpoint"]
+        .as_str()
+        .expect("endpoint")
+        .to_owned();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        let left = processes_mentioning(&endpoint);
+        if left.is_empty() {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "processes of the run still alive: {left:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}

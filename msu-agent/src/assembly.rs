@@ -23,6 +23,8 @@ pub struct Signal {
     pub receiver_id: u8,
     /// Emission offset inside the cycle, seconds (orders the signals by emission).
     pub offset_s: f64,
+    /// Arrival time on the MSU clock.
+    pub t_arrival: Time,
 }
 
 /// The signals of one cycle.
@@ -90,6 +92,7 @@ pub fn assemble(
             pseudo_range_m: speed_of_sound_m_s * (since_first_s - offset_s),
             receiver_id: a.receiver_id,
             offset_s,
+            t_arrival: a.t_arrival,
         });
     }
     signals.sort_by(|a, b| a.offset_s.total_cmp(&b.offset_s));

@@ -1,19 +1,18 @@
 //! [`MsuCore`]: arrivals -> fix -> estimator -> pose, and odometry, gyro and
 //! obstacle ranges -> estimator. Fed with messages, never reads a clock.
 
-use ickon_fusion::angle;
 use ickon_fusion::estimator::{
-    EncoderSample, Estimator, EstimatorError, FixSample, GyroSample, Input, RangeSample,
-    WheelGeometry,
+    EncoderSample, Estimator, EstimatorError, FixSample, GyroSample, Input, RangeDifferenceSample,
+    RangeSample, WheelGeometry,
 };
+use ickon_fusion::tdoa;
 use ickon_proto::msg::control::{Schedule, TransmitterEntry};
 use ickon_proto::msg::robot::{
     Fix, FixQuality, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals,
 };
-use nalgebra::Matrix2;
+use nalgebra::{Vector2, Vector3};
 
 use crate::assembly::{AssemblyError, assemble};
-use crate::solve::solve_2d;
 
 /// What the MSU knows about its site and its robot.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,6 +48,9 @@ pub enum MsuError {
     /// The cycle could not be assembled.
     #[error(transparent)]
     Assembly(#[from] AssemblyError),
+    /// The cycle's signals are malformed (cannot come from a working MSU).
+    #[error(transparent)]
+    Solve(#[from] tdoa::SolveError),
     /// The estimator rejected the input.
     #[error(transparent)]
     Estimator(#[from] EstimatorError),
@@ -59,7 +61,6 @@ pub struct MsuCore {
     config: MsuConfig,
     schedule: Option<Schedule>,
     estimator: Box<dyn Estimator>,
-    last_fix_xy: Option<[f64; 2]>,
     fix_seq: u64,
 }
 
@@ -70,7 +71,6 @@ impl MsuCore {
             config,
             schedule: None,
             estimator,
-            last_fix_xy: None,
             fix_seq: 0,
         }
     }
@@ -85,76 +85,100 @@ impl MsuCore {
         self.estimator.name()
     }
 
-    /// Solves one cycle. `Ok(None)`: too few usable signals for a fix.
+    /// The solver set-up: 2D with the MSU height known, the timing noise as
+    /// range noise, the reflection gate, and the floor as the allowed area.
+    fn solver_config(&self) -> tdoa::SolverConfig {
+        let height_m = self.config.height_m;
+        tdoa::SolverConfig {
+            mode: tdoa::Mode::TwoD { height_m },
+            sigma_range_m: (self.config.speed_of_sound_m_s * self.config.timing_sigma_s).max(1e-6),
+            gate: tdoa::Gate::Metres(self.config.residual_gate_m),
+            allowed_area_m: self.config.floor_bounds_m.map(|[lo, hi]| tdoa::Aabb {
+                min_m: Vector3::new(lo[0], lo[1], height_m),
+                max_m: Vector3::new(hi[0], hi[1], height_m),
+            }),
+            ..tdoa::SolverConfig::default()
+        }
+    }
+
+    /// Solves one cycle (seed 000 eq. 1-3 with refinement and reflection
+    /// rejection, [`tdoa::solve`]) and hands the fix to the estimator.
+    /// `Ok(None)`: no fix this cycle (too few or inconsistent signals,
+    /// degenerate geometry, a solution off the floor or too uncertain).
     pub fn on_arrivals(&mut self, msg: &UltrasoundArrivals) -> Result<Option<Fix>, MsuError> {
         let schedule = self.schedule.as_ref().ok_or(MsuError::NoSchedule)?;
         let c = self.config.speed_of_sound_m_s;
         let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
-        let start = self.last_fix_xy.unwrap_or_else(|| centroid(&cycle.signals));
-        let sigma_m = c * self.config.timing_sigma_s;
-        let Some(sol) = solve_2d(
-            &cycle.signals,
-            self.config.height_m,
-            start,
-            sigma_m,
-            self.config.residual_gate_m,
-        ) else {
-            return Ok(None);
+        self.feed_range_differences(&cycle.signals);
+        let signals: Vec<tdoa::Signal> = cycle
+            .signals
+            .iter()
+            .map(|s| tdoa::Signal {
+                tx_id: s.tx_id,
+                tx_m: Vector3::from(s.tx_m),
+                pseudo_range_m: s.pseudo_range_m,
+            })
+            .collect();
+        let mut sol = match tdoa::solve(&signals, &self.solver_config()) {
+            Ok(sol) => sol,
+            Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
+            Err(_) => return Ok(None),
         };
-        let inside = self.config.floor_bounds_m.is_none_or(|[lo, hi]| {
-            (lo[0]..=hi[0]).contains(&sol.xy_m[0]) && (lo[1]..=hi[1]).contains(&sol.xy_m[1])
-        });
-        let sigma_m = (sol.cov_xy[0][0] + sol.cov_xy[1][1]).max(0.0).sqrt();
-        let sharp = sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m;
-        if !inside || !sharp {
+        if let (tdoa::Quality::Ambiguous, Some(other)) = (sol.quality, sol.alternative_m) {
+            // Two roots fit: keep the one nearer to where the robot is believed to be.
+            if let Some(p) = self.estimator.pose() {
+                let here = Vector3::new(p.x_m, p.y_m, self.config.height_m);
+                if (other - here).norm() < (sol.position_m - here).norm() {
+                    sol.alternative_m = Some(sol.position_m);
+                    sol.position_m = other;
+                }
+            }
+        }
+        let cov = sol.covariance_xy_m2();
+        let sigma_m = cov.trace().max(0.0).sqrt();
+        if !(sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m) {
             return Ok(None);
         }
-        self.last_fix_xy = Some(sol.xy_m);
-        let used: Vec<u32> = sol.used.iter().map(|&i| cycle.signals[i].tx_id).collect();
+        let [x_m, y_m] = [sol.position_m[0], sol.position_m[1]];
         let mut rejected = cycle.rejected.clone();
-        rejected.extend(
-            cycle
-                .signals
-                .iter()
-                .filter(|s| !used.contains(&s.tx_id))
-                .map(|s| s.tx_id),
-        );
-        // Seed 000 s3.1.3: heading from the first emitted signal of the cycle (eq. 4-6).
-        let heading = sol.used.first().map(|&i| {
-            let s = &cycle.signals[i];
-            let bearing = (s.tx_m[1] - sol.xy_m[1]).atan2(s.tx_m[0] - sol.xy_m[0]);
-            let alpha = self
-                .config
-                .receiver_angles_rad
-                .get(usize::from(s.receiver_id))
-                .copied()
-                .unwrap_or(0.0);
-            angle::wrap_pi(bearing - alpha)
+        rejected.extend(sol.rejected.iter().map(|r| r.tx_id));
+        // Seed 000 s3.1.3: heading from the first emitted signal used (eq. 4-6).
+        let heading = sol.used_tx_ids.first().and_then(|id| {
+            let s = cycle.signals.iter().find(|s| s.tx_id == *id)?;
+            tdoa::heading_from_first_receiver(
+                Vector2::new(s.tx_m[0], s.tx_m[1]),
+                Vector2::new(x_m, y_m),
+                usize::from(s.receiver_id),
+                &self.config.receiver_angles_rad,
+            )
+            .ok()
         });
-        let quality = if sol.used.len() <= 3 {
-            FixQuality::Minimal
-        } else if sol
-            .residuals_m
-            .iter()
-            .any(|r| r.abs() > self.config.residual_gate_m)
-        {
-            FixQuality::Suspect
-        } else {
-            FixQuality::Good
+        let quality = match sol.quality {
+            tdoa::Quality::Good => FixQuality::Good,
+            tdoa::Quality::Minimal => FixQuality::Minimal,
+            tdoa::Quality::Ambiguous => FixQuality::Ambiguous,
+            tdoa::Quality::Suspect => FixQuality::Suspect,
         };
-        let cov = sol.cov_xy;
         let fix = Fix {
             stamp: cycle.stamp,
             arrivals_seq: msg.seq,
-            x_m: sol.xy_m[0],
-            y_m: sol.xy_m[1],
+            x_m,
+            y_m,
             z_m: self.config.height_m,
             covariance: [
-                cov[0][0], cov[0][1], 0.0, cov[1][0], cov[1][1], 0.0, 0.0, 0.0, 0.0,
+                cov[(0, 0)],
+                cov[(0, 1)],
+                0.0,
+                cov[(1, 0)],
+                cov[(1, 1)],
+                0.0,
+                0.0,
+                0.0,
+                0.0,
             ],
             heading_rad: heading.unwrap_or(0.0),
             heading_valid: heading.is_some(),
-            used,
+            used: sol.used_tx_ids,
             rejected,
             residuals_m: sol.residuals_m,
             quality,
@@ -162,12 +186,38 @@ impl MsuCore {
         self.fix_seq = msg.seq;
         self.estimator.handle(&Input::Fix(FixSample {
             t_s: fix.stamp.as_secs_f64(),
-            x_m: fix.x_m,
-            y_m: fix.y_m,
-            covariance: Matrix2::new(cov[0][0], cov[0][1], cov[1][0], cov[1][1]),
+            x_m,
+            y_m,
+            covariance: cov,
             heading_rad: heading,
         }))?;
         Ok(Some(fix))
+    }
+
+    /// Hands the cycle's arrivals to the estimator one time difference at a
+    /// time (for tightly-coupled filters such as `tdoa-ekf`; the others
+    /// ignore them), before and whether or not a fix can be solved. Pairs
+    /// are consecutive in emission order: the robot moves only during one
+    /// slot between the two arrivals of a pair (about 1 cm at 0.3 m/s),
+    /// where a common reference would span the whole cycle. Each pair is
+    /// stamped at its later arrival; its sigma is that of two arrivals.
+    fn feed_range_differences(&mut self, signals: &[crate::assembly::Signal]) {
+        let sigma_m =
+            std::f64::consts::SQRT_2 * self.config.speed_of_sound_m_s * self.config.timing_sigma_s;
+        for pair in signals.windows(2) {
+            let (a, b) = (&pair[0], &pair[1]);
+            let sample = RangeDifferenceSample {
+                t_s: b.t_arrival.as_secs_f64(),
+                a_m: a.tx_m,
+                b_m: b.tx_m,
+                d_m: b.pseudo_range_m - a.pseudo_range_m,
+                sigma_m,
+            };
+            // A rejected difference (a reflection failing the physical check,
+            // an outlier at the gate, one too late for the history) leaves
+            // the estimator as it was: the filter counts it, nothing else to do.
+            let _ = self.estimator.handle(&Input::RangeDifference(sample));
+        }
     }
 
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
@@ -228,14 +278,6 @@ impl MsuCore {
             fix_seq: self.fix_seq,
         })
     }
-}
-
-fn centroid(signals: &[crate::assembly::Signal]) -> [f64; 2] {
-    let n = signals.len().max(1) as f64;
-    [
-        signals.iter().map(|s| s.tx_m[0]).sum::<f64>() / n,
-        signals.iter().map(|s| s.tx_m[1]).sum::<f64>() / n,
-    ]
 }
 
 #[cfg(test)]
@@ -353,6 +395,27 @@ mod tests {
             (fix.x_m - 3.2).abs() < 1e-4 && (fix.y_m - 1.1).abs() < 1e-4,
             "{fix:?}"
         );
+    }
+
+    #[test]
+    fn a_tightly_coupled_estimator_converges_on_range_differences_alone() {
+        let mut core = core();
+        core.estimator = build_by_name("tdoa-ekf").unwrap();
+        let truth = [2.2, 1.4, 0.5];
+        for k in 0..20 {
+            let mut msg = arrivals(truth, &[]);
+            msg.seq = k;
+            for a in &mut msg.arrivals {
+                a.t_arrival =
+                    a.t_arrival + ickon_proto::time::Duration::from_millis(200 * k as i64);
+            }
+            let _ = core.on_arrivals(&msg);
+        }
+        let pose = core
+            .pose()
+            .expect("the filter started from the differences");
+        let err = ((pose.x_m - truth[0]).powi(2) + (pose.y_m - truth[1]).powi(2)).sqrt();
+        assert!(err < 0.01, "error {err} m: {pose:?}");
     }
 
     #[test]

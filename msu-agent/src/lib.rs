@@ -13,7 +13,6 @@ mod config;
 pub mod core;
 #[cfg(feature = "zenoh")]
 pub mod node;
-mod solve;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::DEFAULT_MAX_FIX_SIGMA_M;

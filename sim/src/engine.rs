@@ -157,14 +157,16 @@ impl Queue {
     }
 }
 
-/// The estimator configuration used for `name` on a robot starting at `start`:
-/// registry defaults, the known start pose, the gyro noise of the profile's
+/// The estimator configuration used for `name` on a robot starting at `start`
+/// whose receivers are `msu_height_m` above the floor: registry defaults, the
+/// known start pose, the receiver height for `tdoa-ekf`, the gyro noise of the profile's
 /// data sheet for `gyro-ckf` (as a user configures a filter to the sensor
 /// on the robot; small floors keep `ideal` valid), and the seed-003
 /// curvature thresholds rescaled from their 10 Hz steps to [`ENCODER_HZ`].
 pub fn estimator_config(
     name: &str,
     start: [f64; 3],
+    msu_height_m: f64,
     profile: &NoiseProfile,
 ) -> Result<EstimatorConfig, RunError> {
     let mut c = EstimatorConfig::default_for(name)?;
@@ -188,6 +190,7 @@ pub fn estimator_config(
             p.cda.mu_start_deg *= per_step;
             p.cda.mu_stop_deg *= per_step;
         }
+        EstimatorConfig::TdoaEkf(p) => p.receiver_height_m = msu_height_m,
     }
     Ok(c)
 }
@@ -243,7 +246,12 @@ pub fn run(
     let msu = msu_config(site, &config.profile, wheels);
     let mut cores = Vec::new();
     for name in &config.estimators {
-        let est = estimator::build(&estimator_config(name, start, &config.profile)?)?;
+        let est = estimator::build(&estimator_config(
+            name,
+            start,
+            site.msu.height_m,
+            &config.profile,
+        )?)?;
         let mut core = MsuCore::new(msu.clone(), est);
         core.set_schedule(schedule.clone());
         cores.push(core);

@@ -81,6 +81,9 @@ pub enum FixQuality {
     Minimal,
     /// Solved, but residuals larger than the timing noise explains.
     Suspect,
+    /// Two positions fit the signals equally; the one nearer the robot's
+    /// estimate was taken.
+    Ambiguous,
 }
 
 /// `robot/<id>/fix`: the raw MSU solution of one cycle.

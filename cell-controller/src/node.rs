@@ -8,6 +8,11 @@
 //! programmed local time. The process only has to get the report out before
 //! the sound could arrive, so the operating system's timer jitter does not
 //! enter the measurement; the synchronisation error does.
+//!
+//! When the central unit goes away the cell keeps its schedules and waits
+//! for triggers; when it comes back (its liveliness token reappears) the cell
+//! starts its clock synchronisation afresh and takes the schedule from the
+//! new central unit, which numbers its versions anew.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -25,6 +30,7 @@ use ickon_proto::{decode, encode};
 use ickon_runtime::{NodeArgs, SimulatedClock, query_once, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::SampleKind;
 
 use crate::sync::{ClockSample, SyncConfig, SyncSlave};
 use crate::timer::{BurstTimer, PlannedBurst, TransmitterDriver};
@@ -158,6 +164,13 @@ pub async fn run(
         .declare_subscriber(keys.central_schedule())
         .await
         .map_err(zerr)?;
+    let central_alive = session
+        .liveliness()
+        .declare_subscriber(keys.alive_central())
+        .history(true)
+        .await
+        .map_err(zerr)?;
+    let mut central_lost = false;
     let burst_pub = session
         .declare_publisher(keys.cell_burst(cell)?)
         .express(true)
@@ -217,6 +230,22 @@ pub async fn run(
                 }
                 exchanges += 1;
                 next_sync = tokio::time::Instant::now() + if exchanges < FAST_SYNC_COUNT { FAST_SYNC } else { SLOW_SYNC };
+            }
+            Ok(s) = central_alive.recv_async() => {
+                if s.kind() == SampleKind::Delete {
+                    tracing::warn!("cell {cell}: central unit gone; keeping the schedule, waiting for triggers");
+                    central_lost = true;
+                } else if central_lost {
+                    tracing::info!("cell {cell}: central unit back; synchronising afresh");
+                    central_lost = false;
+                    sync = SyncSlave::new(SyncConfig::default());
+                    exchanges = 0;
+                    next_sync = tokio::time::Instant::now();
+                    timer.forget_schedules();
+                    if let Ok(Some(s)) = query_once::<Schedule>(session, &keys.central_schedule(), None, StdDuration::from_millis(500)).await {
+                        timer.add_schedule(s);
+                    }
+                }
             }
             Ok(s) = schedules.recv_async() => {
                 match decode::<Schedule>(&s.payload().to_bytes()) {

@@ -73,6 +73,12 @@ impl BurstTimer {
             .retain(|v, _| *v + KEPT_VERSIONS > newest || *v == newest);
     }
 
+    /// Forgets every schedule (a restarted central unit numbers its
+    /// versions afresh, so an old version number may now mean another schedule).
+    pub fn forget_schedules(&mut self) {
+        self.schedules.clear();
+    }
+
     /// Whether a schedule version is known.
     pub fn has_schedule(&self, version: u32) -> bool {
         self.schedules.contains_key(&version)
@@ -205,5 +211,7 @@ mod tests {
             t.plan(&trigger, None, Time(0)),
             Err(TimerError::NotSynchronised)
         );
+        t.forget_schedules();
+        assert!(!t.has_schedule(4));
     }
 }

@@ -2,11 +2,20 @@
 //!
 //! The central unit of ICKON (seed 000 section 3.1.1, "CentCU"): it holds the
 //! site model, computes the emission schedule ([`schedule`]), triggers every
-//! cycle and is the time master of the cell controllers, and tracks the health
-//! of cells and robots ([`core`]). The core is a sans-IO state machine; the
-//! Zenoh node (feature `zenoh`) only moves its inputs and outputs.
+//! cycle and is the time master of the cell controllers, tracks the health
+//! of cells and robots ([`health`]), and evaluates the coverage of the floor
+//! ([`coverage`]). The core ([`core`]) is a sans-IO state machine; the Zenoh
+//! node (feature `zenoh`) only moves its inputs and outputs.
+//!
+//! Dependencies: besides `proto` and `runtime` (DESIGN section 2) this crate
+//! uses `ickon-fusion`, a deliberate departure from the list there: the HDOP
+//! of the coverage grid is the same dilution of precision the MSU's TDOA
+//! solver works with ([`ickon_fusion::tdoa::dop`]), and `fusion` is pure math
+//! with no I/O, so the core stays sans-IO.
 
 pub mod core;
+pub mod coverage;
+pub mod health;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod schedule;

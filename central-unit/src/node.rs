@@ -8,12 +8,13 @@ use std::process::ExitCode;
 
 use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::admin::ReloadRequest;
+use ickon_proto::msg::admin::{AdminAck, CoverageRequest, ReloadRequest};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest};
 use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
+use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, system_now, zerr};
+use ickon_runtime::{NodeArgs, SimulatedClock, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::query::Query;
@@ -52,8 +53,19 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
     };
     let result = runtime.block_on(async {
         let session = args.node.open().await?;
-        tracing::info!("central unit for site {:?} from {name}", site.name);
-        let r = run(&session, site, text, args.node.shutdown()).await;
+        tracing::info!(
+            "central unit for site {:?} from {name}, listening on {:?}",
+            site.name,
+            args.node.zenoh.listen
+        );
+        let r = run(
+            &session,
+            site,
+            text,
+            args.node.clock(),
+            args.node.shutdown(),
+        )
+        .await;
         let _ = session.close().await;
         r
     });
@@ -66,23 +78,33 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
     }
 }
 
-async fn reply<T: serde::Serialize>(query: &Query, value: &T) -> anyhow::Result<()> {
-    query
-        .reply(query.key_expr().clone(), encode(value)?)
-        .await
-        .map_err(zerr)
+/// Answers a query. A requester that went away is its own problem: the
+/// failure is logged and the central unit carries on.
+async fn reply<T: serde::Serialize>(query: &Query, value: &T) {
+    let sent = match encode(value) {
+        Ok(bytes) => query
+            .reply(query.key_expr().clone(), bytes)
+            .await
+            .map_err(zerr),
+        Err(e) => Err(e.into()),
+    };
+    if let Err(e) = sent {
+        tracing::warn!("reply on {} failed: {e}", query.key_expr());
+    }
 }
 
-/// Serves `site` until `shutdown` completes.
+/// Serves `site` until `shutdown` completes. `clock` is the master time base
+/// (the system clock, with an injected offset and drift in a simulation).
 pub async fn run(
     session: &Session,
     site: Site,
     site_toml: String,
+    clock: SimulatedClock,
     shutdown: impl Future<Output = ()>,
 ) -> anyhow::Result<()> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&site.name)?;
-    let mut core = CentralCore::new(site, site_toml, CentralConfig::default(), system_now())?;
+    let mut core = CentralCore::new(site, site_toml, CentralConfig::default(), clock.now())?;
     let s = core.latest_schedule();
     tracing::info!(
         "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",
@@ -150,29 +172,28 @@ pub async fn run(
         .map_err(zerr)?;
 
     loop {
-        let wake = core.next_wake().since(system_now()).to_std();
+        let wake = core.next_wake().since(clock.now()).to_std();
         let outputs = tokio::select! {
             _ = &mut shutdown => break,
-            _ = tokio::time::sleep(wake) => core.tick(system_now()),
-            Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await?; Vec::new() }
-            Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await?; Vec::new() }
+            _ = tokio::time::sleep(wake) => core.tick(clock.now()),
+            Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; Vec::new() }
+            Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await; Vec::new() }
             Ok(q) = clock_q.recv_async() => {
-                let t2 = system_now();
+                let t2 = clock.now();
                 match q.payload().map(|p| decode::<ClockRequest>(&p.to_bytes())) {
-                    Some(Ok(req)) => reply(&q, &CentralCore::clock_reply(req.t1, t2, system_now())).await?,
+                    Some(Ok(req)) => reply(&q, &CentralCore::clock_reply(req.t1, t2, clock.now())).await,
                     _ => tracing::warn!("clock query without a valid request"),
                 }
                 Vec::new()
             }
-            Ok(q) = admin_q.recv_async() => answer_admin(&keys, &mut core, &q).await?,
+            Ok(q) = admin_q.recv_async() => answer_admin(&keys, &mut core, &q, clock.now()).await,
             Ok(s) = alive.recv_async() => {
                 let up = s.kind() == SampleKind::Put;
                 match keys.parse(s.key_expr().as_str()) {
-                    Ok(Key::AliveCell(id)) => core.cell_alive(&id, up),
-                    Ok(Key::AliveRobot(id)) => core.robot_alive(&id, up),
-                    _ => {}
+                    Ok(Key::AliveCell(id)) => core.cell_alive(&id, up, clock.now()),
+                    Ok(Key::AliveRobot(id)) => { core.robot_alive(&id, up); Vec::new() }
+                    _ => Vec::new(),
                 }
-                Vec::new()
             }
             Ok(s) = status_sub.recv_async() => {
                 match decode::<CellStatus>(&s.payload().to_bytes()) {
@@ -183,7 +204,9 @@ pub async fn run(
             }
             Ok(s) = burst_sub.recv_async() => {
                 match decode::<Burst>(&s.payload().to_bytes()) {
-                    Ok(b) => core.on_burst(&b),
+                    // A simulated driver reports the true emission time: on
+                    // the master time base it is what this clock read then.
+                    Ok(b) => core.on_burst(&Burst { actual: clock.local(b.actual), ..b }),
                     Err(e) => tracing::warn!("undecodable burst on {}: {e}", s.key_expr()),
                 }
                 Vec::new()
@@ -196,7 +219,7 @@ pub async fn run(
             }
             Ok(s) = fix_sub.recv_async() => {
                 if let Ok(Key::Robot(id, _)) = keys.parse(s.key_expr().as_str()) {
-                    core.on_fix(&id, system_now());
+                    core.on_fix(&id, clock.now());
                 }
                 Vec::new()
             }
@@ -211,37 +234,41 @@ pub async fn run(
     Ok(())
 }
 
-async fn answer_admin(
-    keys: &Keys,
-    core: &mut CentralCore,
-    q: &Query,
-) -> anyhow::Result<Vec<Output>> {
+/// Answers one admin query; returns what the command makes the node publish.
+async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time) -> Vec<Output> {
     let Ok(Key::CentralAdmin(command)) = keys.parse(q.key_expr().as_str()) else {
-        return Ok(Vec::new());
+        return Vec::new();
     };
-    let now = system_now();
     let mut outputs = Vec::new();
     match command.as_str() {
-        "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await?,
-        "schedule" => reply(q, core.latest_schedule()).await?,
-        "pause" => reply(q, &core.set_paused(true)).await?,
-        "resume" => reply(q, &core.set_paused(false)).await?,
+        "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
+        "schedule" => reply(q, core.latest_schedule()).await,
+        "coverage" => {
+            // No payload (or an unreadable one): the default grid.
+            let resolution_m = q
+                .payload()
+                .and_then(|p| decode::<CoverageRequest>(&p.to_bytes()).ok())
+                .map_or(crate::coverage::DEFAULT_RESOLUTION_M, |r| r.resolution_m);
+            reply(q, &core.coverage(resolution_m)).await;
+        }
+        "pause" => reply(q, &core.set_paused(true)).await,
+        "resume" => reply(q, &core.set_paused(false)).await,
         "reload" => {
             let request = q.payload().map(|p| decode::<ReloadRequest>(&p.to_bytes()));
             let ack = match request {
                 Some(Ok(r)) => {
-                    let (ack, out) = core.reload(&r.site_toml, &r.file_name);
+                    let (ack, out) = core.reload(&r.site_toml, &r.file_name, now);
                     outputs.extend(out);
                     ack
                 }
-                _ => ickon_proto::msg::admin::AdminAck {
+                _ => AdminAck {
                     ok: false,
                     messages: vec!["reload needs a ReloadRequest payload".into()],
                 },
             };
-            reply(q, &ack).await?;
+            reply(q, &ack).await;
         }
         other => tracing::warn!("unknown admin command {other:?}"),
     }
-    Ok(outputs)
+    outputs
 }

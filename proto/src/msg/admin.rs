@@ -1,9 +1,11 @@
 //! Admin queryables under `central/admin/<command>`.
 //!
-//! Queries carry no payload except `reload`, which carries a [`ReloadRequest`].
-//! `status`, `cells`, `robots` and `sync` answer a [`StatusReport`]; `schedule`
-//! answers a [`Schedule`](crate::msg::control::Schedule); `coverage` a
-//! [`CoverageReport`]; `pause`, `resume` and `reload` an [`AdminAck`].
+//! Queries carry no payload except `reload`, which carries a
+//! [`ReloadRequest`], and `coverage`, which may carry a [`CoverageRequest`].
+//! `status`, `cells`, `robots` and `sync` answer a [`StatusReport`];
+//! `schedule` answers a [`Schedule`](crate::msg::control::Schedule);
+//! `coverage` a [`CoverageReport`]; `pause`, `resume` and `reload` an
+//! [`AdminAck`].
 
 use serde::{Deserialize, Serialize};
 
@@ -15,18 +17,32 @@ pub struct CellHealth {
     /// Cell id.
     #[serde(deserialize_with = "crate::wire_string::deserialize")]
     pub id: String,
-    /// Whether its liveliness token is present and it takes part in the schedule.
+    /// Whether its liveliness token is present and it takes part in the
+    /// schedule of the last triggered cycle.
     pub up: bool,
-    /// The cell's own estimate of its sync error (one sigma), nanoseconds.
-    pub sync_error_ns: i64,
+    /// The last triggered cycle when `up` last changed (0: never changed).
+    pub state_since_cycle: u64,
+    /// The cell's own estimate of its sync uncertainty (one sigma), nanoseconds.
+    pub sync_sigma_ns: i64,
     /// Estimated offset master minus local clock, nanoseconds.
     pub offset_ns: i64,
+    /// Estimated drift of the cell clock against the master, parts per billion.
+    pub drift_ppb: i64,
+    /// Bursts behind the residual figures below (0: none measured yet).
+    pub residual_samples: u32,
+    /// Largest |actual - scheduled| emission time of the recent bursts,
+    /// nanoseconds: the residual sync error against the true time base.
+    pub residual_max_ns: i64,
+    /// Root mean square of the same residuals, nanoseconds.
+    pub residual_rms_ns: i64,
     /// Last cycle it reported firing.
     pub last_cycle_fired: u64,
-    /// Cycles fired since it started.
+    /// Cycles fired since the central unit started.
     pub cycles_fired: u64,
     /// Cycles in which it was expected to fire and did not.
     pub cycles_missed: u64,
+    /// Slots the cell skipped because their trigger came too late (its own count).
+    pub slots_skipped: u64,
 }
 
 /// Health of one robot as the central unit sees it.
@@ -74,22 +90,39 @@ pub struct StatusReport {
     pub robots: Vec<RobotHealth>,
 }
 
-/// Answer to `coverage`: a grid over the floor, row-major from the lower-left corner.
+/// Optional query payload of `coverage`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CoverageRequest {
+    /// Wanted grid spacing, metres (the central unit may enlarge it to bound
+    /// the work; the report says what was used).
+    pub resolution_m: f64,
+}
+
+/// Answer to `coverage`: a grid over the floor, row-major from the lower-left
+/// corner, evaluated for the transmitters of the schedule in force.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CoverageReport {
-    /// x of the centre of the first grid cell, metres.
+    /// Version of the schedule whose transmitters were counted.
+    pub schedule_version: u32,
+    /// x of the first grid point, metres.
     pub origin_x_m: f64,
-    /// y of the centre of the first grid cell, metres.
+    /// y of the first grid point, metres.
     pub origin_y_m: f64,
     /// Grid spacing, metres.
     pub resolution_m: f64,
+    /// Receiver height the grid is evaluated at (the MSU's), metres.
+    pub height_m: f64,
     /// Number of columns (along x).
     pub columns: u32,
     /// Number of rows (along y).
     pub rows: u32,
-    /// Transmitters in line of sight at each grid point.
+    /// Whether each grid point lies in a cell (points off the floor have no figures).
+    pub on_floor: Vec<bool>,
+    /// Transmitters audible in line of sight at each grid point.
     pub visible: Vec<u32>,
-    /// Horizontal dilution of precision at each grid point (0 where no fix is possible).
+    /// Horizontal dilution of precision of the 2D TDOA fix at each grid
+    /// point, metres of position error per metre of range noise (0 where no
+    /// fix is possible).
     pub hdop: Vec<f64>,
 }
 

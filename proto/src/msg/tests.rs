@@ -174,6 +174,39 @@ fn robot_messages_round_trip() {
     });
 }
 
+fn sample_cell_health() -> CellHealth {
+    CellHealth {
+        id: "c1".into(),
+        up: true,
+        state_since_cycle: 4,
+        sync_sigma_ns: 3_000,
+        offset_ns: -10,
+        drift_ppb: 95_000,
+        residual_samples: 64,
+        residual_max_ns: 41_000,
+        residual_rms_ns: 17_000,
+        last_cycle_fired: 10,
+        cycles_fired: 10,
+        cycles_missed: 0,
+        slots_skipped: 1,
+    }
+}
+
+fn sample_coverage() -> CoverageReport {
+    CoverageReport {
+        schedule_version: 7,
+        origin_x_m: 0.125,
+        origin_y_m: -0.5,
+        resolution_m: 0.25,
+        height_m: 0.5,
+        columns: 2,
+        rows: 1,
+        on_floor: vec![true, false],
+        visible: vec![4, 0],
+        hdop: vec![1.25, 0.0],
+    }
+}
+
 #[test]
 fn admin_messages_round_trip() {
     round_trip(StatusReport {
@@ -183,15 +216,7 @@ fn admin_messages_round_trip() {
         paused: false,
         schedule_version: 1,
         update_rate_hz: 5.0,
-        cells: vec![CellHealth {
-            id: "c1".into(),
-            up: true,
-            sync_error_ns: 3_000,
-            offset_ns: 10,
-            last_cycle_fired: 10,
-            cycles_fired: 10,
-            cycles_missed: 0,
-        }],
+        cells: vec![sample_cell_health()],
         robots: vec![RobotHealth {
             id: "r1".into(),
             up: true,
@@ -203,15 +228,8 @@ fn admin_messages_round_trip() {
             theta_rad: 0.0,
         }],
     });
-    round_trip(CoverageReport {
-        origin_x_m: 0.125,
-        origin_y_m: 0.125,
-        resolution_m: 0.25,
-        columns: 2,
-        rows: 1,
-        visible: vec![4, 3],
-        hdop: vec![1.2, 1.9],
-    });
+    round_trip(sample_coverage());
+    round_trip(CoverageRequest { resolution_m: 0.5 });
     round_trip(ReloadRequest {
         file_name: "lab.toml".into(),
         site_toml: "x".into(),
@@ -220,6 +238,61 @@ fn admin_messages_round_trip() {
         ok: false,
         messages: vec!["line 3: bad".into(), "line 9: worse".into()],
     });
+}
+
+#[test]
+fn coverage_report_matches_hand_written_cdr() {
+    let mut expected = vec![0x00, 0x01, 0x00, 0x00]; // header; offsets count from here
+    expected.extend_from_slice(&7u32.to_le_bytes()); // schedule_version (0)
+    expected.extend_from_slice(&[0; 4]); // pad 4 -> 8 for the f64
+    for v in [0.125f64, -0.5, 0.25, 0.5] {
+        expected.extend_from_slice(&v.to_le_bytes()); // origin x, y, resolution, height (8..40)
+    }
+    expected.extend_from_slice(&2u32.to_le_bytes()); // columns (40)
+    expected.extend_from_slice(&1u32.to_le_bytes()); // rows (44)
+    expected.extend_from_slice(&2u32.to_le_bytes()); // on_floor length (48)
+    expected.extend_from_slice(&[1, 0]); // bool octets (52, 53)
+    expected.extend_from_slice(&[0; 2]); // pad 54 -> 56 for the u32 length
+    expected.extend_from_slice(&2u32.to_le_bytes()); // visible length (56)
+    expected.extend_from_slice(&4u32.to_le_bytes()); // (60)
+    expected.extend_from_slice(&0u32.to_le_bytes()); // (64)
+    expected.extend_from_slice(&2u32.to_le_bytes()); // hdop length (68)
+    expected.extend_from_slice(&1.25f64.to_le_bytes()); // (72, already 8-aligned)
+    expected.extend_from_slice(&0.0f64.to_le_bytes()); // (80)
+    assert_eq!(encode(&sample_coverage()).unwrap(), expected);
+    assert_eq!(
+        decode::<CoverageReport>(&expected).unwrap(),
+        sample_coverage()
+    );
+    // A bool octet other than 0 or 1 is malformed, not a silent `true`.
+    let mut bad = expected.clone();
+    bad[4 + 52] = 2;
+    assert!(decode::<CoverageReport>(&bad).is_err());
+}
+
+#[test]
+fn cell_health_matches_hand_written_cdr() {
+    let mut expected = vec![0x00, 0x01, 0x00, 0x00];
+    expected.extend_from_slice(&3u32.to_le_bytes()); // id length, NUL included (0)
+    expected.extend_from_slice(b"c1\0"); // (4..7)
+    expected.push(1); // up (7)
+    expected.extend_from_slice(&4u64.to_le_bytes()); // state_since_cycle (8)
+    for v in [3_000i64, -10, 95_000] {
+        expected.extend_from_slice(&v.to_le_bytes()); // sigma, offset, drift (16..40)
+    }
+    expected.extend_from_slice(&64u32.to_le_bytes()); // residual_samples (40)
+    expected.extend_from_slice(&[0; 4]); // pad 44 -> 48
+    for v in [41_000i64, 17_000] {
+        expected.extend_from_slice(&v.to_le_bytes()); // residual max, rms (48..64)
+    }
+    for v in [10u64, 10, 0, 1] {
+        expected.extend_from_slice(&v.to_le_bytes()); // last fired, fired, missed, skipped
+    }
+    assert_eq!(encode(&sample_cell_health()).unwrap(), expected);
+    assert_eq!(
+        decode::<CellHealth>(&expected).unwrap(),
+        sample_cell_health()
+    );
 }
 
 #[test]
@@ -426,6 +499,7 @@ mod random {
             let _ = decode::<Schedule>(&bytes);
             let _ = decode::<Fix>(&bytes);
             let _ = decode::<StatusReport>(&bytes);
+            let _ = decode::<CoverageReport>(&bytes);
             let mut with_header = vec![0, 1, 0, 0];
             with_header.extend_from_slice(&bytes);
             let _ = decode::<Schedule>(&with_header);

@@ -1,0 +1,221 @@
+use super::*;
+
+fn core() -> CentralCore {
+    let site = Site::default_site();
+    CentralCore::new(site, String::new(), CentralConfig::default(), Time(0)).unwrap()
+}
+
+/// A core whose four cells have all announced themselves.
+fn all_alive() -> CentralCore {
+    let mut c = core();
+    for id in ["c1", "c2", "c3", "c4"] {
+        c.cell_alive(id, true, Time(0));
+    }
+    assert_eq!(c.latest_schedule().active_cells.len(), 4);
+    c
+}
+
+fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
+    out.iter()
+        .filter_map(|o| match o {
+            Output::Trigger(t) => Some(*t),
+            _ => None,
+        })
+        .collect()
+}
+
+fn schedule(out: &[Output]) -> Option<Schedule> {
+    out.iter().find_map(|o| match o {
+        Output::Schedule(s) => Some(s.clone()),
+        _ => None,
+    })
+}
+
+fn health(c: &CentralCore, id: &str) -> ickon_proto::msg::admin::CellHealth {
+    c.status(Time(0))
+        .cells
+        .into_iter()
+        .find(|h| h.id == id)
+        .unwrap()
+}
+
+/// Runs `core` for `n` cycles from `now`, every cycle at its trigger time;
+/// returns the time after them and the triggers.
+fn run_cycles(c: &mut CentralCore, n: usize) -> Vec<CycleTrigger> {
+    let mut all = Vec::new();
+    for _ in 0..n {
+        let now = c.next_wake();
+        all.extend(triggers(&c.tick(now)));
+    }
+    all
+}
+
+#[test]
+fn triggers_go_out_ahead_of_each_cycle_once() {
+    let mut c = core();
+    let lead = CentralConfig::default().trigger_lead;
+    assert!(triggers(&c.tick(Time(0))).is_empty());
+    let first = c.next_wake();
+    let t = triggers(&c.tick(first));
+    assert_eq!(t.len(), 1);
+    assert_eq!(t[0].cycle, 0);
+    assert_eq!(t[0].start, first + lead);
+    assert!(triggers(&c.tick(first)).is_empty(), "no second trigger");
+    let period = c.latest_schedule().cycle_period;
+    let t = triggers(&c.tick(first + period));
+    assert_eq!(t[0].cycle, 1);
+    assert_eq!(t[0].start, first + lead + period);
+}
+
+#[test]
+fn a_cell_that_goes_down_leaves_the_schedule_at_a_named_cycle() {
+    let mut c = all_alive();
+    run_cycles(&mut c, 3);
+    let before = c.latest_schedule().version;
+    // Lost right after the trigger of cycle 2: cycle 3's trigger is a whole
+    // period away, so the new schedule can take effect there.
+    let now = c.next_wake() - c.latest_schedule().cycle_period;
+    let new = schedule(&c.cell_alive("c2", false, now)).expect("a new schedule");
+    assert_eq!(new.version, before + 1);
+    assert!(!new.active_cells.contains(&"c2".to_string()));
+    assert_eq!(new.effective_cycle, 3);
+    // Lost just before a trigger: too late to announce for that cycle.
+    let mut d = all_alive();
+    run_cycles(&mut d, 3);
+    let late = d.next_wake() - Duration::from_millis(10);
+    let s = schedule(&d.cell_alive("c2", false, late)).unwrap();
+    assert_eq!(s.effective_cycle, 4);
+    // Triggers before the switch name version 1, from it version 2.
+    for t in run_cycles(&mut c, 5) {
+        let expected = if t.cycle >= new.effective_cycle {
+            new.version
+        } else {
+            before
+        };
+        assert_eq!(t.schedule_version, expected, "cycle {}", t.cycle);
+    }
+}
+
+#[test]
+fn a_lost_cell_is_down_at_once_and_comes_back_up_when_scheduled_again() {
+    let mut c = all_alive();
+    run_cycles(&mut c, 4);
+    assert!(health(&c, "c3").up);
+    let now = c.next_wake() - Duration::from_millis(200);
+    c.cell_alive("c3", false, now);
+    let h = health(&c, "c3");
+    assert!(!h.up);
+    assert_eq!(h.state_since_cycle, 3, "down in the cycle it was lost");
+    run_cycles(&mut c, 3);
+    // Back: alive at once, but up only from the cycle that schedules it.
+    let now = c.next_wake() - Duration::from_millis(200);
+    let without = c.latest_schedule().version;
+    let back = schedule(&c.cell_alive("c3", true, now)).expect("re-admitted");
+    assert_eq!(back.version, without + 1);
+    assert_eq!(back.active_cells.len(), 4);
+    assert!(!health(&c, "c3").up);
+    let t = run_cycles(&mut c, 1);
+    assert_eq!(t[0].cycle, back.effective_cycle);
+    assert_eq!(t[0].schedule_version, back.version);
+    let h = health(&c, "c3");
+    assert!(h.up);
+    assert_eq!(h.state_since_cycle, back.effective_cycle);
+}
+
+#[test]
+fn missed_cycles_are_counted_for_live_cells_that_did_not_fire() {
+    let mut c = core();
+    c.cell_alive("c1", true, Time(0));
+    for cycle in 0..6u64 {
+        let now = c.next_wake();
+        c.tick(now);
+        if cycle % 2 == 0 {
+            c.on_burst(&Burst {
+                cell_id: "c1".into(),
+                tx_id: 11,
+                cycle,
+                scheduled: Time(1_000),
+                actual: Time(1_000 + 50_000),
+            });
+        }
+    }
+    let h = health(&c, "c1");
+    assert_eq!(h.cycles_fired, 3);
+    assert_eq!(h.cycles_missed, 2, "cycles 1 and 3 are over, 5 is not");
+    assert_eq!((h.residual_samples, h.residual_max_ns), (3, 50_000));
+}
+
+#[test]
+fn pause_stops_triggers_and_resume_restarts_them() {
+    let mut c = core();
+    assert!(c.set_paused(true).ok);
+    let now = c.next_wake();
+    assert!(triggers(&c.tick(now)).is_empty());
+    assert!(c.status(now).paused);
+    c.set_paused(false);
+    let period = c.latest_schedule().cycle_period;
+    let t = triggers(&c.tick(now + period));
+    assert_eq!(t.len(), 1);
+    assert_eq!(t[0].cycle, 1, "cycle numbers went on while paused");
+}
+
+#[test]
+fn a_bad_reload_is_refused_and_the_site_stays() {
+    let mut c = core();
+    let bad = ickon_proto::site::DEFAULT_SITE_TOML.replacen("id = 12\n", "id = 11\n", 1);
+    let (ack, out) = c.reload(&bad, "bad.toml", Time(0));
+    assert!(!ack.ok);
+    assert!(ack.messages[0].contains("bad.toml:"), "{:?}", ack.messages);
+    assert!(out.is_none());
+    assert_eq!(c.site_info().version, 1);
+    let renamed =
+        ickon_proto::site::DEFAULT_SITE_TOML.replacen("name = \"lab\"", "name = \"x\"", 1);
+    let (ack, _) = c.reload(&renamed, "x.toml", Time(0));
+    assert!(
+        !ack.ok && ack.messages[0].contains("differs"),
+        "{:?}",
+        ack.messages
+    );
+    let (ack, out) = c.reload(ickon_proto::site::DEFAULT_SITE_TOML, "lab.toml", Time(0));
+    assert!(ack.ok, "{:?}", ack.messages);
+    assert!(matches!(out, Some(Output::Schedule(s)) if s.version == 2));
+    assert_eq!(c.site_info().version, 2);
+}
+
+#[test]
+fn coverage_follows_the_schedule_in_force() {
+    let mut c = all_alive();
+    let full = c.coverage(0.5);
+    assert_eq!(full.schedule_version, c.latest_schedule().version);
+    run_cycles(&mut c, 2);
+    let now = c.next_wake() - c.latest_schedule().cycle_period;
+    c.cell_alive("c4", false, now);
+    run_cycles(&mut c, 2);
+    let without_c4 = c.coverage(0.5);
+    assert_eq!(without_c4.schedule_version, c.latest_schedule().version);
+    let seen = |r: &CoverageReport| r.visible.iter().map(|&v| u64::from(v)).sum::<u64>();
+    assert!(seen(&without_c4) < seen(&full));
+}
+
+#[test]
+fn robots_are_reported_with_their_last_pose() {
+    let mut c = core();
+    c.robot_alive("r1", true);
+    c.on_pose(
+        "r1",
+        RobotPose {
+            stamp: Time(0),
+            x_m: 1.5,
+            y_m: 2.0,
+            theta_rad: 0.1,
+            covariance: [0.0; 9],
+            estimator: "ickon-akf".into(),
+            fix_seq: 3,
+        },
+    );
+    c.on_fix("r1", Time(0));
+    let r = &c.status(Time(0)).robots[0];
+    assert!(r.up && r.pose_valid);
+    assert_eq!((r.x_m, r.estimator.as_str()), (1.5, "ickon-akf"));
+    assert!(r.fixes_per_s > 0.0);
+}

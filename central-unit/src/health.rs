@@ -1,0 +1,212 @@
+//! What the central unit knows of each cell and robot: presence, what each
+//! cell fired and when against its schedule, and what each robot publishes.
+//! Pure bookkeeping for [`CentralCore`](crate::core::CentralCore).
+//!
+//! The residual sync error of a cell is `actual - scheduled` of each burst,
+//! both on the master time base: `scheduled` is where the schedule put the
+//! burst, `actual` where it really went out (a simulation knows it exactly
+//! from the true time base; hardware reports its best estimate). Unlike the
+//! cell's own uncertainty it sees every error of the sync slave, including
+//! the round-trip asymmetry no exchange can observe.
+
+use std::collections::{BTreeSet, VecDeque};
+
+use ickon_proto::msg::admin::{CellHealth, RobotHealth};
+use ickon_proto::msg::control::{Burst, CellStatus};
+use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::time::{Duration, Time};
+
+/// Fired cycles remembered per cell, to count missed ones.
+const FIRED_MEMORY: usize = 64;
+/// Bursts behind the residual figures of a cell.
+pub const RESIDUAL_WINDOW: usize = 64;
+/// Fixes per second are counted over this window.
+pub const FIX_RATE_WINDOW: Duration = Duration::from_millis(2_000);
+
+/// One cell.
+#[derive(Debug, Default, Clone)]
+pub struct CellTracker {
+    /// Whether its liveliness token is present.
+    pub alive: bool,
+    /// The state last reported (token present and scheduled).
+    pub up: bool,
+    /// The last triggered cycle when `up` last changed.
+    pub state_since_cycle: u64,
+    status: Option<CellStatus>,
+    fired: BTreeSet<u64>,
+    last_cycle_fired: u64,
+    cycles_fired: u64,
+    cycles_missed: u64,
+    residuals_ns: VecDeque<i64>,
+}
+
+impl CellTracker {
+    /// A burst of this cell; `burst.actual` on the master time base.
+    pub fn on_burst(&mut self, burst: &Burst) {
+        if self.residuals_ns.len() == RESIDUAL_WINDOW {
+            self.residuals_ns.pop_front();
+        }
+        self.residuals_ns
+            .push_back(burst.actual.as_nanos() - burst.scheduled.as_nanos());
+        if self.fired.insert(burst.cycle) {
+            self.cycles_fired += 1;
+            self.last_cycle_fired = self.last_cycle_fired.max(burst.cycle);
+            while self.fired.len() > FIRED_MEMORY {
+                self.fired.pop_first();
+            }
+        }
+    }
+
+    /// The cell's own status report.
+    pub fn on_status(&mut self, status: CellStatus) {
+        self.status = Some(status);
+    }
+
+    /// `cycle` is over and the cell was scheduled in it: counts it as missed
+    /// if the cell is alive and fired nothing in it.
+    pub fn check_fired(&mut self, cycle: u64) {
+        if self.alive && !self.fired.contains(&cycle) {
+            self.cycles_missed += 1;
+        }
+    }
+
+    /// The admin view of this cell.
+    pub fn health(&self, id: &str) -> CellHealth {
+        let n = self.residuals_ns.len();
+        let max = self.residuals_ns.iter().map(|r| r.abs()).max().unwrap_or(0);
+        let rms = if n == 0 {
+            0.0
+        } else {
+            (self
+                .residuals_ns
+                .iter()
+                .map(|&r| (r as f64).powi(2))
+                .sum::<f64>()
+                / n as f64)
+                .sqrt()
+        };
+        let status = self.status.as_ref();
+        CellHealth {
+            id: id.to_string(),
+            up: self.up,
+            state_since_cycle: self.state_since_cycle,
+            sync_sigma_ns: status.map_or(0, |s| s.offset_sigma_ns),
+            offset_ns: status.map_or(0, |s| s.offset_ns),
+            drift_ppb: status.map_or(0, |s| s.drift_ppb),
+            residual_samples: u32::try_from(n).unwrap_or(u32::MAX),
+            residual_max_ns: max,
+            residual_rms_ns: rms.round() as i64,
+            last_cycle_fired: self.last_cycle_fired,
+            cycles_fired: self.cycles_fired,
+            cycles_missed: self.cycles_missed,
+            slots_skipped: status.map_or(0, |s| s.slots_skipped),
+        }
+    }
+}
+
+/// One robot.
+#[derive(Debug, Default, Clone)]
+pub struct RobotTracker {
+    /// Whether its liveliness token is present.
+    pub alive: bool,
+    pose: Option<RobotPose>,
+    fix_times: VecDeque<Time>,
+}
+
+impl RobotTracker {
+    /// A pose it published.
+    pub fn on_pose(&mut self, pose: RobotPose) {
+        self.pose = Some(pose);
+    }
+
+    /// A fix it published, received at `now`.
+    pub fn on_fix(&mut self, now: Time) {
+        self.fix_times.push_back(now);
+        while self
+            .fix_times
+            .front()
+            .is_some_and(|t| now.since(*t) > FIX_RATE_WINDOW)
+        {
+            self.fix_times.pop_front();
+        }
+    }
+
+    /// The admin view of this robot at `now`.
+    pub fn health(&self, id: &str, now: Time) -> RobotHealth {
+        let recent = self
+            .fix_times
+            .iter()
+            .filter(|t| now.since(**t) <= FIX_RATE_WINDOW)
+            .count();
+        let pose = self.pose.as_ref();
+        RobotHealth {
+            id: id.to_string(),
+            up: self.alive,
+            fixes_per_s: recent as f64 / FIX_RATE_WINDOW.as_secs_f64(),
+            estimator: pose.map_or(String::new(), |p| p.estimator.clone()),
+            pose_valid: pose.is_some(),
+            x_m: pose.map_or(0.0, |p| p.x_m),
+            y_m: pose.map_or(0.0, |p| p.y_m),
+            theta_rad: pose.map_or(0.0, |p| p.theta_rad),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn burst(cycle: u64, error_ns: i64) -> Burst {
+        Burst {
+            cell_id: "c1".into(),
+            tx_id: 11,
+            cycle,
+            scheduled: Time(1_000_000_000),
+            actual: Time(1_000_000_000 + error_ns),
+        }
+    }
+
+    #[test]
+    fn residuals_are_actual_minus_scheduled_over_the_recent_bursts() {
+        let mut c = CellTracker::default();
+        c.on_burst(&burst(1, 300_000)); // an early bad burst, later pushed out
+        for k in 0..RESIDUAL_WINDOW as u64 {
+            c.on_burst(&burst(2 + k / 4, if k % 2 == 0 { 30_000 } else { -40_000 }));
+        }
+        let h = c.health("c1");
+        assert_eq!(h.residual_samples, RESIDUAL_WINDOW as u32);
+        assert_eq!(h.residual_max_ns, 40_000);
+        assert_eq!(h.residual_rms_ns, 35_355);
+        assert_eq!(h.cycles_fired, 1 + RESIDUAL_WINDOW as u64 / 4);
+        assert_eq!(h.last_cycle_fired, 1 + RESIDUAL_WINDOW as u64 / 4);
+    }
+
+    #[test]
+    fn a_cell_that_never_fired_has_no_residual() {
+        let h = CellTracker::default().health("c9");
+        assert_eq!((h.residual_samples, h.residual_max_ns), (0, 0));
+        assert!(!h.up);
+    }
+
+    #[test]
+    fn missed_cycles_count_only_while_alive() {
+        let mut c = CellTracker::default();
+        c.check_fired(3);
+        c.alive = true;
+        c.on_burst(&burst(4, 0));
+        c.check_fired(4);
+        c.check_fired(5);
+        assert_eq!(c.health("c1").cycles_missed, 1);
+    }
+
+    #[test]
+    fn fixes_per_second_count_a_sliding_window() {
+        let mut r = RobotTracker::default();
+        for k in 0..10 {
+            r.on_fix(Time(k * 200_000_000));
+        }
+        let h = r.health("r1", Time(1_800_000_000));
+        assert!((h.fixes_per_s - 5.0).abs() < 0.6, "{}", h.fixes_per_s);
+        assert!(!h.pose_valid);
+    }
+}

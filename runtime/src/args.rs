@@ -1,0 +1,166 @@
+//! The command-line flags every ICKON-rs process shares, and what they become:
+//! a Zenoh configuration, a session, a device clock, a shutdown future.
+
+use std::future::Future;
+use std::path::PathBuf;
+
+use clap::Args;
+use zenoh::Session;
+
+use crate::clock::{SimulatedClock, system_now};
+use crate::shutdown::shutdown_signal;
+
+/// The Zenoh connection flags, the same as Zenoh's own examples.
+#[derive(Debug, Clone, Default, Args)]
+pub struct ZenohArgs {
+    /// A Zenoh configuration file (JSON5); the flags below override it.
+    #[arg(short = 'c', long = "config")]
+    pub config: Option<PathBuf>,
+    /// Endpoints to connect to, e.g. `tcp/127.0.0.1:7447` (repeatable).
+    #[arg(short = 'e', long = "connect")]
+    pub connect: Vec<String>,
+    /// Endpoints to listen on, e.g. `tcp/127.0.0.1:0` (repeatable).
+    #[arg(short = 'l', long = "listen")]
+    pub listen: Vec<String>,
+    /// Turn multicast scouting off (isolated meshes, tests).
+    #[arg(long)]
+    pub no_multicast_scouting: bool,
+}
+
+impl ZenohArgs {
+    /// Whether the user said where to connect (a config file or an endpoint).
+    pub fn names_a_peer(&self) -> bool {
+        self.config.is_some() || !self.connect.is_empty()
+    }
+
+    /// The Zenoh configuration the flags describe.
+    pub fn zenoh_config(&self) -> anyhow::Result<zenoh::Config> {
+        let mut config = match &self.config {
+            Some(path) => zenoh::Config::from_file(path)
+                .map_err(|e| anyhow::anyhow!("Zenoh config {}: {e}", path.display()))?,
+            None => zenoh::Config::default(),
+        };
+        let mut set = |k: &str, v: String| {
+            config
+                .insert_json5(k, &v)
+                .map_err(|e| anyhow::anyhow!("Zenoh config {k}: {e}"))
+        };
+        if !self.connect.is_empty() {
+            set("connect/endpoints", serde_json::to_string(&self.connect)?)?;
+        }
+        if !self.listen.is_empty() {
+            set("listen/endpoints", serde_json::to_string(&self.listen)?)?;
+        }
+        if self.no_multicast_scouting {
+            set("scouting/multicast/enabled", "false".into())?;
+        }
+        Ok(config)
+    }
+
+    /// Opens the session the flags describe.
+    pub async fn open(&self) -> anyhow::Result<Session> {
+        zenoh::open(self.zenoh_config()?)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))
+    }
+}
+
+/// Connection and simulation flags shared by every node.
+#[derive(Debug, Clone, Args)]
+pub struct NodeArgs {
+    /// Zenoh connection flags.
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+    /// Site name, the `<site>` of every key.
+    #[arg(long, default_value = "lab")]
+    pub site_name: String,
+    /// Site file (TOML); the central unit serves it, the built-in site when
+    /// omitted. Other nodes take the site from the central unit.
+    #[arg(long)]
+    pub site: Option<PathBuf>,
+    /// Simulation only: offset of this node's clock from the true time, microseconds.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub clock_offset_us: f64,
+    /// Simulation only: drift of this node's clock, parts per million.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub clock_drift_ppm: f64,
+    /// Stop when the parent process (the launcher) goes away.
+    #[arg(long)]
+    pub exit_with_parent: bool,
+}
+
+impl NodeArgs {
+    /// The Zenoh configuration the flags describe.
+    pub fn zenoh_config(&self) -> anyhow::Result<zenoh::Config> {
+        self.zenoh.zenoh_config()
+    }
+
+    /// Opens the session the flags describe.
+    pub async fn open(&self) -> anyhow::Result<Session> {
+        self.zenoh.open().await
+    }
+
+    /// This node's clock: the system clock with the injected offset and drift.
+    pub fn clock(&self) -> SimulatedClock {
+        SimulatedClock::new(
+            system_now(),
+            (self.clock_offset_us * 1e3).round() as i64,
+            self.clock_drift_ppm * 1e-6,
+        )
+    }
+
+    /// Completes on Ctrl-C, SIGTERM, or (with `--exit-with-parent`) when the parent goes away.
+    pub fn shutdown(&self) -> impl Future<Output = ()> + use<> {
+        shutdown_signal(self.exit_with_parent)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flags_become_a_zenoh_config() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            node: NodeArgs,
+        }
+        let cli = Cli::parse_from([
+            "x",
+            "--connect",
+            "tcp/127.0.0.1:7447",
+            "--listen",
+            "tcp/127.0.0.1:0",
+            "--no-multicast-scouting",
+            "--clock-offset-us",
+            "-20000",
+        ]);
+        assert!(cli.node.zenoh_config().is_ok());
+        assert!(cli.node.zenoh.names_a_peer());
+        assert_eq!(cli.node.clock_offset_us, -20_000.0);
+    }
+
+    #[test]
+    fn a_missing_config_file_is_a_clear_error() {
+        let mut args = ZenohArgs {
+            config: Some("/nonexistent/zenoh.json5".into()),
+            ..ZenohArgs::default()
+        };
+        let err = args.zenoh_config().unwrap_err().to_string();
+        assert!(err.contains("/nonexistent/zenoh.json5"), "{err}");
+        args.config = None;
+        assert!(args.zenoh_config().is_ok());
+        assert!(!args.names_a_peer());
+    }
+
+    #[test]
+    fn every_deploy_config_file_parses() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../deploy/zenoh");
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            zenoh::Config::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        }
+    }
+}

@@ -136,6 +136,11 @@ fn tdoa_ekf(p: &TdoaEkfParams) -> Check {
     non_negative("max_gyro_gap_s", p.max_gyro_gap_s)?;
     positive("gate_sigma", p.gate_sigma)?;
     p.recovery.check()?;
+    positive("relocalise_gate_sigma", p.relocalise_gate_sigma)?;
+    non_negative(
+        "relocalise_heading_sigma_deg",
+        p.relocalise_heading_sigma_deg,
+    )?;
     if p.start_transmitters < 2 {
         return Err((
             "start_transmitters",

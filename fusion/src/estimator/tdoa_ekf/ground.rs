@@ -22,11 +22,20 @@
 //!   the track once the robot has moved `heading_chord_m` with a settled
 //!   position: the chord's direction plus half the turn driven along it
 //!   (exact on an arc).
-//! - MSU fixes are ignored: this filter consumes the arrivals themselves.
+//! - MSU fixes are not fused (the filter consumes the arrivals themselves)
+//!   but watched, to re-localise a lost filter: when `relocalise_after`
+//!   fixes in a row lie beyond `relocalise_gate_sigma` of the estimate
+//!   (Mahalanobis distance with both covariances), the position restarts
+//!   at the last fix with the fix's covariance and the heading variance
+//!   grows by `relocalise_heading_sigma_deg`. Without this, a filter that
+//!   lost the track in a corridor (poor geometry, reflections off the
+//!   walls, a gyro bias it does not estimate) widened its variance and
+//!   wandered off the floor; a run of fixes that agree with each other and
+//!   not with the filter is the stronger evidence.
 
 use std::f64::consts::PI;
 
-use nalgebra::{Matrix3, RowVector3, Vector3};
+use nalgebra::{Matrix3, RowVector3, Vector2, Vector3};
 
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
@@ -34,7 +43,7 @@ use crate::estimator::dead_reckoning::{
     DeadReckoningNoise, IncrementTracker, arc_step, propagate_covariance,
 };
 use crate::estimator::replay::Core;
-use crate::estimator::{InitialPose, Input, PoseEstimate, RangeDifferenceSample};
+use crate::estimator::{FixSample, InitialPose, Input, PoseEstimate, RangeDifferenceSample};
 
 /// Parameters of `tdoa-ekf` (ground robot).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -69,6 +78,13 @@ pub struct TdoaEkfParams {
     pub settled_sigma_m: f64,
     /// Standard deviation of a heading taken from the track, degrees.
     pub track_heading_sigma_deg: f64,
+    /// Fixes in a row beyond the gate after which the filter re-localises
+    /// at the fix (0: never).
+    pub relocalise_after: u32,
+    /// Mahalanobis gate between a fix and the estimate, standard deviations.
+    pub relocalise_gate_sigma: f64,
+    /// Standard deviation added to the heading on re-localisation, degrees.
+    pub relocalise_heading_sigma_deg: f64,
     /// Seconds of input history kept for late inputs.
     pub history_s: f64,
 }
@@ -88,6 +104,9 @@ impl Default for TdoaEkfParams {
             heading_chord_m: 0.5,
             settled_sigma_m: 0.1,
             track_heading_sigma_deg: 10.0,
+            relocalise_after: 3,
+            relocalise_gate_sigma: 5.0,
+            relocalise_heading_sigma_deg: 20.0,
             history_s: crate::estimator::registry::default_history_s(),
         }
     }
@@ -112,6 +131,8 @@ pub struct TdoaEkf {
     heading_from_track: Option<Option<TrackStart>>,
     watch: RejectionWatch,
     last_outcome: Option<Outcome>,
+    /// Fixes in a row that disagreed with the estimate.
+    fixes_disagreeing: u32,
 }
 
 /// Start of the chord an unknown heading is taken from.
@@ -141,6 +162,7 @@ impl TdoaEkf {
             heading_from_track: None,
             watch: RejectionWatch::default(),
             last_outcome: None,
+            fixes_disagreeing: 0,
         }
     }
 
@@ -248,6 +270,46 @@ impl TdoaEkf {
         self.heading_from_track = None;
     }
 
+    /// Watches one MSU fix; re-localises after a run of disagreeing ones.
+    fn fix(&mut self, f: &FixSample) {
+        if self.params.relocalise_after == 0 || self.heading_from_track.is_some() {
+            return;
+        }
+        let Some((x, p)) = &mut self.state else {
+            return;
+        };
+        let d = Vector2::new(f.x_m - x.x, f.y_m - x.y);
+        let s = p.fixed_view::<2, 2>(0, 0) + f.covariance;
+        let Some(m2) = s.try_inverse().map(|si| (d.transpose() * si * d)[0]) else {
+            return;
+        };
+        if m2.is_finite() && m2 <= self.params.relocalise_gate_sigma.powi(2) {
+            self.fixes_disagreeing = 0;
+            return;
+        }
+        self.fixes_disagreeing += 1;
+        if self.fixes_disagreeing < self.params.relocalise_after {
+            return;
+        }
+        self.fixes_disagreeing = 0;
+        let floor = crate::estimator::MIN_VARIANCE;
+        let cov = (f.covariance + f.covariance.transpose()) * 0.5;
+        x.x = f.x_m;
+        x.y = f.y_m;
+        let heading_v = p[(2, 2)]
+            + self
+                .params
+                .relocalise_heading_sigma_deg
+                .to_radians()
+                .powi(2);
+        *p = Matrix3::zeros();
+        p.fixed_view_mut::<2, 2>(0, 0).copy_from(&cov);
+        p[(0, 0)] = p[(0, 0)].max(floor);
+        p[(1, 1)] = p[(1, 1)].max(floor);
+        p[(2, 2)] = heading_v;
+        self.watch = RejectionWatch::default();
+    }
+
     fn range_difference(&mut self, m: &RangeDifferenceSample) -> Outcome {
         if let Err(r) = observation::check(m) {
             return Outcome::Rejected(r);
@@ -298,7 +360,8 @@ impl Core for TdoaEkf {
             Input::RangeDifference(m) => {
                 self.last_outcome = Some(self.range_difference(m));
             }
-            Input::Fix(_) | Input::Range(_) => return,
+            Input::Fix(f) => self.fix(f),
+            Input::Range(_) => return,
         }
         self.t_s = self.t_s.max(input.t_s());
     }

@@ -4,7 +4,10 @@
 //! module only moves bytes.
 
 use std::future::Future;
+use std::process::ExitCode;
 use std::time::Duration;
+
+use clap::Args;
 
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
 use ickon_proto::keys::{Keys, RobotTopic};
@@ -12,7 +15,7 @@ use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{fetch, zerr};
+use ickon_runtime::{NodeArgs, fetch, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
@@ -232,4 +235,99 @@ pub async fn run(
     }
     tracing::info!("robot {robot}: stopping: {n:?}");
     Ok(n)
+}
+
+/// Metres per encoder tick of a Pioneer 3-DX (wheel radius 0.0975 m, 500
+/// lines x 38.3 gear per wheel turn): the default drive of the site's robots.
+pub const PIONEER_M_PER_TICK: f64 = 2.0 * std::f64::consts::PI * 0.0975 / (500.0 * 38.3);
+
+/// Arguments of `ickon-msu` (and `ickon node msu`).
+#[derive(Debug, Clone, Args)]
+pub struct MsuArgs {
+    /// Connection and simulation flags.
+    #[command(flatten)]
+    pub mesh: NodeArgs,
+    /// The robot this agent serves.
+    #[arg(long)]
+    pub robot: String,
+    /// Estimator name (`odometry`, `msu-raw`, `ickon-akf`, `gyro-ckf`, `cda`, `cda-msu`, `tdoa-ekf`).
+    #[arg(long, default_value = "ickon-akf")]
+    pub estimator: String,
+    /// Estimator configuration as JSON (`{"name": "...", ...}`); overrides `--estimator`.
+    #[arg(long)]
+    pub estimator_json: Option<String>,
+    /// One-sigma timing noise of one arrival, microseconds (the MSU's data sheet).
+    #[arg(long, default_value_t = 50.0)]
+    pub timing_sigma_us: f64,
+    /// Wheel base of the robot, metres.
+    #[arg(long, default_value_t = 0.33)]
+    pub wheel_base_m: f64,
+    /// Distance per encoder tick, metres (a Pioneer 3-DX by default).
+    #[arg(long, default_value_t = PIONEER_M_PER_TICK)]
+    pub m_per_tick: f64,
+}
+
+/// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
+/// arguments, 1 for a failure at run time.
+pub fn main_with(args: MsuArgs) -> ExitCode {
+    let estimator = match &args.estimator_json {
+        Some(json) => match serde_json::from_str::<EstimatorConfig>(json) {
+            Ok(c) => Some(c),
+            Err(e) => {
+                eprintln!("error: --estimator-json: {e}");
+                return ExitCode::from(2);
+            }
+        },
+        None => match EstimatorConfig::default_for(&args.estimator) {
+            Ok(_) => None,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        },
+    };
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(positive(args.timing_sigma_us) && positive(args.wheel_base_m) && positive(args.m_per_tick))
+    {
+        eprintln!(
+            "error: --timing-sigma-us, --wheel-base-m and --m-per-tick must be positive numbers"
+        );
+        return ExitCode::from(2);
+    }
+    let settings = MsuSettings {
+        site_name: args.mesh.site_name.clone(),
+        robot: args.robot.clone(),
+        estimator,
+        estimator_name: args.estimator.clone(),
+        timing_sigma_s: args.timing_sigma_us * 1e-6,
+        wheels: WheelGeometry {
+            wheel_base_m: args.wheel_base_m,
+            left_m_per_tick: args.m_per_tick,
+            right_m_per_tick: args.m_per_tick,
+        },
+    };
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(async {
+        let session = args.mesh.open().await?;
+        let r = run(&session, settings, args.mesh.shutdown()).await;
+        let _ = session.close().await;
+        r
+    });
+    match result {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -5,14 +5,17 @@
 //! times on it, and the robots' own clocks are simulated on top of it.
 
 use std::future::Future;
+use std::process::ExitCode;
 use std::time::Duration;
+
+use clap::Args;
 
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{fetch, system_now, zerr};
+use ickon_runtime::{NodeArgs, fetch, system_now, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Publisher;
 
@@ -168,5 +171,64 @@ async fn publish(pubs: &[RobotPublishers], output: WorldOutput, t0: Time) -> any
     match publisher {
         Some(p) => p.put(bytes).await.map_err(zerr),
         None => anyhow::bail!("world output for unknown robot index {robot}"),
+    }
+}
+
+/// Arguments of `ickon-world` (and `ickon node world`).
+#[derive(Debug, Clone, Args)]
+pub struct WorldArgs {
+    /// Connection flags.
+    #[command(flatten)]
+    pub mesh: NodeArgs,
+    /// Robots to simulate, comma-separated ids.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub robots: Vec<String>,
+    /// Noise profile: ideal, paper or harsh.
+    #[arg(long, default_value = "paper")]
+    pub profile: String,
+    /// Seed of every random draw.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// Runs the world as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
+/// arguments, 1 for a failure at run time.
+pub fn main_with(args: WorldArgs) -> ExitCode {
+    let profile = match NoiseProfile::by_name(&args.profile) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let settings = WorldSettings {
+        site_name: args.mesh.site_name.clone(),
+        robots: args.robots.clone(),
+        profile,
+        seed: args.seed,
+    };
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(async {
+        let session = args.mesh.open().await?;
+        let r = run(&session, settings, args.mesh.shutdown()).await;
+        let _ = session.close().await;
+        r
+    });
+    match result {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
 }

@@ -250,6 +250,7 @@ async fn run_mesh(
         &args.seed.to_string(),
     ]);
     sup.spawn("world", world)?;
+    let drive = ickon_sim::robot::DriveSpec::default();
     for robot in &robots {
         let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
         // The same estimator set-up as `ickon eval`: the robot's start pose
@@ -269,7 +270,11 @@ async fn run_mesh(
         cmd.args(["--robot", robot, "--estimator", &args.estimator])
             .arg("--estimator-json")
             .arg(serde_json::to_string(&config)?)
-            .args(["--timing-sigma-us", &format!("{timing_us:.3}")]);
+            .args(["--timing-sigma-us", &format!("{timing_us:.3}")])
+            // The nominal drive of the simulated robots (what the agent
+            // converts encoder ticks with).
+            .args(["--wheel-base-m", &drive.wheel_base_m.to_string()])
+            .args(["--m-per-tick", &drive.m_per_tick().to_string()]);
         sup.spawn(&format!("msu {robot}"), cmd)?;
     }
 

@@ -98,23 +98,18 @@ fn row(tour: Option<u32>, pos_m: &[f64], head_rad: &[f64]) -> Row {
     }
 }
 
-/// A 2D position CRLB for range differences with noise `sigma_range_m`:
-/// `sqrt(trace)` of the position block of `(H^T H)^-1 sigma^2`, `H` rows
-/// `[u_x, u_y, 1]` (unit vector from transmitter to MSU, common offset).
+/// The 2D position CRLB (horizontal RMS, metres) of a fix from these
+/// transmitters at `p_m` with range noise `sigma_range_m`
+/// ([`ickon_fusion::tdoa::crlb`], the MSU height known); `None` when the
+/// geometry gives no bound.
 pub fn crlb_2d_m(tx_m: &[[f64; 3]], p_m: [f64; 3], sigma_range_m: f64) -> Option<f64> {
-    if tx_m.len() < 3 {
-        return None;
-    }
-    let mut f = nalgebra::Matrix3::<f64>::zeros();
-    for t in tx_m {
-        let d = [p_m[0] - t[0], p_m[1] - t[1], p_m[2] - t[2]];
-        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-9);
-        let h = nalgebra::Vector3::new(d[0] / r, d[1] / r, 1.0);
-        f += h * h.transpose();
-    }
-    let inv = f.try_inverse()?;
-    let v = (inv[(0, 0)] + inv[(1, 1)]) * sigma_range_m * sigma_range_m;
-    (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+    use ickon_fusion::tdoa;
+    let tx: Vec<nalgebra::Vector3<f64>> = tx_m.iter().map(|t| (*t).into()).collect();
+    let mode = tdoa::Mode::TwoD { height_m: p_m[2] };
+    tdoa::crlb(&tx, p_m.into(), sigma_range_m, mode)
+        .ok()
+        .map(|b| b.horizontal_rms_m)
+        .filter(|v| v.is_finite())
 }
 
 fn fix_errors(fixes: &[FixRecord]) -> Vec<f64> {

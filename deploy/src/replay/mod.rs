@@ -84,7 +84,7 @@ pub fn run(source: ReplaySource) -> ExitCode {
 }
 
 fn util(args: &UtilArgs) -> ExitCode {
-    if args.max_seconds.is_some_and(|s| !(s > 0.0)) {
+    if args.max_seconds.is_some_and(|s| s.is_nan() || s <= 0.0) {
         eprintln!("error: --max-seconds must be positive");
         return ExitCode::from(EXIT_BAD_INPUT);
     }

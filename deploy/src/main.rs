@@ -5,6 +5,7 @@
 
 mod cli;
 mod eval;
+mod font;
 mod node;
 mod replay;
 mod sim;

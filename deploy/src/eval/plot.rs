@@ -1,8 +1,8 @@
 //! PNG pictures like seed 000 Figures 11-12 (truth as stars at the reference
 //! points, the estimate as a line; the error per reference point) and a bar
-//! chart comparing the estimators. No text: the build has no font engine,
-//! so the file name says what a picture shows; grid lines are 1 m apart on
-//! the floor plan and 50 mm apart on the error axis.
+//! chart comparing the estimators, titled and with labelled axes (the font
+//! is compiled in, see [`crate::font`]); grid lines are 1 m apart on the
+//! floor plan and 50 mm apart on the error axis.
 
 use std::path::Path;
 
@@ -31,11 +31,12 @@ pub fn write_all(
     flat: &[&Score],
 ) -> Result<(), Error> {
     std::fs::create_dir_all(dir)?;
+    crate::font::register();
     for (out, route_scores) in outputs.iter().zip(scores) {
         for (k, s) in route_scores.iter().enumerate() {
             for tour in 1..=out.config.tours {
                 let file = dir.join(format!("{}_{}_tour{tour:02}.png", s.estimator, s.route));
-                tour_picture(&file, out, k, tour)?;
+                tour_picture(&file, out, k, tour, &s.estimator)?;
             }
         }
     }
@@ -70,9 +71,20 @@ where
     Ok(())
 }
 
-fn tour_picture(file: &Path, out: &RunOutput, k: usize, tour: u32) -> Result<(), Error> {
-    let root = BitMapBackend::new(file, (1400, 560)).into_drawing_area();
+fn tour_picture(
+    file: &Path,
+    out: &RunOutput,
+    k: usize,
+    tour: u32,
+    estimator: &str,
+) -> Result<(), Error> {
+    let root = BitMapBackend::new(file, (1400, 600)).into_drawing_area();
     root.fill(&WHITE)?;
+    let title = format!(
+        "{estimator} on {}, tour {tour} (profile {}, seed {})",
+        out.config.route, out.config.profile.name, out.config.seed
+    );
+    let root = root.titled(&title, (crate::font::FAMILY, 22))?;
     let (left, right) = root.split_horizontally(840);
     floor(&left, out, k, tour)?;
     errors(&right, out, k, tour)?;
@@ -101,7 +113,20 @@ fn floor(
     let (y0, y1) = (lo[1], lo[1] + span * 550.0 / 830.0);
     let mut chart = ChartBuilder::on(area)
         .margin(5)
+        .caption(
+            "truth at the reference points (x), estimate (line)",
+            (crate::font::FAMILY, 16),
+        )
+        .x_label_area_size(35)
+        .y_label_area_size(45)
         .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .label_style((crate::font::FAMILY, 13))
+        .draw()?;
     grid(&mut chart, (x0, x1), (y0, y1), 1.0, 1.0)?;
     let est: Vec<(f64, f64)> = out.estimate_traces[k]
         .iter()
@@ -140,7 +165,20 @@ fn errors(
     let n = out.refs_per_tour as f64;
     let mut chart = ChartBuilder::on(area)
         .margin(10)
+        .caption(
+            "error at each reference point (grey: 100 mm)",
+            (crate::font::FAMILY, 16),
+        )
+        .x_label_area_size(35)
+        .y_label_area_size(55)
         .build_cartesian_2d(-1.0..n, 0.0..top)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("reference point")
+        .y_desc("error (mm)")
+        .label_style((crate::font::FAMILY, 13))
+        .draw()?;
     grid(
         &mut chart,
         (-1.0, n),
@@ -157,7 +195,7 @@ fn errors(
     Ok(())
 }
 
-/// Mean error per route (groups) and estimator (bars, in `PALETTE` order), log scale 1 mm to 10 m.
+/// Mean error per route (groups) and estimator (bars, in `PALETTE` order), log scale 1 mm to 100 m.
 fn bars(file: &Path, flat: &[&Score]) -> Result<(), Error> {
     let mut routes: Vec<&str> = Vec::new();
     let mut names: Vec<&str> = Vec::new();
@@ -174,8 +212,32 @@ fn bars(file: &Path, flat: &[&Score]) -> Result<(), Error> {
     let groups = routes.len() as f64;
     let mut chart = ChartBuilder::on(&root)
         .margin(20)
-        .build_cartesian_2d(0.0..groups, (1.0f64..10_000.0f64).log_scale())?;
-    for decade in [1.0, 10.0, 100.0, 1000.0, 10_000.0] {
+        .caption(
+            "mean error per route and estimator (log scale)",
+            (crate::font::FAMILY, 22),
+        )
+        .x_label_area_size(35)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..groups, (1.0f64..100_000.0f64).log_scale())?;
+    let route_names: Vec<String> = routes.iter().map(|r| r.to_string()).collect();
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_labels(routes.len() * 2 + 1)
+        .x_label_formatter(&|x| {
+            // Name each group at its centre, nothing elsewhere.
+            let g = (x - 0.5).round();
+            if (x - 0.5 - g).abs() < 1e-6 && g >= 0.0 {
+                route_names.get(g as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc("mean error (mm)")
+        .label_style((crate::font::FAMILY, 14))
+        .draw()?;
+    // The decade above 10 m keeps the legend clear of the bars.
+    for decade in [1.0, 10.0, 100.0, 1000.0, 10_000.0, 100_000.0] {
         chart.draw_series(LineSeries::new(
             [(0.0, decade), (groups, decade)],
             RGBColor(200, 200, 200),
@@ -189,14 +251,27 @@ fn bars(file: &Path, flat: &[&Score]) -> Result<(), Error> {
                 .find(|s| s.route == *route && s.estimator == *name)
             {
                 let x0 = g as f64 + 0.1 + i as f64 * width;
-                let v = s.mean.mean_mm.clamp(1.0, 10_000.0);
-                chart.draw_series([Rectangle::new(
+                let v = s.mean.mean_mm.clamp(1.0, 100_000.0);
+                let colour = PALETTE[i % PALETTE.len()];
+                let series = chart.draw_series([Rectangle::new(
                     [(x0, 1.0), (x0 + width * 0.9, v)],
-                    PALETTE[i % PALETTE.len()].filled(),
+                    colour.filled(),
                 )])?;
+                if g == 0 {
+                    series.label(*name).legend(move |(x, y)| {
+                        Rectangle::new([(x, y - 6), (x + 14, y + 6)], colour.filled())
+                    });
+                }
             }
         }
     }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font((crate::font::FAMILY, 14))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
     root.present()?;
     Ok(())
 }

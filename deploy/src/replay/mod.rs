@@ -148,7 +148,8 @@ fn util(args: &UtilArgs) -> ExitCode {
             .iter()
             .map(|t| t.series.as_deref().unwrap_or(&[]))
             .collect();
-        if let Err(e) = plot::write_all(dir, &stem, &series) {
+        let names: Vec<&str> = reports.iter().map(|r| r.name).collect();
+        if let Err(e) = plot::write_all(dir, &stem, &names, &series) {
             eprintln!("error: cannot write plots to {}: {e}", dir.display());
             return ExitCode::from(EXIT_FAILURE);
         }

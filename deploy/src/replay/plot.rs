@@ -1,8 +1,8 @@
 //! PNG pictures of a replay: the trajectory (top view; height over time),
 //! truth in black and each estimator in its colour, and the 3D error over
-//! time. No text (the build has no font engine): the file name says what a
-//! picture shows; grid lines are 1 m apart on the floor, 0.5 m on the
-//! height axis, 10 s on the time axes and 0.1 m on the error axis.
+//! time, titled, with labelled axes and a legend (the font is compiled in,
+//! see [`crate::font`]); grid lines are 1 m apart on the floor, 0.5 m on
+//! the height axis, 10 s on the time axes and 0.1 m on the error axis.
 
 use std::path::Path;
 
@@ -23,11 +23,47 @@ const PALETTE: [RGBColor; 3] = [
 ];
 const GRID: RGBColor = RGBColor(220, 220, 220);
 
-/// Writes `<stem>_trajectory.png` and `<stem>_error.png` into `dir`.
-pub fn write_all(dir: &Path, stem: &str, series: &[&[SeriesPoint]]) -> Result<(), Error> {
+/// Writes `<stem>_trajectory.png` and `<stem>_error.png` into `dir`;
+/// `names[k]` is the estimator of `series[k]`.
+pub fn write_all(
+    dir: &Path,
+    stem: &str,
+    names: &[&str],
+    series: &[&[SeriesPoint]],
+) -> Result<(), Error> {
     std::fs::create_dir_all(dir)?;
-    trajectory(&dir.join(format!("{stem}_trajectory.png")), series)?;
-    errors(&dir.join(format!("{stem}_error.png")), series)
+    crate::font::register();
+    trajectory(
+        &dir.join(format!("{stem}_trajectory.png")),
+        stem,
+        names,
+        series,
+    )?;
+    errors(&dir.join(format!("{stem}_error.png")), stem, names, series)
+}
+
+/// The mesh with its axis names (no mesh lines: [`grid`] draws them).
+fn axes(chart: &mut Chart, x_desc: &str, y_desc: &str) -> Result<(), Error> {
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((crate::font::FAMILY, 13))
+        .draw()?;
+    Ok(())
+}
+
+/// The legend of the series labelled so far.
+fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>) -> Result<(), Error> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font((crate::font::FAMILY, 14))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    Ok(())
 }
 
 fn span(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
@@ -59,9 +95,18 @@ fn all(series: &[&[SeriesPoint]]) -> impl Iterator<Item = SeriesPoint> {
     series.iter().flat_map(|s| s.iter().copied())
 }
 
-fn trajectory(file: &Path, series: &[&[SeriesPoint]]) -> Result<(), Error> {
-    let root = BitMapBackend::new(file, (1400, 600)).into_drawing_area();
+fn trajectory(
+    file: &Path,
+    stem: &str,
+    names: &[&str],
+    series: &[&[SeriesPoint]],
+) -> Result<(), Error> {
+    let root = BitMapBackend::new(file, (1400, 640)).into_drawing_area();
     root.fill(&WHITE)?;
+    let root = root.titled(
+        &format!("{stem}: truth (black) and estimates"),
+        (crate::font::FAMILY, 22),
+    )?;
     let (left, right) = root.split_horizontally(600);
     let pts = || all(series).flat_map(|p| [p.estimate_m, p.truth_m]);
     let x = span(pts().map(|p| p[0]), 0.3);
@@ -72,13 +117,21 @@ fn trajectory(file: &Path, series: &[&[SeriesPoint]]) -> Result<(), Error> {
     let (x, y) = ((cx - half, cx + half), (cy - half, cy + half));
     let mut top = ChartBuilder::on(&left)
         .margin(10)
+        .caption("top view", (crate::font::FAMILY, 16))
+        .x_label_area_size(35)
+        .y_label_area_size(45)
         .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
+    axes(&mut top, "x (m)", "y (m)")?;
     grid(&mut top, x, y, (1.0, 1.0))?;
     let t = span(all(series).map(|p| p.t_s), 0.0);
     let z = span(pts().map(|p| p[2]), 0.2);
     let mut side = ChartBuilder::on(&right)
         .margin(10)
+        .caption("height over time", (crate::font::FAMILY, 16))
+        .x_label_area_size(35)
+        .y_label_area_size(45)
         .build_cartesian_2d(t.0..t.1, z.0..z.1)?;
+    axes(&mut side, "time (s)", "z (m)")?;
     grid(&mut side, t, z, (10.0, 0.5))?;
     for (k, s) in series.iter().enumerate() {
         let colour = PALETTE[k % PALETTE.len()];
@@ -89,7 +142,9 @@ fn trajectory(file: &Path, series: &[&[SeriesPoint]]) -> Result<(), Error> {
         side.draw_series(LineSeries::new(
             s.iter().map(|p| (p.t_s, p.estimate_m[2])),
             colour,
-        ))?;
+        ))?
+        .label(names.get(k).copied().unwrap_or("?"))
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], colour.stroke_width(3)));
     }
     // The truth last, on top: from the densest series.
     if let Some(s) = series.iter().max_by_key(|s| s.len()) {
@@ -100,13 +155,16 @@ fn trajectory(file: &Path, series: &[&[SeriesPoint]]) -> Result<(), Error> {
         side.draw_series(LineSeries::new(
             s.iter().map(|p| (p.t_s, p.truth_m[2])),
             BLACK,
-        ))?;
+        ))?
+        .label("truth")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.stroke_width(3)));
     }
+    legend(&mut side)?;
     root.present()?;
     Ok(())
 }
 
-fn errors(file: &Path, series: &[&[SeriesPoint]]) -> Result<(), Error> {
+fn errors(file: &Path, stem: &str, names: &[&str], series: &[&[SeriesPoint]]) -> Result<(), Error> {
     let root = BitMapBackend::new(file, (1400, 500)).into_drawing_area();
     root.fill(&WHITE)?;
     let err = |p: &SeriesPoint| {
@@ -117,15 +175,26 @@ fn errors(file: &Path, series: &[&[SeriesPoint]]) -> Result<(), Error> {
     let top = span(all(series).map(|p| err(&p)), 0.0).1.clamp(0.1, 1.0);
     let mut chart = ChartBuilder::on(&root)
         .margin(10)
+        .caption(
+            format!("{stem}: 3D error against the truth (clipped at {top:.1} m)"),
+            (crate::font::FAMILY, 20),
+        )
+        .x_label_area_size(35)
+        .y_label_area_size(55)
         .build_cartesian_2d(t.0..t.1, 0.0..top)?;
+    axes(&mut chart, "time (s)", "3D error (m)")?;
     grid(&mut chart, t, (0.0, top), (10.0, 0.1))?;
     for (k, s) in series.iter().enumerate() {
         let colour = PALETTE[k % PALETTE.len()];
-        chart.draw_series(LineSeries::new(
-            s.iter().map(|p| (p.t_s, err(p).min(top))),
-            colour,
-        ))?;
+        chart
+            .draw_series(LineSeries::new(
+                s.iter().map(|p| (p.t_s, err(p).min(top))),
+                colour,
+            ))?
+            .label(names.get(k).copied().unwrap_or("?"))
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], colour.stroke_width(3)));
     }
+    legend(&mut chart)?;
     root.present()?;
     Ok(())
 }

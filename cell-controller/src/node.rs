@@ -3,11 +3,12 @@
 //! them through a [`TransmitterDriver`], and reports bursts and status.
 //!
 //! The simulation driver stands in for the transmitter hardware, which fires
-//! on its own clock with microsecond precision once programmed: the burst
-//! report carries the true time at which the cell's clock reads the
-//! programmed local time. The process only has to get the report out before
-//! the sound could arrive, so the operating system's timer jitter does not
-//! enter the measurement; the synchronisation error does.
+//! on its own clock with microsecond precision once programmed (a little
+//! ahead of time, see [`crate::timer`]): the burst report carries the true
+//! time at which the cell's clock reads the programmed local time, and goes
+//! out when the burst is programmed, before the sound could arrive. So the
+//! operating system's timer jitter does not enter the measurement; the
+//! synchronisation error does.
 //!
 //! When the central unit goes away the cell keeps its schedules and waits
 //! for triggers; when it comes back (its liveliness token reappears) the cell
@@ -27,13 +28,13 @@ use ickon_proto::msg::control::{
 };
 use ickon_proto::time::{Duration, Time};
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, SimulatedClock, query_once, zerr};
+use ickon_runtime::{NodeArgs, SimulatedClock, Stamped, query_once, query_stamped, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
 use crate::sync::{ClockSample, SyncConfig, SyncSlave};
-use crate::timer::{BurstTimer, PlannedBurst, TransmitterDriver};
+use crate::timer::{BurstTimer, PROGRAM_AHEAD, PlannedBurst, TransmitterDriver};
 
 /// Arguments of `ickon-cell` (and `ickon node cell`).
 #[derive(Debug, Clone, Args)]
@@ -47,11 +48,12 @@ pub struct CellArgs {
 }
 
 /// Clock exchanges at start-up come this often...
-const FAST_SYNC: StdDuration = StdDuration::from_millis(100);
-/// ...for this many exchanges, then every [`SLOW_SYNC`].
-const FAST_SYNC_COUNT: u32 = 30;
-/// Steady-state clock exchange period.
-const SLOW_SYNC: StdDuration = StdDuration::from_millis(500);
+const FAST_SYNC: StdDuration = StdDuration::from_millis(20);
+/// ...for this many exchanges (2 s: the drift is fitted after 1.5 s, from
+/// the best of many), then every [`SLOW_SYNC`].
+const FAST_SYNC_COUNT: u32 = 100;
+/// Steady-state clock exchange period (the window of 100 spans 25 s).
+const SLOW_SYNC: StdDuration = StdDuration::from_millis(250);
 /// Status reports this often.
 const STATUS_EVERY: StdDuration = StdDuration::from_secs(1);
 
@@ -107,6 +109,9 @@ pub fn main_with(args: CellArgs) -> ExitCode {
     }
 }
 
+/// One four-timestamp exchange with the master; `None` if it did not answer.
+/// `t4` is read in Zenoh's receive path (see [`query_stamped`]); `t1` is the
+/// middle of the time Zenoh took to send the request.
 async fn exchange(
     session: &Session,
     keys: &Keys,
@@ -118,19 +123,23 @@ async fn exchange(
         cell_id: cell.to_string(),
         t1,
     })?;
-    let reply: Option<ClockReply> = query_once(
+    let stamp_clock = *clock;
+    let reply: Option<Stamped<ClockReply>> = query_stamped(
         session,
         &keys.central_clock(),
-        Some(request),
+        request,
         StdDuration::from_millis(500),
+        move || stamp_clock.now(),
     )
     .await?;
-    let t4 = clock.now();
-    Ok(reply.filter(|r| r.t1 == t1).map(|r| ClockSample {
-        t1,
-        t2: r.t2,
-        t3: r.t3,
-        t4,
+    // The request left some time between the call and Zenoh having queued
+    // it; that takes a few hundred microseconds on a busy machine, which
+    // counted whole would make the outward leg look longer than it is.
+    Ok(reply.filter(|r| r.value.t1 == t1).map(|r| ClockSample {
+        t1: Time::from_nanos(t1.as_nanos() + r.sent.since(t1).as_nanos() / 2),
+        t2: r.value.t2,
+        t3: r.value.t3,
+        t4: r.received,
     }))
 }
 
@@ -151,11 +160,6 @@ pub async fn run(
     };
     let mut sync = SyncSlave::new(SyncConfig::default());
     let mut timer = BurstTimer::new(cell, Duration::from_millis(1));
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_cell(cell)?)
-        .await
-        .map_err(zerr)?;
     let triggers = session
         .declare_subscriber(keys.central_cycle())
         .await
@@ -182,7 +186,28 @@ pub async fn run(
         .declare_publisher(keys.cell_status(cell)?)
         .await
         .map_err(zerr)?;
+    // The schedule in force now (a new one, made when the central unit sees
+    // the token below, arrives on the subscriber declared above).
+    if let Ok(Some(s)) = query_once::<Schedule>(
+        session,
+        &keys.central_schedule(),
+        None,
+        StdDuration::from_millis(200),
+    )
+    .await
+    {
+        timer.add_schedule(s);
+    }
+    // Declared last: the central unit schedules this cell when it sees the
+    // token, and by then the cell hears schedules and triggers.
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_cell(cell)?)
+        .await
+        .map_err(zerr)?;
 
+    // Planned bursts by master time: each is programmed PROGRAM_AHEAD
+    // before its time with the estimate of that moment.
     let mut pending: BinaryHeap<Reverse<(Time, u32, u64, Time)>> = BinaryHeap::new();
     let mut exchanges = 0u32;
     let mut next_sync = tokio::time::Instant::now();
@@ -196,21 +221,37 @@ pub async fn run(
     );
 
     loop {
-        let next_fire = pending
-            .peek()
-            .map(|Reverse((local, ..))| local.since(clock.now()).to_std());
+        let estimate = sync.estimate();
+        let next_program =
+            pending
+                .peek()
+                .zip(estimate.as_ref())
+                .map(|(Reverse((master, ..)), e)| {
+                    (e.to_local(*master) - PROGRAM_AHEAD)
+                        .since(clock.now())
+                        .to_std()
+                });
         tokio::select! {
             _ = &mut shutdown => break,
-            _ = tokio::time::sleep(next_fire.unwrap_or(StdDuration::from_secs(3600))), if next_fire.is_some() => {
+            _ = tokio::time::sleep(next_program.unwrap_or(StdDuration::from_secs(3600))), if next_program.is_some() => {
                 let now = clock.now();
                 let mut fired_cycles = Vec::new();
-                while let Some(Reverse((local, tx_id, cycle, master))) = pending.peek().copied() {
-                    if local > now {
+                while let (Some(Reverse((master, tx_id, cycle, planned))), Some(e)) = (pending.peek().copied(), estimate.as_ref()) {
+                    if e.to_local(master) - PROGRAM_AHEAD > now {
                         break;
                     }
                     pending.pop();
-                    driver.fire(&PlannedBurst { tx_id, cycle, master, local });
-                    fired_cycles.push(cycle);
+                    let burst = PlannedBurst { tx_id, cycle, master, local: planned };
+                    match timer.program(&burst, e, now) {
+                        Some(b) => {
+                            driver.fire(&b);
+                            fired_cycles.push(cycle);
+                        }
+                        None => {
+                            tracing::warn!("cell {cell}: cycle {cycle}: tx {tx_id} skipped (woken too late to program it)");
+                            skipped += 1;
+                        }
+                    }
                 }
                 for b in driver.fired.drain(..) {
                     burst_pub.put(encode(&b)?).await.map_err(zerr)?;
@@ -271,7 +312,7 @@ pub async fn run(
                         }
                         skipped += plan.skipped;
                         for b in plan.bursts {
-                            pending.push(Reverse((b.local, b.tx_id, b.cycle, b.master)));
+                            pending.push(Reverse((b.master, b.tx_id, b.cycle, b.local)));
                         }
                         faults.clear();
                     }

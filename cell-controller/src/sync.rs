@@ -4,10 +4,22 @@
 //! Each exchange gives `t1` (request leaves, local), `t2` (arrives, master),
 //! `t3` (reply leaves, master), `t4` (reply arrives, local); the offset
 //! `master - local` is `((t2 - t1) + (t3 - t4)) / 2`, wrong by at most half
-//! the round-trip asymmetry, and the delay is `(t4 - t1) - (t3 - t2)`. Only
-//! the samples with the smallest delays of a sliding window are trusted
-//! (queueing only ever adds delay), and a straight line through them,
+//! the round-trip asymmetry, and the delay is `(t4 - t1) - (t3 - t2)`.
+//! Queueing only ever adds delay, so the exchanges with the smallest delay
+//! are the most trustworthy.
+//!
+//! The time the window of kept exchanges spans is cut into
+//! [`SyncConfig::buckets`] equal stretches, and the exchange with the
+//! smallest delay of each is kept: the fit sees good samples spread evenly
+//! over the window (even while fast start-up exchanges still fill most of
+//! it) rather than the best ones bunched in one quiet moment, which would
+//! make the drift, and every extrapolation, fragile. A straight line through them,
 //! `offset(local) = a + b (local - t_ref)`, gives offset and drift.
+//!
+//! Before the exchanges span [`SyncConfig::min_drift_span_s`] the drift is
+//! unknown: the offset then comes from the one exchange with the smallest
+//! error bound, half its delay plus [`SyncConfig::drift_bound`] times its
+//! age, so that newer exchanges are preferred unless they were stalled.
 
 use std::collections::VecDeque;
 
@@ -81,20 +93,27 @@ impl SyncEstimate {
 /// Tuning of the sync slave.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SyncConfig {
-    /// Samples kept.
+    /// Exchanges kept.
     pub window: usize,
-    /// Of those, the ones with the smallest delay used for the fit.
-    pub best: usize,
+    /// Stretches of time the window is cut into; the best exchange of each is fitted.
+    pub buckets: usize,
     /// Drift is fitted only over at least this span of local time, seconds.
     pub min_drift_span_s: f64,
+    /// Before that, the drift assumed at most (seconds per second) when
+    /// weighing an older exchange against a newer one.
+    pub drift_bound: f64,
+    /// No estimate before this many exchanges.
+    pub min_samples: usize,
 }
 
 impl Default for SyncConfig {
     fn default() -> Self {
         Self {
-            window: 40,
-            best: 12,
-            min_drift_span_s: 1.0,
+            window: 100,
+            buckets: 12,
+            min_drift_span_s: 1.5,
+            drift_bound: 200e-6,
+            min_samples: 3,
         }
     }
 }
@@ -104,6 +123,14 @@ impl Default for SyncConfig {
 pub struct SyncSlave {
     config: SyncConfig,
     samples: VecDeque<ClockSample>,
+}
+
+/// The exchange with the smallest delay; of equals the newest (the least drift since).
+fn min_delay<'a>(samples: impl IntoIterator<Item = &'a ClockSample>) -> Option<&'a ClockSample> {
+    samples.into_iter().fold(None, |best, s| match best {
+        Some(b) if b.delay_ns() < s.delay_ns() => Some(b),
+        _ => Some(s),
+    })
 }
 
 impl SyncSlave {
@@ -121,39 +148,85 @@ impl SyncSlave {
         if s.delay_ns() < 0.0 {
             return false;
         }
-        if self.samples.len() == self.config.window.max(2) {
+        if self.samples.len() >= self.config.window.max(2) {
             self.samples.pop_front();
         }
         self.samples.push_back(s);
         true
     }
 
-    /// The estimate from the best samples, or `None` before the first one.
+    /// The exchanges the fit uses: the best of each equal stretch of time of
+    /// the window (stretches without an exchange give none).
+    fn fitted(&self) -> Vec<&ClockSample> {
+        let buckets = self.config.buckets.max(1);
+        let (Some(first), Some(last)) = (self.samples.front(), self.samples.back()) else {
+            return Vec::new();
+        };
+        let t0 = first.local_mid().as_nanos();
+        let span = (last.local_mid().as_nanos() - t0).max(1) as f64;
+        let mut best: Vec<Option<&ClockSample>> = vec![None; buckets];
+        for s in &self.samples {
+            let at = (s.local_mid().as_nanos() - t0) as f64 / span;
+            let k = ((at * buckets as f64) as usize).min(buckets - 1);
+            best[k] = min_delay(best[k].into_iter().chain(std::iter::once(s)));
+        }
+        best.into_iter().flatten().collect()
+    }
+
+    /// The estimate, or `None` before [`SyncConfig::min_samples`] exchanges.
     pub fn estimate(&self) -> Option<SyncEstimate> {
-        let mut best: Vec<&ClockSample> = self.samples.iter().collect();
-        best.sort_by(|a, b| a.delay_ns().total_cmp(&b.delay_ns()));
-        best.truncate(self.config.best.max(1));
-        let first = *best.first()?;
-        let n = best.len() as f64;
+        if self.samples.len() < self.config.min_samples.max(1) {
+            return None;
+        }
+        let span_s = match (self.samples.front(), self.samples.back()) {
+            (Some(a), Some(b)) => b.local_mid().since(a.local_mid()).as_secs_f64(),
+            _ => return None,
+        };
+        if span_s < self.config.min_drift_span_s {
+            // An exchange's error is at most half its delay, plus what an
+            // unknown drift adds since: the best bound wins, so a stall
+            // that delays every recent exchange keeps an older good one.
+            let newest = self.samples.back()?.local_mid();
+            let bound = |s: &ClockSample| {
+                s.delay_ns() / 2.0
+                    + self.config.drift_bound * newest.since(s.local_mid()).as_nanos() as f64
+            };
+            let best = self
+                .samples
+                .iter()
+                .min_by(|a, b| bound(a).total_cmp(&bound(b)))?;
+            return Some(SyncEstimate {
+                reference: best.local_mid(),
+                offset_ns: best.offset_ns(),
+                drift: 0.0,
+                sigma_ns: bound(best),
+                samples: 1,
+            });
+        }
+        let mut fitted = self.fitted();
+        // A stretch in which every exchange was stalled gives a poor best:
+        // keep the bests within twice the median delay of all of them.
+        let mut delays: Vec<f64> = fitted.iter().map(|s| s.delay_ns()).collect();
+        delays.sort_by(f64::total_cmp);
+        let limit = 2.0 * delays[delays.len() / 2];
+        fitted.retain(|s| s.delay_ns() <= limit);
+        let n = fitted.len() as f64;
         let reference = Time::from_nanos(
-            (best
+            (fitted
                 .iter()
                 .map(|s| s.local_mid().as_nanos() as f64)
                 .sum::<f64>()
                 / n)
                 .round() as i64,
         );
-        let xs: Vec<f64> = best
+        let xs: Vec<f64> = fitted
             .iter()
             .map(|s| (s.local_mid().as_nanos() - reference.as_nanos()) as f64)
             .collect();
-        let ys: Vec<f64> = best.iter().map(|s| s.offset_ns()).collect();
+        let ys: Vec<f64> = fitted.iter().map(|s| s.offset_ns()).collect();
         let mean_y = ys.iter().sum::<f64>() / n;
         let sxx: f64 = xs.iter().map(|x| x * x).sum();
-        let span_s = (xs.iter().copied().fold(f64::MIN, f64::max)
-            - xs.iter().copied().fold(f64::MAX, f64::min))
-            / 1e9;
-        let drift = if best.len() >= 3 && span_s >= self.config.min_drift_span_s && sxx > 0.0 {
+        let drift = if fitted.len() >= 3 && sxx > 0.0 {
             xs.iter()
                 .zip(&ys)
                 .map(|(x, y)| x * (y - mean_y))
@@ -168,14 +241,16 @@ impl SyncSlave {
             .map(|(x, y)| (y - mean_y - drift * x).powi(2))
             .sum::<f64>()
             / n;
-        // The asymmetry of the best exchange bounds what the fit cannot see.
-        let sigma_ns = (residual_var / n).sqrt().max(first.delay_ns() / 4.0);
+        // The scatter of the fitted exchanges, and at least a quarter of the
+        // best round trip: an asymmetry no exchange can see.
+        let best_delay = min_delay(fitted.iter().copied()).map_or(0.0, |s| s.delay_ns());
+        let sigma_ns = residual_var.sqrt().max(best_delay / 4.0);
         Some(SyncEstimate {
             reference,
             offset_ns: mean_y,
             drift,
             sigma_ns,
-            samples: best.len(),
+            samples: fitted.len(),
         })
     }
 
@@ -216,14 +291,20 @@ mod tests {
         }
     }
 
+    /// Error of `e` in master time at true master instant `master_s`.
+    fn error_ns(e: &SyncEstimate, master_s: f64, offset: f64, drift: f64) -> f64 {
+        let local = Time::from_nanos((master_s * 1e9 + offset + drift * master_s * 1e9) as i64);
+        e.to_master(local).as_nanos() as f64 - master_s * 1e9
+    }
+
     #[test]
     fn offset_and_drift_are_recovered_from_noisy_exchanges() {
         let mut s = SyncSlave::new(SyncConfig::default());
         let (offset, drift) = (50e6, -100e-6);
-        for k in 0..40 {
+        for k in 0..60 {
             let queue = if k % 3 == 0 { 3e6 } else { 0.0 };
             s.add(exchange(
-                1_000.0 + k as f64 * 0.5,
+                1_000.0 + k as f64 * 0.25,
                 offset,
                 drift,
                 150_000.0 + queue,
@@ -231,15 +312,95 @@ mod tests {
             ));
         }
         let e = s.estimate().unwrap();
-        // True master time at a local instant, against the estimate.
-        let master_s = 1_020.0;
-        let local = Time::from_nanos((master_s * 1e9 + offset + drift * master_s * 1e9) as i64);
-        let err_ns = e.to_master(local).as_nanos() as f64 - master_s * 1e9;
+        // Half a second past the newest exchange.
+        let err_ns = error_ns(&e, 1_015.25, offset, drift);
         assert!(err_ns.abs() < 5_000.0, "error {err_ns} ns");
-        assert!((e.drift + drift).abs() < 5e-6, "drift {}", e.drift);
+        assert!((e.drift + drift).abs() < 2e-6, "drift {}", e.drift);
         assert!(e.sigma_ns > 0.0);
+        let local = Time::from_nanos(1_015_000_000_000);
         let back = e.to_local(e.to_master(local));
         assert!((back.as_nanos() - local.as_nanos()).abs() <= 1);
+    }
+
+    #[test]
+    fn a_quiet_moment_does_not_carry_the_whole_fit() {
+        // Exchanges delayed by queueing on the way out, except a run of quiet
+        // ones early on: the drift must come from the whole window.
+        let mut s = SyncSlave::new(SyncConfig::default());
+        let (offset, drift) = (-20e6, 80e-6);
+        for k in 0..60 {
+            let out = if k < 8 {
+                100_000.0
+            } else {
+                100_000.0 + 40_000.0 * (k % 2) as f64 + 60_000.0
+            };
+            s.add(exchange(
+                500.0 + k as f64 * 0.25,
+                offset,
+                drift,
+                out,
+                100_000.0,
+            ));
+        }
+        let e = s.estimate().unwrap();
+        assert!((e.drift + drift).abs() < 10e-6, "drift {}", e.drift);
+        let err_ns = error_ns(&e, 515.5, offset, drift);
+        assert!(err_ns.abs() < 60_000.0, "error {err_ns} ns");
+    }
+
+    #[test]
+    fn before_the_drift_is_known_the_newest_exchanges_set_the_offset() {
+        let config = SyncConfig::default();
+        let mut s = SyncSlave::new(config);
+        let (offset, drift) = (10e6, 100e-6);
+        s.add(exchange(200.0, offset, drift, 100_000.0, 100_000.0));
+        s.add(exchange(200.05, offset, drift, 100_000.0, 100_000.0));
+        assert!(s.estimate().is_none(), "fewer than min_samples");
+        for k in 2..16 {
+            s.add(exchange(
+                200.0 + k as f64 * 0.05,
+                offset,
+                drift,
+                100_000.0,
+                100_000.0,
+            ));
+        }
+        let e = s.estimate().unwrap();
+        assert_eq!(e.drift, 0.0);
+        // 0.75 s of exchanges at 100 ppm: the oldest is 75 us off, the
+        // newest less than 1 us; 0.3 s on the error is the drift since it.
+        let err_ns = error_ns(&e, 201.05, offset, drift);
+        assert!(err_ns.abs() < 32_000.0, "error {err_ns} ns");
+    }
+
+    #[test]
+    fn fast_start_up_exchanges_do_not_pin_the_fit_to_the_first_seconds() {
+        // 2 s of exchanges every 20 ms, then every 250 ms, each leg delayed
+        // by 100 us plus up to 400 us of pseudo-random queueing.
+        let mut s = SyncSlave::new(SyncConfig::default());
+        let (offset, drift) = (30e6, -100e-6);
+        let mut seed = 12345u64;
+        let mut queue = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) % 400_000) as f64
+        };
+        let mut t = 100.0;
+        for k in 0..130 {
+            s.add(exchange(
+                t,
+                offset,
+                drift,
+                100_000.0 + queue(),
+                100_000.0 + queue(),
+            ));
+            t += if k < 100 { 0.02 } else { 0.25 };
+        }
+        let e = s.estimate().unwrap();
+        assert!((e.drift + drift).abs() < 10e-6, "drift {}", e.drift);
+        let err_ns = error_ns(&e, t + 0.5, offset, drift);
+        assert!(err_ns.abs() < 60_000.0, "error {err_ns} ns");
     }
 
     #[test]

@@ -15,10 +15,10 @@ use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{NodeArgs, SimulatedClock, zerr};
-use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::query::Query;
 use zenoh::sample::SampleKind;
+use zenoh::{Session, Wait};
 
 use crate::core::{CentralConfig, CentralCore, Output};
 
@@ -115,11 +115,6 @@ pub async fn run(
         crate::schedule::update_rate_hz(s)
     );
 
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_central())
-        .await
-        .map_err(zerr)?;
     let site_q = session
         .declare_queryable(keys.central_site())
         .await
@@ -128,8 +123,11 @@ pub async fn run(
         .declare_queryable(keys.central_schedule())
         .await
         .map_err(zerr)?;
-    let clock_q = session
+    // Clock requests are answered in Zenoh's receive path, not in the loop
+    // below: t2 must not wait for the loop to get round to the query.
+    let _clock_q = session
         .declare_queryable(keys.central_clock())
+        .callback(move |q| answer_clock(&q, &clock))
         .await
         .map_err(zerr)?;
     let admin_q = session
@@ -170,6 +168,12 @@ pub async fn run(
         .declare_subscriber(keys.robot_all(RobotTopic::Fix))
         .await
         .map_err(zerr)?;
+    // Declared last: whoever sees the token can query every queryable above.
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive_central())
+        .await
+        .map_err(zerr)?;
 
     loop {
         let wake = core.next_wake().since(clock.now()).to_std();
@@ -178,14 +182,6 @@ pub async fn run(
             _ = tokio::time::sleep(wake) => core.tick(clock.now()),
             Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; Vec::new() }
             Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await; Vec::new() }
-            Ok(q) = clock_q.recv_async() => {
-                let t2 = clock.now();
-                match q.payload().map(|p| decode::<ClockRequest>(&p.to_bytes())) {
-                    Some(Ok(req)) => reply(&q, &CentralCore::clock_reply(req.t1, t2, clock.now())).await,
-                    _ => tracing::warn!("clock query without a valid request"),
-                }
-                Vec::new()
-            }
             Ok(q) = admin_q.recv_async() => answer_admin(&keys, &mut core, &q, clock.now()).await,
             Ok(s) = alive.recv_async() => {
                 let up = s.kind() == SampleKind::Put;
@@ -232,6 +228,26 @@ pub async fn run(
         }
     }
     Ok(())
+}
+
+/// Answers a clock request at once: t2 on arrival, t3 just before the reply.
+fn answer_clock(q: &Query, clock: &SimulatedClock) {
+    let t2 = clock.now();
+    let Some(Ok(req)) = q.payload().map(|p| decode::<ClockRequest>(&p.to_bytes())) else {
+        tracing::warn!("clock query without a valid request");
+        return;
+    };
+    let sent = encode(&CentralCore::clock_reply(req.t1, t2, clock.now()))
+        .map_err(anyhow::Error::from)
+        .and_then(|bytes| {
+            q.reply(q.key_expr().clone(), bytes)
+                .express(true)
+                .wait()
+                .map_err(zerr)
+        });
+    if let Err(e) = sent {
+        tracing::warn!("clock reply failed: {e}");
+    }
 }
 
 /// Answers one admin query; returns what the command makes the node publish.

@@ -23,7 +23,7 @@ pub mod shutdown;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
-pub use query::{fetch, query_once, wait_for_token};
+pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;
 

@@ -78,3 +78,62 @@ pub async fn wait_for_token(
     .await;
     Ok(seen.unwrap_or(false))
 }
+
+/// An answer with the instants around it, read from the caller's clock.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stamped<T> {
+    /// The answer.
+    pub value: T,
+    /// When Zenoh had taken the query (it was routed and queued to send).
+    pub sent: ickon_proto::time::Time,
+    /// When Zenoh handed the answer over.
+    pub received: ickon_proto::time::Time,
+}
+
+/// One query whose answer is stamped with `stamp()` the moment Zenoh hands
+/// it over (in its receive path, before any task wakes up), or `None` when
+/// nobody answered in time. Clock exchanges need this: every microsecond a
+/// reply waits for a busy task to run would count as network asymmetry.
+pub async fn query_stamped<T: DeserializeOwned>(
+    session: &Session,
+    key: &str,
+    payload: Vec<u8>,
+    timeout: Duration,
+    stamp: impl Fn() -> ickon_proto::time::Time + Clone + Send + Sync + 'static,
+) -> anyhow::Result<Option<Stamped<T>>> {
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+    let on_reply = stamp.clone();
+    session
+        .get(key)
+        .payload(payload)
+        .timeout(timeout)
+        // Unbatched and first in line: queueing adds delay to one leg only.
+        .express(true)
+        .priority(zenoh::qos::Priority::RealTime)
+        .callback(move |reply| {
+            let at = on_reply();
+            // The receiver is gone only when the caller has given up.
+            let _ = tx.send((reply, at));
+        })
+        .await
+        .map_err(zerr)?;
+    let sent = stamp();
+    // Zenoh drops the callback (and so the sender) when the query ends; the
+    // outer timeout only guards against a reply path that never ends it.
+    let end = tokio::time::Instant::now() + timeout + Duration::from_millis(100);
+    while let Ok(Some((reply, received))) = tokio::time::timeout_at(end, rx.recv()).await {
+        if let Ok(sample) = reply.result() {
+            match ickon_proto::decode::<T>(&sample.payload().to_bytes()) {
+                Ok(value) => {
+                    return Ok(Some(Stamped {
+                        value,
+                        sent,
+                        received,
+                    }));
+                }
+                Err(e) => tracing::warn!("undecodable reply on {key}: {e}"),
+            }
+        }
+    }
+    Ok(None)
+}

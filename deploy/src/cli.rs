@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{eval, node, replay, sim, site_cmd};
+use crate::{admin, eval, node, replay, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -29,7 +29,11 @@ pub enum Command {
     /// Evaluate estimators on the simulated world in virtual time (seed 000 tables).
     Eval(eval::EvalArgs),
     /// Query and control a running site through the central unit.
-    Admin,
+    Admin {
+        /// What to ask or tell the central unit.
+        #[command(subcommand)]
+        command: admin::AdminCommand,
+    },
     /// Work with site files.
     Site {
         /// What to do with the site file.
@@ -72,9 +76,6 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Node { role } => node::run(role),
-        Command::Admin => {
-            eprintln!("error: this subcommand is not available in this build yet");
-            ExitCode::from(EXIT_FAILURE)
-        }
+        Command::Admin { command } => admin::run(command),
     }
 }

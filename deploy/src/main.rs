@@ -3,6 +3,7 @@
 //! Thin by design: parse the command line, set up logging, hand over to the
 //! module of the subcommand, and turn its result into an exit code.
 
+mod admin;
 mod cli;
 mod eval;
 mod font;

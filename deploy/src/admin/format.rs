@@ -1,0 +1,595 @@
+//! What `ickon admin` prints: readable tables, or one JSON document.
+//!
+//! JSON uses the units of the wire messages converted for people where a
+//! name says so (`sync_error_us`, `offset_us`, `drift_ppm`, `period_ms`);
+//! a figure that is not known yet is `null`, never a made-up zero.
+
+use std::fmt::Write;
+
+use ickon_proto::msg::admin::{AdminAck, CellHealth, CoverageReport, RobotHealth, StatusReport};
+use ickon_proto::msg::control::Schedule;
+use serde::Serialize;
+
+/// One cell in JSON.
+#[derive(Debug, Serialize)]
+pub struct CellJson {
+    id: String,
+    /// `up` or `down`.
+    state: &'static str,
+    state_since_cycle: u64,
+    /// Largest |actual - scheduled| of its recent bursts, microseconds.
+    sync_error_us: Option<f64>,
+    sync_error_rms_us: Option<f64>,
+    residual_samples: u32,
+    /// The cell's own one-sigma estimate, microseconds.
+    sync_sigma_us: f64,
+    offset_us: f64,
+    drift_ppm: f64,
+    cycles_fired: u64,
+    last_cycle_fired: u64,
+    cycles_missed: u64,
+    slots_skipped: u64,
+}
+
+impl From<&CellHealth> for CellJson {
+    fn from(c: &CellHealth) -> Self {
+        let measured = c.residual_samples > 0;
+        Self {
+            id: c.id.clone(),
+            state: if c.up { "up" } else { "down" },
+            state_since_cycle: c.state_since_cycle,
+            sync_error_us: measured.then_some(c.residual_max_ns as f64 / 1e3),
+            sync_error_rms_us: measured.then_some(c.residual_rms_ns as f64 / 1e3),
+            residual_samples: c.residual_samples,
+            sync_sigma_us: c.sync_sigma_ns as f64 / 1e3,
+            offset_us: c.offset_ns as f64 / 1e3,
+            drift_ppm: c.drift_ppb as f64 / 1e3,
+            cycles_fired: c.cycles_fired,
+            last_cycle_fired: c.last_cycle_fired,
+            cycles_missed: c.cycles_missed,
+            slots_skipped: c.slots_skipped,
+        }
+    }
+}
+
+/// A robot's last pose in JSON.
+#[derive(Debug, Serialize)]
+struct PoseJson {
+    x_m: f64,
+    y_m: f64,
+    theta_rad: f64,
+}
+
+/// One robot in JSON.
+#[derive(Debug, Serialize)]
+pub struct RobotJson {
+    id: String,
+    /// `up` or `down`.
+    state: &'static str,
+    fixes_per_s: f64,
+    estimator: Option<String>,
+    pose: Option<PoseJson>,
+}
+
+impl From<&RobotHealth> for RobotJson {
+    fn from(r: &RobotHealth) -> Self {
+        Self {
+            id: r.id.clone(),
+            state: if r.up { "up" } else { "down" },
+            fixes_per_s: r.fixes_per_s,
+            estimator: (!r.estimator.is_empty()).then(|| r.estimator.clone()),
+            pose: r.pose_valid.then_some(PoseJson {
+                x_m: r.x_m,
+                y_m: r.y_m,
+                theta_rad: r.theta_rad,
+            }),
+        }
+    }
+}
+
+/// `status --json`.
+#[derive(Debug, Serialize)]
+struct StatusJson {
+    site: String,
+    cycle: u64,
+    paused: bool,
+    schedule_version: u32,
+    update_rate_hz: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cells: Option<Vec<CellJson>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    robots: Option<Vec<RobotJson>>,
+}
+
+fn status_json(s: &StatusReport, cells: bool, robots: bool) -> StatusJson {
+    StatusJson {
+        site: s.site.clone(),
+        cycle: s.cycle,
+        paused: s.paused,
+        schedule_version: s.schedule_version,
+        update_rate_hz: s.update_rate_hz,
+        cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
+        robots: robots.then(|| s.robots.iter().map(RobotJson::from).collect()),
+    }
+}
+
+fn to_json<T: Serialize>(value: &T) -> anyhow::Result<String> {
+    Ok(serde_json::to_string_pretty(value)? + "\n")
+}
+
+fn us(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{v:.1}"))
+}
+
+fn header(out: &mut String, s: &StatusReport) {
+    let _ = writeln!(
+        out,
+        "site {}: cycle {}{}, schedule v{}, {:.2} cycles/s",
+        s.site,
+        s.cycle,
+        if s.paused { " (paused)" } else { "" },
+        s.schedule_version,
+        s.update_rate_hz
+    );
+}
+
+fn cell_table(out: &mut String, s: &StatusReport) {
+    let _ = writeln!(
+        out,
+        "{:<8} {:<5} {:>7} {:>10} {:>8} {:>7} {:>8} {:>13}",
+        "cell", "state", "since", "last fired", "fired", "missed", "skipped", "sync err us"
+    );
+    for c in s.cells.iter().map(CellJson::from) {
+        let _ = writeln!(
+            out,
+            "{:<8} {:<5} {:>7} {:>10} {:>8} {:>7} {:>8} {:>13}",
+            c.id,
+            c.state,
+            c.state_since_cycle,
+            c.last_cycle_fired,
+            c.cycles_fired,
+            c.cycles_missed,
+            c.slots_skipped,
+            us(c.sync_error_us)
+        );
+    }
+}
+
+fn robot_table(out: &mut String, s: &StatusReport) {
+    if s.robots.is_empty() {
+        let _ = writeln!(out, "no robot seen");
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "{:<8} {:<5} {:>7} {:<12} {:>8} {:>8} {:>9}",
+        "robot", "state", "fix/s", "estimator", "x m", "y m", "theta deg"
+    );
+    for r in &s.robots {
+        let (x, y, th) = if r.pose_valid {
+            (
+                format!("{:.3}", r.x_m),
+                format!("{:.3}", r.y_m),
+                format!("{:.1}", r.theta_rad.to_degrees()),
+            )
+        } else {
+            ("-".into(), "-".into(), "-".into())
+        };
+        let _ = writeln!(
+            out,
+            "{:<8} {:<5} {:>7.1} {:<12} {:>8} {:>8} {:>9}",
+            r.id,
+            if r.up { "up" } else { "down" },
+            r.fixes_per_s,
+            if r.estimator.is_empty() {
+                "-"
+            } else {
+                &r.estimator
+            },
+            x,
+            y,
+            th
+        );
+    }
+}
+
+/// `status`: everything in one view.
+pub fn status(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+    if json {
+        return to_json(&status_json(s, true, true));
+    }
+    let mut out = String::new();
+    header(&mut out, s);
+    cell_table(&mut out, s);
+    robot_table(&mut out, s);
+    Ok(out)
+}
+
+/// `cells`.
+pub fn cells(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+    if json {
+        return to_json(&status_json(s, true, false));
+    }
+    let mut out = String::new();
+    header(&mut out, s);
+    cell_table(&mut out, s);
+    Ok(out)
+}
+
+/// `robots`.
+pub fn robots(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+    if json {
+        return to_json(&status_json(s, false, true));
+    }
+    let mut out = String::new();
+    header(&mut out, s);
+    robot_table(&mut out, s);
+    Ok(out)
+}
+
+/// `sync`: the cells' clock estimates and their residual error against truth.
+pub fn sync(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+    if json {
+        return to_json(&status_json(s, true, false));
+    }
+    let mut out = String::new();
+    header(&mut out, s);
+    let _ = writeln!(
+        out,
+        "{:<8} {:<5} {:>12} {:>10} {:>9} {:>13} {:>13} {:>8}",
+        "cell", "state", "offset us", "drift ppm", "sigma us", "err max us", "err rms us", "bursts"
+    );
+    for c in s.cells.iter().map(CellJson::from) {
+        let _ = writeln!(
+            out,
+            "{:<8} {:<5} {:>12.1} {:>10.2} {:>9.1} {:>13} {:>13} {:>8}",
+            c.id,
+            c.state,
+            c.offset_us,
+            c.drift_ppm,
+            c.sync_sigma_us,
+            us(c.sync_error_us),
+            us(c.sync_error_rms_us),
+            c.residual_samples
+        );
+    }
+    let _ = writeln!(
+        out,
+        "err: actual minus scheduled emission time of the recent bursts (against the true time base in a simulation)"
+    );
+    Ok(out)
+}
+
+/// `schedule --json`.
+#[derive(Debug, Serialize)]
+struct ScheduleJson<'a> {
+    version: u32,
+    effective_cycle: u64,
+    period_ms: f64,
+    slot_ms: f64,
+    update_rate_hz: f64,
+    active_cells: &'a [String],
+    emissions: Vec<EmissionJson<'a>>,
+}
+
+#[derive(Debug, Serialize)]
+struct EmissionJson<'a> {
+    tx_id: u32,
+    cell_id: &'a str,
+    slot: u32,
+    offset_ms: f64,
+}
+
+/// `schedule`.
+pub fn schedule(s: &Schedule, json: bool) -> anyhow::Result<String> {
+    let ms = |d: ickon_proto::time::Duration| d.as_secs_f64() * 1e3;
+    let rate = ickon_central::update_rate_hz(s);
+    if json {
+        return to_json(&ScheduleJson {
+            version: s.version,
+            effective_cycle: s.effective_cycle,
+            period_ms: ms(s.cycle_period),
+            slot_ms: ms(s.slot_length),
+            update_rate_hz: rate,
+            active_cells: &s.active_cells,
+            emissions: s
+                .emissions
+                .iter()
+                .map(|e| EmissionJson {
+                    tx_id: e.tx_id,
+                    cell_id: &e.cell_id,
+                    slot: e.slot,
+                    offset_ms: ms(e.offset),
+                })
+                .collect(),
+        });
+    }
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "schedule v{} from cycle {}: period {:.1} ms ({rate:.2} cycles/s), slot {:.1} ms, cells {}",
+        s.version,
+        s.effective_cycle,
+        ms(s.cycle_period),
+        ms(s.slot_length),
+        s.active_cells.join(", ")
+    );
+    let _ = writeln!(
+        out,
+        "{:>4} {:>10} {:>6} {:<8}",
+        "slot", "offset ms", "tx", "cell"
+    );
+    for e in &s.emissions {
+        let _ = writeln!(
+            out,
+            "{:>4} {:>10.1} {:>6} {:<8}",
+            e.slot,
+            ms(e.offset),
+            e.tx_id,
+            e.cell_id
+        );
+    }
+    Ok(out)
+}
+
+/// Figures of a coverage grid over the points on the floor.
+#[derive(Debug, Serialize, PartialEq)]
+pub struct CoverageSummary {
+    /// Grid points on the floor.
+    pub floor_points: usize,
+    /// Of those, points where a 2D fix is possible (HDOP > 0).
+    pub fix_points: usize,
+    /// `fix_points / floor_points`.
+    pub fix_share: f64,
+    /// Fewest transmitters heard at a floor point.
+    pub visible_min: Option<u32>,
+    /// Median HDOP where a fix is possible.
+    pub hdop_median: Option<f64>,
+    /// 95th percentile of the HDOP where a fix is possible.
+    pub hdop_p95: Option<f64>,
+    /// Largest HDOP where a fix is possible.
+    pub hdop_max: Option<f64>,
+}
+
+/// Summarises a coverage grid.
+pub fn coverage_summary(r: &CoverageReport) -> CoverageSummary {
+    let floor: Vec<usize> = (0..r.on_floor.len()).filter(|&i| r.on_floor[i]).collect();
+    let mut hdops: Vec<f64> = floor
+        .iter()
+        .filter_map(|&i| r.hdop.get(i).copied())
+        .filter(|&h| h > 0.0)
+        .collect();
+    hdops.sort_by(f64::total_cmp);
+    let rank = |p: f64| -> Option<f64> {
+        let n = hdops.len();
+        (n > 0).then(|| hdops[(((p / 100.0) * n as f64).ceil() as usize).clamp(1, n) - 1])
+    };
+    CoverageSummary {
+        floor_points: floor.len(),
+        fix_points: hdops.len(),
+        fix_share: if floor.is_empty() {
+            0.0
+        } else {
+            hdops.len() as f64 / floor.len() as f64
+        },
+        visible_min: floor
+            .iter()
+            .filter_map(|&i| r.visible.get(i).copied())
+            .min(),
+        hdop_median: rank(50.0),
+        hdop_p95: rank(95.0),
+        hdop_max: hdops.last().copied(),
+    }
+}
+
+/// `coverage --json`.
+#[derive(Debug, Serialize)]
+struct CoverageJson<'a> {
+    schedule_version: u32,
+    resolution_m: f64,
+    height_m: f64,
+    origin_x_m: f64,
+    origin_y_m: f64,
+    columns: u32,
+    rows: u32,
+    summary: CoverageSummary,
+    on_floor: &'a [bool],
+    visible: &'a [u32],
+    hdop: &'a [f64],
+}
+
+/// The map character of one grid point: blank off the floor, `x` without a
+/// fix, else the HDOP class `1` (< 1.5) to `5` (>= 8).
+fn map_char(on_floor: bool, hdop: f64) -> char {
+    match (on_floor, hdop) {
+        (false, _) => ' ',
+        (true, h) if h <= 0.0 => 'x',
+        (true, h) if h < 1.5 => '1',
+        (true, h) if h < 2.5 => '2',
+        (true, h) if h < 4.0 => '3',
+        (true, h) if h < 8.0 => '4',
+        _ => '5',
+    }
+}
+
+/// Widest text map, characters; finer grids are shown every k-th point.
+const MAP_WIDTH: usize = 100;
+
+/// `coverage`.
+pub fn coverage(r: &CoverageReport, json: bool) -> anyhow::Result<String> {
+    let summary = coverage_summary(r);
+    if json {
+        return to_json(&CoverageJson {
+            schedule_version: r.schedule_version,
+            resolution_m: r.resolution_m,
+            height_m: r.height_m,
+            origin_x_m: r.origin_x_m,
+            origin_y_m: r.origin_y_m,
+            columns: r.columns,
+            rows: r.rows,
+            summary,
+            on_floor: &r.on_floor,
+            visible: &r.visible,
+            hdop: &r.hdop,
+        });
+    }
+    let opt = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "coverage for schedule v{}: {} x {} grid, {:.2} m spacing, at {:.2} m height",
+        r.schedule_version, r.columns, r.rows, r.resolution_m, r.height_m
+    );
+    let _ = writeln!(
+        out,
+        "floor points {}, with a 2D fix {} ({:.1} %), fewest transmitters heard {}",
+        summary.floor_points,
+        summary.fix_points,
+        summary.fix_share * 100.0,
+        summary.visible_min.map_or("-".into(), |v| v.to_string())
+    );
+    let _ = writeln!(
+        out,
+        "HDOP median {}, p95 {}, max {}",
+        opt(summary.hdop_median),
+        opt(summary.hdop_p95),
+        opt(summary.hdop_max)
+    );
+    let (columns, rows) = (r.columns as usize, r.rows as usize);
+    let step = columns.div_ceil(MAP_WIDTH).max(1);
+    let _ = writeln!(
+        out,
+        "map (north up, one character per {:.2} m; HDOP 1: < 1.5, 2: < 2.5, 3: < 4, 4: < 8, 5: >= 8, x: no fix):",
+        r.resolution_m * step as f64
+    );
+    for row in (0..rows).rev().step_by(step) {
+        let line: String = (0..columns)
+            .step_by(step)
+            .map(|col| {
+                let i = row * columns + col;
+                map_char(
+                    r.on_floor.get(i).copied().unwrap_or(false),
+                    r.hdop.get(i).copied().unwrap_or(0.0),
+                )
+            })
+            .collect();
+        let _ = writeln!(out, "  |{}", line.trim_end());
+    }
+    Ok(out)
+}
+
+/// `pause`, `resume`, `reload`.
+pub fn ack(a: &AdminAck, json: bool) -> anyhow::Result<String> {
+    if json {
+        return to_json(a);
+    }
+    Ok(a.messages.iter().map(|m| format!("  {m}\n")).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ickon_proto::time::Time;
+
+    fn report() -> StatusReport {
+        let cell = |id: &str, up: bool, samples: u32| CellHealth {
+            id: id.into(),
+            up,
+            state_since_cycle: if up { 0 } else { 12 },
+            sync_sigma_ns: 4_000,
+            offset_ns: -50_000_000,
+            drift_ppb: 100_000,
+            residual_samples: samples,
+            residual_max_ns: 61_500,
+            residual_rms_ns: 20_000,
+            last_cycle_fired: 11,
+            cycles_fired: 11,
+            cycles_missed: 0,
+            slots_skipped: 0,
+        };
+        StatusReport {
+            site: "lab".into(),
+            cycle: 13,
+            stamp: Time(0),
+            paused: false,
+            schedule_version: 2,
+            update_rate_hz: 3.4,
+            cells: vec![cell("c1", true, 64), cell("c2", false, 0)],
+            robots: vec![RobotHealth {
+                id: "r1".into(),
+                up: true,
+                fixes_per_s: 3.5,
+                estimator: "ickon-akf".into(),
+                pose_valid: true,
+                x_m: 1.0,
+                y_m: 2.0,
+                theta_rad: 0.5,
+            }],
+        }
+    }
+
+    #[test]
+    fn status_json_has_the_documented_shape() {
+        let v: serde_json::Value = serde_json::from_str(&status(&report(), true).unwrap()).unwrap();
+        assert_eq!(v["site"], "lab");
+        assert_eq!(v["cycle"], 13);
+        let c = &v["cells"][0];
+        assert_eq!(c["id"], "c1");
+        assert_eq!(c["state"], "up");
+        assert_eq!(c["sync_error_us"], 61.5);
+        assert_eq!(c["cycles_fired"], 11);
+        assert_eq!(v["cells"][1]["state"], "down");
+        assert_eq!(v["cells"][1]["state_since_cycle"], 12);
+        assert!(
+            v["cells"][1]["sync_error_us"].is_null(),
+            "no burst: unknown, not 0"
+        );
+        let r = &v["robots"][0];
+        assert_eq!(
+            (r["id"].as_str(), r["state"].as_str()),
+            (Some("r1"), Some("up"))
+        );
+        assert_eq!(r["fixes_per_s"], 3.5);
+        assert_eq!(r["pose"]["x_m"], 1.0);
+    }
+
+    #[test]
+    fn cells_and_robots_views_show_only_their_part() {
+        let cells: serde_json::Value =
+            serde_json::from_str(&cells(&report(), true).unwrap()).unwrap();
+        assert!(cells.get("robots").is_none() && cells["cells"].is_array());
+        let robots: serde_json::Value =
+            serde_json::from_str(&robots(&report(), true).unwrap()).unwrap();
+        assert!(robots.get("cells").is_none() && robots["robots"].is_array());
+        let table = status(&report(), false).unwrap();
+        assert!(table.contains("c2       down"), "{table}");
+        assert!(table.contains("61.5"), "{table}");
+        assert!(sync(&report(), false).unwrap().contains("-50000.0"));
+    }
+
+    #[test]
+    fn coverage_summary_counts_only_floor_points() {
+        let r = CoverageReport {
+            schedule_version: 1,
+            origin_x_m: 0.125,
+            origin_y_m: 0.125,
+            resolution_m: 0.25,
+            height_m: 0.5,
+            columns: 3,
+            rows: 2,
+            on_floor: vec![true, true, true, false, true, true],
+            visible: vec![4, 2, 5, 0, 6, 3],
+            hdop: vec![1.2, 0.0, 1.0, 0.0, 3.0, 9.0],
+        };
+        let s = coverage_summary(&r);
+        assert_eq!(
+            (s.floor_points, s.fix_points, s.visible_min),
+            (5, 4, Some(2))
+        );
+        assert_eq!(s.hdop_max, Some(9.0));
+        assert_eq!(s.hdop_median, Some(1.2));
+        let text = coverage(&r, false).unwrap();
+        // North up: the second row (y = 0.375) first.
+        assert!(text.contains("  | 35\n  |1x1\n"), "{text}");
+    }
+}

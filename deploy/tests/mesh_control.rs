@@ -622,3 +622,50 @@ fn admin_says_clearly_when_nobody_answers() {
         "{stderr}"
     );
 }
+
+#[test]
+fn admin_finds_a_running_sim_through_its_run_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let runtime_dir = dir.path().join("run");
+    std::fs::create_dir(&runtime_dir).unwrap();
+    let mut sim = Command::new(ICKON);
+    sim.args(["sim", "--robots", "1", "--duration", "8", "--json"])
+        .env("XDG_RUNTIME_DIR", &runtime_dir);
+    let mut sim = ChildGuard::spawn("sim", sim, dir.path()).expect("ickon sim starts");
+    let run_file = runtime_dir.join("ickon").join("lab.json");
+    poll_until(START_TIMEOUT, "the run file", || {
+        if let Some(status) = sim.exit_status() {
+            panic!("ickon sim {status}:\n{}", sim.log());
+        }
+        run_file.exists().then_some(())
+    })
+    .unwrap_or_else(|e| panic!("{e}\n{}", sim.log()));
+    // No connect flag: the run file says where the central unit is.
+    let out = Command::new(ICKON)
+        .args([
+            "admin",
+            "status",
+            "--json",
+            "--timeout-ms",
+            ADMIN_TIMEOUT_MS,
+        ])
+        .env("XDG_RUNTIME_DIR", &runtime_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let status: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(status["site"], "lab");
+    assert_eq!(
+        status["cells"].as_array().map(Vec::len),
+        Some(4),
+        "{status}"
+    );
+    // The run ends on its own and takes its run file with it.
+    poll_until(WAIT + WAIT, "ickon sim to end", || sim.exit_status())
+        .unwrap_or_else(|e| panic!("{e}\n{}", sim.log()));
+    assert!(!run_file.exists(), "the run file outlived the run");
+}

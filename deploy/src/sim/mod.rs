@@ -340,10 +340,24 @@ async fn run_mesh(
         );
     }
 
+    // The run file tells `ickon admin` on this machine where to connect.
+    let run_dir = ickon_runtime::RunDir::standard();
+    let run = ickon_runtime::RunFile {
+        site: site.name.clone(),
+        central: vec![central.clone()],
+        pid: std::process::id(),
+        started_unix_s: std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs()),
+    };
+    if let Err(e) = run_dir.write(&run) {
+        eprintln!("warning: `ickon admin` will not find this run: {e}");
+    }
     let outcome = observe(
         args, site, &keys, &session, &central, &alive, &mut sup, quiet,
     )
     .await;
+    let _ = run_dir.remove(&site.name, run.pid);
     let killed = sup.stop_all(STOP_GRACE);
     let _ = session.close().await;
     let (stats, failure) = outcome?;

@@ -12,6 +12,7 @@
 //! connect to); 2 bad input: bad flags, an unreadable site file, or a site
 //! file the central unit refused (its reasons are printed).
 
+mod coverage_view;
 mod format;
 mod png;
 
@@ -335,9 +336,9 @@ fn show(command: &AdminCommand, common: &Common, answer: Answer) -> anyhow::Resu
                     eprintln!("heat map written to {} ({})", file.display(), png::LEGEND);
                 }
             }
-            format::coverage(&report, json)?
+            coverage_view::coverage(&report, json)?
         }
-        (_, Answer::Coverage(report)) => format::coverage(&report, json)?,
+        (_, Answer::Coverage(report)) => coverage_view::coverage(&report, json)?,
         (_, Answer::Ack(ack)) => {
             let text = format::ack(&ack, json)?;
             if !ack.ok {

@@ -83,30 +83,12 @@ pub fn main_with(args: CellArgs) -> ExitCode {
         eprintln!("error: --cell: {e}");
         return ExitCode::from(2);
     }
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::FAILURE;
-        }
-    };
-    let result = runtime.block_on(async {
+    ickon_runtime::run_node(1, async {
         let session = args.node.open().await?;
         let r = run(&session, &args, args.node.shutdown()).await;
         let _ = session.close().await;
         r
-    });
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    })
 }
 
 /// One four-timestamp exchange with the master; `None` if it did not answer.

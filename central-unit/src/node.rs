@@ -40,18 +40,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::FAILURE;
-        }
-    };
-    let result = runtime.block_on(async {
+    ickon_runtime::run_node(2, async {
         let session = args.node.open().await?;
         tracing::info!(
             "central unit for site {:?} from {name}, listening on {:?}",
@@ -68,14 +57,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
         .await;
         let _ = session.close().await;
         r
-    });
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    })
 }
 
 /// Answers a query. A requester that went away is its own problem: the

@@ -17,12 +17,14 @@
 
 pub mod args;
 pub mod clock;
+pub mod process;
 pub mod query;
 pub mod runfile;
 pub mod shutdown;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
+pub use process::{init_tracing, run_node};
 pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;

@@ -207,28 +207,10 @@ pub fn main_with(args: WorldArgs) -> ExitCode {
         profile,
         seed: args.seed,
     };
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::FAILURE;
-        }
-    };
-    let result = runtime.block_on(async {
+    ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;
         let r = run(&session, settings, args.mesh.shutdown()).await;
         let _ = session.close().await;
         r
-    });
-    match result {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    })
 }

@@ -1,6 +1,6 @@
 //! The coverage heat map as a PNG: one square per grid point coloured by
-//! its HDOP. No text (the build has no font engine): the legend is printed
-//! by the command, and grid lines are 1 m apart.
+//! its HDOP, titled with the colour key and with labelled axes (the font is
+//! compiled in, see [`crate::font`]); grid lines are 1 m apart.
 
 use std::path::Path;
 
@@ -51,15 +51,27 @@ pub fn heat_map(file: &Path, r: &CoverageReport) -> Result<(), Error> {
     let (x1, y1) = (x0 + columns as f64 * res, y0 + rows as f64 * res);
     // About 40 pixels per metre, at most 2000 pixels wide, aspect kept.
     let px_per_m = (2000.0 / (x1 - x0)).clamp(1.0, 40.0);
+    // Room around the map for the title and the axis labels.
     let size = (
-        ((x1 - x0) * px_per_m).ceil() as u32 + 20,
-        ((y1 - y0) * px_per_m).ceil() as u32 + 20,
+        ((x1 - x0) * px_per_m).ceil() as u32 + 80,
+        ((y1 - y0) * px_per_m).ceil() as u32 + 90,
     );
+    crate::font::register();
     let root = BitMapBackend::new(file, size).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
         .margin(10)
+        .caption(format!("coverage: {LEGEND}"), (crate::font::FAMILY, 14))
+        .x_label_area_size(35)
+        .y_label_area_size(45)
         .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .label_style((crate::font::FAMILY, 12))
+        .draw()?;
     chart.draw_series((0..rows).flat_map(|row| {
         (0..columns).map(move |col| {
             let i = row * columns + col;

@@ -24,7 +24,7 @@ pub mod shutdown;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
-pub use process::{init_tracing, run_node};
+pub use process::{block_on, init_tracing, run_node};
 pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;

@@ -17,30 +17,36 @@ pub fn init_tracing(default: &str) {
 
 /// Runs `work` to completion on a multi-threaded tokio runtime with
 /// `worker_threads` workers (nodes are small: one or two are plenty, and a
-/// site runs many of them on one machine). Success is exit code 0; an error
-/// is printed with its causes and gives exit code 1, as does a runtime that
-/// cannot start.
-pub fn run_node<T>(
-    worker_threads: usize,
-    work: impl Future<Output = anyhow::Result<T>>,
-) -> ExitCode {
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
+/// site runs many of them on one machine); `None`, after saying why on
+/// stderr, when the runtime cannot start.
+pub fn block_on<F: Future>(worker_threads: usize, work: F) -> Option<F::Output> {
+    match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(worker_threads.max(1))
         .enable_all()
         .build()
     {
-        Ok(rt) => rt,
+        Ok(runtime) => Some(runtime.block_on(work)),
         Err(e) => {
             eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::FAILURE;
+            None
         }
-    };
-    match runtime.block_on(work) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
+    }
+}
+
+/// [`block_on`] for a node: success is exit code 0; an error is printed
+/// with its causes and gives exit code 1, as does a runtime that cannot
+/// start.
+pub fn run_node<T>(
+    worker_threads: usize,
+    work: impl Future<Output = anyhow::Result<T>>,
+) -> ExitCode {
+    match block_on(worker_threads, work) {
+        Some(Ok(_)) => ExitCode::SUCCESS,
+        Some(Err(e)) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+        None => ExitCode::FAILURE,
     }
 }
 

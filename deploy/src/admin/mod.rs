@@ -109,23 +109,13 @@ pub fn run(command: AdminCommand) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::from(EXIT_FAILURE);
-        }
-    };
-    let answer = match runtime.block_on(answer(&command, common, request)) {
-        Ok(a) => a,
-        Err(message) => {
+    let answer = match ickon_runtime::block_on(1, answer(&command, common, request)) {
+        Some(Ok(a)) => a,
+        Some(Err(message)) => {
             eprintln!("error: {message}");
             return ExitCode::from(EXIT_FAILURE);
         }
+        None => return ExitCode::from(EXIT_FAILURE),
     };
     match show(&command, common, answer) {
         Ok(code) => code,

@@ -121,20 +121,10 @@ pub fn run(args: SimArgs) -> ExitCode {
         eprintln!("error: --duration must be between 0 and 86400 seconds");
         return ExitCode::from(EXIT_BAD_INPUT);
     }
-    let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::from(EXIT_FAILURE);
-        }
-    };
-    match runtime.block_on(run_mesh(&args, &site, &profile)) {
-        Ok(code) => code,
-        Err(e) => {
+    match ickon_runtime::block_on(2, run_mesh(&args, &site, &profile)) {
+        Some(Ok(code)) => code,
+        None => ExitCode::from(EXIT_FAILURE),
+        Some(Err(e)) => {
             eprintln!("error: {e:#}");
             ExitCode::from(EXIT_FAILURE)
         }

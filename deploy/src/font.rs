@@ -1,9 +1,14 @@
 //! The one font of every picture: DejaVu Sans, compiled in (licence in
 //! `deploy/assets/DejaVuSans-LICENSE.txt`) and drawn by plotters' pure-Rust
 //! `ab_glyph` backend, so that labelled PNGs need no system library and
-//! look the same on every machine.
+//! look the same on every machine. Also the two pieces of chart styling
+//! every picture shares: named axes and the legend.
 
 use std::sync::OnceLock;
+
+use plotters::coord::CoordTranslate;
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
 
 /// The family name pictures ask for.
 pub const FAMILY: &str = "sans-serif";
@@ -21,6 +26,46 @@ pub fn register() -> bool {
         )
         .is_ok()
     })
+}
+
+/// Errors of drawing a picture.
+pub type DrawError = Box<dyn std::error::Error>;
+
+/// Draws the axes of `chart` with their names and tick labels, without
+/// mesh lines (each picture draws its own grid).
+pub fn axes<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    x_desc: &str,
+    y_desc: &str,
+) -> Result<(), DrawError>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((FAMILY, 13))
+        .draw()?;
+    Ok(())
+}
+
+/// Draws the legend of the series labelled so far, top right.
+pub fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> Result<(), DrawError>
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font((FAMILY, 14))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    Ok(())
 }
 
 #[cfg(test)]

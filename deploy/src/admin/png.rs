@@ -65,13 +65,7 @@ pub fn heat_map(file: &Path, r: &CoverageReport) -> Result<(), Error> {
         .x_label_area_size(35)
         .y_label_area_size(45)
         .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("x (m)")
-        .y_desc("y (m)")
-        .label_style((crate::font::FAMILY, 12))
-        .draw()?;
+    crate::font::axes(&mut chart, "x (m)", "y (m)")?;
     chart.draw_series((0..rows).flat_map(|row| {
         (0..columns).map(move |col| {
             let i = row * columns + col;

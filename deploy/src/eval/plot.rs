@@ -120,13 +120,7 @@ fn floor(
         .x_label_area_size(35)
         .y_label_area_size(45)
         .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("x (m)")
-        .y_desc("y (m)")
-        .label_style((crate::font::FAMILY, 13))
-        .draw()?;
+    crate::font::axes(&mut chart, "x (m)", "y (m)")?;
     grid(&mut chart, (x0, x1), (y0, y1), 1.0, 1.0)?;
     let est: Vec<(f64, f64)> = out.estimate_traces[k]
         .iter()
@@ -172,13 +166,7 @@ fn errors(
         .x_label_area_size(35)
         .y_label_area_size(55)
         .build_cartesian_2d(-1.0..n, 0.0..top)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc("reference point")
-        .y_desc("error (mm)")
-        .label_style((crate::font::FAMILY, 13))
-        .draw()?;
+    crate::font::axes(&mut chart, "reference point", "error (mm)")?;
     grid(
         &mut chart,
         (-1.0, n),
@@ -265,13 +253,7 @@ fn bars(file: &Path, flat: &[&Score]) -> Result<(), Error> {
             }
         }
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font((crate::font::FAMILY, 14))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
+    crate::font::legend(&mut chart)?;
     root.present()?;
     Ok(())
 }

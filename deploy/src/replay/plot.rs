@@ -10,6 +10,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::score::SeriesPoint;
+use crate::font::{axes, legend};
 
 type Error = Box<dyn std::error::Error>;
 type Chart<'a, 'b> =
@@ -40,30 +41,6 @@ pub fn write_all(
         series,
     )?;
     errors(&dir.join(format!("{stem}_error.png")), stem, names, series)
-}
-
-/// The mesh with its axis names (no mesh lines: [`grid`] draws them).
-fn axes(chart: &mut Chart, x_desc: &str, y_desc: &str) -> Result<(), Error> {
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .label_style((crate::font::FAMILY, 13))
-        .draw()?;
-    Ok(())
-}
-
-/// The legend of the series labelled so far.
-fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>) -> Result<(), Error> {
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font((crate::font::FAMILY, 14))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
-    Ok(())
 }
 
 fn span(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {

@@ -184,15 +184,20 @@ mod tests {
         }
     }
 
+    /// Cycle 3 of schedule version 4, starting at 1 s on the master clock.
+    fn trigger() -> CycleTrigger {
+        CycleTrigger {
+            cycle: 3,
+            start: Time::from_nanos(1_000_000_000),
+            schedule_version: 4,
+        }
+    }
+
     #[test]
     fn bursts_are_planned_on_the_local_clock() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
         t.add_schedule(schedule());
-        let trigger = CycleTrigger {
-            cycle: 3,
-            start: Time::from_nanos(1_000_000_000),
-            schedule_version: 4,
-        };
+        let trigger = trigger();
         // master = local + 40 ms.
         let plan = t.plan(&trigger, Some(&sync(40)), Time(0)).unwrap();
         assert_eq!(plan.skipped, 0);
@@ -206,11 +211,7 @@ mod tests {
     fn slots_whose_time_has_passed_are_skipped_not_fired_late() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
         t.add_schedule(schedule());
-        let trigger = CycleTrigger {
-            cycle: 3,
-            start: Time::from_nanos(1_000_000_000),
-            schedule_version: 4,
-        };
+        let trigger = trigger();
         let plan = t
             .plan(&trigger, Some(&sync(0)), Time::from_nanos(1_010_000_000))
             .unwrap();
@@ -223,11 +224,7 @@ mod tests {
     fn programming_uses_the_newest_estimate_and_never_fires_late() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
         t.add_schedule(schedule());
-        let trigger = CycleTrigger {
-            cycle: 3,
-            start: Time::from_nanos(1_000_000_000),
-            schedule_version: 4,
-        };
+        let trigger = trigger();
         let plan = t.plan(&trigger, Some(&sync(40)), Time(0)).unwrap();
         // The estimate moved by 100 us since the plan: the burst follows it.
         let mut newer = sync(40);

@@ -3,9 +3,16 @@
 //! The cell controller of ICKON (seed 000 section 3.1.1, "CCU"): it keeps its
 //! clock synchronised with the central unit ([`sync`]) and fires its
 //! transmitters at `cycle start + offset` on the master time base
-//! ([`timer`]). Both are pure; the Zenoh node (feature `zenoh`) drives them.
+//! ([`timer`]). [`core`] is the whole controller as a sans-IO state
+//! machine; the Zenoh node (feature `zenoh`) and the virtual-time engine
+//! drive it, and [`driver`] reaches the transmitters.
 
+pub mod core;
+pub mod driver;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod sync;
 pub mod timer;
+
+pub use crate::core::{CellConfig, CellCore, CellCounters, Event, Output};
+pub use driver::{DriverError, SimulatedDriver, TransmitterDriver};

@@ -144,14 +144,6 @@ impl BurstTimer {
     }
 }
 
-/// What sits between the timer and the transmitters.
-pub trait TransmitterDriver {
-    /// Programs transmitter `burst.tx_id` to fire at local time
-    /// `burst.local` (a little ahead: the hardware keeps the time); `master`
-    /// is when it was scheduled on the master time base.
-    fn fire(&mut self, burst: &PlannedBurst);
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

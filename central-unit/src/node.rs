@@ -14,7 +14,7 @@ use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, SimulatedClock, zerr};
+use ickon_runtime::{NodeArgs, SimulatedClock, put_counted, zerr};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::query::Query;
 use zenoh::sample::SampleKind;
@@ -157,6 +157,7 @@ pub async fn run(
         .await
         .map_err(zerr)?;
 
+    let mut failed_puts = 0u64;
     loop {
         let wake = core.next_wake().since(clock.now()).to_std();
         let outputs = tokio::select! {
@@ -203,11 +204,15 @@ pub async fn run(
             }
         };
         for o in outputs {
-            match o {
-                Output::Trigger(t) => cycle_pub.put(encode(&t)?).await.map_err(zerr)?,
-                Output::Schedule(s) => schedule_pub.put(encode(&s)?).await.map_err(zerr)?,
-            }
+            let sent = match o {
+                Output::Trigger(t) => put_counted(&cycle_pub, &t).await,
+                Output::Schedule(s) => put_counted(&schedule_pub, &s).await,
+            };
+            failed_puts += u64::from(!sent);
         }
+    }
+    if failed_puts > 0 {
+        tracing::info!("central unit stopped; {failed_puts} triggers or schedules not sent");
     }
     Ok(())
 }

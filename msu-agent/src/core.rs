@@ -1,18 +1,21 @@
-//! [`MsuCore`]: arrivals -> fix -> estimator -> pose, and odometry, gyro and
-//! obstacle ranges -> estimator. Fed with messages, never reads a clock.
+//! [`MsuCore`]: the MSU as one state machine fed with messages (it never
+//! reads a clock). It is two parts: a [`FixSolver`] (arrivals -> raw fix,
+//! published whenever it is valid) and a [`FusionHost`] (fix, range
+//! differences, odometry, gyro and obstacle ranges -> one or several
+//! estimators -> pose). An estimator refusing an input never withholds a fix.
 
 use ickon_fusion::estimator::{
-    EncoderSample, Estimator, EstimatorError, FixSample, GyroSample, Input, RangeDifferenceSample,
-    RangeSample, WheelGeometry,
+    EncoderSample, Estimator, EstimatorError, FixSample, GyroSample, Input, RangeSample,
+    WheelGeometry,
 };
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::{Schedule, TransmitterEntry};
-use ickon_proto::msg::robot::{
-    Fix, FixQuality, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals,
-};
-use nalgebra::{Vector2, Vector3};
+use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
+use nalgebra::Matrix2;
 
-use crate::assembly::{AssemblyError, assemble};
+use crate::assembly::AssemblyError;
+use crate::host::FusionHost;
+use crate::solver::FixSolver;
 
 /// What the MSU knows about its site and its robot.
 #[derive(Debug, Clone, PartialEq)]
@@ -58,182 +61,89 @@ pub enum MsuError {
 
 /// The per-robot MSU state machine.
 pub struct MsuCore {
-    config: MsuConfig,
-    schedule: Option<Schedule>,
-    estimator: Box<dyn Estimator>,
+    solver: FixSolver,
+    host: FusionHost,
     fix_seq: u64,
 }
 
 impl MsuCore {
     /// A core hosting `estimator`.
     pub fn new(config: MsuConfig, estimator: Box<dyn Estimator>) -> Self {
+        Self::with_estimators(config, vec![estimator])
+    }
+
+    /// A core hosting several estimators fed alike (the first is the
+    /// primary: its pose is [`pose`](Self::pose) and its refusals are
+    /// returned); `ickon eval` compares estimators on one solve per cycle.
+    pub fn with_estimators(config: MsuConfig, estimators: Vec<Box<dyn Estimator>>) -> Self {
         Self {
-            config,
-            schedule: None,
-            estimator,
+            solver: FixSolver::new(config),
+            host: FusionHost::new(estimators),
             fix_seq: 0,
         }
     }
 
     /// Installs the schedule the arrivals are matched against.
     pub fn set_schedule(&mut self, schedule: Schedule) {
-        self.schedule = Some(schedule);
+        self.solver.set_schedule(schedule);
     }
 
-    /// The hosted estimator's name.
+    /// The primary estimator's name.
     pub fn estimator_name(&self) -> &'static str {
-        self.estimator.name()
+        self.host.name(0).unwrap_or("none")
     }
 
-    /// The solver set-up: 2D with the MSU height known, the timing noise as
-    /// range noise, the reflection gate, and the floor as the allowed area.
-    fn solver_config(&self) -> tdoa::SolverConfig {
-        let height_m = self.config.height_m;
-        tdoa::SolverConfig {
-            mode: tdoa::Mode::TwoD { height_m },
-            sigma_range_m: (self.config.speed_of_sound_m_s * self.config.timing_sigma_s).max(1e-6),
-            gate: tdoa::Gate::Metres(self.config.residual_gate_m),
-            allowed_area_m: self.config.floor_bounds_m.map(|[lo, hi]| tdoa::Aabb {
-                min_m: Vector3::new(lo[0], lo[1], height_m),
-                max_m: Vector3::new(hi[0], hi[1], height_m),
-            }),
-            ..tdoa::SolverConfig::default()
-        }
+    /// The estimators.
+    pub fn host(&self) -> &FusionHost {
+        &self.host
     }
 
-    /// Solves one cycle (seed 000 eq. 1-3 with refinement and reflection
-    /// rejection, [`tdoa::solve`]) and hands the fix to the estimator.
-    /// `Ok(None)`: no fix this cycle (too few or inconsistent signals,
-    /// degenerate geometry, a solution off the floor or too uncertain).
+    /// Solves one cycle and hands the fix and the cycle's range differences
+    /// to the estimators. `Ok(Some(fix))` for every valid fix, whether or
+    /// not an estimator took it (refusals are counted by the host);
+    /// `Ok(None)`: no fix this cycle; `Err`: the message cannot be used.
     pub fn on_arrivals(&mut self, msg: &UltrasoundArrivals) -> Result<Option<Fix>, MsuError> {
-        let schedule = self.schedule.as_ref().ok_or(MsuError::NoSchedule)?;
-        let c = self.config.speed_of_sound_m_s;
-        let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
-        self.feed_range_differences(&cycle.signals);
-        let signals: Vec<tdoa::Signal> = cycle
-            .signals
-            .iter()
-            .map(|s| tdoa::Signal {
-                tx_id: s.tx_id,
-                tx_m: Vector3::from(s.tx_m),
-                pseudo_range_m: s.pseudo_range_m,
-            })
-            .collect();
-        let mut sol = match tdoa::solve(&signals, &self.solver_config()) {
-            Ok(sol) => sol,
-            Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
-            Err(_) => return Ok(None),
-        };
-        if let (tdoa::Quality::Ambiguous, Some(other)) = (sol.quality, sol.alternative_m) {
-            // Two roots fit: keep the one nearer to where the robot is believed to be.
-            if let Some(p) = self.estimator.pose() {
-                let here = Vector3::new(p.x_m, p.y_m, self.config.height_m);
-                if (other - here).norm() < (sol.position_m - here).norm() {
-                    sol.alternative_m = Some(sol.position_m);
-                    sol.position_m = other;
-                }
-            }
+        let hint = self.host.pose(0).map(|p| [p.x_m, p.y_m]);
+        let solved = self.solver.solve(msg, hint)?;
+        for sample in solved.range_differences {
+            // A refused difference (a reflection failing the physical check,
+            // an outlier at the gate, one too late for the history) leaves
+            // the estimator as it was; the host counts it.
+            let _ = self.host.feed(&Input::RangeDifference(sample));
         }
-        let cov = sol.covariance_xy_m2();
-        let sigma_m = cov.trace().max(0.0).sqrt();
-        if !(sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m) {
+        let Some(fix) = solved.fix else {
             return Ok(None);
-        }
-        let [x_m, y_m] = [sol.position_m[0], sol.position_m[1]];
-        let mut rejected = cycle.rejected.clone();
-        rejected.extend(sol.rejected.iter().map(|r| r.tx_id));
-        // Seed 000 s3.1.3: heading from the first emitted signal used (eq. 4-6).
-        let heading = sol.used_tx_ids.first().and_then(|id| {
-            let s = cycle.signals.iter().find(|s| s.tx_id == *id)?;
-            tdoa::heading_from_first_receiver(
-                Vector2::new(s.tx_m[0], s.tx_m[1]),
-                Vector2::new(x_m, y_m),
-                usize::from(s.receiver_id),
-                &self.config.receiver_angles_rad,
-            )
-            .ok()
-        });
-        let quality = match sol.quality {
-            tdoa::Quality::Good => FixQuality::Good,
-            tdoa::Quality::Minimal => FixQuality::Minimal,
-            tdoa::Quality::Ambiguous => FixQuality::Ambiguous,
-            tdoa::Quality::Suspect => FixQuality::Suspect,
-        };
-        let fix = Fix {
-            stamp: cycle.stamp,
-            arrivals_seq: msg.seq,
-            x_m,
-            y_m,
-            z_m: self.config.height_m,
-            covariance: [
-                cov[(0, 0)],
-                cov[(0, 1)],
-                0.0,
-                cov[(1, 0)],
-                cov[(1, 1)],
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-            ],
-            heading_rad: heading.unwrap_or(0.0),
-            heading_valid: heading.is_some(),
-            used: sol.used_tx_ids,
-            rejected,
-            residuals_m: sol.residuals_m,
-            quality,
         };
         self.fix_seq = msg.seq;
-        self.estimator.handle(&Input::Fix(FixSample {
+        let c = &fix.covariance;
+        let sample = FixSample {
             t_s: fix.stamp.as_secs_f64(),
-            x_m,
-            y_m,
-            covariance: cov,
-            heading_rad: heading,
-        }))?;
-        Ok(Some(fix))
-    }
-
-    /// Hands the cycle's arrivals to the estimator one time difference at a
-    /// time (for tightly-coupled filters such as `tdoa-ekf`; the others
-    /// ignore them), before and whether or not a fix can be solved. Pairs
-    /// are consecutive in emission order: the robot moves only during one
-    /// slot between the two arrivals of a pair (about 1 cm at 0.3 m/s),
-    /// where a common reference would span the whole cycle. Each pair is
-    /// stamped at its later arrival; its sigma is that of two arrivals.
-    fn feed_range_differences(&mut self, signals: &[crate::assembly::Signal]) {
-        let sigma_m =
-            std::f64::consts::SQRT_2 * self.config.speed_of_sound_m_s * self.config.timing_sigma_s;
-        for pair in signals.windows(2) {
-            let (a, b) = (&pair[0], &pair[1]);
-            let sample = RangeDifferenceSample {
-                t_s: b.t_arrival.as_secs_f64(),
-                a_m: a.tx_m,
-                b_m: b.tx_m,
-                d_m: b.pseudo_range_m - a.pseudo_range_m,
-                sigma_m,
-            };
-            // A rejected difference (a reflection failing the physical check,
-            // an outlier at the gate, one too late for the history) leaves
-            // the estimator as it was: the filter counts it, nothing else to do.
-            let _ = self.estimator.handle(&Input::RangeDifference(sample));
+            x_m: fix.x_m,
+            y_m: fix.y_m,
+            covariance: Matrix2::new(c[0], c[1], c[3], c[4]),
+            heading_rad: fix.heading_valid.then_some(fix.heading_rad),
+        };
+        if let Err(e) = self.host.feed(&Input::Fix(sample)) {
+            tracing::debug!("fix of cycle {} not fused: {e}", msg.seq);
         }
+        Ok(Some(fix))
     }
 
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
     pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
-        self.estimator.handle(&Input::Encoders(EncoderSample {
+        let geometry = self.solver.config().wheels;
+        self.host.feed(&Input::Encoders(EncoderSample {
             t_s: odom.stamp.as_secs_f64(),
             left_ticks: odom.left_ticks,
             right_ticks: odom.right_ticks,
-            geometry: self.config.wheels,
+            geometry,
         }))?;
         Ok(())
     }
 
     /// Feeds one gyro sample.
     pub fn on_imu(&mut self, imu: &Imu) -> Result<(), MsuError> {
-        self.estimator.handle(&Input::Gyro(GyroSample {
+        self.host.feed(&Input::Gyro(GyroSample {
             t_s: imu.stamp.as_secs_f64(),
             rate_rad_s: imu.gyro_z_rad_s,
         }))?;
@@ -243,7 +153,7 @@ impl MsuCore {
     /// Feeds one obstacle-sensor sample (the single front infrared stands for both sides).
     pub fn on_range(&mut self, r: &ObstacleRanges) -> Result<(), MsuError> {
         let ir = r.ir_valid.then_some(r.ir_m);
-        self.estimator.handle(&Input::Range(RangeSample {
+        self.host.feed(&Input::Range(RangeSample {
             t_s: r.stamp.as_secs_f64(),
             left_ultrasonic_m: r.left_valid.then_some(r.left_m),
             right_ultrasonic_m: r.right_valid.then_some(r.right_m),
@@ -254,9 +164,14 @@ impl MsuCore {
         Ok(())
     }
 
-    /// The current fused pose, once the estimator is initialised.
+    /// The primary estimator's fused pose, once it is initialised.
     pub fn pose(&self) -> Option<RobotPose> {
-        let p = self.estimator.pose()?;
+        self.pose_of(0)
+    }
+
+    /// Estimator `i`'s fused pose, once it is initialised.
+    pub fn pose_of(&self, i: usize) -> Option<RobotPose> {
+        let p = self.host.pose(i)?;
         let c = p.covariance;
         Some(RobotPose {
             stamp: ickon_proto::time::Time::from_secs_f64(p.t_s),
@@ -274,7 +189,7 @@ impl MsuCore {
                 c[(2, 1)],
                 c[(2, 2)],
             ],
-            estimator: self.estimator.name().to_owned(),
+            estimator: self.host.name(i).unwrap_or("none").to_owned(),
             fix_seq: self.fix_seq,
         })
     }
@@ -285,7 +200,7 @@ mod tests {
     use super::*;
     use ickon_fusion::estimator::build_by_name;
     use ickon_proto::msg::control::Emission;
-    use ickon_proto::msg::robot::Arrival;
+    use ickon_proto::msg::robot::{Arrival, FixQuality};
     use ickon_proto::time::{Duration, Time};
 
     const C: f64 = 343.0;
@@ -298,6 +213,10 @@ mod tests {
     ];
 
     fn core() -> MsuCore {
+        core_with("msu-raw")
+    }
+
+    fn core_with(estimator: &str) -> MsuCore {
         let config = MsuConfig {
             speed_of_sound_m_s: C,
             height_m: 0.5,
@@ -322,8 +241,13 @@ mod tests {
             floor_bounds_m: Some([[0.0, 0.0], [5.0, 4.0]]),
             max_fix_sigma_m: 0.5,
         };
-        let mut core = MsuCore::new(config, build_by_name("msu-raw").unwrap());
-        core.set_schedule(Schedule {
+        let mut core = MsuCore::new(config, build_by_name(estimator).unwrap());
+        core.set_schedule(schedule());
+        core
+    }
+
+    fn schedule() -> Schedule {
+        Schedule {
             version: 1,
             effective_cycle: 0,
             cycle_period: Duration::from_millis(200),
@@ -339,8 +263,7 @@ mod tests {
                 })
                 .collect(),
             active_cells: vec!["a".into()],
-        });
-        core
+        }
     }
 
     fn arrivals(p: [f64; 3], late_m: &[(u32, f64)]) -> UltrasoundArrivals {
@@ -399,8 +322,7 @@ mod tests {
 
     #[test]
     fn a_tightly_coupled_estimator_converges_on_range_differences_alone() {
-        let mut core = core();
-        core.estimator = build_by_name("tdoa-ekf").unwrap();
+        let mut core = core_with("tdoa-ekf");
         let truth = [2.2, 1.4, 0.5];
         for k in 0..20 {
             let mut msg = arrivals(truth, &[]);
@@ -419,9 +341,57 @@ mod tests {
     }
 
     #[test]
+    fn a_valid_fix_is_published_when_the_estimator_refuses_it() {
+        for name in ["ickon-akf", "gyro-ckf", "tdoa-ekf"] {
+            let mut core = core_with(name);
+            // Gyro samples an hour ahead: the estimator's history moves past
+            // every real input, so it refuses the cycle's fix as too late.
+            for k in 0..3 {
+                let _ = core.on_imu(&Imu {
+                    stamp: Time::from_secs_f64(3_600.0 + f64::from(k)),
+                    gyro_z_rad_s: 0.0,
+                });
+            }
+            let refused_before = core.host().refused(0);
+            let fix = core
+                .on_arrivals(&arrivals([1.7, 2.9, 0.5], &[]))
+                .unwrap()
+                .unwrap_or_else(|| panic!("{name}: the cycle's fix is valid"));
+            assert!((fix.x_m - 1.7).abs() < 1e-5, "{name}: {fix:?}");
+            assert!(
+                core.host().refused(0) > refused_before,
+                "{name}: the estimator took an input from an hour ago"
+            );
+        }
+    }
+
+    #[test]
+    fn every_hosted_estimator_gets_the_same_fix() {
+        let config = core().solver.config().clone();
+        let names = ["msu-raw", "ickon-akf", "tdoa-ekf"];
+        let mut core = MsuCore::with_estimators(
+            config,
+            names.iter().map(|n| build_by_name(n).unwrap()).collect(),
+        );
+        core.set_schedule(schedule());
+        let fix = core
+            .on_arrivals(&arrivals([3.1, 1.2, 0.5], &[]))
+            .unwrap()
+            .unwrap();
+        assert_eq!(core.host().len(), 3);
+        let raw = core.pose_of(0).unwrap();
+        assert_eq!((raw.x_m, raw.y_m), (fix.x_m, fix.y_m));
+        assert_eq!(raw.estimator, "msu-raw");
+        assert_eq!(
+            core.pose_of(2).map(|p| p.estimator),
+            Some("tdoa-ekf".into())
+        );
+    }
+
+    #[test]
     fn arrivals_before_any_schedule_are_an_error() {
         let mut c = core();
-        c.schedule = None;
+        c.solver.clear_schedule();
         assert_eq!(
             c.on_arrivals(&arrivals([1.0, 1.0, 0.5], &[])),
             Err(MsuError::NoSchedule)

@@ -11,9 +11,13 @@
 pub mod assembly;
 mod config;
 pub mod core;
+pub mod host;
 #[cfg(feature = "zenoh")]
 pub mod node;
+pub mod solver;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::DEFAULT_MAX_FIX_SIGMA_M;
 pub use core::{MsuConfig, MsuCore, MsuError};
+pub use host::FusionHost;
+pub use solver::{FixSolver, SolvedCycle};

@@ -14,8 +14,8 @@ use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
-use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, fetch, zerr};
+use ickon_proto::decode;
+use ickon_runtime::{NodeArgs, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
@@ -55,6 +55,8 @@ pub struct MsuCounters {
     pub bad_messages: u64,
     /// Inputs the core or the estimator refused (dropped).
     pub refused_inputs: u64,
+    /// Fixes and poses that could not be published (logged at debug level).
+    pub failed_puts: u64,
 }
 
 /// Runs the agent until `shutdown` completes; returns its counters.
@@ -184,12 +186,12 @@ pub async fn run(
                     n.arrival_messages += 1;
                     match core.on_arrivals(&msg) {
                         Ok(Some(fix)) => {
-                            fix_pub.put(encode(&fix)?).await.map_err(zerr)?;
+                            if !put_counted(&fix_pub, &fix).await { n.failed_puts += 1; }
                             n.fixes += 1;
                             // Publish the pose that absorbed the fix at once:
                             // this is the latency a user of the pose sees.
                             if let Some(pose) = core.pose() {
-                                pose_pub.put(encode(&pose)?).await.map_err(zerr)?;
+                                if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
                                 n.poses += 1;
                             }
                         }
@@ -206,7 +208,7 @@ pub async fn run(
                     match core.on_odometry(&msg) {
                         Ok(()) => {
                             if let Some(pose) = core.pose() {
-                                pose_pub.put(encode(&pose)?).await.map_err(zerr)?;
+                                if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
                                 n.poses += 1;
                             }
                         }

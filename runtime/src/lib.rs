@@ -12,12 +12,14 @@
 //!   and drift;
 //! - [`query`]: a query with a timeout, one that retries until the central
 //!   unit answers, and a wait for a liveliness token;
+//! - [`publish`]: a put whose failure is counted, never fatal;
 //! - [`runfile`]: the run file through which `ickon admin` finds an
 //!   `ickon sim` running on the same machine.
 
 pub mod args;
 pub mod clock;
 pub mod process;
+pub mod publish;
 pub mod query;
 pub mod runfile;
 pub mod shutdown;
@@ -25,6 +27,7 @@ pub mod shutdown;
 pub use args::{NodeArgs, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
 pub use process::{block_on, init_tracing, run_node};
+pub use publish::put_counted;
 pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;

@@ -1,11 +1,12 @@
-//! The virtual-time engine: central unit (cycle triggers), cells (bursts on
-//! their synchronised clocks), the world and one MSU core per estimator, all
-//! in one process on a discrete event queue ordered by (time, sequence).
+//! The virtual-time engine: the central unit's and the cells' own cores on
+//! their drifting clocks ([`crate::control`]: triggers, synchronisation,
+//! bursts), the world and one MSU core per estimator, all in one process on
+//! a discrete event queue ordered by (time, sequence).
 //! No sleeping, no network: ten tours of a route take seconds, and the same
 //! seed gives the same numbers on any machine.
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::{BTreeMap, BinaryHeap};
 
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
 use ickon_msu::{MsuConfig, MsuCore};
@@ -13,6 +14,7 @@ use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::Fix;
 use ickon_proto::site::Site;
 
+use crate::control::{CellSyncReport, ControlPlane};
 use crate::profile::NoiseProfile;
 use crate::world::{TruthSample, World};
 
@@ -38,7 +40,7 @@ pub struct RunConfig {
     pub profile: NoiseProfile,
     /// Run seed.
     pub seed: u64,
-    /// Estimator names, each hosted by its own MSU core on the same world.
+    /// Estimator names, all hosted by one MSU core (one solve per cycle).
     pub estimators: Vec<String>,
 }
 
@@ -123,6 +125,8 @@ pub struct RunOutput {
     pub virtual_s: f64,
     /// The MSU's assumed timing noise (sigma of an arrival), seconds.
     pub timing_sigma_s: f64,
+    /// Each cell's synchronisation, from its own core's bursts.
+    pub cells: Vec<CellSyncReport>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -131,9 +135,7 @@ enum Event {
     Gyro,
     Encoders,
     Ranges,
-    Cycle(u64),
     Deliver(u64),
-    Resync,
     Trace,
 }
 
@@ -232,8 +234,8 @@ pub fn run(
                 .collect::<Vec<_>>()
                 .join(", "),
         })?;
-    let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
-    let schedule = ickon_central::compute_schedule(site, &all_cells, 1, 0)?;
+    let mut control = ControlPlane::new(site, &config.profile.clocks, config.seed)?;
+    let schedule = control.central().latest_schedule().clone();
     let mut world = World::new(site, route, &config.profile, config.seed);
     let s0 = world.robot.state;
     let start = [s0.x_m, s0.y_m, s0.theta_rad];
@@ -244,23 +246,22 @@ pub fn run(
         right_m_per_tick: m,
     };
     let msu = msu_config(site, &config.profile, wheels);
-    let mut cores = Vec::new();
+    // One MSU: each cycle solved once, every estimator fed the same fix.
+    let mut estimators = Vec::new();
     for name in &config.estimators {
-        let est = estimator::build(&estimator_config(
+        estimators.push(estimator::build(&estimator_config(
             name,
             start,
             site.msu.height_m,
             &config.profile,
-        )?)?;
-        let mut core = MsuCore::new(msu.clone(), est);
-        core.set_schedule(schedule.clone());
-        cores.push(core);
+        )?)?);
     }
-    let n_est = cores.len();
+    let n_est = estimators.len();
+    let mut core = MsuCore::with_estimators(msu.clone(), estimators);
+    core.set_schedule(schedule.clone());
     let route_len = world.robot.route_length_m();
     let n_refs = route.reference_points.len().max(1);
     let total_refs = n_refs * config.tours as usize;
-    let period_s = schedule.cycle_period.as_secs_f64();
     let max_flight_s = (config.profile.ultrasound.max_range_m
         + config.profile.ultrasound.reflection_extra_m[1])
         / site.speed_of_sound_m_s
@@ -276,20 +277,39 @@ pub fn run(
         schedule: schedule.clone(),
         virtual_s: 0.0,
         timing_sigma_s: msu.timing_sigma_s,
+        cells: Vec::new(),
     };
+    // The true emission times of each cycle's bursts, until it is delivered.
+    let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
     let mut q = Queue::default();
     let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
     q.push(PHYSICS_DT_S, Event::Physics);
     q.push(gyro_dt, Event::Gyro);
     q.push(1.0 / ENCODER_HZ, Event::Encoders);
     q.push(1.0 / RANGES_HZ, Event::Ranges);
-    q.push(0.0, Event::Cycle(0));
-    q.push(config.profile.clocks.cell_resync_s.max(0.1), Event::Resync);
     q.push(0.0, Event::Trace);
     let mut next_ref = 0usize;
     let mut last_progress_report = 0.0;
 
     while let Some((t, ev)) = q.pop() {
+        control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
+        for trigger in control.take_triggers() {
+            // Every burst of the cycle has been heard by then.
+            let period_s = control
+                .schedule_for(trigger.cycle)
+                .cycle_period
+                .as_secs_f64();
+            q.push(
+                trigger.start.as_secs_f64() + period_s + max_flight_s,
+                Event::Deliver(trigger.cycle),
+            );
+        }
+        for b in control.take_fired() {
+            emissions
+                .entry(b.cycle)
+                .or_default()
+                .push((b.tx_id, b.actual.as_secs_f64()));
+        }
         match ev {
             Event::Physics => {
                 let moving = t > REST_S;
@@ -305,9 +325,8 @@ pub fn run(
                         tour: u32::try_from(tour + 1).unwrap_or(u32::MAX),
                         index: idx,
                         truth: world.truth(t),
-                        estimates: cores
-                            .iter()
-                            .map(|c| c.pose().map(|p| [p.x_m, p.y_m, p.theta_rad]))
+                        estimates: (0..n_est)
+                            .map(|i| core.pose_of(i).map(|p| [p.x_m, p.y_m, p.theta_rad]))
                             .collect(),
                     });
                     next_ref += 1;
@@ -327,40 +346,32 @@ pub fn run(
             }
             Event::Gyro => {
                 let imu = world.gyro(t, gyro_dt);
-                for c in &mut cores {
-                    // A rejected sample leaves the estimator as it was; nothing else to do.
-                    let _ = c.on_imu(&imu);
-                }
+                // A rejected sample leaves the estimator as it was; the host counts it.
+                let _ = core.on_imu(&imu);
                 q.push(t + gyro_dt, Event::Gyro);
             }
             Event::Encoders => {
                 let odom = world.odometry(t);
-                for c in &mut cores {
-                    let _ = c.on_odometry(&odom);
-                }
+                let _ = core.on_odometry(&odom);
                 q.push(t + 1.0 / ENCODER_HZ, Event::Encoders);
             }
             Event::Ranges => {
                 let r = world.ranges(t);
-                for c in &mut cores {
-                    let _ = c.on_range(&r);
-                }
+                let _ = core.on_range(&r);
                 q.push(t + 1.0 / RANGES_HZ, Event::Ranges);
             }
-            Event::Cycle(k) => {
-                q.push(t + period_s + max_flight_s, Event::Deliver(k));
-                q.push(t + period_s, Event::Cycle(k + 1));
-            }
             Event::Deliver(k) => {
-                let start_s = k as f64 * period_s;
-                let msg = world.cycle_arrivals(&schedule, start_s);
-                let mut first_fix = None;
-                for c in &mut cores {
-                    if let Ok(Some(fix)) = c.on_arrivals(&msg) {
-                        first_fix.get_or_insert(fix);
-                    }
+                // Cycles before `k` that never came to delivery are dropped with it.
+                let later = emissions.split_off(&(k + 1));
+                let fired = std::mem::replace(&mut emissions, later)
+                    .remove(&k)
+                    .unwrap_or_default();
+                if fired.is_empty() {
+                    continue;
                 }
-                if let Some(fix) = first_fix {
+                let msg = world.arrivals_from_emissions(&fired);
+                core.set_schedule(control.schedule_for(k).clone());
+                if let Ok(Some(fix)) = core.on_arrivals(&msg) {
                     let t_true = world.msu_clock.true_s(fix.stamp.as_secs_f64());
                     let used_tx_m = fix
                         .used
@@ -375,13 +386,6 @@ pub fn run(
                     });
                 }
             }
-            Event::Resync => {
-                world.resync_cells();
-                q.push(
-                    t + config.profile.clocks.cell_resync_s.max(0.1),
-                    Event::Resync,
-                );
-            }
             Event::Trace => {
                 let tour = u32::try_from((world.robot.progress_m / route_len) as u64 + 1)
                     .unwrap_or(u32::MAX);
@@ -390,8 +394,8 @@ pub fn run(
                     tour,
                     xy_m: [s.x_m, s.y_m],
                 });
-                for (trace, c) in out.estimate_traces.iter_mut().zip(&cores) {
-                    if let Some(p) = c.pose() {
+                for (i, trace) in out.estimate_traces.iter_mut().enumerate() {
+                    if let Some(p) = core.pose_of(i) {
                         trace.push(TracePoint {
                             tour,
                             xy_m: [p.x_m, p.y_m],
@@ -402,6 +406,7 @@ pub fn run(
             }
         }
     }
+    out.cells = control.sync_reports();
     progress(1.0);
     Ok(out)
 }

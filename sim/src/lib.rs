@@ -18,6 +18,7 @@
 
 pub mod acoustic;
 pub mod clock;
+pub mod control;
 pub mod engine;
 #[cfg(feature = "zenoh")]
 pub mod node;

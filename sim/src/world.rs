@@ -5,7 +5,6 @@
 
 use std::collections::VecDeque;
 
-use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::{Arrival, Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::{Route, Site, speed_of_sound_at};
 use ickon_proto::time::Time;
@@ -44,9 +43,7 @@ pub struct World {
     last_gyro_theta: f64,
     /// The MSU's (and robot computer's) clock.
     pub msu_clock: DeviceClock,
-    cell_error_s: Vec<f64>,
     acoustic_rng: ChaCha8Rng,
-    cells_rng: ChaCha8Rng,
     ranger_rng: ChaCha8Rng,
     c_true_m_s: f64,
     odom: [f64; 3],
@@ -95,16 +92,13 @@ impl World {
             ),
             last_gyro_theta: s.theta_rad,
             msu_clock,
-            cell_error_s: vec![0.0; site.cells.len()],
             acoustic_rng: rng::stream(seed, &format!("robot/{}/ultrasound", route.name)),
-            cells_rng: rng::stream(seed, "cells/sync"),
             ranger_rng: rng::stream(seed, &format!("robot/{}/rangers", route.name)),
             c_true_m_s,
             odom: [s.x_m, s.y_m, s.theta_rad],
             last_ticks: (0, 0),
             seq: 0,
         };
-        w.resync_cells();
         w.record(0.0);
         w
     }
@@ -152,14 +146,6 @@ impl World {
     pub fn step(&mut self, t_s: f64, dt_s: f64, drive: bool) {
         self.robot.step(dt_s, drive);
         self.record(t_s);
-    }
-
-    /// Draws new residual synchronisation errors for every cell.
-    pub fn resync_cells(&mut self) {
-        let sigma = self.profile.clocks.cell_sync_sigma_us;
-        for e in &mut self.cell_error_s {
-            *e = rng::normal(&mut self.cells_rng, sigma) * 1e-6;
-        }
     }
 
     /// A gyro reading at `t_s`: the mean true rate since the previous one, plus noise.
@@ -221,31 +207,6 @@ impl World {
             ir_valid: ir.is_some(),
             avoidance_angle_rad: 0.0,
         }
-    }
-
-    /// Everything the MSU hears of the cycle that started at true master time
-    /// `start_s`; call once the last burst of the cycle has had time to arrive.
-    pub fn cycle_arrivals(&mut self, schedule: &Schedule, start_s: f64) -> UltrasoundArrivals {
-        let emissions: Vec<(usize, f64)> = schedule
-            .emissions
-            .iter()
-            .filter_map(|e| {
-                let tx = self
-                    .site
-                    .transmitters
-                    .iter()
-                    .position(|t| t.id == e.tx_id)?;
-                let cell = self.site.cells.iter().position(|c| c.id == e.cell_id)?;
-                Some((
-                    tx,
-                    start_s + e.offset.as_secs_f64() + self.cell_error_s[cell],
-                ))
-            })
-            .collect();
-        self.hear_cycle(
-            &emissions,
-            start_s + 0.5 * schedule.cycle_period.as_secs_f64(),
-        )
     }
 
     /// Everything the MSU hears of emissions at known true times

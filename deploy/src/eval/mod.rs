@@ -115,10 +115,15 @@ pub fn run(args: EvalArgs) -> ExitCode {
             "seed": args.seed,
             "tours": args.tours,
             "results": flat,
+            "cells": outputs.iter().map(|o| serde_json::json!({
+                "route": o.config.route,
+                "cells": o.cells,
+            })).collect::<Vec<_>>(),
         });
         println!("{doc}");
     } else {
         table::print(&flat, &profile.name, args.seed, started.elapsed());
+        table::print_cells(&outputs);
     }
     if let Some(dir) = &args.plot {
         if let Err(e) = plot::write_all(dir, &outputs, &scores, &flat) {

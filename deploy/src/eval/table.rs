@@ -89,3 +89,25 @@ pub fn print(scores: &[&Score], profile: &str, seed: u64, wall: Duration) {
     }
     println!("\nwall time {:.1} s", wall.as_secs_f64());
 }
+
+/// Prints each route's cell synchronisation, from the cells' own cores.
+pub fn print_cells(outputs: &[ickon_sim::RunOutput]) {
+    println!("\ncell sync (actual - scheduled emission, from the cells' own synchronisation)");
+    for o in outputs {
+        let cells: Vec<String> = o
+            .cells
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} max {:.0} us rms {:.0} us ({} bursts, {} skipped)",
+                    c.cell_id,
+                    c.sync_error_max_us,
+                    c.sync_error_rms_us,
+                    c.bursts,
+                    c.counters.slots_skipped
+                )
+            })
+            .collect();
+        println!("  {:>9}: {}", o.config.route, cells.join("; "));
+    }
+}

@@ -1,0 +1,204 @@
+//! The MSU's fix solver: one cycle's arrivals -> assembled signals -> a raw
+//! fix (seed 000 eq. 1-3 with refinement and reflection rejection,
+//! [`tdoa::solve`]), its quality gate and the receiver-id heading (eq. 4-6).
+//! It knows nothing of the estimators: a position hint is passed in only to
+//! choose between two roots that fit equally, so every valid fix is the
+//! same whatever fuses it.
+
+use ickon_fusion::estimator::RangeDifferenceSample;
+use ickon_fusion::tdoa;
+use ickon_proto::msg::control::Schedule;
+use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
+use ickon_proto::time::{Duration, Time};
+use nalgebra::{Vector2, Vector3};
+
+use crate::assembly::{Signal, assemble};
+use crate::core::{MsuConfig, MsuError};
+
+/// The solver's own last fix serves as the root hint for this long.
+const OWN_HINT_MAX_AGE: Duration = Duration::from_millis(2_000);
+
+/// What one cycle gave.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolvedCycle {
+    /// The raw fix, `None` when the cycle gave none (too few or
+    /// inconsistent signals, degenerate geometry, off the floor, too uncertain).
+    pub fix: Option<Fix>,
+    /// The cycle's range differences, for tightly coupled estimators,
+    /// whether or not a fix was solved.
+    pub range_differences: Vec<RangeDifferenceSample>,
+}
+
+/// Solves cycles against the schedule in force.
+#[derive(Debug, Clone)]
+pub struct FixSolver {
+    config: MsuConfig,
+    schedule: Option<Schedule>,
+    last_fix: Option<(Time, Vector2<f64>)>,
+}
+
+impl FixSolver {
+    /// A solver for an MSU configured as `config`, with no schedule yet.
+    pub fn new(config: MsuConfig) -> Self {
+        Self {
+            config,
+            schedule: None,
+            last_fix: None,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MsuConfig {
+        &self.config
+    }
+
+    /// Installs the schedule the arrivals are matched against.
+    pub fn set_schedule(&mut self, schedule: Schedule) {
+        self.schedule = Some(schedule);
+    }
+
+    /// Forgets the schedule (tests; a site that changed).
+    pub fn clear_schedule(&mut self) {
+        self.schedule = None;
+    }
+
+    /// The solver set-up: 2D with the MSU height known, the timing noise as
+    /// range noise, the reflection gate, and the floor as the allowed area.
+    fn solver_config(&self) -> tdoa::SolverConfig {
+        let height_m = self.config.height_m;
+        tdoa::SolverConfig {
+            mode: tdoa::Mode::TwoD { height_m },
+            sigma_range_m: (self.config.speed_of_sound_m_s * self.config.timing_sigma_s).max(1e-6),
+            gate: tdoa::Gate::Metres(self.config.residual_gate_m),
+            allowed_area_m: self.config.floor_bounds_m.map(|[lo, hi]| tdoa::Aabb {
+                min_m: Vector3::new(lo[0], lo[1], height_m),
+                max_m: Vector3::new(hi[0], hi[1], height_m),
+            }),
+            ..tdoa::SolverConfig::default()
+        }
+    }
+
+    /// Solves one cycle. When two roots fit, the one nearer the solver's own
+    /// fix of the last two seconds is kept, else the one nearer `hint`
+    /// (where the robot is believed to be), else the solver's first choice.
+    pub fn solve(
+        &mut self,
+        msg: &UltrasoundArrivals,
+        hint: Option<[f64; 2]>,
+    ) -> Result<SolvedCycle, MsuError> {
+        let schedule = self.schedule.as_ref().ok_or(MsuError::NoSchedule)?;
+        let c = self.config.speed_of_sound_m_s;
+        let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
+        let range_differences = self.range_differences(&cycle.signals);
+        let signals: Vec<tdoa::Signal> = cycle
+            .signals
+            .iter()
+            .map(|s| tdoa::Signal {
+                tx_id: s.tx_id,
+                tx_m: Vector3::from(s.tx_m),
+                pseudo_range_m: s.pseudo_range_m,
+            })
+            .collect();
+        let no_fix = |range_differences| {
+            Ok(SolvedCycle {
+                fix: None,
+                range_differences,
+            })
+        };
+        let mut sol = match tdoa::solve(&signals, &self.solver_config()) {
+            Ok(sol) => sol,
+            Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
+            Err(_) => return no_fix(range_differences),
+        };
+        let own = self
+            .last_fix
+            .filter(|(t, _)| cycle.stamp.since(*t) <= OWN_HINT_MAX_AGE)
+            .map(|(_, p)| p);
+        let hint = own.or(hint.map(Vector2::from));
+        if let (tdoa::Quality::Ambiguous, Some(other), Some(h)) =
+            (sol.quality, sol.alternative_m, hint)
+        {
+            let here = Vector3::new(h[0], h[1], self.config.height_m);
+            if (other - here).norm() < (sol.position_m - here).norm() {
+                sol.alternative_m = Some(sol.position_m);
+                sol.position_m = other;
+            }
+        }
+        let cov = sol.covariance_xy_m2();
+        let sigma_m = cov.trace().max(0.0).sqrt();
+        if !(sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m) {
+            return no_fix(range_differences);
+        }
+        let [x_m, y_m] = [sol.position_m[0], sol.position_m[1]];
+        let mut rejected = cycle.rejected.clone();
+        rejected.extend(sol.rejected.iter().map(|r| r.tx_id));
+        // Seed 000 s3.1.3: heading from the first emitted signal used (eq. 4-6).
+        let heading = sol.used_tx_ids.first().and_then(|id| {
+            let s = cycle.signals.iter().find(|s| s.tx_id == *id)?;
+            tdoa::heading_from_first_receiver(
+                Vector2::new(s.tx_m[0], s.tx_m[1]),
+                Vector2::new(x_m, y_m),
+                usize::from(s.receiver_id),
+                &self.config.receiver_angles_rad,
+            )
+            .ok()
+        });
+        let quality = match sol.quality {
+            tdoa::Quality::Good => FixQuality::Good,
+            tdoa::Quality::Minimal => FixQuality::Minimal,
+            tdoa::Quality::Ambiguous => FixQuality::Ambiguous,
+            tdoa::Quality::Suspect => FixQuality::Suspect,
+        };
+        if quality != FixQuality::Ambiguous {
+            self.last_fix = Some((cycle.stamp, Vector2::new(x_m, y_m)));
+        }
+        Ok(SolvedCycle {
+            fix: Some(Fix {
+                stamp: cycle.stamp,
+                arrivals_seq: msg.seq,
+                x_m,
+                y_m,
+                z_m: self.config.height_m,
+                covariance: [
+                    cov[(0, 0)],
+                    cov[(0, 1)],
+                    0.0,
+                    cov[(1, 0)],
+                    cov[(1, 1)],
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ],
+                heading_rad: heading.unwrap_or(0.0),
+                heading_valid: heading.is_some(),
+                used: sol.used_tx_ids,
+                rejected,
+                residuals_m: sol.residuals_m,
+                quality,
+            }),
+            range_differences,
+        })
+    }
+
+    /// The cycle's arrivals as time differences, for tightly coupled
+    /// filters such as `tdoa-ekf`. Pairs are consecutive in emission order:
+    /// the robot moves only during one slot between the two arrivals of a
+    /// pair (about 1 cm at 0.3 m/s), where a common reference would span the
+    /// whole cycle. Each pair is stamped at its later arrival; its sigma is
+    /// that of two arrivals.
+    fn range_differences(&self, signals: &[Signal]) -> Vec<RangeDifferenceSample> {
+        let sigma_m =
+            std::f64::consts::SQRT_2 * self.config.speed_of_sound_m_s * self.config.timing_sigma_s;
+        signals
+            .windows(2)
+            .map(|pair| RangeDifferenceSample {
+                t_s: pair[1].t_arrival.as_secs_f64(),
+                a_m: pair[0].tx_m,
+                b_m: pair[1].tx_m,
+                d_m: pair[1].pseudo_range_m - pair[0].pseudo_range_m,
+                sigma_m,
+            })
+            .collect()
+    }
+}

@@ -50,6 +50,45 @@ impl Default for CentralConfig {
     }
 }
 
+/// What the central unit is told. Queries (site, schedule, admin) are
+/// answered from its state by the methods of the same names; everything
+/// else arrives as an event.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// Nothing but time passed: do what is due (see [`CentralCore::next_wake`]).
+    Tick,
+    /// A cell's liveliness token appeared (`up`) or went.
+    CellAlive {
+        /// The cell.
+        id: String,
+        /// Present or gone.
+        up: bool,
+    },
+    /// A robot's liveliness token appeared (`up`) or went.
+    RobotAlive {
+        /// The robot.
+        id: String,
+        /// Present or gone.
+        up: bool,
+    },
+    /// A cell's status report.
+    CellStatus(CellStatus),
+    /// A burst report, its `actual` emission time on the master time base.
+    Burst(Burst),
+    /// A robot published a pose.
+    Pose {
+        /// The robot.
+        robot: String,
+        /// Its pose.
+        pose: RobotPose,
+    },
+    /// A robot published a fix.
+    Fix {
+        /// The robot.
+        robot: String,
+    },
+}
+
 /// What the node must publish.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Output {
@@ -151,6 +190,38 @@ impl CentralCore {
     /// When the node should call [`tick`](Self::tick) next: the next trigger time.
     pub fn next_wake(&self) -> Time {
         self.next_start - self.config.trigger_lead
+    }
+
+    /// Takes `event` at master time `now`, then emits whatever is due.
+    pub fn handle(&mut self, now: Time, event: Event) -> Vec<Output> {
+        let mut out = match event {
+            Event::Tick => Vec::new(),
+            Event::CellAlive { id, up } => self.cell_alive(&id, up, now),
+            Event::RobotAlive { id, up } => {
+                self.robot_alive(&id, up);
+                Vec::new()
+            }
+            Event::CellStatus(status) => {
+                self.on_cell_status(status);
+                Vec::new()
+            }
+            Event::Burst(burst) => {
+                self.on_burst(&burst);
+                Vec::new()
+            }
+            Event::Pose { robot, pose } => {
+                self.on_pose(&robot, pose);
+                Vec::new()
+            }
+            Event::Fix { robot } => {
+                self.on_fix(&robot, now);
+                Vec::new()
+            }
+        };
+        if now >= self.next_wake() {
+            out.extend(self.tick(now));
+        }
+        out
     }
 
     /// Emits every trigger due at `now` (one per cycle, never two for one cycle).

@@ -15,12 +15,13 @@ use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{NodeArgs, SimulatedClock, put_counted, zerr};
+use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::query::Query;
 use zenoh::sample::SampleKind;
 use zenoh::{Session, Wait};
 
-use crate::core::{CentralConfig, CentralCore, Output};
+use crate::core::{CentralConfig, CentralCore, Event, Output};
 
 /// Arguments of `ickon-central` (and `ickon node central`).
 #[derive(Debug, Clone, Args)]
@@ -157,64 +158,82 @@ pub async fn run(
         .await
         .map_err(zerr)?;
 
-    let mut failed_puts = 0u64;
+    let (mut failed_puts, mut undecodable) = (0u64, 0u64);
     loop {
         let wake = core.next_wake().since(clock.now()).to_std();
-        let outputs = tokio::select! {
+        let event = tokio::select! {
             _ = &mut shutdown => break,
-            _ = tokio::time::sleep(wake) => core.tick(clock.now()),
-            Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; Vec::new() }
-            Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await; Vec::new() }
-            Ok(q) = admin_q.recv_async() => answer_admin(&keys, &mut core, &q, clock.now()).await,
+            _ = tokio::time::sleep(wake) => Event::Tick,
+            Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
+            Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await; continue; }
+            Ok(q) = admin_q.recv_async() => {
+                let outputs = answer_admin(&keys, &mut core, &q, clock.now()).await;
+                failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
+                continue;
+            }
             Ok(s) = alive.recv_async() => {
                 let up = s.kind() == SampleKind::Put;
                 match keys.parse(s.key_expr().as_str()) {
-                    Ok(Key::AliveCell(id)) => core.cell_alive(&id, up, clock.now()),
-                    Ok(Key::AliveRobot(id)) => { core.robot_alive(&id, up); Vec::new() }
-                    _ => Vec::new(),
+                    Ok(Key::AliveCell(id)) => Event::CellAlive { id, up },
+                    Ok(Key::AliveRobot(id)) => Event::RobotAlive { id, up },
+                    _ => continue,
                 }
             }
-            Ok(s) = status_sub.recv_async() => {
-                match decode::<CellStatus>(&s.payload().to_bytes()) {
-                    Ok(st) => core.on_cell_status(st),
-                    Err(e) => tracing::warn!("undecodable status on {}: {e}", s.key_expr()),
+            Ok(s) = status_sub.recv_async() => match decode::<CellStatus>(&s.payload().to_bytes()) {
+                Ok(st) => Event::CellStatus(st),
+                Err(e) => {
+                    undecodable += 1;
+                    tracing::debug!("undecodable status on {}: {e}", s.key_expr());
+                    continue;
                 }
-                Vec::new()
-            }
-            Ok(s) = burst_sub.recv_async() => {
-                match decode::<Burst>(&s.payload().to_bytes()) {
-                    // A simulated driver reports the true emission time: on
-                    // the master time base it is what this clock read then.
-                    Ok(b) => core.on_burst(&Burst { actual: clock.local(b.actual), ..b }),
-                    Err(e) => tracing::warn!("undecodable burst on {}: {e}", s.key_expr()),
+            },
+            Ok(s) = burst_sub.recv_async() => match decode::<Burst>(&s.payload().to_bytes()) {
+                // A simulated driver reports the true emission time: on
+                // the master time base it is what this clock read then.
+                Ok(b) => Event::Burst(Burst { actual: clock.local(b.actual), ..b }),
+                Err(e) => {
+                    undecodable += 1;
+                    tracing::debug!("undecodable burst on {}: {e}", s.key_expr());
+                    continue;
                 }
-                Vec::new()
-            }
+            },
             Ok(s) = pose_sub.recv_async() => {
-                if let (Ok(Key::Robot(id, _)), Ok(p)) = (keys.parse(s.key_expr().as_str()), decode::<RobotPose>(&s.payload().to_bytes())) {
-                    core.on_pose(&id, p);
+                match (keys.parse(s.key_expr().as_str()), decode::<RobotPose>(&s.payload().to_bytes())) {
+                    (Ok(Key::Robot(robot, _)), Ok(pose)) => Event::Pose { robot, pose },
+                    _ => continue,
                 }
-                Vec::new()
             }
-            Ok(s) = fix_sub.recv_async() => {
-                if let Ok(Key::Robot(id, _)) = keys.parse(s.key_expr().as_str()) {
-                    core.on_fix(&id, clock.now());
-                }
-                Vec::new()
-            }
+            Ok(s) = fix_sub.recv_async() => match keys.parse(s.key_expr().as_str()) {
+                Ok(Key::Robot(robot, _)) => Event::Fix { robot },
+                _ => continue,
+            },
         };
-        for o in outputs {
-            let sent = match o {
-                Output::Trigger(t) => put_counted(&cycle_pub, &t).await,
-                Output::Schedule(s) => put_counted(&schedule_pub, &s).await,
-            };
-            failed_puts += u64::from(!sent);
-        }
+        let outputs = core.handle(clock.now(), event);
+        failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
     }
-    if failed_puts > 0 {
-        tracing::info!("central unit stopped; {failed_puts} triggers or schedules not sent");
+    if failed_puts + undecodable > 0 {
+        tracing::info!(
+            "central unit stopped; {failed_puts} triggers or schedules not sent, {undecodable} undecodable reports"
+        );
     }
     Ok(())
+}
+
+/// Publishes the core's outputs; returns how many puts failed.
+async fn publish(
+    cycle_pub: &Publisher<'_>,
+    schedule_pub: &Publisher<'_>,
+    outputs: Vec<Output>,
+) -> u64 {
+    let mut failed = 0;
+    for o in outputs {
+        let sent = match o {
+            Output::Trigger(t) => put_counted(cycle_pub, &t).await,
+            Output::Schedule(s) => put_counted(schedule_pub, &s).await,
+        };
+        failed += u64::from(!sent);
+    }
+    failed
 }
 
 /// Answers a clock request at once: t2 on arrival, t3 just before the reply.

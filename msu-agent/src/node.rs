@@ -10,11 +10,11 @@ use std::time::Duration;
 use clap::Args;
 
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
+use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
-use ickon_proto::decode;
 use ickon_runtime::{NodeArgs, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};

@@ -15,7 +15,9 @@ use ickon_cell::core::{
     CellConfig, CellCore, CellCounters, Event as CellEvent, Output as CellOutput,
 };
 use ickon_cell::sync::ClockSample;
-use ickon_central::core::{CentralConfig, CentralCore, Output as CentralOutput};
+use ickon_central::core::{
+    CentralConfig, CentralCore, Event as CentralEvent, Output as CentralOutput,
+};
 use ickon_proto::msg::control::{Burst, CycleTrigger, Schedule};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
@@ -365,7 +367,9 @@ impl ControlPlane {
             Pending::CentralWake => {
                 if self.central_wake_ns == Some(t_ns) {
                     self.central_wake_ns = None;
-                    let out = self.central.tick(Time::from_nanos(t_ns));
+                    let out = self
+                        .central
+                        .handle(Time::from_nanos(t_ns), CentralEvent::Tick);
                     self.publish_central(out);
                 }
                 self.schedule_central_wake();
@@ -383,7 +387,9 @@ impl ControlPlane {
             }
             Pending::CellAlive(i, up) => {
                 let id = self.cells[i].id.clone();
-                let out = self.central.cell_alive(&id, up, Time::from_nanos(t_ns));
+                let out = self
+                    .central
+                    .handle(Time::from_nanos(t_ns), CentralEvent::CellAlive { id, up });
                 self.publish_central(out);
                 self.schedule_central_wake();
             }
@@ -392,8 +398,18 @@ impl ControlPlane {
                 let back = self.net_delay(self.cells[i].asymmetry_ns, -1.0);
                 self.push(back, Pending::ToCell(i, inc, CellEvent::Schedule(s)));
             }
-            Pending::ToCentralBurst(b) => self.central.on_burst(&b),
-            Pending::ToCentralStatus(s) => self.central.on_cell_status(s),
+            Pending::ToCentralBurst(b) => {
+                let out = self
+                    .central
+                    .handle(Time::from_nanos(t_ns), CentralEvent::Burst(b));
+                self.publish_central(out);
+            }
+            Pending::ToCentralStatus(s) => {
+                let out = self
+                    .central
+                    .handle(Time::from_nanos(t_ns), CentralEvent::CellStatus(s));
+                self.publish_central(out);
+            }
         }
     }
 

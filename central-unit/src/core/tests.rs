@@ -219,3 +219,36 @@ fn robots_are_reported_with_their_last_pose() {
     assert_eq!((r.x_m, r.estimator.as_str()), (1.5, "ickon-akf"));
     assert!(r.fixes_per_s > 0.0);
 }
+
+#[test]
+fn events_reach_the_same_state_as_the_methods_and_due_triggers_come_with_them() {
+    let mut c = core();
+    for id in ["c1", "c2", "c3", "c4"] {
+        c.handle(
+            Time(0),
+            Event::CellAlive {
+                id: id.into(),
+                up: true,
+            },
+        );
+    }
+    assert_eq!(c.latest_schedule().active_cells.len(), 4);
+    // A cell going away makes a new schedule at once.
+    let out = c.handle(
+        Time(1),
+        Event::CellAlive {
+            id: "c3".into(),
+            up: false,
+        },
+    );
+    let s = schedule(&out).expect("a schedule without c3");
+    assert!(!s.active_cells.contains(&"c3".to_string()));
+    // Any event at or past the wake-up time also emits the due trigger.
+    let due = c.next_wake();
+    let out = c.handle(due, Event::Fix { robot: "r1".into() });
+    assert_eq!(triggers(&out).len(), 1);
+    assert!(c.status(due).robots.iter().any(|r| r.id == "r1"));
+    // Before it, nothing is emitted.
+    let early = Time::from_nanos(c.next_wake().as_nanos() - 1);
+    assert!(c.handle(early, Event::Tick).is_empty());
+}

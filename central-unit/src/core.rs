@@ -17,9 +17,7 @@
 use std::collections::BTreeMap;
 
 use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
-use ickon_proto::msg::control::{
-    Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo, TransmitterEntry,
-};
+use ickon_proto::msg::control::{Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
@@ -153,18 +151,6 @@ impl CentralCore {
             site: self.site.name.clone(),
             version: self.site_version,
             site_toml: self.site_toml.clone(),
-            transmitters: self
-                .site
-                .transmitters
-                .iter()
-                .map(|t| TransmitterEntry {
-                    tx_id: t.id,
-                    cell_id: t.cell.clone(),
-                    x_m: t.position_m[0],
-                    y_m: t.position_m[1],
-                    z_m: t.position_m[2],
-                })
-                .collect(),
         }
     }
 

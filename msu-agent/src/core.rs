@@ -150,15 +150,14 @@ impl MsuCore {
         Ok(())
     }
 
-    /// Feeds one obstacle-sensor sample (the single front infrared stands for both sides).
+    /// Feeds one obstacle-sensor sample.
     pub fn on_range(&mut self, r: &ObstacleRanges) -> Result<(), MsuError> {
-        let ir = r.ir_valid.then_some(r.ir_m);
         self.host.feed(&Input::Range(RangeSample {
             t_s: r.stamp.as_secs_f64(),
             left_ultrasonic_m: r.left_valid.then_some(r.left_m),
             right_ultrasonic_m: r.right_valid.then_some(r.right_m),
-            left_ir_m: ir,
-            right_ir_m: ir,
+            left_ir_m: r.left_ir_valid.then_some(r.left_ir_m),
+            right_ir_m: r.right_ir_valid.then_some(r.right_ir_m),
             planned_heading_rad: None,
         }))?;
         Ok(())

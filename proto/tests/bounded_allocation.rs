@@ -8,7 +8,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use ickon_proto::msg::control::{Burst, SiteInfo};
+use ickon_proto::msg::control::{Burst, Schedule};
 use ickon_proto::msg::robot::UltrasoundArrivals;
 
 struct Counting;
@@ -45,18 +45,19 @@ fn huge_length_prefixes_allocate_at_most_a_mebibyte() {
     seq_4g.extend_from_slice(&u32::MAX.to_le_bytes());
     seq_4g.extend_from_slice(&[0u8; 64]);
 
-    let mut site_table_4g = vec![0x00, 0x01, 0x00, 0x00];
-    site_table_4g.extend_from_slice(&4u32.to_le_bytes());
-    site_table_4g.extend_from_slice(b"lab\0");
-    site_table_4g.extend_from_slice(&1u32.to_le_bytes()); // version
-    site_table_4g.extend_from_slice(&1u32.to_le_bytes()); // site_toml ""
-    site_table_4g.extend_from_slice(&[0, 0, 0, 0]);
-    site_table_4g.extend_from_slice(&u32::MAX.to_le_bytes()); // transmitters
+    let mut schedule_4g = vec![0x00, 0x01, 0x00, 0x00];
+    schedule_4g.extend_from_slice(&1u32.to_le_bytes()); // version
+    schedule_4g.extend_from_slice(&[0, 0, 0, 0]); // padding to 8
+    schedule_4g.extend_from_slice(&0u64.to_le_bytes()); // effective_cycle
+    schedule_4g.extend_from_slice(&1i64.to_le_bytes()); // cycle_period
+    schedule_4g.extend_from_slice(&1i64.to_le_bytes()); // slot_length
+    schedule_4g.extend_from_slice(&u32::MAX.to_le_bytes()); // emissions
+    schedule_4g.extend_from_slice(&[0u8; 64]);
 
     LARGEST.store(0, Ordering::Relaxed);
     assert!(ickon_proto::decode::<Burst>(&string_4gib).is_err());
     assert!(ickon_proto::decode::<UltrasoundArrivals>(&seq_4g).is_err());
-    assert!(ickon_proto::decode::<SiteInfo>(&site_table_4g).is_err());
+    assert!(ickon_proto::decode::<Schedule>(&schedule_4g).is_err());
     let largest = LARGEST.load(Ordering::Relaxed);
     assert!(
         largest <= ONE_MIB,

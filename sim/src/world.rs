@@ -193,19 +193,16 @@ impl World {
             [s.x_m, s.y_m, s.theta_rad],
             &mut self.ranger_rng,
         );
-        let ir = match (r.left_ir_m, r.right_ir_m) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
         ObstacleRanges {
             stamp: self.msu_clock.stamp(t_s),
             left_m: r.left_ultrasonic_m.unwrap_or(0.0),
             left_valid: r.left_ultrasonic_m.is_some(),
             right_m: r.right_ultrasonic_m.unwrap_or(0.0),
             right_valid: r.right_ultrasonic_m.is_some(),
-            ir_m: ir.unwrap_or(0.0),
-            ir_valid: ir.is_some(),
-            avoidance_angle_rad: 0.0,
+            left_ir_m: r.left_ir_m.unwrap_or(0.0),
+            left_ir_valid: r.left_ir_m.is_some(),
+            right_ir_m: r.right_ir_m.unwrap_or(0.0),
+            right_ir_valid: r.right_ir_m.is_some(),
         }
     }
 

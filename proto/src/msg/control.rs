@@ -20,7 +20,7 @@ pub struct TransmitterEntry {
     pub z_m: f64,
 }
 
-/// `central/site`: the site model and its transmitter lookup table.
+/// `central/site`: the site model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SiteInfo {
     /// Site name (the `<site>` of every key).
@@ -28,11 +28,10 @@ pub struct SiteInfo {
     pub site: String,
     /// Increases every time the central unit loads a new site file.
     pub version: u32,
-    /// The site file itself (TOML), so every process validates it with the same code.
+    /// The site file itself (TOML), so every process validates it with the
+    /// same code and builds the transmitter table from it.
     #[serde(deserialize_with = "crate::wire_string::deserialize")]
     pub site_toml: String,
-    /// The transmitter lookup table.
-    pub transmitters: Vec<TransmitterEntry>,
 }
 
 /// When one transmitter fires inside a cycle.

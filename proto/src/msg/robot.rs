@@ -64,12 +64,14 @@ pub struct ObstacleRanges {
     pub right_m: f64,
     /// Whether the right sensor saw something in range.
     pub right_valid: bool,
-    /// Front infrared range (0.04-0.3 m), metres; meaningful when `ir_valid`.
-    pub ir_m: f64,
-    /// Whether the infrared sensor saw something in range.
-    pub ir_valid: bool,
-    /// Heading change planned by obstacle avoidance, radians (seed 003 eq. 18).
-    pub avoidance_angle_rad: f64,
+    /// Left infrared range (0.04-0.3 m), metres; meaningful when `left_ir_valid`.
+    pub left_ir_m: f64,
+    /// Whether the left infrared sensor saw something in range.
+    pub left_ir_valid: bool,
+    /// Right infrared range (0.04-0.3 m), metres; meaningful when `right_ir_valid`.
+    pub right_ir_m: f64,
+    /// Whether the right infrared sensor saw something in range.
+    pub right_ir_valid: bool,
 }
 
 /// Quality of a fix.

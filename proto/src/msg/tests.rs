@@ -57,13 +57,6 @@ fn control_messages_round_trip() {
         site: "lab".into(),
         version: 1,
         site_toml: "name = \"lab\"\n".into(),
-        transmitters: vec![TransmitterEntry {
-            tx_id: 11,
-            cell_id: "c1".into(),
-            x_m: 1.0,
-            y_m: -2.5,
-            z_m: 2.8,
-        }],
     });
     round_trip(sample_schedule());
     round_trip(CycleTrigger {
@@ -136,9 +129,10 @@ fn robot_messages_round_trip() {
         left_valid: true,
         right_m: 0.0,
         right_valid: false,
-        ir_m: 0.1,
-        ir_valid: true,
-        avoidance_angle_rad: 0.2,
+        left_ir_m: 0.1,
+        left_ir_valid: true,
+        right_ir_m: 0.0,
+        right_ir_valid: false,
     });
     round_trip(Fix {
         stamp: Time(4),

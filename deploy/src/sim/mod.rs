@@ -11,26 +11,29 @@
 //! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
 //! status line, and a summary at the end.
 
+mod launch;
 mod metrics;
+mod observe;
+mod report;
 mod supervisor;
 
 pub use metrics::{CellSummary, RobotSummary};
 
 use std::path::PathBuf;
-use std::process::{Command, ExitCode};
+use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::control::Burst;
-use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
+use ickon_proto::keys::Keys;
 use ickon_proto::site::Site;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use serde::Serialize;
 use zenoh::sample::SampleKind;
 
 use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
-use metrics::RunStats;
+use launch::{CLOCK_STREAM, clock_flags, free_port, node_command};
+use observe::{observe, open_observer};
+use report::render_report;
 
 /// Arguments of `ickon sim`.
 #[derive(Debug, Args)]
@@ -129,69 +132,6 @@ pub fn run(args: SimArgs) -> ExitCode {
             ExitCode::from(EXIT_FAILURE)
         }
     }
-}
-
-/// A free loopback TCP port (bound and released; the node binds it right after).
-fn free_port() -> std::io::Result<u16> {
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port())
-}
-
-/// The `ickon node <role>` command line shared by every node of the mesh.
-fn node_command(
-    args: &SimArgs,
-    site: &Site,
-    role: &str,
-    central: &str,
-    listen: &str,
-) -> anyhow::Result<Command> {
-    let exe = std::env::current_exe()?;
-    let mut cmd = Command::new(exe);
-    cmd.args(["node", role, "--no-multicast-scouting", "--listen", listen]);
-    cmd.args(["--site-name", &site.name]);
-    if !central.is_empty() {
-        cmd.args(["--connect", central]);
-    }
-    if let Some(site) = &args.site {
-        cmd.arg("--site").arg(site);
-    }
-    cmd.arg("--exit-with-parent");
-    Ok(cmd)
-}
-
-async fn open_observer(central: &str) -> anyhow::Result<zenoh::Session> {
-    let mut config = zenoh::Config::default();
-    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v)
-            .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
-    };
-    set(&mut config, "mode", "\"peer\"")?;
-    set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
-    set(
-        &mut config,
-        "connect/endpoints",
-        &format!("[\"{central}\"]"),
-    )?;
-    set(&mut config, "scouting/multicast/enabled", "false")?;
-    zenoh::open(config)
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot open the observer's Zenoh session: {e}"))
-}
-
-/// Stream of the injected clock errors, so that changing the world's noise
-/// streams never changes the clocks.
-const CLOCK_STREAM: u64 = 0xC10C_C10C;
-
-fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
-    let offset_us = rng.random_range(-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US);
-    let drift_ppm = rng.random_range(-MAX_CLOCK_DRIFT_PPM..=MAX_CLOCK_DRIFT_PPM);
-    [
-        "--clock-offset-us".into(),
-        format!("{offset_us:.0}"),
-        "--clock-drift-ppm".into(),
-        format!("{drift_ppm:.1}"),
-    ]
 }
 
 async fn run_mesh(
@@ -403,251 +343,4 @@ async fn run_mesh(
         }
         None => Ok(ExitCode::SUCCESS),
     }
-}
-
-/// Decodes a payload, counting what cannot be decoded instead of failing.
-fn decode_or_count<T: serde::de::DeserializeOwned>(
-    stats: &mut RunStats,
-    key: &str,
-    payload: &[u8],
-) -> Option<T> {
-    match ickon_proto::decode(payload) {
-        Ok(v) => Some(v),
-        Err(e) => {
-            tracing::warn!("undecodable message on {key}: {e}");
-            *stats.bad_messages.entry(key.to_string()).or_default() += 1;
-            None
-        }
-    }
-}
-
-/// Watches the running mesh until the duration is over, Ctrl-C, or a node dies.
-/// Returns what was measured and, if the run failed, why.
-#[allow(clippy::too_many_arguments)]
-async fn observe(
-    args: &SimArgs,
-    site: &Site,
-    keys: &Keys,
-    session: &zenoh::Session,
-    central: &str,
-    alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-    sup: &mut supervisor::Supervisor,
-    quiet: bool,
-) -> anyhow::Result<(RunStats, Option<String>)> {
-    let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let bursts = session
-        .declare_subscriber(keys.cell_burst_all())
-        .await
-        .map_err(z)?;
-    let arrivals = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Ultrasound))
-        .await
-        .map_err(z)?;
-    let fixes = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Fix))
-        .await
-        .map_err(z)?;
-    let poses = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
-        .await
-        .map_err(z)?;
-    let truth = session
-        .declare_subscriber(keys.sim_truth_all())
-        .await
-        .map_err(z)?;
-
-    // The plain one-hop latency: a second session in this process subscribes
-    // to probes the observer publishes; both share this process's clock.
-    let probe_session = open_observer(central).await?;
-    let probe_sub = probe_session
-        .declare_subscriber(keys.sim_probe())
-        .await
-        .map_err(z)?;
-    let probe_pub = session
-        .declare_publisher(keys.sim_probe())
-        .express(true)
-        .await
-        .map_err(z)?;
-    let mut probes_sent: std::collections::HashMap<u64, Instant> = Default::default();
-    let mut probe_seq = 0u64;
-
-    let mut stats = RunStats::default();
-    for r in site.robots.iter().take(args.robots) {
-        stats.robots.insert(r.id.clone(), Default::default());
-    }
-    let started = Instant::now();
-    let end = tokio::time::Instant::now() + Duration::from_secs_f64(args.duration);
-    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    let mut probe_tick = tokio::time::interval(Duration::from_millis(100));
-    let mut last_burst: std::collections::HashMap<String, Instant> = Default::default();
-    let failure = loop {
-        tokio::select! {
-            _ = tokio::time::sleep_until(end) => break None,
-            _ = tokio::signal::ctrl_c() => {
-                if !quiet { eprintln!("\nickon sim: interrupted, stopping every node"); }
-                break Some("interrupted by Ctrl-C".to_string());
-            }
-            Ok(s) = alive.recv_async() => {
-                if s.kind() == SampleKind::Delete {
-                    tracing::warn!("{} went away", s.key_expr());
-                }
-            }
-            Ok(s) = bursts.recv_async() => {
-                let key = s.key_expr().as_str().to_string();
-                if let Some(b) = decode_or_count::<Burst>(&mut stats, &key, &s.payload().to_bytes()) {
-                    last_burst.insert(b.cell_id.clone(), Instant::now());
-                    stats.cells.entry(b.cell_id.clone()).or_default().on_burst(&b);
-                }
-            }
-            Ok(s) = arrivals.recv_async() => {
-                let at = Instant::now();
-                let key = s.key_expr().as_str().to_string();
-                if let (Ok(Key::Robot(id, _)), Some(m)) = (keys.parse(&key), decode_or_count::<UltrasoundArrivals>(&mut stats, &key, &s.payload().to_bytes())) {
-                    stats.robots.entry(id).or_default().on_arrivals(m.seq, at);
-                }
-            }
-            Ok(s) = fixes.recv_async() => {
-                let at = Instant::now();
-                let key = s.key_expr().as_str().to_string();
-                if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
-                    if decode_or_count::<ickon_proto::msg::robot::Fix>(&mut stats, &key, &s.payload().to_bytes()).is_some() {
-                        stats.robots.entry(id).or_default().on_fix(at);
-                    }
-                }
-            }
-            Ok(s) = poses.recv_async() => {
-                let at = Instant::now();
-                let key = s.key_expr().as_str().to_string();
-                if let (Ok(Key::Robot(id, _)), Some(p)) = (keys.parse(&key), decode_or_count::<RobotPose>(&mut stats, &key, &s.payload().to_bytes())) {
-                    stats.robots.entry(id).or_default().on_pose(&p, at);
-                }
-            }
-            Ok(s) = truth.recv_async() => {
-                let key = s.key_expr().as_str().to_string();
-                if let (Ok(Key::SimTruth(id)), Some(t)) = (keys.parse(&key), decode_or_count::<Truth>(&mut stats, &key, &s.payload().to_bytes())) {
-                    stats.robots.entry(id).or_default().on_truth(t);
-                }
-            }
-            Ok(s) = probe_sub.recv_async() => {
-                let at = Instant::now();
-                if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes()) {
-                    if let Some(sent) = probes_sent.remove(&seq) {
-                        stats.hop_latencies_us.push(at.duration_since(sent).as_secs_f64() * 1e6);
-                    }
-                }
-            }
-            _ = probe_tick.tick() => {
-                probe_seq += 1;
-                probes_sent.insert(probe_seq, Instant::now());
-                if let Ok(bytes) = ickon_proto::encode(&probe_seq) {
-                    let _ = probe_pub.put(bytes).await;
-                }
-                probes_sent.retain(|_, t| t.elapsed() < Duration::from_secs(5));
-            }
-            _ = status_tick.tick() => {
-                if let Some(dead) = sup.first_dead() {
-                    break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
-                }
-                if !quiet {
-                    let line = status_line(&stats, &last_burst, site.cells.len(), started);
-                    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-                        eprint!("\r{line}");
-                    } else if started.elapsed().as_secs() % 5 == 0 {
-                        // A log, not a terminal: a line every five seconds.
-                        eprintln!("{}", line.trim_end());
-                    }
-                }
-            }
-        }
-    };
-    if !quiet {
-        eprintln!();
-    }
-    let _ = probe_session.close().await;
-    Ok((stats, failure))
-}
-
-fn status_line(
-    stats: &RunStats,
-    last_burst: &std::collections::HashMap<String, Instant>,
-    cells: usize,
-    started: Instant,
-) -> String {
-    let firing = last_burst
-        .values()
-        .filter(|t| t.elapsed() < Duration::from_secs(2))
-        .count();
-    let robots: Vec<String> = stats
-        .robots
-        .iter()
-        .map(|(id, r)| {
-            let err = r
-                .current_error_m
-                .map(|e| format!("{:>4.0} mm", e * 1e3))
-                .unwrap_or_else(|| "   - mm".into());
-            format!("{id} {:>4.1} fix/s {err}", r.fixes_per_s())
-        })
-        .collect();
-    format!(
-        "[{:>5.0} s] {} | cells firing {firing}/{cells}   ",
-        started.elapsed().as_secs_f64(),
-        robots.join(" | ")
-    )
-}
-
-fn render_report(r: &SimReport) -> String {
-    use std::fmt::Write;
-    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
-    let us = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0}"));
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s, {:.2} cycles/s",
-        r.site, r.estimator, r.profile, r.seed, r.duration_s, r.update_rate_hz
-    );
-    let _ = writeln!(
-        out,
-        "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12}",
-        "robot", "fixes", "poses", "mean mm", "rmse mm", "p95 mm", "lat p50 us", "lat p99 us"
-    );
-    for x in &r.robots {
-        let _ = writeln!(
-            out,
-            "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12}",
-            x.id,
-            x.fixes,
-            x.poses,
-            mm(x.mean_mm),
-            mm(x.rmse_mm),
-            mm(x.p95_mm),
-            us(x.latency_p50_us),
-            us(x.latency_p99_us)
-        );
-    }
-    let _ = writeln!(
-        out,
-        "zenoh one-hop latency: p50 {} us, p99 {} us",
-        us(r.zenoh_hop_p50_us),
-        us(r.zenoh_hop_p99_us)
-    );
-    let _ = writeln!(
-        out,
-        "{:<6} {:>12} {:>8} {:>16} {:>16}",
-        "cell", "cycles fired", "bursts", "sync err p99 us", "sync err max us"
-    );
-    for c in &r.cells {
-        let _ = writeln!(
-            out,
-            "{:<6} {:>12} {:>8} {:>16} {:>16}",
-            c.id,
-            c.cycles_fired,
-            c.bursts,
-            us(c.sync_error_us),
-            us(c.sync_error_max_us)
-        );
-    }
-    if r.bad_messages > 0 {
-        let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);
-    }
-    out
 }

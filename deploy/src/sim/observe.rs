@@ -1,0 +1,195 @@
+//! Watching the mesh of `ickon sim` with the launcher's own Zenoh session:
+//! liveliness, bursts, arrivals, fixes, poses and the truth, into [`RunStats`].
+
+use std::time::{Duration, Instant};
+
+use ickon_proto::keys::{Key, Keys, RobotTopic};
+use ickon_proto::msg::control::Burst;
+use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
+use ickon_proto::site::Site;
+use zenoh::sample::SampleKind;
+
+use super::metrics::RunStats;
+use super::report::status_line;
+use super::{SimArgs, supervisor};
+
+pub(super) async fn open_observer(central: &str) -> anyhow::Result<zenoh::Session> {
+    let mut config = zenoh::Config::default();
+    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
+        c.insert_json5(k, v)
+            .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
+    };
+    set(&mut config, "mode", "\"peer\"")?;
+    set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
+    set(
+        &mut config,
+        "connect/endpoints",
+        &format!("[\"{central}\"]"),
+    )?;
+    set(&mut config, "scouting/multicast/enabled", "false")?;
+    zenoh::open(config)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot open the observer's Zenoh session: {e}"))
+}
+
+/// Decodes a payload, counting what cannot be decoded instead of failing.
+pub(super) fn decode_or_count<T: serde::de::DeserializeOwned>(
+    stats: &mut RunStats,
+    key: &str,
+    payload: &[u8],
+) -> Option<T> {
+    match ickon_proto::decode(payload) {
+        Ok(v) => Some(v),
+        Err(e) => {
+            tracing::warn!("undecodable message on {key}: {e}");
+            *stats.bad_messages.entry(key.to_string()).or_default() += 1;
+            None
+        }
+    }
+}
+
+/// Watches the running mesh until the duration is over, Ctrl-C, or a node dies.
+/// Returns what was measured and, if the run failed, why.
+#[allow(clippy::too_many_arguments)]
+pub(super) async fn observe(
+    args: &SimArgs,
+    site: &Site,
+    keys: &Keys,
+    session: &zenoh::Session,
+    central: &str,
+    alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    sup: &mut supervisor::Supervisor,
+    quiet: bool,
+) -> anyhow::Result<(RunStats, Option<String>)> {
+    let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    let bursts = session
+        .declare_subscriber(keys.cell_burst_all())
+        .await
+        .map_err(z)?;
+    let arrivals = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Ultrasound))
+        .await
+        .map_err(z)?;
+    let fixes = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Fix))
+        .await
+        .map_err(z)?;
+    let poses = session
+        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
+        .await
+        .map_err(z)?;
+    let truth = session
+        .declare_subscriber(keys.sim_truth_all())
+        .await
+        .map_err(z)?;
+
+    // The plain one-hop latency: a second session in this process subscribes
+    // to probes the observer publishes; both share this process's clock.
+    let probe_session = open_observer(central).await?;
+    let probe_sub = probe_session
+        .declare_subscriber(keys.sim_probe())
+        .await
+        .map_err(z)?;
+    let probe_pub = session
+        .declare_publisher(keys.sim_probe())
+        .express(true)
+        .await
+        .map_err(z)?;
+    let mut probes_sent: std::collections::HashMap<u64, Instant> = Default::default();
+    let mut probe_seq = 0u64;
+
+    let mut stats = RunStats::default();
+    for r in site.robots.iter().take(args.robots) {
+        stats.robots.insert(r.id.clone(), Default::default());
+    }
+    let started = Instant::now();
+    let end = tokio::time::Instant::now() + Duration::from_secs_f64(args.duration);
+    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
+    let mut probe_tick = tokio::time::interval(Duration::from_millis(100));
+    let mut last_burst: std::collections::HashMap<String, Instant> = Default::default();
+    let failure = loop {
+        tokio::select! {
+            _ = tokio::time::sleep_until(end) => break None,
+            _ = tokio::signal::ctrl_c() => {
+                if !quiet { eprintln!("\nickon sim: interrupted, stopping every node"); }
+                break Some("interrupted by Ctrl-C".to_string());
+            }
+            Ok(s) = alive.recv_async() => {
+                if s.kind() == SampleKind::Delete {
+                    tracing::warn!("{} went away", s.key_expr());
+                }
+            }
+            Ok(s) = bursts.recv_async() => {
+                let key = s.key_expr().as_str().to_string();
+                if let Some(b) = decode_or_count::<Burst>(&mut stats, &key, &s.payload().to_bytes()) {
+                    last_burst.insert(b.cell_id.clone(), Instant::now());
+                    stats.cells.entry(b.cell_id.clone()).or_default().on_burst(&b);
+                }
+            }
+            Ok(s) = arrivals.recv_async() => {
+                let at = Instant::now();
+                let key = s.key_expr().as_str().to_string();
+                if let (Ok(Key::Robot(id, _)), Some(m)) = (keys.parse(&key), decode_or_count::<UltrasoundArrivals>(&mut stats, &key, &s.payload().to_bytes())) {
+                    stats.robots.entry(id).or_default().on_arrivals(m.seq, at);
+                }
+            }
+            Ok(s) = fixes.recv_async() => {
+                let at = Instant::now();
+                let key = s.key_expr().as_str().to_string();
+                if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
+                    if decode_or_count::<ickon_proto::msg::robot::Fix>(&mut stats, &key, &s.payload().to_bytes()).is_some() {
+                        stats.robots.entry(id).or_default().on_fix(at);
+                    }
+                }
+            }
+            Ok(s) = poses.recv_async() => {
+                let at = Instant::now();
+                let key = s.key_expr().as_str().to_string();
+                if let (Ok(Key::Robot(id, _)), Some(p)) = (keys.parse(&key), decode_or_count::<RobotPose>(&mut stats, &key, &s.payload().to_bytes())) {
+                    stats.robots.entry(id).or_default().on_pose(&p, at);
+                }
+            }
+            Ok(s) = truth.recv_async() => {
+                let key = s.key_expr().as_str().to_string();
+                if let (Ok(Key::SimTruth(id)), Some(t)) = (keys.parse(&key), decode_or_count::<Truth>(&mut stats, &key, &s.payload().to_bytes())) {
+                    stats.robots.entry(id).or_default().on_truth(t);
+                }
+            }
+            Ok(s) = probe_sub.recv_async() => {
+                let at = Instant::now();
+                if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes()) {
+                    if let Some(sent) = probes_sent.remove(&seq) {
+                        stats.hop_latencies_us.push(at.duration_since(sent).as_secs_f64() * 1e6);
+                    }
+                }
+            }
+            _ = probe_tick.tick() => {
+                probe_seq += 1;
+                probes_sent.insert(probe_seq, Instant::now());
+                if let Ok(bytes) = ickon_proto::encode(&probe_seq) {
+                    let _ = probe_pub.put(bytes).await;
+                }
+                probes_sent.retain(|_, t| t.elapsed() < Duration::from_secs(5));
+            }
+            _ = status_tick.tick() => {
+                if let Some(dead) = sup.first_dead() {
+                    break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
+                }
+                if !quiet {
+                    let line = status_line(&stats, &last_burst, site.cells.len(), started);
+                    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+                        eprint!("\r{line}");
+                    } else if started.elapsed().as_secs() % 5 == 0 {
+                        // A log, not a terminal: a line every five seconds.
+                        eprintln!("{}", line.trim_end());
+                    }
+                }
+            }
+        }
+    };
+    if !quiet {
+        eprintln!();
+    }
+    let _ = probe_session.close().await;
+    Ok((stats, failure))
+}

@@ -38,4 +38,5 @@ mod tests;
 pub use cv3d::{TdoaEkf3d, TdoaEkf3dParams};
 pub use ground::{TdoaEkf, TdoaEkfParams};
 pub use observation::{Outcome, Rejection};
+pub(crate) use observation::{check, gated_update};
 pub use recovery::RecoveryParams;

@@ -90,8 +90,11 @@ pub fn util_cv_params(o: Overrides) -> CvParams {
 }
 
 /// `imu-eskf`'s filter: the library defaults ([`ImuParams::default`], all
-/// chosen from the IMU's class, none from this data), the UTIL antenna
-/// lever arm, the start yaw and the same body shadow as `tdoa-ekf`.
+/// chosen from the IMU's class, none fitted to this data), the UTIL
+/// antenna lever arm, the start yaw, the same body shadow as `tdoa-ekf`,
+/// and the multirotor's thrust-axis model (`thrust_axis_only`: the UTIL
+/// vehicle is a quadrotor; in flight its accelerometer's horizontal
+/// channels read a tenth to a quarter of a g while it hovers level).
 pub fn util_imu_params(antenna_body_m: [f64; 3], initial_yaw_rad: f64, o: Overrides) -> ImuParams {
     let d = ImuParams::default();
     ImuParams {
@@ -99,6 +102,7 @@ pub fn util_imu_params(antenna_body_m: [f64; 3], initial_yaw_rad: f64, o: Overri
         initial_yaw_rad,
         shadow_m: o.shadow_m.unwrap_or(UTIL_SHADOW_M),
         shadow_prior_sigma_m: o.shadow_prior_sigma_m.unwrap_or(0.0),
+        thrust_axis_only: true,
         ..d
     }
 }

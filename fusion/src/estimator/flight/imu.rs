@@ -81,6 +81,13 @@ pub struct ImuParams {
     /// IMU samples further apart than this are not integrated across (a
     /// gap in the stream), seconds.
     pub max_imu_gap_s: f64,
+    /// Propagate with the specific force along the body z axis only (a
+    /// multirotor: its rotors push along body z, the horizontal specific
+    /// force is rotor drag, and the accelerometer's horizontal channels
+    /// carry vibration and misalignment larger than that in flight). The
+    /// accelerometer's x and y are then used only for levelling on the
+    /// ground.
+    pub thrust_axis_only: bool,
 }
 
 impl Default for ImuParams {
@@ -109,6 +116,7 @@ impl Default for ImuParams {
             antenna_body_m: [0.0; 3],
             gravity_m_s2: 9.81,
             max_imu_gap_s: 0.1,
+            thrust_axis_only: false,
         }
     }
 }
@@ -287,7 +295,11 @@ impl ImuFilter {
             return;
         }
         let r = self.q.to_rotation_matrix().into_inner();
-        let a_b = Vector3::from(imu.accel_m_s2) - self.ba;
+        let mut a_b = Vector3::from(imu.accel_m_s2) - self.ba;
+        if self.params.thrust_axis_only {
+            a_b.x = 0.0;
+            a_b.y = 0.0;
+        }
         let w = Vector3::from(imu.gyro_rad_s) - self.bg;
         let g = Vector3::new(0.0, 0.0, -self.params.gravity_m_s2);
         let a_w = r * a_b + g;
@@ -302,7 +314,13 @@ impl ImuFilter {
         f.fixed_view_mut::<3, 3>(P, V).copy_from(&(i3 * dt));
         f.fixed_view_mut::<3, 3>(V, TH)
             .copy_from(&(-r * skew(&a_b) * dt));
-        f.fixed_view_mut::<3, 3>(V, BA).copy_from(&(-r * dt));
+        let mut dba = -r * dt;
+        if self.params.thrust_axis_only {
+            // The horizontal channels are not used: nor are their biases.
+            dba.column_mut(0).fill(0.0);
+            dba.column_mut(1).fill(0.0);
+        }
+        f.fixed_view_mut::<3, 3>(V, BA).copy_from(&dba);
         f.fixed_view_mut::<3, 3>(TH, TH)
             .copy_from(&dq.to_rotation_matrix().into_inner().transpose());
         f.fixed_view_mut::<3, 3>(TH, BG).copy_from(&(-i3 * dt));
@@ -412,6 +430,20 @@ impl GuardedFilter for ImuFilter {
             Ok(ok) => ok,
             Err(r) => return Outcome::Rejected(r),
         };
+        let mut dx = dx;
+        if self.params.thrust_axis_only {
+            // With the specific force along body z, rotating about the
+            // vertical changes no prediction: yaw and the vertical gyro
+            // bias are unobservable from range differences (but for the
+            // centimetre of horizontal lever arm), and a correction to
+            // them is an artefact of the linearisation. Drop it.
+            for block in [TH, BG] {
+                let mut w = r * dx.fixed_rows::<3>(block);
+                w.z = 0.0;
+                dx.fixed_rows_mut::<3>(block)
+                    .copy_from(&(r.transpose() * w));
+            }
+        }
         self.p_m += dx.fixed_rows::<3>(P);
         self.v_m_s += dx.fixed_rows::<3>(V);
         self.q *= UnitQuaternion::from_scaled_axis(dx.fixed_rows::<3>(TH).into_owned());

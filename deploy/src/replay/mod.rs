@@ -1,11 +1,13 @@
 //! `ickon replay`: recorded measurements through the positioning stack.
 //!
-//! `ickon replay util` reads a UTIL flight ([`util_csv`]) as a stream, feeds
-//! every TDOA to each estimator ([`estimators`]), scores each estimate
-//! against the truth interpolated at its time with the antenna offset
-//! ([`score`]), and prints a table (or one JSON document) and optionally
-//! PNG plots ([`plot`]). A bad file is reported with its name and line and
-//! exit code 2.
+//! `ickon replay util` reads a UTIL flight ([`util_csv`]: its TDOA, truth
+//! and, in the 27-column layout, IMU streams), feeds every TDOA in time
+//! order to each estimator ([`estimators`]; the IMU samples up to its time
+//! first, to `imu-eskf`), scores each published estimate against the truth
+//! interpolated at its time with the antenna lever arm ([`score`], and the
+//! attitude: [`attitude`]), and prints a table (or one JSON document) and
+//! optionally PNG plots ([`plot`]). A bad file is reported with its name
+//! and line and exit code 2.
 
 mod attitude;
 mod estimators;

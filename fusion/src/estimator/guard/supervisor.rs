@@ -44,7 +44,9 @@ pub trait GuardedFilter {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LostParams {
-    /// The share of gate rejections that makes a filter lost.
+    /// The share of gate rejections that makes a filter lost (`window` and
+    /// `rejected_share`; the watch re-places the filter from a window
+    /// instead of widening it, so `sigma_m` is not used).
     pub rejections: RecoveryParams,
     /// Consecutive updates ending outside the volume that make it lost.
     pub outside_updates: u32,

@@ -270,6 +270,17 @@ fn bad_input_exits_with_code_two_naming_file_and_line() {
         "{err}"
     );
 
+    // An anchor file with several constellations needs --constellation.
+    let out = ickon()
+        .args(["replay", "util", "--data"])
+        .arg(&flight)
+        .arg("--anchors")
+        .arg(&anchors)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--constellation"));
+
     // --imu needs the IMU columns; --bounds six ordered numbers.
     let out = ickon()
         .args(["replay", "util", "--imu", "--constellation", "1", "--data"])

@@ -228,3 +228,84 @@ impl Window {
         Some((second.position_m, sigma, rms))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Anchors in the plane z = 1.5 and a receiver at (2, 3, 0.8): its
+    /// mirror (2, 3, 2.2) fits every range difference as well.
+    fn window_below_a_plane_of_anchors() -> Window {
+        let anchors: Vec<[f64; 3]> = [
+            (0.0, 0.0),
+            (6.0, 0.0),
+            (6.0, 6.0),
+            (0.0, 6.0),
+            (3.0, 0.0),
+            (0.0, 3.0),
+        ]
+        .iter()
+        .map(|&(x, y)| [x, y, 1.5])
+        .collect();
+        let p = Vector3::new(2.0, 3.0, 0.8);
+        let mut w = Window::new(WindowParams::default());
+        for k in 0..30 {
+            let (a, b) = (anchors[k % 6], anchors[(k + 1) % 6]);
+            let d = (p - Vector3::from(b)).norm() - (p - Vector3::from(a)).norm();
+            w.push(RangeDifferenceSample {
+                t_s: k as f64 * 0.002,
+                a_m: a,
+                b_m: b,
+                d_m: d,
+                sigma_m: 0.05,
+            });
+        }
+        w
+    }
+
+    #[test]
+    fn mirror_solutions_are_ambiguous_without_a_hint_and_the_nearest_wins_with_one() {
+        let w = window_below_a_plane_of_anchors();
+        let room = FlightVolume::new([-0.5, -0.5, 0.0], [6.5, 6.5, 3.0]).unwrap();
+        match w.solve(&room, None) {
+            WindowFix::Ambiguous { candidates_m } => {
+                assert_eq!(candidates_m.len(), 2);
+                let mut z: Vec<f64> = candidates_m.iter().map(|c| c.z).collect();
+                z.sort_by(f64::total_cmp);
+                assert!(
+                    (z[0] - 0.8).abs() < 1e-3 && (z[1] - 2.2).abs() < 1e-3,
+                    "{z:?}"
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+        let hint = Some(Vector3::new(2.5, 3.0, 1.0));
+        match w.solve(&room, hint) {
+            WindowFix::Fix { position_m, .. } => assert!((position_m.z - 0.8).abs() < 1e-3),
+            other => panic!("{other:?}"),
+        }
+        // A room whose ceiling is the anchors' plane admits one.
+        let low_room = FlightVolume::new([-0.5, -0.5, 0.0], [6.5, 6.5, 1.5]).unwrap();
+        assert!(matches!(w.solve(&low_room, None), WindowFix::Fix { .. }));
+    }
+
+    #[test]
+    fn too_few_or_inconsistent_measurements_give_no_fix() {
+        let mut w = window_below_a_plane_of_anchors();
+        let room = FlightVolume::new([-0.5, -0.5, 0.0], [6.5, 6.5, 1.5]).unwrap();
+        // Half the window off by a metre: under 70 % fit.
+        let t = 0.06;
+        for k in 0..30 {
+            w.push(RangeDifferenceSample {
+                t_s: t,
+                a_m: [0.0, 0.0, 1.5],
+                b_m: [6.0, 0.0, 1.5],
+                d_m: if k % 2 == 0 { 1.0 } else { -1.0 },
+                sigma_m: 0.05,
+            });
+        }
+        assert_eq!(w.solve(&room, None), WindowFix::Inconsistent);
+        w.clear();
+        assert_eq!(w.solve(&room, None), WindowFix::Inconsistent);
+    }
+}

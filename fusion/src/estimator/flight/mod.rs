@@ -10,9 +10,11 @@
 
 mod cv;
 mod imu;
+mod imu_params;
 mod shadow;
 #[cfg(test)]
 mod tests;
 
 pub use cv::{CvFilter, CvParams};
-pub use imu::{ImuFilter, ImuParams, ImuSample};
+pub use imu::{ImuFilter, ImuSample};
+pub use imu_params::ImuParams;

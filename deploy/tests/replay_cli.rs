@@ -182,6 +182,46 @@ fn imu_flight_scores_position_and_attitude() {
     assert!(imu["output_began_s"].as_f64().unwrap() > 0.0, "{imu}");
 }
 
+/// The tag's clock steps 5 s forward 10 s into a real flight (both
+/// streams, as they share the clock): the filter restarts from a window
+/// instead of coasting along its velocity across the jump, and what it
+/// publishes stays as close as before.
+#[test]
+fn a_clock_jump_in_the_file_restarts_the_filter_without_a_jump_in_the_estimate() {
+    let text = std::fs::read_to_string(data("const1-trial1-tdoa2.csv")).unwrap();
+    let mut out = String::new();
+    for (k, line) in text.lines().enumerate() {
+        let mut f: Vec<String> = line.split(',').map(str::to_owned).collect();
+        if k > 0 {
+            for i in [3, 7] {
+                if let Ok(t) = f[i].parse::<f64>() {
+                    f[i] = format!("{}", if t > 10.0 { t + 5.0 } else { t });
+                }
+            }
+        }
+        out.push_str(&f.join(","));
+        out.push('\n');
+        // About 30 s of measurements.
+        if k > 14_000 {
+            break;
+        }
+    }
+    let jumped = temp_file("jumped.csv", &out);
+    let run = ickon()
+        .args(["replay", "util", "--json", "--constellation", "1", "--data"])
+        .arg(&jumped)
+        .arg("--anchors")
+        .arg(data("anchors.csv"))
+        .output()
+        .unwrap();
+    let doc = json(&run);
+    let ekf = estimator(&doc, "tdoa-ekf");
+    assert_eq!(ekf["guard"]["lost_time_jump"].as_u64(), Some(1), "{ekf}");
+    assert!(ekf["guard"]["placements"].as_u64().unwrap() >= 2, "{ekf}");
+    assert!(ekf["max_3d_m"].as_f64().unwrap() < 0.5, "{ekf}");
+    std::fs::remove_file(jumped).unwrap();
+}
+
 #[test]
 fn plot_writes_the_trajectory_and_the_error_pictures() {
     let dir = std::env::temp_dir().join(format!("ickon-replay-plot-{}", std::process::id()));

@@ -1,34 +1,33 @@
 //! `ickon replay`: recorded measurements through the positioning stack.
 //!
-//! `ickon replay util` reads a UTIL flight ([`util_csv`]) as a stream, feeds
-//! every TDOA to each estimator ([`estimators`]), scores each estimate
-//! against the truth interpolated at its time with the antenna offset
-//! ([`score`]), and prints a table (or one JSON document) and optionally
-//! PNG plots ([`plot`]). A bad file is reported with its name and line and
-//! exit code 2.
+//! `ickon replay util` reads a UTIL flight ([`util_csv`]: its TDOA, truth
+//! and, in the 27-column layout, IMU streams), feeds every TDOA in time
+//! order to each estimator ([`estimators`]; the IMU samples up to its time
+//! first, to `imu-eskf`), scores each published estimate against the truth
+//! interpolated at its time with the antenna lever arm ([`score`], and the
+//! attitude: [`attitude`]), and prints a table (or one JSON document) and
+//! optionally PNG plots ([`plot`]). A bad file is reported with its name
+//! and line and exit code 2.
 
+mod attitude;
 mod estimators;
 mod plot;
+mod run;
 mod score;
 mod util_csv;
 
-use std::collections::HashMap;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand};
-use ickon_fusion::estimator::RangeDifferenceSample;
+use ickon_fusion::estimator::guard::{FlightVolume, GuardCounts};
 
 use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
-use estimators::{EkfRunner, MEASUREMENT_SIGMA_M, Rejections, WindowRunner};
-use score::{Summary, Track, Truth};
-use util_csv::{InputError, UtilReader};
-
-/// The UWB antenna in the body frame of the UTIL drone, metres; the
-/// extracts have no orientation, so only its height (+0.0908 m, nearly
-/// all of it) is applied to the body centre.
-const ANTENNA_OFFSET_M: [f64; 3] = [0.0, 0.0, 0.0908];
+use attitude::AttitudeSummary;
+use estimators::Rejections;
+use run::{Replayed, replay};
+use score::Summary;
 
 /// Recorded data sets `ickon replay` understands.
 #[derive(Debug, Subcommand)]
@@ -40,25 +39,63 @@ pub enum ReplaySource {
 /// Arguments of `ickon replay util`.
 #[derive(Debug, Args)]
 pub struct UtilArgs {
-    /// The measurement CSV (`idA,idB,tdoa_meas,t_tdoa,pose_x,pose_y,pose_z,t_pose`).
+    /// The measurement CSV: the extracts' 8 columns
+    /// (`idA,idB,tdoa_meas,t_tdoa,pose_x,pose_y,pose_z,t_pose`) or the
+    /// 27-column layout with the IMU and the truth orientation.
     #[arg(long)]
     pub data: PathBuf,
-    /// The anchor CSV (`constellation,anchor_id,x,y,z`).
+    /// The anchor CSV (`constellation,anchor_id,x,y,z`, or
+    /// `anchor_id,x_m,y_m,z_m,...` for one layout).
     #[arg(long)]
     pub anchors: PathBuf,
-    /// Which anchor constellation the flight used.
+    /// Which anchor constellation the flight used (anchor files with a
+    /// `constellation` column).
     #[arg(long)]
-    pub constellation: u32,
+    pub constellation: Option<u32>,
+    /// Also run the IMU error-state filter (`imu-eskf`); the file must
+    /// have the IMU columns.
+    #[arg(long)]
+    pub imu: bool,
+    /// The flight volume `xmin,ymin,zmin,xmax,ymax,zmax` in metres
+    /// (default: the anchors' box grown by 0.5 m).
+    #[arg(long, value_parser = parse_bounds)]
+    pub bounds: Option<FlightVolume>,
+    /// Yaw of the vehicle when first placed, degrees from +x (for
+    /// `imu-eskf`; UTIL flights start facing +x).
+    #[arg(long, default_value_t = 0.0)]
+    pub initial_yaw_deg: f64,
+    /// Override of `tdoa-ekf`'s acceleration density, m^2/s^3 (for
+    /// parameter studies).
+    #[arg(long)]
+    pub accel_psd_m2_s3: Option<f64>,
+    /// Override of the body shadow, metres (default: 0.0908, the
+    /// antenna's height above the body centre; 0: no body model).
+    #[arg(long)]
+    pub shadow_m: Option<f64>,
+    /// Estimate the body shadow online with this prior standard deviation
+    /// around `--shadow-m`, metres (default 0: held).
+    #[arg(long)]
+    pub shadow_prior_sigma_m: Option<f64>,
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
     /// Write PNG plots into this directory.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Replay only the first this many seconds of measurements (the truth
-    /// is read as far as it is needed to score them).
+    /// Replay only the first this many seconds of measurements.
     #[arg(long)]
     pub max_seconds: Option<f64>,
+}
+
+fn parse_bounds(s: &str) -> Result<FlightVolume, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("`{x}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    let [x0, y0, z0, x1, y1, z1] = v[..] else {
+        return Err("expected six numbers: xmin,ymin,zmin,xmax,ymax,zmax".into());
+    };
+    FlightVolume::new([x0, y0, z0], [x1, y1, z1]).map_err(|e| e.to_string())
 }
 
 /// The result of one estimator on one flight.
@@ -69,10 +106,20 @@ struct EstimatorReport {
     summary: Summary,
     estimates: u64,
     unscored: u64,
+    /// Seconds from the first measurement to the first published estimate.
+    output_began_s: Option<f64>,
+    /// Share of the measurements after which an estimate was published.
+    published_pct: f64,
     output_rate_hz: f64,
     rejected_pct: f64,
     rejected: Rejections,
     recoveries: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    guard: Option<GuardCounts>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    shadow_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    attitude: Option<AttitudeSummary>,
     wall_s: f64,
 }
 
@@ -89,7 +136,7 @@ fn util(args: &UtilArgs) -> ExitCode {
         return ExitCode::from(EXIT_BAD_INPUT);
     }
     let started = Instant::now();
-    let (measurements, duration_s, ekf, window, tracks) = match replay(args) {
+    let replayed = match replay(args) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {e}");
@@ -97,58 +144,34 @@ fn util(args: &UtilArgs) -> ExitCode {
         }
     };
     let wall = started.elapsed();
-    let reports = [
-        report(
-            "tdoa-ekf",
-            &tracks[0],
-            measurements,
-            duration_s,
-            ekf.0.rejections,
-            ekf.0.recoveries(),
-            ekf.1,
-        ),
-        report(
-            "window-gn",
-            &tracks[1],
-            measurements,
-            duration_s,
-            window.0.rejections,
-            0,
-            window.1,
-        ),
-    ];
     let file = args.data.display().to_string();
+    let r = &replayed;
     if args.json {
         let doc = serde_json::json!({
             "file": file,
             "anchors": args.anchors.display().to_string(),
             "constellation": args.constellation,
-            "measurements": measurements,
-            "duration_s": duration_s,
+            "volume": r.volume,
+            "measurements": r.measurements,
+            "duration_s": r.duration_s,
             "wall_s": wall.as_secs_f64(),
-            "estimators": reports,
+            "estimators": r.reports,
         });
         println!("{doc}");
     } else {
-        print_table(
-            &file,
-            args.constellation,
-            measurements,
-            duration_s,
-            wall,
-            &reports,
-        );
+        print_table(&file, r, wall);
     }
     if let Some(dir) = &args.plot {
         let stem = args
             .data
             .file_stem()
             .map_or("replay".into(), |s| s.to_string_lossy());
-        let series: Vec<&[score::SeriesPoint]> = tracks
+        let series: Vec<&[score::SeriesPoint]> = r
+            .tracks
             .iter()
             .map(|t| t.series.as_deref().unwrap_or(&[]))
             .collect();
-        let names: Vec<&str> = reports.iter().map(|r| r.name).collect();
+        let names: Vec<&str> = r.reports.iter().map(|r| r.name).collect();
         if let Err(e) = plot::write_all(dir, &stem, &names, &series) {
             eprintln!("error: cannot write plots to {}: {e}", dir.display());
             return ExitCode::from(EXIT_FAILURE);
@@ -157,150 +180,36 @@ fn util(args: &UtilArgs) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-type Replayed = (
-    u64,
-    f64,
-    (EkfRunner, Duration),
-    (WindowRunner, Duration),
-    [Track; 2],
-);
-
-/// Streams the flight through both estimators and the scoring.
-fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
-    let anchors = util_csv::read_anchors(&args.anchors, args.constellation)?;
-    let mut reader = UtilReader::open(&args.data)?;
-    let start_m = estimators::centroid(&anchors);
-    let mut ekf = (
-        EkfRunner::new(estimators::util_ekf_params(), start_m),
-        Duration::ZERO,
-    );
-    let mut window = (WindowRunner::new(start_m), Duration::ZERO);
-    let plot = args.plot.is_some();
-    let mut tracks = [Track::new(plot), Track::new(plot)];
-    let mut truth = Truth::new(ANTENNA_OFFSET_M);
-    let (mut measurements, mut first_s, mut last_s) = (0_u64, None, 0.0);
-    let mut measuring = true;
-    while let Some(row) = reader.next_row()? {
-        if let Some(m) = row.tdoa.filter(|_| measuring) {
-            let first = *first_s.get_or_insert(m.t_s);
-            if args.max_seconds.is_some_and(|s| m.t_s - first > s) {
-                measuring = false;
-            } else {
-                let sample = sample(&anchors, &m, &reader, row.line)?;
-                measurements += 1;
-                last_s = m.t_s;
-                let t0 = Instant::now();
-                if let Some((t, p)) = ekf.0.step(&sample) {
-                    tracks[0].push(t, p);
-                }
-                let t1 = Instant::now();
-                if let Some((t, p)) = window.0.step(&sample) {
-                    tracks[1].push(t, p);
-                }
-                ekf.1 += t1 - t0;
-                window.1 += t1.elapsed();
-            }
-        }
-        if let Some(t) = row.truth {
-            let [a, b] = &mut tracks;
-            truth.push(t, &mut [a, b]);
-            // With a prefix replayed, stop once the truth covers it.
-            if !measuring && t.t_s > last_s {
-                break;
-            }
-        }
-    }
-    if let Some((t, p)) = window.0.finish() {
-        tracks[1].push(t, p);
-    }
-    let [a, b] = &mut tracks;
-    truth.finish(&mut [a, b]);
-    let duration_s = first_s.map_or(0.0, |f| last_s - f);
-    Ok((measurements, duration_s, ekf, window, tracks))
-}
-
-/// The range difference of a TDOA row, with its anchors looked up.
-fn sample(
-    anchors: &HashMap<u32, [f64; 3]>,
-    m: &util_csv::TdoaRow,
-    reader: &UtilReader,
-    line: u64,
-) -> Result<RangeDifferenceSample, InputError> {
-    let find = |id: u32| {
-        anchors
-            .get(&id)
-            .copied()
-            .ok_or_else(|| InputError::Malformed {
-                path: reader.path().to_owned(),
-                line,
-                message: format!("anchor {id} is not in the anchor file for this constellation"),
-            })
-    };
-    Ok(RangeDifferenceSample {
-        t_s: m.t_s,
-        a_m: find(m.id_a)?,
-        b_m: find(m.id_b)?,
-        d_m: m.d_m,
-        sigma_m: MEASUREMENT_SIGMA_M,
-    })
-}
-
-fn report(
-    name: &'static str,
-    track: &Track,
-    measurements: u64,
-    duration_s: f64,
-    rejected: Rejections,
-    recoveries: u64,
-    wall: Duration,
-) -> EstimatorReport {
-    let summary = track.summary();
-    let estimates = summary.scored + track.unscored;
-    EstimatorReport {
-        name,
-        summary,
-        estimates,
-        unscored: track.unscored,
-        output_rate_hz: if duration_s > 0.0 {
-            estimates as f64 / duration_s
-        } else {
-            0.0
-        },
-        rejected_pct: 100.0 * rejected.total() as f64 / measurements.max(1) as f64,
-        rejected,
-        recoveries,
-        wall_s: wall.as_secs_f64(),
-    }
-}
-
-fn print_table(
-    file: &str,
-    constellation: u32,
-    measurements: u64,
-    duration_s: f64,
-    wall: Duration,
-    reports: &[EstimatorReport],
-) {
+fn print_table(file: &str, r: &Replayed, wall: Duration) {
     println!(
-        "{file} (constellation {constellation}): {measurements} measurements over {duration_s:.1} s, replayed in {:.2} s",
+        "{file}: {} measurements over {:.1} s, replayed in {:.2} s",
+        r.measurements,
+        r.duration_s,
         wall.as_secs_f64()
     );
     println!(
-        "estimator  rmse_3d_m rmse_xy_m mean_3d_m  p95_3d_m  max_3d_m rejected_%  rate_hz  scored"
+        "estimator  rmse_3d_m rmse_xy_m mean_3d_m  p95_3d_m  max_3d_m rejected_%  rate_hz began_s published_%"
     );
-    for r in reports {
-        let s = &r.summary;
+    for e in &r.reports {
+        let s = &e.summary;
         println!(
-            "{:<10} {:9.4} {:9.4} {:9.4} {:9.4} {:9.4} {:10.2} {:8.1} {:7}",
-            r.name,
+            "{:<10} {:9.4} {:9.4} {:9.4} {:9.4} {:9.4} {:10.2} {:8.1} {:7.2} {:11.1}",
+            e.name,
             s.rmse_3d_m,
             s.rmse_xy_m,
             s.mean_3d_m,
             s.p95_3d_m,
             s.max_3d_m,
-            r.rejected_pct,
-            r.output_rate_hz,
-            s.scored
+            e.rejected_pct,
+            e.output_rate_hz,
+            e.output_began_s.unwrap_or(f64::NAN),
+            e.published_pct,
         );
+        if let Some(a) = &e.attitude {
+            println!(
+                "{:<10} attitude rmse {:.2} deg (tilt {:.2}, yaw {:.2}), max {:.2} deg",
+                "", a.rmse_deg, a.tilt_rmse_deg, a.yaw_rmse_deg, a.max_deg
+            );
+        }
     }
 }

@@ -29,6 +29,8 @@ pub struct Track {
     pending: VecDeque<(f64, [f64; 3])>,
     /// Time of the newest estimate queued: later ones are not older.
     newest_s: Option<f64>,
+    /// Time of the first estimate.
+    first_s: Option<f64>,
     /// 3D error of every scored estimate, metres (kept for the percentile).
     errors_3d_m: Vec<f64>,
     sum2_xy: f64,
@@ -68,6 +70,12 @@ impl Track {
     pub fn push(&mut self, t_s: f64, estimate_m: [f64; 3]) {
         self.pending.push_back((t_s, estimate_m));
         self.newest_s = Some(t_s);
+        self.first_s.get_or_insert(t_s);
+    }
+
+    /// Time of the first estimate, seconds.
+    pub fn first_s(&self) -> Option<f64> {
+        self.first_s
     }
 
     /// No estimate to come is older than this (minus infinity before the
@@ -164,6 +172,7 @@ impl Truth {
         self.samples.push_back(TruthRow {
             t_s: row.t_s,
             position_m: std::array::from_fn(|k| p[k] + self.antenna_offset_m[k]),
+            attitude_xyzw: row.attitude_xyzw,
         });
         for track in tracks.iter_mut() {
             track.resolve(&self.samples, false);
@@ -214,6 +223,7 @@ mod tests {
         TruthRow {
             t_s,
             position_m: [x, 0.0, 1.0],
+            attitude_xyzw: None,
         }
     }
 

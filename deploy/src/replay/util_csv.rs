@@ -1,11 +1,14 @@
-//! Reading the UTIL extracts (`../shared/data/util/README.md`): the anchor
-//! file whole (it is small), the measurement file as a stream of rows.
+//! Reading the UTIL files (`../shared/data/util/README.md`,
+//! `../shared/data/util-imu/README.md`): the anchor file whole (it is
+//! small), the measurement file as a stream of rows.
 //!
-//! A measurement row carries two independent streams that only share the
-//! row index: a TDOA (`idA,idB,tdoa_meas,t_tdoa`) and a truth pose
-//! (`pose_x,pose_y,pose_z,t_pose`); the shorter stream leaves its columns
-//! blank at the end. Columns are found by name in the header. Every problem
-//! is reported with the file and the line (1 = the header).
+//! A measurement row carries independent streams that only share the row
+//! index: a TDOA (`idA,idB,tdoa_meas,t_tdoa`), a truth pose
+//! (`pose_x,pose_y,pose_z,t_pose`, with `pose_qx..pose_qw` in the 27-column
+//! layout) and, in the 27-column layout, the accelerometer (`t_acc,acc_*`,
+//! in g) and the gyro (`t_gyro,gyro_*`, in deg/s); a stream that has ended
+//! leaves its columns blank. Columns are found by name in the header. Every
+//! problem is reported with the file and the line (1 = the header).
 
 use std::collections::HashMap;
 use std::fs::File;
@@ -63,7 +66,23 @@ pub struct TruthRow {
     pub t_s: f64,
     /// Body centre, metres.
     pub position_m: [f64; 3],
+    /// Orientation body to world `[x, y, z, w]`, when the file has it.
+    pub attitude_xyzw: Option<[f64; 4]>,
 }
+
+/// One IMU sample (accelerometer and gyro rows of the same line), SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuRow {
+    /// Time of the accelerometer sample, seconds.
+    pub t_s: f64,
+    /// Specific force, m/s^2.
+    pub accel_m_s2: [f64; 3],
+    /// Angular rate, rad/s.
+    pub gyro_rad_s: [f64; 3],
+}
+
+/// Standard gravity: the file's accelerometer is in g.
+const G_M_S2: f64 = 9.80665;
 
 /// One line of the measurement file.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,22 +93,47 @@ pub struct Row {
     pub tdoa: Option<TdoaRow>,
     /// The truth of this line, unless that stream has ended.
     pub truth: Option<TruthRow>,
+    /// The IMU sample of this line (27-column layout only).
+    pub imu: Option<ImuRow>,
 }
 
-/// The anchors of one constellation, by id, metres.
-pub fn read_anchors(path: &Path, constellation: u32) -> Result<HashMap<u32, [f64; 3]>, InputError> {
-    let mut reader = Table::open(path, &["constellation", "anchor_id", "x", "y", "z"])?;
+/// The anchors of one constellation, by id, metres. Two layouts: the
+/// extracts' `constellation,anchor_id,x,y,z` (then `constellation` is
+/// needed) and the raw logs' `anchor_id,x_m,y_m,z_m,...` (one layout per
+/// file, `constellation` must be `None`).
+pub fn read_anchors(
+    path: &Path,
+    constellation: Option<u32>,
+) -> Result<HashMap<u32, [f64; 3]>, InputError> {
+    let with_constellation = ["constellation", "anchor_id", "x", "y", "z"];
+    let single = ["anchor_id", "x_m", "y_m", "z_m"];
+    let (mut reader, wanted) = match (Table::open(path, &with_constellation), constellation) {
+        (Ok(t), Some(c)) => (t, Some(c)),
+        (Ok(_), None) => {
+            return Err(InputError::Malformed {
+                path: path.to_owned(),
+                line: 1,
+                message: "the file has several constellations: give --constellation".into(),
+            });
+        }
+        (Err(InputError::MissingColumn { .. }), None) => (Table::open(path, &single)?, None),
+        (Err(e), _) => return Err(e),
+    };
+    let offset = usize::from(wanted.is_some());
     let mut anchors = HashMap::new();
     while let Some(fields) = reader.next_record()? {
         let line = reader.line();
-        let c: u32 = reader.parse(&fields, 0, line)?;
-        let id: u32 = reader.parse(&fields, 1, line)?;
+        let c: Option<u32> = match wanted {
+            Some(_) => Some(reader.parse(&fields, 0, line)?),
+            None => None,
+        };
+        let id: u32 = reader.parse(&fields, offset, line)?;
         let p = [
-            reader.number(&fields, 2, line)?,
-            reader.number(&fields, 3, line)?,
-            reader.number(&fields, 4, line)?,
+            reader.number(&fields, offset + 1, line)?,
+            reader.number(&fields, offset + 2, line)?,
+            reader.number(&fields, offset + 3, line)?,
         ];
-        if c == constellation && anchors.insert(id, p).is_some() {
+        if c == wanted && anchors.insert(id, p).is_some() {
             return Err(reader.malformed(line, format!("anchor {id} appears twice")));
         }
     }
@@ -97,7 +141,10 @@ pub fn read_anchors(path: &Path, constellation: u32) -> Result<HashMap<u32, [f64
         return Err(InputError::Malformed {
             path: path.to_owned(),
             line: reader.line(),
-            message: format!("no anchor of constellation {constellation}"),
+            message: match wanted {
+                Some(c) => format!("no anchor of constellation {c}"),
+                None => "no anchor".into(),
+            },
         });
     }
     Ok(anchors)
@@ -106,8 +153,12 @@ pub fn read_anchors(path: &Path, constellation: u32) -> Result<HashMap<u32, [f64
 /// The measurement file, read one line at a time.
 pub struct UtilReader {
     table: Table,
+    /// The optional columns, when the header has all of them.
+    imu: Option<Table>,
+    attitude: Option<Table>,
     last_tdoa_s: f64,
     last_truth_s: f64,
+    last_imu_s: f64,
 }
 
 const DATA_COLUMNS: [&str; 8] = [
@@ -121,14 +172,33 @@ const DATA_COLUMNS: [&str; 8] = [
     "t_pose",
 ];
 
+const IMU_COLUMNS: [&str; 8] = [
+    "t_acc", "acc_x", "acc_y", "acc_z", "t_gyro", "gyro_x", "gyro_y", "gyro_z",
+];
+
+const ATTITUDE_COLUMNS: [&str; 4] = ["pose_qx", "pose_qy", "pose_qz", "pose_qw"];
+
 impl UtilReader {
     /// Opens `path` and checks its header.
     pub fn open(path: &Path) -> Result<Self, InputError> {
+        let optional = |columns: &[&'static str]| match Table::open(path, columns) {
+            Ok(t) => Ok(Some(t)),
+            Err(InputError::MissingColumn { .. }) => Ok(None),
+            Err(e) => Err(e),
+        };
         Ok(Self {
             table: Table::open(path, &DATA_COLUMNS)?,
+            imu: optional(&IMU_COLUMNS)?,
+            attitude: optional(&ATTITUDE_COLUMNS)?,
             last_tdoa_s: f64::NEG_INFINITY,
             last_truth_s: f64::NEG_INFINITY,
+            last_imu_s: f64::NEG_INFINITY,
         })
+    }
+
+    /// Whether the file has the IMU columns.
+    pub fn has_imu(&self) -> bool {
+        self.imu.is_some()
     }
 
     /// The file being read.
@@ -159,9 +229,27 @@ impl UtilReader {
             self.last_tdoa_s = row.t_s;
             Some(row)
         };
+        let attitude = match &mut self.attitude {
+            Some(a) => a.next_record()?,
+            None => None,
+        };
+        let imu = match &mut self.imu {
+            Some(i) => i.next_record()?,
+            None => None,
+        };
+        let t = &self.table;
         let truth = if t.all_blank(&f, 4..8) {
             None
         } else {
+            let attitude_xyzw = match (&self.attitude, attitude) {
+                (Some(a), Some(q)) => Some([
+                    a.number(&q, 0, line)?,
+                    a.number(&q, 1, line)?,
+                    a.number(&q, 2, line)?,
+                    a.number(&q, 3, line)?,
+                ]),
+                _ => None,
+            };
             let row = TruthRow {
                 t_s: t.number(&f, 7, line)?,
                 position_m: [
@@ -169,6 +257,7 @@ impl UtilReader {
                     t.number(&f, 5, line)?,
                     t.number(&f, 6, line)?,
                 ],
+                attitude_xyzw,
             };
             if row.t_s < self.last_truth_s {
                 return Err(t.malformed(line, "t_pose goes back in time".into()));
@@ -176,7 +265,28 @@ impl UtilReader {
             self.last_truth_s = row.t_s;
             Some(row)
         };
-        Ok(Some(Row { line, tdoa, truth }))
+        let imu = match (&self.imu, imu) {
+            (Some(i), Some(v)) if !i.all_blank(&v, 0..8) => {
+                let n = |k| i.number(&v, k, line);
+                let row = ImuRow {
+                    t_s: n(0)?,
+                    accel_m_s2: [n(1)? * G_M_S2, n(2)? * G_M_S2, n(3)? * G_M_S2],
+                    gyro_rad_s: [n(5)?.to_radians(), n(6)?.to_radians(), n(7)?.to_radians()],
+                };
+                if row.t_s < self.last_imu_s {
+                    return Err(i.malformed(line, "t_acc goes back in time".into()));
+                }
+                self.last_imu_s = row.t_s;
+                Some(row)
+            }
+            _ => None,
+        };
+        Ok(Some(Row {
+            line,
+            tdoa,
+            truth,
+            imu,
+        }))
     }
 }
 

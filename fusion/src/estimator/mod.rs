@@ -40,6 +40,8 @@ pub mod cda;
 pub mod cda_msu;
 mod config_check;
 mod dead_reckoning;
+pub mod flight;
+pub mod guard;
 mod gyro_calibration;
 pub mod gyro_ckf;
 pub mod heading_kf;

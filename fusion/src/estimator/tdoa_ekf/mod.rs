@@ -17,7 +17,8 @@
 //! Two state and motion models, chosen per use:
 //! - [`TdoaEkf3d`]: 3D constant velocity for a free-flying tag, a plain
 //!   struct driven directly (`predict_to`, `update_range_difference`);
-//!   `ickon replay util` runs it on real UWB flights;
+//!   `ickon replay util` runs it as the plain baseline beside the guarded
+//!   filters of [`crate::estimator::flight`];
 //! - [`TdoaEkf`]: a ground robot's `(x, y, theta)` predicted by encoders or
 //!   odometry and the gyro, behind the [`crate::estimator::Estimator`]
 //!   trait, registered as `tdoa-ekf`, fed with
@@ -38,4 +39,5 @@ mod tests;
 pub use cv3d::{TdoaEkf3d, TdoaEkf3dParams};
 pub use ground::{TdoaEkf, TdoaEkfParams};
 pub use observation::{Outcome, Rejection};
+pub(crate) use observation::{check, gated_update};
 pub use recovery::RecoveryParams;

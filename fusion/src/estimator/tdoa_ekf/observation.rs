@@ -75,7 +75,7 @@ impl Outcome {
 
 /// Checks the fields are finite, the sigma positive and `|d|` physically
 /// possible, cheapest first.
-pub(super) fn check(s: &RangeDifferenceSample) -> Result<(), Rejection> {
+pub(crate) fn check(s: &RangeDifferenceSample) -> Result<(), Rejection> {
     let fields = [("t_s", s.t_s), ("d_m", s.d_m), ("sigma_m", s.sigma_m)];
     for (field, v) in fields {
         if !v.is_finite() {
@@ -139,7 +139,7 @@ pub(super) fn linearise(
 /// `h`: refuses an innovation beyond `gate_sigma` standard deviations of
 /// `S = h P h^T + sigma^2`, else applies the Joseph-form update. Returns the
 /// new state and covariance with the outcome.
-pub(super) fn gated_update<const N: usize>(
+pub(crate) fn gated_update<const N: usize>(
     x: &SVector<f64, N>,
     p: &SMatrix<f64, N, N>,
     h: &SMatrix<f64, 1, N>,

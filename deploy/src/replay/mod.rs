@@ -8,6 +8,9 @@
 //! exit code 2.
 
 mod estimators;
+mod plaza;
+mod plaza_csv;
+mod plaza_plot;
 mod plot;
 mod score;
 mod util_csv;
@@ -35,6 +38,8 @@ const ANTENNA_OFFSET_M: [f64; 3] = [0.0, 0.0, 0.0908];
 pub enum ReplaySource {
     /// UTIL UWB TDOA flights with motion-capture truth.
     Util(UtilArgs),
+    /// CMU Plaza runs: a wheeled robot's odometry and radio ranges, with truth.
+    Plaza(plaza::PlazaArgs),
 }
 
 /// Arguments of `ickon replay util`.
@@ -80,6 +85,7 @@ struct EstimatorReport {
 pub fn run(source: ReplaySource) -> ExitCode {
     match source {
         ReplaySource::Util(args) => util(&args),
+        ReplaySource::Plaza(args) => plaza::run(&args),
     }
 }
 

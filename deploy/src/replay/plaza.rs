@@ -4,8 +4,9 @@
 //!
 //! The same [`TdoaEkf`] as on the MSU, driven directly: each odometry
 //! increment is a prediction step (no gyro: the turn bias state is the
-//! wheels' heading drift), each range a scalar update with the range bias
-//! estimated. Scored every increment against the truth interpolated at its
+//! wheels' heading drift), each range a scalar update with the ranges'
+//! bias and scale error estimated (`range = (1 + scale) d + bias`, both
+//! starting at zero). Scored every increment against the truth interpolated at its
 //! time, with dead reckoning from the same start pose beside it.
 //!
 //! One parameter set for every run ([`plaza_params`]); every constant is
@@ -101,6 +102,8 @@ pub struct RunReport {
     pub ranges_rejected: u64,
     /// The range bias estimated at the end, metres.
     pub range_bias_m: f64,
+    /// The range scale error estimated at the end.
+    pub range_scale: f64,
     /// The distance scale error estimated at the end.
     pub distance_scale: f64,
     /// The turn-rate bias estimated at the end, deg/s.
@@ -297,6 +300,7 @@ pub fn replay_run(name: &str, data: &PlazaRun) -> Result<RunReport, String> {
         ranges_used: used,
         ranges_rejected: rejected,
         range_bias_m: filter.range_bias_m().unwrap_or(0.0),
+        range_scale: filter.range_scale().unwrap_or(0.0),
         distance_scale: filter.distance_scale().unwrap_or(0.0),
         turn_bias_deg_s: filter.turn_bias_rad_s().unwrap_or(0.0).to_degrees(),
         reinitialisations: filter.reinitialisations().len(),
@@ -341,16 +345,16 @@ pub fn stats(track: &[Sample]) -> Stats {
 
 fn print_table(reports: &[RunReport]) {
     println!(
-        "ickon replay plaza: tdoa-ekf (ranges + wheel odometry, range bias estimated) against dead reckoning"
+        "ickon replay plaza: tdoa-ekf (ranges + wheel odometry, range bias and scale estimated) against dead reckoning"
     );
     println!(
-        "| run | track | 2D RMSE m | mean m | p95 m | max m | max after 60 s m | ranges used / rejected | range bias m |"
+        "| run | track | 2D RMSE m | mean m | p95 m | max m | max after 60 s m | ranges used / rejected | range bias m | range scale |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for r in reports {
         let f = &r.filter;
         println!(
-            "| {} | tdoa-ekf | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} / {} | {:.2} |",
+            "| {} | tdoa-ekf | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} / {} | {:.2} | {:.3} |",
             r.run,
             f.rmse_m,
             f.mean_m,
@@ -359,11 +363,12 @@ fn print_table(reports: &[RunReport]) {
             f.max_after_60s_m,
             r.ranges_used,
             r.ranges_rejected,
-            r.range_bias_m
+            r.range_bias_m,
+            r.range_scale
         );
         let o = &r.odometry;
         println!(
-            "| | odometry | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | | |",
+            "| | odometry | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | | | |",
             o.rmse_m, o.mean_m, o.p95_m, o.max_m, o.max_after_60s_m
         );
     }

@@ -4,7 +4,7 @@
 //! - State ([`super::ground_state`]): position, heading, the turn-rate bias
 //!   of the heading source (gyro, or wheels without one), the distance
 //!   scale of the wheels, the pseudo-range offset of the cycle being fused,
-//!   and the bias of absolute radio ranges.
+//!   and the bias and scale error of absolute radio ranges.
 //! - Prediction at the wheels' rate: the arc of seed 003 with the distance
 //!   scaled and the heading change integrated from the gyro at its own rate
 //!   (the wheels' when no gyro sample came within `max_gyro_gap_s`), the
@@ -49,7 +49,7 @@ use nalgebra::Vector3;
 use super::ground_chain::{Arrival, Chain, Link};
 use super::ground_noise::GroundNoise;
 use super::ground_state::{
-    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, Row, SCALE, State, Step, TH, X, Y,
+    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH, X, Y,
 };
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
@@ -234,7 +234,10 @@ impl TdoaEkf {
     /// Starts at `params.initial_pose`, or waits for transmitters.
     pub fn new(params: &TdoaEkfParams) -> Self {
         let state = params.initial_pose.map(|p| {
-            let x = State::from_column_slice(&[p.x_m, p.y_m, p.theta_rad, 0.0, 0.0, 0.0, 0.0]);
+            let mut x = State::zeros();
+            x[X] = p.x_m;
+            x[Y] = p.y_m;
+            x[TH] = p.theta_rad;
             (x, prior(params, p.sigma_xy_m, p.sigma_theta_rad))
         });
         Self {
@@ -292,6 +295,12 @@ impl TdoaEkf {
     /// The estimated range bias of absolute ranges, metres.
     pub fn range_bias_m(&self) -> Option<f64> {
         self.state.map(|(x, _)| x[RANGE_BIAS])
+    }
+
+    /// The estimated range scale error of absolute ranges (a range reads
+    /// the distance times one plus it, plus the bias).
+    pub fn range_scale(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[RANGE_SCALE])
     }
 
     /// The estimated distance scale error (travelled = measured times one
@@ -703,7 +712,9 @@ impl TdoaEkf {
         let cx = self.heard.iter().map(|c| c[0]).sum::<f64>() / n;
         let cy = self.heard.iter().map(|c| c[1]).sum::<f64>() / n;
         let sxy = self.params.start_sigma_xy_m;
-        let x = State::from_column_slice(&[cx, cy, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let mut x = State::zeros();
+        x[X] = cx;
+        x[Y] = cy;
         self.state = Some((x, prior(&self.params, sxy, PI)));
         self.heading_from_track = Some(None);
         self.heard.clear();
@@ -770,7 +781,7 @@ impl TdoaEkf {
 
     /// Fuses one absolute range `range_m` (standard deviation `sigma_m`)
     /// to a beacon at `beacon_m` (`x, y`, same height as the antenna),
-    /// measured at `t_s`, with the range bias estimated. Late (long)
+    /// measured at `t_s`, read as `(1 + scale) d + bias` with both estimated. Late (long)
     /// ranges are down-weighted and rejected like late arrivals.
     pub fn range(&mut self, t_s: f64, beacon_m: [f64; 2], range_m: f64, sigma_m: f64) -> Outcome {
         let out = self.range_update(t_s, beacon_m, range_m, sigma_m);
@@ -804,11 +815,13 @@ impl TdoaEkf {
         if d < 1e-6 {
             return Outcome::Rejected(Rejection::Numerical);
         }
+        let k = 1.0 + x[RANGE_SCALE];
         let mut h = Row::zeros();
-        h[X] = dx / d;
-        h[Y] = dy / d;
+        h[X] = k * dx / d;
+        h[Y] = k * dy / d;
         h[RANGE_BIAS] = 1.0;
-        let nu = range_m - d - x[RANGE_BIAS];
+        h[RANGE_SCALE] = d;
+        let nu = range_m - k * d - x[RANGE_BIAS];
         let r = sigma_m * sigma_m;
         let s = gs::innovation_variance(&p, &h, r);
         let normalised = nu / s.sqrt();
@@ -862,15 +875,16 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
     }
     .to_radians();
     let v = sigma_xy_m * sigma_xy_m;
-    Cov::from_diagonal(&State::from_column_slice(&[
-        v,
-        v,
-        sigma_theta_rad * sigma_theta_rad,
-        bias * bias,
-        n.distance_scale_sigma.powi(2),
-        1.0,
-        n.range_bias_sigma_m.powi(2),
-    ]))
+    let mut d = State::zeros();
+    d[X] = v;
+    d[Y] = v;
+    d[TH] = sigma_theta_rad * sigma_theta_rad;
+    d[BIAS] = bias * bias;
+    d[SCALE] = n.distance_scale_sigma.powi(2);
+    d[OFFSET] = 1.0;
+    d[RANGE_BIAS] = n.range_bias_sigma_m.powi(2);
+    d[RANGE_SCALE] = n.range_scale_sigma.powi(2);
+    Cov::from_diagonal(&d)
 }
 
 impl Core for TdoaEkf {

@@ -44,6 +44,9 @@ pub struct GroundNoise {
     pub range_bias_sigma_m: f64,
     /// Random walk of the range bias, metres per sqrt(s).
     pub range_bias_walk_m_sqrt_s: f64,
+    /// Prior standard deviation of the range scale error of absolute
+    /// ranges (a fraction of the distance).
+    pub range_scale_sigma: f64,
 }
 
 impl Default for GroundNoise {
@@ -62,6 +65,7 @@ impl Default for GroundNoise {
             distance_scale_sigma: 0.0025,
             range_bias_sigma_m: 3.0,
             range_bias_walk_m_sqrt_s: 0.001,
+            range_scale_sigma: 0.1,
         }
     }
 }
@@ -117,6 +121,7 @@ impl GroundNoise {
                 "sensors.range_bias_walk_m_sqrt_s",
                 self.range_bias_walk_m_sqrt_s,
             ),
+            ("sensors.range_scale_sigma", self.range_scale_sigma),
         ];
         for (field, v) in fields {
             if !(v.is_finite() && v >= 0.0) {

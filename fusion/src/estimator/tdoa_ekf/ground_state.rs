@@ -7,7 +7,9 @@
 //! one times `1 + distance_scale`), `offset` (m, the unknown common offset
 //! of the pseudo-ranges of the cycle being fused, re-initialised at the
 //! start of every cycle) and `range_bias` (m, a constant excess of absolute
-//! radio ranges, used by range updates only).
+//! radio ranges) and `range_scale` (their excess proportional to the
+//! distance, a ranging clock-rate error): a range reads
+//! `(1 + range_scale) d + range_bias`; both used by range updates only.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -15,7 +17,7 @@ use crate::estimator::dead_reckoning::arc_step;
 use crate::estimator::kf;
 
 /// Number of state components.
-pub(super) const N: usize = 7;
+pub(super) const N: usize = 8;
 /// State vector.
 pub(super) type State = SVector<f64, N>;
 /// Covariance of the state.
@@ -37,6 +39,8 @@ pub(super) const SCALE: usize = 4;
 pub(super) const OFFSET: usize = 5;
 /// Index of the range bias.
 pub(super) const RANGE_BIAS: usize = 6;
+/// Index of the range scale error.
+pub(super) const RANGE_SCALE: usize = 7;
 
 /// One dead-reckoning step as the sensors measured it.
 #[derive(Debug, Clone, Copy)]

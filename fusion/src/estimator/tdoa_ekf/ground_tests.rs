@@ -302,3 +302,52 @@ fn a_kidnapped_robot_is_found_again_by_a_reinitialisation_on_the_floor() {
     let (mean, max) = mean_max(&e, 30.0, 60.0);
     assert!(mean < 0.04 && max < 0.15, "after: mean {mean} max {max}");
 }
+
+#[test]
+fn ranges_with_a_scale_and_a_bias_are_fused_with_both_estimated() {
+    // A wheeled robot without a gyro on a 10 m circle among four beacons
+    // whose ranges read 7 % long plus 0.5 m, with 0.5 m noise.
+    let beacons = [[-20.0, -20.0], [20.0, -20.0], [20.0, 20.0], [-20.0, 20.0]];
+    let truth = |t: f64| {
+        let a = 0.1 * t;
+        (
+            10.0 * a.cos(),
+            10.0 * a.sin(),
+            a + std::f64::consts::FRAC_PI_2,
+        )
+    };
+    let (x0, y0, th0) = truth(0.0);
+    let mut f = TdoaEkf::new(&TdoaEkfParams {
+        initial_pose: Some(InitialPose {
+            x_m: x0,
+            y_m: y0,
+            theta_rad: th0,
+            sigma_xy_m: 0.5,
+            sigma_theta_rad: 0.1,
+        }),
+        use_gyro: false,
+        ..TdoaEkfParams::default()
+    });
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let noise = Normal::new(0.0, 0.5).unwrap();
+    let mut worst_late = 0.0f64;
+    for k in 1..=6000 {
+        let t = 0.1 * f64::from(k);
+        // 1 m/s along the circle, 0.01 rad per step.
+        f.increment(t, 0.1, 0.01, 0.1, false);
+        if k % 2 == 0 {
+            let (x, y, _) = truth(t);
+            let b = beacons[(k / 2) as usize % 4];
+            let d = (x - b[0]).hypot(y - b[1]);
+            f.range(t, b, 1.07 * d + 0.5 + noise.sample(&mut rng), 0.5);
+        }
+        if t > 120.0 {
+            let (x, y, _) = truth(t);
+            let p = f.pose().unwrap();
+            worst_late = worst_late.max((p.x_m - x).hypot(p.y_m - y));
+        }
+    }
+    let scale = f.range_scale().unwrap();
+    assert!((scale - 0.07).abs() < 0.01, "scale {scale}");
+    assert!(worst_late < 0.6, "error {worst_late} m");
+}

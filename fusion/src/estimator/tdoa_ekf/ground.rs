@@ -659,7 +659,9 @@ impl TdoaEkf {
                 let from = [x[X], x[Y]];
                 gs::reset_position(x, p, [fx, fy], cov, if tracking { extra } else { 0.0 });
                 if !tracking {
-                    // Still starting: not an event.
+                    // Still starting: not an event, and the chord of an
+                    // unknown heading starts again (the jump is no motion).
+                    self.heading_from_track = Some(None);
                 } else if self.reinits.len() >= MAX_REINITS_KEPT {
                     self.reinits.remove(0);
                 }

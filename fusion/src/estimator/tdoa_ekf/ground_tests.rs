@@ -254,11 +254,6 @@ fn a_gyro_bias_step_is_tracked_without_losing_the_corridor() {
     };
     let (inputs, truth) = run(120.0, step, 2);
     let (f, e) = errors(&inputs, &truth);
-    if std::env::var("GROUND_DEBUG").is_ok() {
-        for (t, err) in e.iter().step_by(10) {
-            eprintln!("{t:.1} {err:.3}");
-        }
-    }
     let (mean, max) = mean_max(&e, 40.0, 120.0);
     assert!(mean < 0.04 && max < 0.15, "mean {mean} max {max}");
     let b = f.turn_bias_rad_s().unwrap().to_degrees();
@@ -350,4 +345,39 @@ fn ranges_with_a_scale_and_a_bias_are_fused_with_both_estimated() {
     let scale = f.range_scale().unwrap();
     assert!((scale - 0.07).abs() < 0.01, "scale {scale}");
     assert!(worst_late < 0.6, "error {worst_late} m");
+}
+
+#[test]
+fn without_a_start_pose_the_filter_starts_from_a_consistent_cycle_and_finds_its_heading() {
+    let (inputs, truth) = run(90.0, Trouble::default(), 6);
+    let mut f = TdoaEkf::new(&TdoaEkfParams {
+        initial_pose: None,
+        ..params()
+    });
+    let mut errs = Vec::new();
+    let mut next = 0;
+    for input in &inputs {
+        while next < truth.len() && truth[next].0 < input.t_s() {
+            let (t, x, y) = truth[next];
+            if let Some(p) = f.pose() {
+                errs.push((t, (p.x_m - x).hypot(p.y_m - y)));
+            }
+            next += 1;
+        }
+        f.step(input);
+    }
+    // Started within the first seconds, tracking after the heading came
+    // from the track; a start is not a re-initialisation event.
+    assert!(
+        errs.first().is_some_and(|(t, _)| *t < 3.0),
+        "{:?}",
+        errs.first()
+    );
+    let (mean, max) = mean_max(&errs, 30.0, 90.0);
+    assert!(mean < 0.03 && max < 0.10, "mean {mean} max {max}");
+    assert!(
+        f.reinitialisations().is_empty(),
+        "{:?}",
+        f.reinitialisations()
+    );
 }

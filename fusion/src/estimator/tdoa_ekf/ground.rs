@@ -29,8 +29,9 @@
 //!   bias estimated, for robots that range instead of timing differences.
 //! - A floor plan (`floor`), when given: a state outside it is impossible
 //!   and projected back onto it; a re-initialisation outside it is refused.
-//! - Recovery: when most recent arrivals fail the gate the filter counts as
-//!   lost ([`RecoveryParams`]); it then waits for a cycle whose arrivals
+//! - Recovery: when most recent arrivals that were not late (accepted, or
+//!   earlier than predicted beyond the gate: no reflection does that) are
+//!   early ones, the filter counts as lost ([`RecoveryParams`]); it then waits for a cycle whose arrivals
 //!   agree with each other (a redundant, motion-compensated fix without
 //!   rejected residuals, [`crate::tdoa::solve_moving`]) and re-initialises
 //!   its position there, counted in [`TdoaEkf::reinitialisations`]. It does
@@ -490,8 +491,8 @@ impl TdoaEkf {
         let normalised = nu / s.sqrt();
         let (gate, soft) = (self.params.gate_sigma, self.params.late_soft_sigma);
         if normalised > gate {
-            // Far later than predicted: a reflection.
-            self.note(true);
+            // Far later than predicted: a reflection. Not evidence of a lost
+            // filter (a healthy one in a burst of reflections sees many).
             return Outcome::Rejected(Rejection::Gate { normalised });
         }
         if normalised < -gate || (normalised < -soft && !self.offset_confirmed) {
@@ -828,7 +829,9 @@ impl TdoaEkf {
         let s = gs::innovation_variance(&p, &h, r);
         let normalised = nu / s.sqrt();
         if normalised.abs() > self.params.gate_sigma {
-            self.note(true);
+            // Only a range far shorter than predicted (impossible for a
+            // late, non-direct path) is evidence of a lost filter.
+            self.note(normalised < 0.0);
             return Outcome::Rejected(Rejection::Gate {
                 normalised: normalised.abs(),
             });

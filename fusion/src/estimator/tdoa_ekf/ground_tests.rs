@@ -24,7 +24,7 @@ const CYCLE_S: f64 = 0.4;
 const SLOT_S: f64 = CYCLE_S / 20.0;
 const MAX_RANGE_M: f64 = 6.0;
 /// Share of arrivals replaced by a reflection during a burst.
-const REFLECTED_SHARE: f64 = 0.3;
+const REFLECTED_SHARE: f64 = 0.5;
 const GEOMETRY: WheelGeometry = WheelGeometry {
     wheel_base_m: 0.33,
     left_m_per_tick: 0.0005,

@@ -33,8 +33,10 @@
 //!   earlier than predicted beyond the gate: no reflection does that) are
 //!   early ones, the filter counts as lost ([`RecoveryParams`]); it then waits for a cycle whose arrivals
 //!   agree with each other (a redundant, motion-compensated fix without
-//!   rejected residuals, [`crate::tdoa::solve_moving`]) and re-initialises
-//!   its position there, counted in [`TdoaEkf::reinitialisations`]. It does
+//!   rejected residuals, [`crate::tdoa::solve_moving`]); when two of them
+//!   agree with each other but not with the filter, it re-initialises its
+//!   position there (when they agree with the filter too, it was not
+//!   displaced and simply counts as found again), counted in [`TdoaEkf::reinitialisations`]. It does
 //!   not widen its variance or jump to single fixes meanwhile.
 //! - Start: at `initial_pose` when given; otherwise at the first
 //!   consistent cycle (or at the centroid of the first `start_transmitters`
@@ -652,9 +654,20 @@ impl TdoaEkf {
             }
         }
         self.candidate = None;
+        let tracking = self.heading_from_track.is_none();
+        if let (true, Some((x, p))) = (tracking, &self.state) {
+            // The consistent cycles put the robot where the filter has it:
+            // it is not displaced (its arrivals only disagreed with its
+            // model for a while), so there is nothing to jump to.
+            let own = (p[(X, X)] + p[(Y, Y)]).max(0.0).sqrt();
+            if (fx - x[X]).hypot(fy - x[Y]) <= 3.0 * (sigma + own) {
+                self.lost = false;
+                self.watch = RejectionWatch::default();
+                return false;
+            }
+        }
         let cov = [[cov[(0, 0)], cov[(0, 1)]], [cov[(1, 0)], cov[(1, 1)]]];
         let extra = self.params.reinit_heading_sigma_deg.to_radians().powi(2);
-        let tracking = self.heading_from_track.is_none();
         match &mut self.state {
             Some((x, p)) => {
                 let from = [x[X], x[Y]];

@@ -90,7 +90,7 @@ pub use fix::{Fix, Quality, RejectReason, Rejection};
 pub use heading::{
     HeadingError, SEED_RECEIVER_ANGLES_RAD, heading_from_first_receiver, two_sensor_heading,
 };
-pub use moving::{displacements_at_velocity, solve_moving};
+pub use moving::{displacements_at_velocity, displacements_from_track, solve_moving};
 pub use pairs::{PairMeasurement, Solution3, refine_pairs};
 pub use robust::solve;
 pub use signal::{MAX_SIGNALS, Signal};

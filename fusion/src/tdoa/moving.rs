@@ -82,3 +82,46 @@ pub fn displacements_at_velocity(
         .map(|t| velocity_m_s * (t - reference_s))
         .collect()
 }
+
+/// Displacements from a recorded track: `track` holds `(t_s, [x_m, y_m])`
+/// samples in time order (the robot's odometry or fused poses, any frame:
+/// only differences are used); each arrival's displacement is the track
+/// position at its time minus the one at `reference_s`, both linearly
+/// interpolated (held at the ends). `None` when the track is empty or not
+/// in time order. The receiver height does not change on a ground robot,
+/// so `z` is zero.
+pub fn displacements_from_track(
+    track: &[(f64, [f64; 2])],
+    arrival_times_s: &[f64],
+    reference_s: f64,
+) -> Option<Vec<Vector3<f64>>> {
+    // NaN times count as out of order too.
+    let ordered = track
+        .windows(2)
+        .all(|w| w[1].0.partial_cmp(&w[0].0).is_some_and(|o| o.is_ge()));
+    if track.is_empty() || !ordered {
+        return None;
+    }
+    let at = |t: f64| -> [f64; 2] {
+        let k = track.partition_point(|s| s.0 <= t);
+        if k == 0 {
+            return track[0].1;
+        }
+        if k >= track.len() {
+            return track[track.len() - 1].1;
+        }
+        let ((t0, a), (t1, b)) = (track[k - 1], track[k]);
+        let w = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])]
+    };
+    let r = at(reference_s);
+    Some(
+        arrival_times_s
+            .iter()
+            .map(|t| {
+                let p = at(*t);
+                Vector3::new(p[0] - r[0], p[1] - r[1], 0.0)
+            })
+            .collect(),
+    )
+}

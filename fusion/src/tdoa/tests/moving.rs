@@ -125,3 +125,17 @@ fn mismatched_or_non_finite_displacements_are_bad_input() {
         }
     );
 }
+
+#[test]
+fn displacements_from_a_track_interpolate_and_hold_at_the_ends() {
+    let track = [(0.0, [1.0, 1.0]), (1.0, [2.0, 1.0]), (2.0, [2.0, 3.0])];
+    let m = displacements_from_track(&track, &[0.5, 1.5, 3.0, -1.0], 1.0).unwrap();
+    let expect = [[-0.5, 0.0], [0.0, 1.0], [0.0, 2.0], [-1.0, 0.0]];
+    for (got, want) in m.iter().zip(expect) {
+        assert!((got.x - want[0]).abs() < 1e-12 && (got.y - want[1]).abs() < 1e-12);
+        assert_eq!(got.z, 0.0);
+    }
+    assert!(displacements_from_track(&[], &[0.0], 0.0).is_none());
+    let backwards = [(1.0, [0.0, 0.0]), (0.0, [1.0, 0.0])];
+    assert!(displacements_from_track(&backwards, &[0.5], 0.0).is_none());
+}

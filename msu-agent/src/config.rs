@@ -1,7 +1,8 @@
 //! Building an [`MsuConfig`] from the site model, shared by the MSU agent
 //! process and the virtual-time engine so that both solve alike.
 
-use ickon_fusion::estimator::WheelGeometry;
+use ickon_fusion::estimator::tdoa_ekf::Floor;
+use ickon_fusion::estimator::{EstimatorConfig, UnknownEstimator, WheelGeometry};
 use ickon_proto::msg::control::TransmitterEntry;
 use ickon_proto::site::Site;
 
@@ -10,6 +11,25 @@ use crate::core::MsuConfig;
 /// Largest one-sigma position uncertainty a fix may have before it counts as
 /// degenerate geometry, metres.
 pub const DEFAULT_MAX_FIX_SIGMA_M: f64 = 0.5;
+
+/// The configuration of estimator `name` for a robot on `site` starting at
+/// `start` (`x, y, theta`): the registry's defaults, the start pose, and for
+/// `tdoa-ekf` the receivers' height and the floor it must stay on. The MSU
+/// agent and the virtual-time engine both start from it.
+pub fn estimator_for_site(
+    name: &str,
+    site: &Site,
+    start: [f64; 3],
+) -> Result<EstimatorConfig, UnknownEstimator> {
+    let mut c = EstimatorConfig::default_for(name)?;
+    c.set_initial_pose(start);
+    if let EstimatorConfig::TdoaEkf(p) = &mut c {
+        p.receiver_height_m = site.msu.height_m;
+        let (min_m, max_m) = site.bounds();
+        p.floor = Some(Floor { min_m, max_m });
+    }
+    Ok(c)
+}
 
 impl MsuConfig {
     /// The MSU configuration for `site`: its speed of sound, MSU geometry,

@@ -17,7 +17,7 @@ pub mod node;
 pub mod solver;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
-pub use config::DEFAULT_MAX_FIX_SIGMA_M;
+pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};
 pub use core::{MsuConfig, MsuCore, MsuError};
 pub use host::FusionHost;
 pub use solver::{FixSolver, SolvedCycle};

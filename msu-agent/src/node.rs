@@ -93,11 +93,7 @@ pub async fn run(
         .ok_or_else(|| anyhow::anyhow!("robot {robot:?} is not in site {:?}", site.name))?;
     let config = match settings.estimator.clone() {
         Some(c) => c,
-        None => {
-            let mut c = EstimatorConfig::default_for(&settings.estimator_name)?;
-            c.set_initial_pose(spec.start);
-            c
-        }
+        None => crate::estimator_for_site(&settings.estimator_name, &site, spec.start)?,
     };
     let estimator = estimator::build(&config)?;
     let mut core = MsuCore::new(
@@ -252,8 +248,9 @@ pub struct MsuArgs {
     /// The robot this agent serves.
     #[arg(long)]
     pub robot: String,
-    /// Estimator name (`odometry`, `msu-raw`, `ickon-akf`, `gyro-ckf`, `cda`, `cda-msu`, `tdoa-ekf`).
-    #[arg(long, default_value = "ickon-akf")]
+    /// Estimator name (`tdoa-ekf`, ours and the most accurate; the seeds'
+    /// `odometry`, `msu-raw`, `ickon-akf`, `gyro-ckf`, `cda`, `cda-msu`).
+    #[arg(long, default_value = "tdoa-ekf")]
     pub estimator: String,
     /// Estimator configuration as JSON (`{"name": "...", ...}`); overrides `--estimator`.
     #[arg(long)]

@@ -159,27 +159,27 @@ impl Queue {
     }
 }
 
-/// The estimator configuration used for `name` on a robot starting at `start`
-/// whose receivers are `msu_height_m` above the floor: registry defaults, the
-/// known start pose, the receiver height for `tdoa-ekf`, the gyro noise of the profile's
-/// data sheet for `gyro-ckf` (as a user configures a filter to the sensor
-/// on the robot; small floors keep `ideal` valid), and the seed-003
-/// curvature thresholds rescaled from their 10 Hz steps to [`ENCODER_HZ`].
+/// The estimator configuration used for `name` on a robot of `site` starting
+/// at `start`: the MSU agent's own set-up ([`ickon_msu::estimator_for_site`]:
+/// registry defaults, start pose, receiver height and floor for `tdoa-ekf`),
+/// then the gyro noise of the profile's data sheet for `gyro-ckf` and
+/// `tdoa-ekf` (as a user configures a filter to the sensor on the robot;
+/// small floors keep `ideal` valid), and the seed-003 curvature thresholds
+/// rescaled from their 10 Hz steps to [`ENCODER_HZ`].
 pub fn estimator_config(
     name: &str,
     start: [f64; 3],
-    msu_height_m: f64,
+    site: &Site,
     profile: &NoiseProfile,
 ) -> Result<EstimatorConfig, RunError> {
-    let mut c = EstimatorConfig::default_for(name)?;
-    c.set_initial_pose(start);
+    let mut c = ickon_msu::estimator_for_site(name, site, start)?;
     let per_step = 10.0 / ENCODER_HZ;
+    let g = &profile.gyro;
     match &mut c {
         EstimatorConfig::Odometry(_)
         | EstimatorConfig::MsuRaw(_)
         | EstimatorConfig::IckonAkf(_) => {}
         EstimatorConfig::GyroCkf(p) => {
-            let g = &profile.gyro;
             p.gyro_noise_deg_sqrt_s = (g.white_sigma_deg_s / g.rate_hz.max(1.0).sqrt()).max(0.002);
             p.bias_walk_deg_s_sqrt_s = g.bias_walk_deg_s_sqrt_s.max(0.001);
             p.initial_bias_sigma_deg_s = g.bias_sigma_deg_s.max(0.05);
@@ -192,7 +192,14 @@ pub fn estimator_config(
             p.cda.mu_start_deg *= per_step;
             p.cda.mu_stop_deg *= per_step;
         }
-        EstimatorConfig::TdoaEkf(p) => p.receiver_height_m = msu_height_m,
+        EstimatorConfig::TdoaEkf(p) => {
+            let s = &mut p.sensors;
+            s.gyro_white_deg_s = g.white_sigma_deg_s.max(0.01);
+            s.gyro_rate_hz = g.rate_hz.max(1.0);
+            s.gyro_bias_sigma_deg_s = g.bias_sigma_deg_s.max(0.05);
+            s.gyro_bias_walk_deg_s_sqrt_s = g.bias_walk_deg_s_sqrt_s.max(0.001);
+            s.gyro_scale_error = g.scale_error.max(0.001);
+        }
     }
     Ok(c)
 }
@@ -252,7 +259,7 @@ pub fn run(
         estimators.push(estimator::build(&estimator_config(
             name,
             start,
-            site.msu.height_m,
+            site,
             &config.profile,
         )?)?);
     }

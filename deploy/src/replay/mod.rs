@@ -11,6 +11,9 @@
 
 mod attitude;
 mod estimators;
+mod plaza;
+mod plaza_csv;
+mod plaza_plot;
 mod plot;
 mod run;
 mod score;
@@ -34,6 +37,8 @@ use score::Summary;
 pub enum ReplaySource {
     /// UTIL UWB TDOA flights with motion-capture truth.
     Util(UtilArgs),
+    /// CMU Plaza runs: a wheeled robot's odometry and radio ranges, with truth.
+    Plaza(plaza::PlazaArgs),
 }
 
 /// Arguments of `ickon replay util`.
@@ -127,6 +132,7 @@ struct EstimatorReport {
 pub fn run(source: ReplaySource) -> ExitCode {
     match source {
         ReplaySource::Util(args) => util(&args),
+        ReplaySource::Plaza(args) => plaza::run(&args),
     }
 }
 

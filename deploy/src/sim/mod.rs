@@ -47,8 +47,8 @@ pub struct SimArgs {
     /// How long to run once every node is live, seconds.
     #[arg(long, default_value_t = 30.0)]
     pub duration: f64,
-    /// Estimator every MSU agent runs.
-    #[arg(long, default_value = "ickon-akf")]
+    /// Estimator every MSU agent runs (`tdoa-ekf`, ours, by default).
+    #[arg(long, default_value = "tdoa-ekf")]
     pub estimator: String,
     /// Noise profile of the simulated world: ideal, paper or harsh.
     #[arg(long, default_value = "paper")]
@@ -190,12 +190,7 @@ async fn run_mesh(
             .iter()
             .find(|r| &r.id == robot)
             .map_or([0.0; 3], |r| r.start);
-        let config = ickon_sim::engine::estimator_config(
-            &args.estimator,
-            start,
-            site.msu.height_m,
-            profile,
-        )?;
+        let config = ickon_sim::engine::estimator_config(&args.estimator, start, site, profile)?;
         let timing_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
         cmd.args(["--robot", robot, "--estimator", &args.estimator])
             .arg("--estimator-json")

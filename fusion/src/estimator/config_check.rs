@@ -132,15 +132,27 @@ fn tdoa_ekf(p: &TdoaEkfParams) -> Check {
     if !p.receiver_height_m.is_finite() {
         return Err(("receiver_height_m", "must be finite"));
     }
-    noise(&p.noise)?;
+    p.sensors.check()?;
     non_negative("max_gyro_gap_s", p.max_gyro_gap_s)?;
     positive("gate_sigma", p.gate_sigma)?;
+    positive("late_soft_sigma", p.late_soft_sigma)?;
+    non_negative("heading_sigma_deg", p.heading_sigma_deg)?;
     p.recovery.check()?;
-    positive("relocalise_gate_sigma", p.relocalise_gate_sigma)?;
-    non_negative(
-        "relocalise_heading_sigma_deg",
-        p.relocalise_heading_sigma_deg,
-    )?;
+    positive("model_nis", p.model_nis)?;
+    if p.reinit_arrivals < 4 {
+        return Err((
+            "reinit_arrivals",
+            "must be at least 4 (a checked 2D fix needs one more than 3)",
+        ));
+    }
+    non_negative("reinit_heading_sigma_deg", p.reinit_heading_sigma_deg)?;
+    if let Some(f) = &p.floor {
+        let ok = (0..2)
+            .all(|k| f.min_m[k].is_finite() && f.max_m[k].is_finite() && f.min_m[k] < f.max_m[k]);
+        if !ok {
+            return Err(("floor", "corners must be finite with min below max"));
+        }
+    }
     if p.start_transmitters < 2 {
         return Err((
             "start_transmitters",

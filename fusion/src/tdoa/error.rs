@@ -107,6 +107,15 @@ pub enum SolveError {
         /// The best solution found, metres.
         position_m: [f64; 3],
     },
+    /// [`super::solve_moving`] got a different number of displacements
+    /// than signals.
+    #[error("{signals} signals but {displacements} displacements")]
+    DisplacementCount {
+        /// Signals given.
+        signals: usize,
+        /// Displacements given.
+        displacements: usize,
+    },
     /// The iteration did not settle (pairwise refinement from a poor start).
     #[error("no convergence after {iterations} iterations (last step {last_step_m:.3e} m)")]
     NotConverged {
@@ -125,7 +134,8 @@ impl SolveError {
             | Self::DuplicateTransmitter { .. }
             | Self::TooManySignals { .. }
             | Self::InvalidConfig { .. }
-            | Self::CoincidentPair { .. } => ErrorKind::BadInput,
+            | Self::CoincidentPair { .. }
+            | Self::DisplacementCount { .. } => ErrorKind::BadInput,
             Self::TooFewSignals { .. }
             | Self::TooFewConsistent { .. }
             | Self::DegenerateGeometry { .. }

@@ -39,6 +39,11 @@
 //!    residual exceeds the gate. Every removal is reported with its reason
 //!    in [`Fix::rejected`].
 //!
+//! [`solve_moving`] is the same pipeline for a receiver that moves during
+//! the cycle: each arrival is related to the position at its own arrival
+//! time through the displacement odometry measured since the reference
+//! instant.
+//!
 //! [`refine_pairs`] runs the same Gauss-Newton on independent pairwise
 //! differences `|p - s_b| - |p - s_a| = d` (UWB anchor pairs).
 //!
@@ -66,6 +71,7 @@ mod config;
 mod error;
 mod fix;
 mod heading;
+mod moving;
 mod pairs;
 mod refine;
 mod residuals;
@@ -84,6 +90,7 @@ pub use fix::{Fix, Quality, RejectReason, Rejection};
 pub use heading::{
     HeadingError, SEED_RECEIVER_ANGLES_RAD, heading_from_first_receiver, two_sensor_heading,
 };
+pub use moving::{displacements_at_velocity, displacements_from_track, solve_moving};
 pub use pairs::{PairMeasurement, Solution3, refine_pairs};
 pub use robust::solve;
 pub use signal::{MAX_SIGNALS, Signal};

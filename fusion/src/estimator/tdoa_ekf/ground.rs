@@ -1,61 +1,96 @@
-//! The ground-robot variant behind [`crate::estimator::Estimator`]: state
-//! `(x, y, theta)`, predicted by dead reckoning (encoder ticks or odometry
-//! poses for the distance, the gyro or the wheels for the turn), corrected
-//! by each range difference on its own with the receiver at the known
-//! height `receiver_height_m`.
+//! The ground-robot filter behind [`crate::estimator::Estimator`], one
+//! tightly coupled EKF for every absolute sensor a ground robot carries.
 //!
-//! - Prediction: the arc step of seed 003 (eq. 1-6) with the distance of
-//!   the relative unit; the heading change is the gyro's integral over the
-//!   step when a gyro sample arrived within `max_gyro_gap_s` (the gyro
-//!   does not slip), else the wheels'. The gyro bias is not estimated: the
-//!   heading is corrected through its correlation with the position, which
-//!   the arc step builds up as the robot drives.
-//! - Correction: physical check, innovation gate, scalar Joseph update,
-//!   recovery of a lost filter (as in [`super::TdoaEkf3d`]).
-//! - Start: at `initial_pose` when given; otherwise at the centroid of the
-//!   first `start_transmitters` distinct transmitters heard, with
-//!   `start_sigma_xy_m` per axis and an unknown heading. While the heading
-//!   is unknown, an arc step along a guessed heading would move the
-//!   position the wrong way with a covariance that pretends otherwise (the
-//!   linearisation fails for errors of tens of degrees); so the position
-//!   only diffuses by the distance driven, and the heading is taken from
-//!   the track once the robot has moved `heading_chord_m` with a settled
-//!   position: the chord's direction plus half the turn driven along it
-//!   (exact on an arc).
-//! - MSU fixes are not fused (the filter consumes the arrivals themselves)
-//!   but watched, to re-localise a lost filter: when `relocalise_after`
-//!   fixes in a row lie beyond `relocalise_gate_sigma` of the estimate
-//!   (Mahalanobis distance with both covariances), the position restarts
-//!   at the last fix with the fix's covariance and the heading variance
-//!   grows by `relocalise_heading_sigma_deg`. Without this, a filter that
-//!   lost the track in a corridor (poor geometry, reflections off the
-//!   walls, a gyro bias it does not estimate) widened its variance and
-//!   wandered off the floor; a run of fixes that agree with each other and
-//!   not with the filter is the stronger evidence.
+//! - State ([`super::ground_state`]): position, heading, the turn-rate bias
+//!   of the heading source (gyro, or wheels without one), the distance
+//!   scale of the wheels, the pseudo-range offset of the cycle being fused,
+//!   and the bias and scale error of absolute radio ranges.
+//! - Prediction at the wheels' rate: the arc of seed 003 with the distance
+//!   scaled and the heading change integrated from the gyro at its own rate
+//!   (the wheels' when no gyro sample came within `max_gyro_gap_s`), the
+//!   bias removed; noise from the sensors' data sheets ([`GroundNoise`]).
+//! - Each arrival fused on its own, motion-compensated: the cycle's range
+//!   differences are chained back into pseudo-ranges
+//!   ([`super::ground_chain`]); the first arrival of a cycle initialises
+//!   the offset, every later one is a scalar update of
+//!   `|p(t_i) - s_i| + offset`, with `p(t_i)` the position at its own
+//!   arrival time (the filter's motion between its last step and `t_i`).
+//! - Reflections as what they are: late. An arrival far later than
+//!   predicted is rejected; one moderately late is down-weighted (its
+//!   variance grows with the square of its lateness beyond
+//!   `late_soft_sigma`: a heavy tail on one side only); one far *earlier*
+//!   than predicted cannot be a reflection, so the cycle's offset (set by
+//!   an earlier arrival, possibly itself late) is re-initialised from it.
+//! - The receiver-id heading of seed 000 (eq. 4-6), carried by the MSU
+//!   fixes, as a heading measurement with its honest `heading_sigma_deg`
+//!   (30 deg: half a 60 deg sector plus the beams' overlap); the fixes'
+//!   positions are not fused (the filter already has their arrivals).
+//! - Absolute ranges to radio beacons ([`TdoaEkf::range`]) with the range
+//!   bias estimated, for robots that range instead of timing differences.
+//! - A floor plan (`floor`), when given: a state outside it is impossible
+//!   and projected back onto it; a re-initialisation outside it is refused.
+//! - Recovery: when most recent arrivals that were not late (accepted, or
+//!   earlier than predicted beyond the gate: no reflection does that) are
+//!   early ones, the filter counts as lost ([`RecoveryParams`]); it then waits for a cycle whose arrivals
+//!   agree with each other (a redundant, motion-compensated fix without
+//!   rejected residuals, [`crate::tdoa::solve_moving`]); when two of them
+//!   agree with each other but not with the filter, it re-initialises its
+//!   position there (when they agree with the filter too, it was not
+//!   displaced and simply counts as found again), counted in [`TdoaEkf::reinitialisations`]. It does
+//!   not widen its variance or jump to single fixes meanwhile.
+//! - Start: at `initial_pose` when given; otherwise at the first
+//!   consistent cycle (or at the centroid of the first `start_transmitters`
+//!   transmitters heard, with `start_sigma_xy_m`), heading unknown: the
+//!   position only diffuses by the distance driven, and the heading is
+//!   taken from the track once the robot has moved `heading_chord_m` with a
+//!   settled position (the chord's direction plus half the turn driven).
 
 use std::f64::consts::PI;
 
-use nalgebra::{Matrix3, RowVector3, Vector2, Vector3};
+use nalgebra::Vector3;
 
+use super::ground_chain::{Arrival, Chain, Link};
+use super::ground_noise::GroundNoise;
+use super::ground_state::{
+    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH, X, Y,
+};
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
-use crate::estimator::dead_reckoning::{
-    DeadReckoningNoise, IncrementTracker, arc_step, propagate_covariance,
-};
+use crate::angle;
+use crate::estimator::dead_reckoning::IncrementTracker;
 use crate::estimator::replay::Core;
 use crate::estimator::{FixSample, InitialPose, Input, PoseEstimate, RangeDifferenceSample};
+use crate::tdoa;
+
+/// An axis-aligned floor plan the robot cannot leave, metres.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Floor {
+    /// Lower corner `(x, y)`.
+    pub min_m: [f64; 2],
+    /// Upper corner `(x, y)`.
+    pub max_m: [f64; 2],
+}
+
+impl Floor {
+    /// Whether `(x, y)` is on the floor.
+    pub fn contains(&self, x_m: f64, y_m: f64) -> bool {
+        (self.min_m[0]..=self.max_m[0]).contains(&x_m)
+            && (self.min_m[1]..=self.max_m[1]).contains(&y_m)
+    }
+}
 
 /// Parameters of `tdoa-ekf` (ground robot).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TdoaEkfParams {
-    /// Start pose; `None` starts at the centroid of the first transmitters.
+    /// Start pose; `None` starts from the first consistent cycle.
     pub initial_pose: Option<InitialPose>,
     /// Height of the receiver above the floor, metres (the lab site's MSU:
     /// 0.5).
     pub receiver_height_m: f64,
-    /// Dead-reckoning noise growing the covariance.
-    pub noise: DeadReckoningNoise,
+    /// Data-sheet noise of the gyro and the wheels.
+    pub sensors: GroundNoise,
     /// Whether the gyro gives the heading change when it is running.
     pub use_gyro: bool,
     /// Longest time without a gyro sample for the gyro to count as
@@ -63,9 +98,28 @@ pub struct TdoaEkfParams {
     pub max_gyro_gap_s: f64,
     /// Innovation gate in standard deviations.
     pub gate_sigma: f64,
-    /// When the filter counts as lost, and how it widens.
+    /// Lateness, in standard deviations, beyond which an arrival's variance
+    /// grows (one-sided heavy tail for reflections).
+    pub late_soft_sigma: f64,
+    /// Standard deviation of the receiver-id heading of the fixes, degrees
+    /// (0: not fused).
+    pub heading_sigma_deg: f64,
+    /// When the filter counts as lost; its window also averages the
+    /// normalised innovations for `model_nis`.
     pub recovery: RecoveryParams,
-    /// Distinct transmitters heard before starting without a start pose.
+    /// Mean squared normalised innovation (one when the model holds)
+    /// above which the heading and turn bias are reopened.
+    pub model_nis: f64,
+    /// Fewest arrivals of a cycle to re-initialise (or start) from: one
+    /// more than a 2D fix needs, so their consistency can be checked.
+    pub reinit_arrivals: usize,
+    /// Standard deviation added to the heading on re-initialisation,
+    /// degrees.
+    pub reinit_heading_sigma_deg: f64,
+    /// The floor plan, when known.
+    pub floor: Option<Floor>,
+    /// Distinct transmitters heard before starting at their centroid
+    /// without a start pose (if no consistent cycle came first).
     pub start_transmitters: usize,
     /// Standard deviation per axis of a start at the transmitters'
     /// centroid, metres.
@@ -78,13 +132,6 @@ pub struct TdoaEkfParams {
     pub settled_sigma_m: f64,
     /// Standard deviation of a heading taken from the track, degrees.
     pub track_heading_sigma_deg: f64,
-    /// Fixes in a row beyond the gate after which the filter re-localises
-    /// at the fix (0: never).
-    pub relocalise_after: u32,
-    /// Mahalanobis gate between a fix and the estimate, standard deviations.
-    pub relocalise_gate_sigma: f64,
-    /// Standard deviation added to the heading on re-localisation, degrees.
-    pub relocalise_heading_sigma_deg: f64,
     /// Seconds of input history kept for late inputs.
     pub history_s: f64,
 }
@@ -94,22 +141,36 @@ impl Default for TdoaEkfParams {
         Self {
             initial_pose: None,
             receiver_height_m: 0.5,
-            noise: DeadReckoningNoise::default(),
+            sensors: GroundNoise::default(),
             use_gyro: true,
             max_gyro_gap_s: 0.5,
-            gate_sigma: 3.0,
+            gate_sigma: 4.0,
+            late_soft_sigma: 2.0,
+            heading_sigma_deg: 30.0,
             recovery: RecoveryParams::default(),
+            model_nis: 3.0,
+            reinit_arrivals: 5,
+            reinit_heading_sigma_deg: 20.0,
+            floor: None,
             start_transmitters: 3,
             start_sigma_xy_m: 3.0,
             heading_chord_m: 0.5,
             settled_sigma_m: 0.1,
             track_heading_sigma_deg: 10.0,
-            relocalise_after: 3,
-            relocalise_gate_sigma: 5.0,
-            relocalise_heading_sigma_deg: 20.0,
             history_s: crate::estimator::registry::default_history_s(),
         }
     }
+}
+
+/// A re-initialisation of a lost filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reinitialisation {
+    /// When, seconds.
+    pub t_s: f64,
+    /// Position before, metres.
+    pub from_m: [f64; 2],
+    /// Position after, metres.
+    pub to_m: [f64; 2],
 }
 
 /// The `tdoa-ekf` state machine (ground robot).
@@ -117,22 +178,48 @@ impl Default for TdoaEkfParams {
 pub struct TdoaEkf {
     params: TdoaEkfParams,
     increments: IncrementTracker,
-    /// `(x, y, theta)` and its covariance, once started.
-    state: Option<(Vector3<f64>, Matrix3<f64>)>,
+    /// State and covariance, once started.
+    state: Option<(State, Cov)>,
+    /// Time of the newest input, seconds.
     t_s: f64,
+    /// Time the state's position refers to (its last step), seconds.
+    state_t_s: f64,
+    /// Speed along the heading over the last step, m/s.
+    speed_m_s: f64,
     /// Transmitters heard before the start (no start pose).
     heard: Vec<[f64; 3]>,
-    /// Last gyro sample `(t_s, rate)` and the turn integrated since the
-    /// last relative step.
+    /// Last gyro sample `(t_s, rate)`, the turn integrated since the last
+    /// step and the time it spans.
     gyro: Option<(f64, f64)>,
     gyro_turn_rad: f64,
+    gyro_time_s: f64,
     /// While the heading is unknown: where the settled track started and
     /// the turn driven since (`None` inside until the position settles).
     heading_from_track: Option<Option<TrackStart>>,
+    chain: Chain,
+    /// Whether the cycle's offset is initialised for the current chain.
+    offset_ready: bool,
+    /// Whether an arrival has agreed with the offset since it was set.
+    offset_confirmed: bool,
+    /// Running mean of the squared normalised innovations, and how many
+    /// went in since the last adaptation.
+    nis_mean: f64,
+    nis_seen: u32,
+    adaptations: u32,
     watch: RejectionWatch,
+    lost: bool,
+    candidate: Option<Candidate>,
     last_outcome: Option<Outcome>,
-    /// Fixes in a row that disagreed with the estimate.
-    fixes_disagreeing: u32,
+    reinits: Vec<Reinitialisation>,
+}
+
+/// A fix of one cycle waiting for the next cycle to confirm it.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    chain_start_s: f64,
+    t_s: f64,
+    xy_m: [f64; 2],
+    sigma_m: f64,
 }
 
 /// Start of the chord an unknown heading is taken from.
@@ -143,32 +230,86 @@ struct TrackStart {
     turn_rad: f64,
 }
 
+/// Most re-initialisations remembered (the count goes on).
+const MAX_REINITS_KEPT: usize = 64;
+
 impl TdoaEkf {
     /// Starts at `params.initial_pose`, or waits for transmitters.
     pub fn new(params: &TdoaEkfParams) -> Self {
         let state = params.initial_pose.map(|p| {
-            let v = p.sigma_xy_m * p.sigma_xy_m;
-            let cov = Matrix3::from_diagonal(&Vector3::new(v, v, p.sigma_theta_rad.powi(2)));
-            (Vector3::new(p.x_m, p.y_m, p.theta_rad), cov)
+            let mut x = State::zeros();
+            x[X] = p.x_m;
+            x[Y] = p.y_m;
+            x[TH] = p.theta_rad;
+            (x, prior(params, p.sigma_xy_m, p.sigma_theta_rad))
         });
         Self {
             params: *params,
             increments: IncrementTracker::default(),
             state,
             t_s: 0.0,
+            state_t_s: f64::NEG_INFINITY,
+            speed_m_s: 0.0,
             heard: Vec::new(),
             gyro: None,
             gyro_turn_rad: 0.0,
+            gyro_time_s: 0.0,
             heading_from_track: None,
+            chain: Chain::default(),
+            offset_ready: false,
+            offset_confirmed: false,
+            nis_mean: 1.0,
+            nis_seen: 0,
+            adaptations: 0,
             watch: RejectionWatch::default(),
+            lost: params.initial_pose.is_none(),
+            candidate: None,
             last_outcome: None,
-            fixes_disagreeing: 0,
+            reinits: Vec::new(),
         }
     }
 
-    /// What the last range difference did (`None` before the first).
+    /// What the last range difference or range did (`None` before the first).
     pub fn last_outcome(&self) -> Option<Outcome> {
         self.last_outcome
+    }
+
+    /// The re-initialisations so far (the latest [`MAX_REINITS_KEPT`]).
+    pub fn reinitialisations(&self) -> &[Reinitialisation] {
+        &self.reinits
+    }
+
+    /// How many times the filter reopened its heading and turn bias
+    /// because the arrivals disagreed with its model.
+    pub fn adaptations(&self) -> u32 {
+        self.adaptations
+    }
+
+    /// Whether the filter currently counts as lost.
+    pub fn is_lost(&self) -> bool {
+        self.lost
+    }
+
+    /// The estimated turn-rate bias of the heading source, rad/s.
+    pub fn turn_bias_rad_s(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[BIAS])
+    }
+
+    /// The estimated range bias of absolute ranges, metres.
+    pub fn range_bias_m(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[RANGE_BIAS])
+    }
+
+    /// The estimated range scale error of absolute ranges (a range reads
+    /// the distance times one plus it, plus the bias).
+    pub fn range_scale(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[RANGE_SCALE])
+    }
+
+    /// The estimated distance scale error (travelled = measured times one
+    /// plus it).
+    pub fn distance_scale(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[SCALE])
     }
 
     fn gyro_sample(&mut self, t_s: f64, rate_rad_s: f64) {
@@ -176,6 +317,7 @@ impl TdoaEkf {
             let dt = t_s - t0;
             if dt > 0.0 && dt <= self.params.max_gyro_gap_s {
                 self.gyro_turn_rad += rate0 * dt;
+                self.gyro_time_s += dt;
             }
         }
     }
@@ -188,33 +330,389 @@ impl TdoaEkf {
             && self
                 .gyro
                 .is_some_and(|(t, _)| (inc.t_s - t).abs() <= self.params.max_gyro_gap_s);
-        let dtheta = if gyro_running {
-            self.gyro_turn_rad
+        let (dtheta, turn_time) = if gyro_running {
+            (self.gyro_turn_rad, self.gyro_time_s)
         } else {
-            inc.dtheta_rad
+            (inc.dtheta_rad, inc.dt_s.max(0.0))
         };
         self.gyro_turn_rad = 0.0;
+        self.gyro_time_s = 0.0;
+        self.increment(inc.t_s, inc.distance_m, dtheta, turn_time, gyro_running);
+    }
+
+    /// One dead-reckoning step ending at `t_s`: `distance_m` driven (signed)
+    /// while the heading source turned by `dtheta_rad` over `turn_time_s`
+    /// (bias included); `from_gyro` says whose noise applies. For callers
+    /// that drive the filter directly from their own increments.
+    pub fn increment(
+        &mut self,
+        t_s: f64,
+        distance_m: f64,
+        dtheta_rad: f64,
+        turn_time_s: f64,
+        from_gyro: bool,
+    ) {
+        if ![t_s, distance_m, dtheta_rad, turn_time_s]
+            .iter()
+            .all(|v| v.is_finite())
+        {
+            return;
+        }
+        let dt = if self.state_t_s.is_finite() {
+            (t_s - self.state_t_s).max(0.0)
+        } else {
+            turn_time_s.max(0.0)
+        };
+        self.state_t_s = t_s;
+        self.t_s = self.t_s.max(t_s);
+        self.speed_m_s = if dt > 0.0 { distance_m / dt } else { 0.0 };
         let Some((x, p)) = &mut self.state else {
             return;
         };
         if let Some(track) = &mut self.heading_from_track {
             // Heading unknown: the position diffuses by the distance driven.
-            let v = inc.distance_m * inc.distance_m;
-            p[(0, 0)] += v;
-            p[(1, 1)] += v;
+            let v = distance_m * distance_m;
+            p[(X, X)] += v;
+            p[(Y, Y)] += v;
             if let Some(start) = track {
-                start.turn_rad += dtheta;
+                start.turn_rad += dtheta_rad;
             }
             return;
         }
-        let (vd, vt) = self.params.noise.variances(inc.distance_m, dtheta);
-        let mid = x.z + 0.5 * dtheta;
-        let (nx, ny, nt) = arc_step(x.x, x.y, x.z, inc.distance_m, dtheta);
-        let np = propagate_covariance(p, mid, inc.distance_m, vd, vt);
-        if [nx, ny, nt].iter().chain(np.iter()).all(|v| v.is_finite()) {
-            *x = Vector3::new(nx, ny, nt);
+        let n = &self.params.sensors;
+        let omega = if dt > 0.0 { dtheta_rad / dt } else { 0.0 };
+        let (var_dtheta, walk) = if from_gyro {
+            (
+                n.var_gyro_turn(dtheta_rad, turn_time_s),
+                n.gyro_bias_walk_deg_s_sqrt_s,
+            )
+        } else {
+            (
+                n.var_wheel_turn(dtheta_rad, distance_m),
+                n.wheel_bias_walk_deg_s_sqrt_s,
+            )
+        };
+        let step = Step {
+            distance_m,
+            dtheta_rad,
+            turn_time_s,
+            var_distance: n.var_distance(distance_m, omega),
+            var_dtheta,
+            var_bias: walk.to_radians().powi(2) * dt,
+        };
+        if let Some((nx, mut np)) = gs::predict(x, p, &step) {
+            np[(RANGE_BIAS, RANGE_BIAS)] += n.range_bias_walk_m_sqrt_s.powi(2) * dt;
+            *x = nx;
             *p = np;
+            self.project_on_floor();
         }
+    }
+
+    /// The receiver position at time `t_s`: the state's, moved on along
+    /// the heading at the last step's speed.
+    fn position_at(&self, x: &State, t_s: f64) -> Vector3<f64> {
+        let dt = if self.state_t_s.is_finite() {
+            t_s - self.state_t_s
+        } else {
+            0.0
+        };
+        let (s, c) = x[TH].sin_cos();
+        let ds = self.speed_m_s * dt;
+        Vector3::new(x[X] + ds * c, x[Y] + ds * s, self.params.receiver_height_m)
+    }
+
+    /// Predicted pseudo-range of an arrival without the offset, and its
+    /// row (position columns only).
+    fn arrival_model(&self, x: &State, a: &Arrival) -> Option<(f64, Row)> {
+        let p = self.position_at(x, a.t_s);
+        let r = p - Vector3::from(a.tx_m);
+        let d = r.norm();
+        if d < 1e-6 {
+            return None;
+        }
+        let mut h = Row::zeros();
+        h[X] = r.x / d;
+        h[Y] = r.y / d;
+        Some((d, h))
+    }
+
+    /// Initialises the cycle's offset from arrival `a`.
+    fn offset_from(&mut self, a: &Arrival, sigma_m: f64) -> bool {
+        let Some((x, _)) = self.state else {
+            return false;
+        };
+        let Some((pred, h)) = self.arrival_model(&x, a) else {
+            return false;
+        };
+        if let Some((x, p)) = &mut self.state {
+            gs::init_offset(x, p, &h, a.rho_m, pred, sigma_m * sigma_m);
+        }
+        self.offset_ready = true;
+        self.offset_confirmed = false;
+        true
+    }
+
+    /// Watches the normalised innovations of accepted arrivals: their
+    /// squares average one when the model holds. A run well above that
+    /// (a gyro bias step, a slipping wheel: the data sheet's model no
+    /// longer holds) reopens the heading and the turn bias to the sheet's
+    /// power-up uncertainty, so the arrivals can pull them back.
+    fn adapt(&mut self, normalised: f64) {
+        let n = f64::from(self.params.recovery.window.max(1));
+        let nis = normalised * normalised;
+        self.nis_mean += (nis - self.nis_mean) / n;
+        self.nis_seen = self.nis_seen.saturating_add(1);
+        if self.nis_seen < self.params.recovery.window || self.nis_mean < self.params.model_nis {
+            return;
+        }
+        self.nis_seen = 0;
+        self.nis_mean = 1.0;
+        if let Some((_, p)) = &mut self.state {
+            let b = self.params.sensors.gyro_bias_sigma_deg_s.to_radians();
+            p[(BIAS, BIAS)] += b * b;
+            p[(TH, TH)] += self.params.reinit_heading_sigma_deg.to_radians().powi(2) / 4.0;
+        }
+        self.adaptations = self.adaptations.saturating_add(1);
+    }
+
+    /// Fuses one arrival of the chain (offset already initialised).
+    fn arrival(&mut self, a: &Arrival, sigma_m: f64) -> Outcome {
+        let Some((x, p)) = self.state else {
+            return Outcome::Rejected(Rejection::NotInitialised);
+        };
+        let Some((pred, mut h)) = self.arrival_model(&x, a) else {
+            return Outcome::Rejected(Rejection::Numerical);
+        };
+        h[OFFSET] = 1.0;
+        let nu = a.rho_m - pred - x[OFFSET];
+        let r = sigma_m * sigma_m;
+        let s = gs::innovation_variance(&p, &h, r);
+        if !(s.is_finite() && s > 0.0) {
+            return Outcome::Rejected(Rejection::Numerical);
+        }
+        let normalised = nu / s.sqrt();
+        let (gate, soft) = (self.params.gate_sigma, self.params.late_soft_sigma);
+        if normalised > gate {
+            // Far later than predicted: a reflection. Not evidence of a lost
+            // filter (a healthy one in a burst of reflections sees many).
+            return Outcome::Rejected(Rejection::Gate { normalised });
+        }
+        if normalised < -gate || (normalised < -soft && !self.offset_confirmed) {
+            // Earlier than predicted beyond the noise: no path is shorter
+            // than the direct one, so the offset (set by an earlier arrival
+            // that was itself late) is what is wrong: it starts again from
+            // this arrival, which is not fused. While no arrival has yet
+            // agreed with the offset, "beyond the noise" is the soft bound;
+            // once one has, only the gate, and it counts as evidence of a
+            // lost filter.
+            self.note(normalised < -gate);
+            self.offset_from(a, sigma_m);
+            return Outcome::Rejected(Rejection::Gate {
+                normalised: normalised.abs(),
+            });
+        }
+        let r = if normalised > soft {
+            // One-sided heavy tail: a moderately late arrival may carry a
+            // short reflection; trust it less the later it is.
+            r + s * ((normalised / soft).powi(2) - 1.0)
+        } else {
+            r
+        };
+        match gs::update(&x, &p, &h, nu, r) {
+            Some((nx, np)) => {
+                self.state = Some((nx, np));
+                self.note(false);
+                self.offset_confirmed |= normalised.abs() <= soft;
+                self.adapt(normalised);
+                self.project_on_floor();
+                self.heading_from_track();
+                Outcome::Accepted {
+                    innovation_m: nu,
+                    normalised: normalised.abs(),
+                }
+            }
+            None => Outcome::Rejected(Rejection::Numerical),
+        }
+    }
+
+    /// Notes a gated measurement; marks the filter lost when most recent
+    /// ones were rejected.
+    fn note(&mut self, rejected: bool) {
+        if self.watch.note(rejected, &self.params.recovery) {
+            self.lost = true;
+        }
+    }
+
+    fn range_difference(&mut self, m: &RangeDifferenceSample) -> Outcome {
+        let physical = observation::check(m);
+        if let Err(r @ (Rejection::NonFinite { .. } | Rejection::BadSigma { .. })) = physical {
+            return Outcome::Rejected(r);
+        }
+        let link = self.chain.add(m.a_m, m.b_m, m.d_m, m.t_s);
+        // One arrival's sigma: the pair's is that of two.
+        let sigma = m.sigma_m / std::f64::consts::SQRT_2;
+        if self.state.is_none() {
+            self.start_from_transmitters(m);
+        }
+        if self.lost && self.try_reinitialise(m.t_s) {
+            return self
+                .last_outcome
+                .unwrap_or(Outcome::Rejected(Rejection::Gate {
+                    normalised: f64::INFINITY,
+                }));
+        }
+        if self.state.is_none() {
+            return Outcome::Rejected(Rejection::NotInitialised);
+        }
+        let b = match link {
+            Link::Started(a, b) => {
+                self.offset_ready = false;
+                if !self.offset_from(&a, sigma) {
+                    return Outcome::Rejected(Rejection::Numerical);
+                }
+                b
+            }
+            Link::Continued(b) => {
+                if !self.offset_ready && !self.offset_from(&b, sigma) {
+                    return Outcome::Rejected(Rejection::Numerical);
+                }
+                b
+            }
+        };
+        // A |d| beyond the baseline (physical check) means one of the two
+        // arrivals is a reflection: the chain keeps the difference (the
+        // next one undoes it) and the arrival is judged against the
+        // prediction like any other, where a late one fails.
+        self.arrival(&b, sigma)
+    }
+
+    /// While lost (or not started): re-initialises at a redundant,
+    /// self-consistent fix of the chain's arrivals. Returns whether it did.
+    fn try_reinitialise(&mut self, t_s: f64) -> bool {
+        let arrivals = self.chain.arrivals().to_vec();
+        if arrivals.len() < self.params.reinit_arrivals.max(4) {
+            return false;
+        }
+        let height = self.params.receiver_height_m;
+        let heading = self.state.map_or(0.0, |(x, _)| x[TH]);
+        let known_motion = self.state.is_some() && self.heading_from_track.is_none();
+        let (s, c) = heading.sin_cos();
+        let speed = if known_motion { self.speed_m_s } else { 0.0 };
+        let signals: Vec<tdoa::Signal> = arrivals
+            .iter()
+            .enumerate()
+            .map(|(i, a)| tdoa::Signal {
+                tx_id: i as u32,
+                tx_m: Vector3::from(a.tx_m),
+                pseudo_range_m: a.rho_m,
+            })
+            .collect();
+        let moves: Vec<Vector3<f64>> = arrivals
+            .iter()
+            .map(|a| Vector3::new(c, s, 0.0) * speed * (a.t_s - t_s))
+            .collect();
+        let config = tdoa::SolverConfig {
+            mode: tdoa::Mode::TwoD { height_m: height },
+            sigma_range_m: 0.03,
+            ..tdoa::SolverConfig::default()
+        };
+        let Ok(fix) = tdoa::solve_moving(&signals, &moves, &config) else {
+            return false;
+        };
+        if fix.quality != tdoa::Quality::Good || !fix.rejected.is_empty() {
+            return false;
+        }
+        let (fx, fy) = (fix.position_m.x, fix.position_m.y);
+        if self.params.floor.is_some_and(|f| !f.contains(fx, fy)) {
+            return false;
+        }
+        let cov = fix.covariance_xy_m2();
+        // One self-consistent cycle can still be a coincidence of
+        // reflections: the fixes of two different cycles must agree (within
+        // their noise and the distance driven between them).
+        let chain_start = arrivals[0].t_s;
+        let sigma = cov.trace().max(0.0).sqrt();
+        let candidate = Candidate {
+            chain_start_s: chain_start,
+            t_s,
+            xy_m: [fx, fy],
+            sigma_m: sigma,
+        };
+        match self.candidate {
+            Some(c) if c.chain_start_s != chain_start => {
+                let moved = self.speed_m_s.abs() * (t_s - c.t_s).abs();
+                let apart = (fx - c.xy_m[0]).hypot(fy - c.xy_m[1]);
+                if apart > 3.0 * (sigma + c.sigma_m) + moved {
+                    self.candidate = Some(candidate);
+                    return false;
+                }
+            }
+            Some(_) => return false,
+            None => {
+                self.candidate = Some(candidate);
+                return false;
+            }
+        }
+        self.candidate = None;
+        let tracking = self.heading_from_track.is_none();
+        if let (true, Some((x, p))) = (tracking, &self.state) {
+            // The consistent cycles put the robot where the filter has it:
+            // it is not displaced (its arrivals only disagreed with its
+            // model for a while), so there is nothing to jump to.
+            let own = (p[(X, X)] + p[(Y, Y)]).max(0.0).sqrt();
+            if (fx - x[X]).hypot(fy - x[Y]) <= 3.0 * (sigma + own) {
+                self.lost = false;
+                self.watch = RejectionWatch::default();
+                return false;
+            }
+        }
+        let cov = [[cov[(0, 0)], cov[(0, 1)]], [cov[(1, 0)], cov[(1, 1)]]];
+        let extra = self.params.reinit_heading_sigma_deg.to_radians().powi(2);
+        match &mut self.state {
+            Some((x, p)) => {
+                let from = [x[X], x[Y]];
+                gs::reset_position(x, p, [fx, fy], cov, if tracking { extra } else { 0.0 });
+                if !tracking {
+                    // Still starting: not an event, and the chord of an
+                    // unknown heading starts again (the jump is no motion).
+                    self.heading_from_track = Some(None);
+                } else if self.reinits.len() >= MAX_REINITS_KEPT {
+                    self.reinits.remove(0);
+                }
+                if tracking {
+                    self.reinits.push(Reinitialisation {
+                        t_s,
+                        from_m: from,
+                        to_m: [fx, fy],
+                    });
+                }
+            }
+            None => {
+                let mut x = State::zeros();
+                x[X] = fx;
+                x[Y] = fy;
+                let mut p = prior(&self.params, 1.0, PI);
+                gs::reset_position(&mut x, &mut p, [fx, fy], cov, 0.0);
+                self.state = Some((x, p));
+                self.heading_from_track = Some(None);
+                self.heard.clear();
+            }
+        }
+        // The state moved under the chain's offset: set it again.
+        self.offset_ready = false;
+        self.lost = false;
+        self.watch = RejectionWatch::default();
+        let last = *self.chain.arrivals().last().unwrap_or(&Arrival {
+            tx_m: [0.0; 3],
+            rho_m: 0.0,
+            t_s,
+        });
+        self.offset_from(&last, config.sigma_range_m);
+        self.last_outcome = Some(Outcome::Accepted {
+            innovation_m: 0.0,
+            normalised: 0.0,
+        });
+        true
     }
 
     fn start_from_transmitters(&mut self, m: &RangeDifferenceSample) {
@@ -229,11 +727,11 @@ impl TdoaEkf {
         let n = self.heard.len() as f64;
         let cx = self.heard.iter().map(|c| c[0]).sum::<f64>() / n;
         let cy = self.heard.iter().map(|c| c[1]).sum::<f64>() / n;
-        let v = self.params.start_sigma_xy_m.powi(2);
-        self.state = Some((
-            Vector3::new(cx, cy, 0.0),
-            Matrix3::from_diagonal(&Vector3::new(v, v, PI * PI)),
-        ));
+        let sxy = self.params.start_sigma_xy_m;
+        let mut x = State::zeros();
+        x[X] = cx;
+        x[Y] = cy;
+        self.state = Some((x, prior(&self.params, sxy, PI)));
         self.heading_from_track = Some(None);
         self.heard.clear();
     }
@@ -245,107 +743,166 @@ impl TdoaEkf {
         let (Some(track), Some((x, p))) = (&mut self.heading_from_track, &mut self.state) else {
             return;
         };
-        if p[(0, 0)].max(p[(1, 1)]).sqrt() > self.params.settled_sigma_m {
+        if p[(X, X)].max(p[(Y, Y)]).sqrt() > self.params.settled_sigma_m {
             return;
         }
         let Some(start) = track else {
             *track = Some(TrackStart {
-                x_m: x.x,
-                y_m: x.y,
+                x_m: x[X],
+                y_m: x[Y],
                 turn_rad: 0.0,
             });
             return;
         };
-        let (dx, dy) = (x.x - start.x_m, x.y - start.y_m);
+        let (dx, dy) = (x[X] - start.x_m, x[Y] - start.y_m);
         if dx.hypot(dy) < self.params.heading_chord_m {
             return;
         }
-        x.z = dy.atan2(dx) + 0.5 * start.turn_rad;
+        x[TH] = dy.atan2(dx) + 0.5 * start.turn_rad;
         let v = self.params.track_heading_sigma_deg.to_radians().powi(2);
-        for k in 0..2 {
-            p[(k, 2)] = 0.0;
-            p[(2, k)] = 0.0;
+        for k in 0..gs::N {
+            if k != TH {
+                p[(k, TH)] = 0.0;
+                p[(TH, k)] = 0.0;
+            }
         }
-        p[(2, 2)] = v;
+        p[(TH, TH)] = v;
         self.heading_from_track = None;
     }
 
-    /// Watches one MSU fix; re-localises after a run of disagreeing ones.
+    /// Fuses the receiver-id heading of one MSU fix.
     fn fix(&mut self, f: &FixSample) {
-        if self.params.relocalise_after == 0 || self.heading_from_track.is_some() {
-            return;
-        }
-        let Some((x, p)) = &mut self.state else {
+        let sigma = self.params.heading_sigma_deg.to_radians();
+        let (Some(heading), true) = (f.heading_rad, sigma > 0.0) else {
             return;
         };
-        let d = Vector2::new(f.x_m - x.x, f.y_m - x.y);
-        let s = p.fixed_view::<2, 2>(0, 0) + f.covariance;
-        let Some(m2) = s.try_inverse().map(|si| (d.transpose() * si * d)[0]) else {
+        if self.heading_from_track.is_some() || self.lost {
+            return;
+        }
+        let Some((x, p)) = self.state else {
             return;
         };
-        if m2.is_finite() && m2 <= self.params.relocalise_gate_sigma.powi(2) {
-            self.fixes_disagreeing = 0;
+        let mut h = Row::zeros();
+        h[TH] = 1.0;
+        let nu = angle::diff(heading, x[TH]);
+        let r = sigma * sigma;
+        let s = gs::innovation_variance(&p, &h, r);
+        if nu.abs() > self.params.gate_sigma * s.sqrt() {
             return;
         }
-        self.fixes_disagreeing += 1;
-        if self.fixes_disagreeing < self.params.relocalise_after {
-            return;
+        if let Some(next) = gs::update(&x, &p, &h, nu, r) {
+            self.state = Some(next);
         }
-        self.fixes_disagreeing = 0;
-        let floor = crate::estimator::MIN_VARIANCE;
-        let cov = (f.covariance + f.covariance.transpose()) * 0.5;
-        x.x = f.x_m;
-        x.y = f.y_m;
-        let heading_v = p[(2, 2)]
-            + self
-                .params
-                .relocalise_heading_sigma_deg
-                .to_radians()
-                .powi(2);
-        *p = Matrix3::zeros();
-        p.fixed_view_mut::<2, 2>(0, 0).copy_from(&cov);
-        p[(0, 0)] = p[(0, 0)].max(floor);
-        p[(1, 1)] = p[(1, 1)].max(floor);
-        p[(2, 2)] = heading_v;
-        self.watch = RejectionWatch::default();
     }
 
-    fn range_difference(&mut self, m: &RangeDifferenceSample) -> Outcome {
-        if let Err(r) = observation::check(m) {
-            return Outcome::Rejected(r);
+    /// Fuses one absolute range `range_m` (standard deviation `sigma_m`)
+    /// to a beacon at `beacon_m` (`x, y`, same height as the antenna),
+    /// measured at `t_s`, read as `(1 + scale) d + bias` with both estimated. Late (long)
+    /// ranges are down-weighted and rejected like late arrivals.
+    pub fn range(&mut self, t_s: f64, beacon_m: [f64; 2], range_m: f64, sigma_m: f64) -> Outcome {
+        let out = self.range_update(t_s, beacon_m, range_m, sigma_m);
+        self.t_s = self.t_s.max(t_s);
+        self.last_outcome = Some(out);
+        out
+    }
+
+    fn range_update(
+        &mut self,
+        t_s: f64,
+        beacon_m: [f64; 2],
+        range_m: f64,
+        sigma_m: f64,
+    ) -> Outcome {
+        if ![t_s, beacon_m[0], beacon_m[1], range_m]
+            .iter()
+            .all(|v| v.is_finite())
+        {
+            return Outcome::Rejected(Rejection::NonFinite { field: "range" });
         }
-        if self.state.is_none() {
-            self.start_from_transmitters(m);
+        if !(sigma_m.is_finite() && sigma_m > 0.0) {
+            return Outcome::Rejected(Rejection::BadSigma { sigma_m });
         }
         let Some((x, p)) = self.state else {
             return Outcome::Rejected(Rejection::NotInitialised);
         };
-        let at = nalgebra::Vector3::new(x.x, x.y, self.params.receiver_height_m);
-        let Some(lin) = observation::linearise(&at, m, 0.0) else {
+        let at = self.position_at(&x, t_s);
+        let (dx, dy) = (at.x - beacon_m[0], at.y - beacon_m[1]);
+        let d = dx.hypot(dy);
+        if d < 1e-6 {
             return Outcome::Rejected(Rejection::Numerical);
+        }
+        let k = 1.0 + x[RANGE_SCALE];
+        let mut h = Row::zeros();
+        h[X] = k * dx / d;
+        h[Y] = k * dy / d;
+        h[RANGE_BIAS] = 1.0;
+        h[RANGE_SCALE] = d;
+        let nu = range_m - k * d - x[RANGE_BIAS];
+        let r = sigma_m * sigma_m;
+        let s = gs::innovation_variance(&p, &h, r);
+        let normalised = nu / s.sqrt();
+        if normalised.abs() > self.params.gate_sigma {
+            // Only a range far shorter than predicted (impossible for a
+            // late, non-direct path) is evidence of a lost filter.
+            self.note(normalised < 0.0);
+            return Outcome::Rejected(Rejection::Gate {
+                normalised: normalised.abs(),
+            });
+        }
+        let soft = self.params.late_soft_sigma;
+        let r = if normalised > soft {
+            r + s * ((normalised / soft).powi(2) - 1.0)
+        } else {
+            r
         };
-        let h = RowVector3::new(lin.gradient.x, lin.gradient.y, 0.0);
-        let innovation = m.d_m - lin.predicted_m;
-        match observation::gated_update(&x, &p, &h, innovation, m.sigma_m, self.params.gate_sigma) {
-            Ok((x, p, outcome)) => {
-                self.state = Some((x, p));
-                self.watch.note(false, &self.params.recovery);
-                self.heading_from_track();
-                outcome
-            }
-            Err(r) => {
-                let gated = matches!(r, Rejection::Gate { .. });
-                if gated && self.watch.note(true, &self.params.recovery) {
-                    let v = self.params.recovery.sigma_m.powi(2);
-                    if let Some((_, p)) = &mut self.state {
-                        p[(0, 0)] += v;
-                        p[(1, 1)] += v;
-                    }
+        match gs::update(&x, &p, &h, nu, r) {
+            Some(next) => {
+                self.state = Some(next);
+                self.note(false);
+                self.adapt(normalised);
+                self.project_on_floor();
+                Outcome::Accepted {
+                    innovation_m: nu,
+                    normalised: normalised.abs(),
                 }
-                Outcome::Rejected(r)
             }
+            None => Outcome::Rejected(Rejection::Numerical),
         }
     }
+
+    /// A position off the floor is impossible: it is moved onto its edge.
+    fn project_on_floor(&mut self) {
+        let (Some(floor), Some((x, _))) = (self.params.floor, &mut self.state) else {
+            return;
+        };
+        x[X] = x[X].clamp(floor.min_m[0], floor.max_m[0]);
+        x[Y] = x[Y].clamp(floor.min_m[1], floor.max_m[1]);
+    }
+}
+
+/// The prior covariance: position and heading as given, the calibration
+/// states at their data-sheet uncertainty.
+fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
+    let n = &params.sensors;
+    let bias = if params.use_gyro {
+        n.gyro_bias_sigma_deg_s
+    } else {
+        // Without a gyro the turn bias is the wheels' drift: start it at
+        // the same sheet value, the data will tell.
+        n.gyro_bias_sigma_deg_s
+    }
+    .to_radians();
+    let v = sigma_xy_m * sigma_xy_m;
+    let mut d = State::zeros();
+    d[X] = v;
+    d[Y] = v;
+    d[TH] = sigma_theta_rad * sigma_theta_rad;
+    d[BIAS] = bias * bias;
+    d[SCALE] = n.distance_scale_sigma.powi(2);
+    d[OFFSET] = 1.0;
+    d[RANGE_BIAS] = n.range_bias_sigma_m.powi(2);
+    d[RANGE_SCALE] = n.range_scale_sigma.powi(2);
+    Cov::from_diagonal(&d)
 }
 
 impl Core for TdoaEkf {
@@ -368,12 +925,15 @@ impl Core for TdoaEkf {
 
     fn pose(&self) -> Option<PoseEstimate> {
         let (x, p) = self.state?;
+        // The position moved on to the newest input's time (the last step
+        // may be a wheel period older).
+        let at = self.position_at(&x, self.t_s);
         Some(PoseEstimate {
             t_s: self.t_s,
-            x_m: x.x,
-            y_m: x.y,
-            theta_rad: x.z,
-            covariance: p,
+            x_m: at.x,
+            y_m: at.y,
+            theta_rad: angle::wrap_pi(x[TH]),
+            covariance: p.fixed_view::<3, 3>(0, 0).into_owned(),
         })
     }
 }

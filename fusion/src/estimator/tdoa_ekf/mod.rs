@@ -31,13 +31,19 @@
 
 mod cv3d;
 mod ground;
+mod ground_chain;
+mod ground_noise;
+mod ground_state;
+#[cfg(test)]
+mod ground_tests;
 mod observation;
 mod recovery;
 #[cfg(test)]
 mod tests;
 
 pub use cv3d::{TdoaEkf3d, TdoaEkf3dParams};
-pub use ground::{TdoaEkf, TdoaEkfParams};
+pub use ground::{Floor, Reinitialisation, TdoaEkf, TdoaEkfParams};
+pub use ground_noise::GroundNoise;
 pub use observation::{Outcome, Rejection};
 pub(crate) use observation::{check, gated_update};
 pub use recovery::RecoveryParams;

@@ -217,45 +217,35 @@ fn ground_variant_uses_the_known_start_pose_and_ignores_fixes() {
 }
 
 #[test]
-fn a_run_of_disagreeing_fixes_relocalises_the_ground_filter_and_a_single_one_does_not() {
+fn the_receiver_id_heading_pulls_the_heading_and_a_wrong_sector_is_gated() {
     let params = TdoaEkfParams {
         initial_pose: Some(InitialPose {
             x_m: 1.0,
             y_m: 1.0,
             theta_rad: 0.0,
             sigma_xy_m: 0.02,
-            sigma_theta_rad: 0.02,
+            sigma_theta_rad: 0.5,
         }),
         ..TdoaEkfParams::default()
     };
-    let fix = |t_s: f64, x_m: f64| {
+    let fix = |t_s: f64, heading: f64| {
         Input::Fix(crate::estimator::FixSample {
             t_s,
-            x_m,
-            y_m: 3.0,
-            covariance: nalgebra::Matrix2::identity() * 1e-3,
-            heading_rad: None,
+            x_m: 9.0,
+            y_m: 9.0,
+            covariance: nalgebra::Matrix2::identity() * 1e-4,
+            heading_rad: Some(heading),
         })
     };
     let mut f = TdoaEkf::new(&params);
-    // Two outlying fixes, then one that agrees: nothing moves.
-    f.step(&fix(0.1, 4.0));
-    f.step(&fix(0.2, 4.0));
-    f.step(&Input::Fix(crate::estimator::FixSample {
-        t_s: 0.35,
-        x_m: 1.0,
-        y_m: 1.0,
-        covariance: nalgebra::Matrix2::identity() * 1e-3,
-        heading_rad: None,
-    }));
+    f.step(&fix(0.1, 0.3));
     let p = f.pose().unwrap();
+    // The fix's position is not fused, its heading is: sigma 30 deg
+    // (0.274 rad^2) against a 0.5 rad prior (0.25 rad^2) gives a gain of
+    // 0.48, so 0.3 rad pulls it to 0.143.
     assert_eq!((p.x_m, p.y_m), (1.0, 1.0));
-    // Three in a row that agree with each other, not with the filter.
-    for k in 0..3 {
-        f.step(&fix(0.4 + 0.1 * f64::from(k), 4.0));
-    }
-    let p = f.pose().unwrap();
-    assert_eq!((p.x_m, p.y_m), (4.0, 3.0));
-    assert!((p.covariance[(0, 0)] - 1e-3).abs() < 1e-12);
-    assert!(p.covariance[(2, 2)] > 20f64.to_radians().powi(2));
+    assert!((p.theta_rad - 0.143).abs() < 0.001, "{p:?}");
+    let before = p.theta_rad;
+    f.step(&fix(0.2, 3.0));
+    assert_eq!(f.pose().unwrap().theta_rad, before);
 }

@@ -6,6 +6,7 @@ use super::Signal;
 
 mod bad_input;
 mod bounds;
+mod moving;
 mod recovery;
 mod reflections;
 

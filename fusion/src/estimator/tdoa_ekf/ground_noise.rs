@@ -1,0 +1,136 @@
+//! The ground filter's sensor noise, as data sheets state it.
+//!
+//! Every default is the data-sheet value the `paper` noise profile of the
+//! simulator is built from (sim/src/profile.rs: a Pioneer 3-DX and a
+//! low-cost MEMS gyro), not a value fitted to any route: the same numbers
+//! are used on every site. A robot with other sensors sets its own sheet.
+
+/// Noise of the relative sensors (gyro, wheels) and prior uncertainty of
+/// the calibration states.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GroundNoise {
+    /// White noise of one gyro sample, deg/s (sheet: 0.1).
+    pub gyro_white_deg_s: f64,
+    /// Gyro sampling rate, Hz (sheet: 100): with the white noise it gives
+    /// the angle random walk `white / sqrt(rate)`.
+    pub gyro_rate_hz: f64,
+    /// Standard deviation of the gyro's power-up bias, deg/s (sheet: 0.5).
+    pub gyro_bias_sigma_deg_s: f64,
+    /// Gyro bias random walk, deg/s per sqrt(s) (sheet: 0.01).
+    pub gyro_bias_walk_deg_s_sqrt_s: f64,
+    /// Gyro scale factor error, a fraction of the turn (sheet: 0.005).
+    pub gyro_scale_error: f64,
+    /// Slip of each wheel, a fraction of its travel (sheet: 0.01); the
+    /// centre's distance averages two wheels, so its sigma is this over
+    /// `sqrt(2)`.
+    pub wheel_slip_fraction: f64,
+    /// Extra wheel slip per rad/s of turn rate (sheet: 0.02).
+    pub wheel_slip_per_rad_s: f64,
+    /// Heading change error of the wheels per metre driven, rad/m, when no
+    /// gyro runs: `sqrt(2) * slip / wheel base` (0.01 and 0.33 m: 0.043).
+    pub wheel_heading_rad_per_m: f64,
+    /// Heading change error of the wheels per radian turned (the
+    /// wheel-base error, sheet: 0.015).
+    pub wheel_heading_rad_per_rad: f64,
+    /// Random walk of the wheels' heading drift (the turn bias when no gyro
+    /// runs), deg/s per sqrt(s).
+    pub wheel_bias_walk_deg_s_sqrt_s: f64,
+    /// Prior standard deviation of the distance scale (the tyre radius
+    /// tolerance; sheet: 0.0025).
+    pub distance_scale_sigma: f64,
+    /// Prior standard deviation of the range bias of absolute ranges,
+    /// metres (radio ranging only).
+    pub range_bias_sigma_m: f64,
+    /// Random walk of the range bias, metres per sqrt(s).
+    pub range_bias_walk_m_sqrt_s: f64,
+    /// Prior standard deviation of the range scale error of absolute
+    /// ranges (a fraction of the distance).
+    pub range_scale_sigma: f64,
+}
+
+impl Default for GroundNoise {
+    fn default() -> Self {
+        Self {
+            gyro_white_deg_s: 0.1,
+            gyro_rate_hz: 100.0,
+            gyro_bias_sigma_deg_s: 0.5,
+            gyro_bias_walk_deg_s_sqrt_s: 0.01,
+            gyro_scale_error: 0.005,
+            wheel_slip_fraction: 0.01,
+            wheel_slip_per_rad_s: 0.02,
+            wheel_heading_rad_per_m: 0.043,
+            wheel_heading_rad_per_rad: 0.015,
+            wheel_bias_walk_deg_s_sqrt_s: 0.01,
+            distance_scale_sigma: 0.0025,
+            range_bias_sigma_m: 3.0,
+            range_bias_walk_m_sqrt_s: 0.001,
+            range_scale_sigma: 0.1,
+        }
+    }
+}
+
+impl GroundNoise {
+    /// Variance of a measured distance `d` driven at turn rate `omega`.
+    pub(super) fn var_distance(&self, d_m: f64, omega_rad_s: f64) -> f64 {
+        let s = (self.wheel_slip_fraction + self.wheel_slip_per_rad_s * omega_rad_s.abs())
+            / std::f64::consts::SQRT_2;
+        (s * d_m).powi(2)
+    }
+
+    /// Variance of a gyro heading change `dtheta` integrated over `dt_s`.
+    pub(super) fn var_gyro_turn(&self, dtheta_rad: f64, dt_s: f64) -> f64 {
+        let white = self.gyro_white_deg_s.to_radians();
+        let arw2 = white * white / self.gyro_rate_hz.max(1e-9);
+        arw2 * dt_s.abs() + (self.gyro_scale_error * dtheta_rad).powi(2)
+    }
+
+    /// Variance of a wheel heading change `dtheta` over distance `d`.
+    pub(super) fn var_wheel_turn(&self, dtheta_rad: f64, d_m: f64) -> f64 {
+        (self.wheel_heading_rad_per_m * d_m.abs()).powi(2)
+            + (self.wheel_heading_rad_per_rad * dtheta_rad).powi(2)
+    }
+
+    /// Checks the domain; `Err((field, reason))`.
+    pub(crate) fn check(&self) -> Result<(), (&'static str, &'static str)> {
+        let fields = [
+            ("sensors.gyro_white_deg_s", self.gyro_white_deg_s),
+            ("sensors.gyro_bias_sigma_deg_s", self.gyro_bias_sigma_deg_s),
+            (
+                "sensors.gyro_bias_walk_deg_s_sqrt_s",
+                self.gyro_bias_walk_deg_s_sqrt_s,
+            ),
+            ("sensors.gyro_scale_error", self.gyro_scale_error),
+            ("sensors.wheel_slip_fraction", self.wheel_slip_fraction),
+            ("sensors.wheel_slip_per_rad_s", self.wheel_slip_per_rad_s),
+            (
+                "sensors.wheel_heading_rad_per_m",
+                self.wheel_heading_rad_per_m,
+            ),
+            (
+                "sensors.wheel_heading_rad_per_rad",
+                self.wheel_heading_rad_per_rad,
+            ),
+            (
+                "sensors.wheel_bias_walk_deg_s_sqrt_s",
+                self.wheel_bias_walk_deg_s_sqrt_s,
+            ),
+            ("sensors.distance_scale_sigma", self.distance_scale_sigma),
+            ("sensors.range_bias_sigma_m", self.range_bias_sigma_m),
+            (
+                "sensors.range_bias_walk_m_sqrt_s",
+                self.range_bias_walk_m_sqrt_s,
+            ),
+            ("sensors.range_scale_sigma", self.range_scale_sigma),
+        ];
+        for (field, v) in fields {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((field, "must be finite and non-negative"));
+            }
+        }
+        if !(self.gyro_rate_hz.is_finite() && self.gyro_rate_hz > 0.0) {
+            return Err(("sensors.gyro_rate_hz", "must be finite and positive"));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,383 @@
+//! The ground filter's failure modes on a simulated corridor: a gyro bias
+//! step, a burst of reflections, a robot kidnapped 3 m. The corridor is
+//! 20 x 2 m with two rows of ceiling transmitters (the geometry that turns
+//! motion during a cycle into errors across the corridor); the robot
+//! drives a stadium loop at 0.3 m/s; the sensors have the `paper`
+//! profile's data-sheet noise (70 us timing, 0.1 deg/s gyro noise, 1 %
+//! wheel slip). Every draw takes a seed.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use super::*;
+use crate::estimator::replay::Core;
+use crate::estimator::{
+    EncoderSample, GyroSample, InitialPose, Input, RangeDifferenceSample, WheelGeometry,
+};
+
+const SPEED_M_S: f64 = 0.3;
+const HEIGHT_M: f64 = 0.5;
+const SOUND_M_S: f64 = 343.0;
+const SIGMA_ARRIVAL_M: f64 = 70e-6 * SOUND_M_S;
+const CYCLE_S: f64 = 0.4;
+const SLOT_S: f64 = CYCLE_S / 20.0;
+const MAX_RANGE_M: f64 = 6.0;
+/// Share of arrivals replaced by a reflection during a burst.
+const REFLECTED_SHARE: f64 = 0.5;
+const GEOMETRY: WheelGeometry = WheelGeometry {
+    wheel_base_m: 0.33,
+    left_m_per_tick: 0.0005,
+    right_m_per_tick: 0.0005,
+};
+/// The straights of the loop run from x = 3 to x = 17 at y = 0.6 and 1.4.
+const STRAIGHT_M: f64 = 14.0;
+const TURN_RADIUS_M: f64 = 0.4;
+
+fn transmitters() -> Vec<[f64; 3]> {
+    (0..20)
+        .map(|i| {
+            let x = 1.0 + 2.0 * f64::from(i / 2);
+            let y = if i % 2 == 0 { 0.3 } else { 1.7 };
+            [x, y, 2.6]
+        })
+        .collect()
+}
+
+fn floor() -> Floor {
+    Floor {
+        min_m: [0.0, 0.0],
+        max_m: [20.0, 2.0],
+    }
+}
+
+/// Pose and turn rate at arc length `s` along the loop.
+fn on_loop(s: f64) -> (f64, f64, f64, f64) {
+    let turn = std::f64::consts::PI * TURN_RADIUS_M;
+    let s = s.rem_euclid(2.0 * (STRAIGHT_M + turn));
+    let w = SPEED_M_S / TURN_RADIUS_M;
+    if s < STRAIGHT_M {
+        (3.0 + s, 0.6, 0.0, 0.0)
+    } else if s < STRAIGHT_M + turn {
+        let a = (s - STRAIGHT_M) / TURN_RADIUS_M;
+        (
+            17.0 + TURN_RADIUS_M * a.sin(),
+            1.0 - TURN_RADIUS_M * a.cos(),
+            a,
+            w,
+        )
+    } else if s < 2.0 * STRAIGHT_M + turn {
+        (
+            17.0 - (s - STRAIGHT_M - turn),
+            1.4,
+            std::f64::consts::PI,
+            0.0,
+        )
+    } else {
+        let a = (s - 2.0 * STRAIGHT_M - turn) / TURN_RADIUS_M;
+        (
+            3.0 - TURN_RADIUS_M * a.sin(),
+            1.0 + TURN_RADIUS_M * a.cos(),
+            std::f64::consts::PI + a,
+            w,
+        )
+    }
+}
+
+/// What goes wrong during a run.
+#[derive(Debug, Clone, Copy, Default)]
+struct Trouble {
+    /// `(time, new bias)`: the gyro bias jumps, rad/s.
+    bias_step: Option<(f64, f64)>,
+    /// `[start, end)`: `REFLECTED_SHARE` of the arrivals are reflections
+    /// 5-150 cm long (the `paper` profile has 2 %).
+    reflection_burst_s: Option<[f64; 2]>,
+    /// `(time, metres)`: the robot is carried along its path, unseen by
+    /// its wheels.
+    kidnap: Option<(f64, f64)>,
+}
+
+/// Inputs in time order and the truth `(t, x, y)` every 0.1 s.
+fn run(duration_s: f64, trouble: Trouble, seed: u64) -> (Vec<Input>, Vec<(f64, f64, f64)>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    let tx = transmitters();
+    let mut inputs = Vec::new();
+    let mut truth = Vec::new();
+    let dt = 0.01;
+    let mut bias = 0.5f64.to_radians();
+    let (mut s, mut wheel_l, mut wheel_r) = (0.0, 0.0, 0.0);
+    let mut path = Vec::new();
+    let steps = (duration_s / dt).round() as i64;
+    for k in 0..=steps {
+        let t = k as f64 * dt;
+        if let Some((tk, jump)) = trouble.kidnap {
+            if (t - tk).abs() < 0.5 * dt {
+                s += jump;
+            }
+        }
+        if let Some((tb, b)) = trouble.bias_step {
+            if (t - tb).abs() < 0.5 * dt {
+                bias = b;
+            }
+        }
+        let (x, y, _, w) = on_loop(s);
+        path.push((t, s));
+        let rate = w * 1.005 + bias + 0.1f64.to_radians() * unit.sample(&mut rng);
+        inputs.push(Input::Gyro(GyroSample {
+            t_s: t,
+            rate_rad_s: rate,
+        }));
+        if k % 2 == 0 {
+            inputs.push(Input::Encoders(EncoderSample {
+                t_s: t,
+                left_ticks: (wheel_l / GEOMETRY.left_m_per_tick).floor() as i64,
+                right_ticks: (wheel_r / GEOMETRY.right_m_per_tick).floor() as i64,
+                geometry: GEOMETRY,
+            }));
+        }
+        if k % 10 == 0 {
+            truth.push((t, x, y));
+        }
+        let ds = SPEED_M_S * dt;
+        let half = 0.5 * GEOMETRY.wheel_base_m * w * dt;
+        let slip = |rng: &mut ChaCha8Rng| 1.0 + 0.01 * unit.sample(rng);
+        wheel_l += (ds - half) * 1.0025 * slip(&mut rng);
+        wheel_r += (ds + half) * 0.9975 * slip(&mut rng);
+        s += ds;
+    }
+    // Position at any time, from the recorded arc lengths.
+    let at = |t: f64| {
+        let i = ((t / dt).round() as usize).min(path.len() - 1);
+        let (x, y, _, _) = on_loop(path[i].1);
+        nalgebra::Vector3::new(x, y, HEIGHT_M)
+    };
+    let cycles = (duration_s / CYCLE_S) as i64;
+    for c in 0..cycles {
+        let start = c as f64 * CYCLE_S;
+        let mut heard: Vec<([f64; 3], f64, f64)> = Vec::new();
+        for (i, s_m) in tx.iter().enumerate() {
+            let emit = start + SLOT_S * i as f64;
+            let p = at(emit);
+            let d = (p - nalgebra::Vector3::from(*s_m)).norm();
+            if d > MAX_RANGE_M || rng.random::<f64>() < 0.05 {
+                continue;
+            }
+            let burst = trouble
+                .reflection_burst_s
+                .is_some_and(|[a, b]| emit >= a && emit < b);
+            let extra = if burst && rng.random::<f64>() < REFLECTED_SHARE {
+                rng.random_range(0.05..1.5)
+            } else {
+                0.0
+            };
+            let t_arr = emit + d / SOUND_M_S;
+            let rho = d + extra + SIGMA_ARRIVAL_M * unit.sample(&mut rng);
+            heard.push((*s_m, rho, t_arr));
+        }
+        for pair in heard.windows(2) {
+            let ((a, ra, _), (b, rb, tb)) = (pair[0], pair[1]);
+            inputs.push(Input::RangeDifference(RangeDifferenceSample {
+                t_s: tb,
+                a_m: a,
+                b_m: b,
+                d_m: rb - ra,
+                sigma_m: std::f64::consts::SQRT_2 * SIGMA_ARRIVAL_M,
+            }));
+        }
+    }
+    inputs.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+    (inputs, truth)
+}
+
+fn params() -> TdoaEkfParams {
+    let (x, y, th, _) = on_loop(0.0);
+    TdoaEkfParams {
+        initial_pose: Some(InitialPose {
+            x_m: x,
+            y_m: y,
+            theta_rad: th,
+            ..InitialPose::default()
+        }),
+        receiver_height_m: HEIGHT_M,
+        floor: Some(floor()),
+        ..TdoaEkfParams::default()
+    }
+}
+
+/// Runs the filter; returns it and the errors `(t, metres)` at the truth
+/// samples, with every pose checked to be on the floor.
+fn errors(inputs: &[Input], truth: &[(f64, f64, f64)]) -> (TdoaEkf, Vec<(f64, f64)>) {
+    let mut f = TdoaEkf::new(&params());
+    let mut out = Vec::new();
+    let mut next = 0;
+    for input in inputs {
+        while next < truth.len() && truth[next].0 < input.t_s() {
+            let (t, x, y) = truth[next];
+            let p = f.pose().expect("started at a known pose");
+            assert!(floor().contains(p.x_m, p.y_m), "off the floor: {p:?}");
+            out.push((t, (p.x_m - x).hypot(p.y_m - y)));
+            next += 1;
+        }
+        f.step(input);
+    }
+    (f, out)
+}
+
+fn mean_max(e: &[(f64, f64)], from_s: f64, to_s: f64) -> (f64, f64) {
+    let v: Vec<f64> = e
+        .iter()
+        .filter(|(t, _)| *t >= from_s && *t < to_s)
+        .map(|(_, e)| *e)
+        .collect();
+    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+    (mean, v.iter().copied().fold(0.0, f64::max))
+}
+
+#[test]
+fn a_clean_corridor_run_stays_within_centimetres() {
+    let (inputs, truth) = run(120.0, Trouble::default(), 1);
+    let (f, e) = errors(&inputs, &truth);
+    let (mean, max) = mean_max(&e, 0.0, 120.0);
+    assert!(mean < 0.03 && max < 0.10, "mean {mean} max {max}");
+    assert!(f.reinitialisations().is_empty());
+    // The gyro bias (0.5 deg/s) is found.
+    let b = f.turn_bias_rad_s().unwrap().to_degrees();
+    assert!((b - 0.5).abs() < 0.1, "bias {b} deg/s");
+}
+
+#[test]
+fn a_gyro_bias_step_is_tracked_without_losing_the_corridor() {
+    let step = Trouble {
+        bias_step: Some((40.0, -1.0f64.to_radians())),
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(120.0, step, 2);
+    let (f, e) = errors(&inputs, &truth);
+    let (mean, max) = mean_max(&e, 40.0, 120.0);
+    assert!(mean < 0.04 && max < 0.15, "mean {mean} max {max}");
+    let b = f.turn_bias_rad_s().unwrap().to_degrees();
+    assert!((b + 1.0).abs() < 0.15, "bias {b} deg/s");
+}
+
+#[test]
+fn a_burst_of_reflections_does_not_pull_the_filter_away() {
+    let burst = Trouble {
+        reflection_burst_s: Some([30.0, 45.0]),
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(90.0, burst, 3);
+    let (f, e) = errors(&inputs, &truth);
+    let (mean, max) = mean_max(&e, 30.0, 45.0);
+    assert!(
+        mean < 0.06 && max < 0.20,
+        "burst: mean {mean} max {max}, {} adaptations, {:?}",
+        f.adaptations(),
+        f.reinitialisations()
+    );
+    let (mean, _) = mean_max(&e, 50.0, 90.0);
+    assert!(mean < 0.03, "after: mean {mean}");
+    assert!(f.reinitialisations().is_empty());
+}
+
+#[test]
+fn a_kidnapped_robot_is_found_again_by_a_reinitialisation_on_the_floor() {
+    let kidnap = Trouble {
+        kidnap: Some((20.0, 3.0)),
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(60.0, kidnap, 4);
+    let (f, e) = errors(&inputs, &truth);
+    let events = f.reinitialisations();
+    assert!(!events.is_empty(), "no re-initialisation");
+    let first = events[0];
+    assert!(first.t_s > 20.0 && first.t_s < 30.0, "{first:?}");
+    let jump = (first.to_m[0] - first.from_m[0]).hypot(first.to_m[1] - first.from_m[1]);
+    assert!(jump > 2.0, "{first:?}");
+    let (mean, max) = mean_max(&e, 30.0, 60.0);
+    assert!(mean < 0.04 && max < 0.15, "after: mean {mean} max {max}");
+}
+
+#[test]
+fn ranges_with_a_scale_and_a_bias_are_fused_with_both_estimated() {
+    // A wheeled robot without a gyro on a 10 m circle among four beacons
+    // whose ranges read 7 % long plus 0.5 m, with 0.5 m noise.
+    let beacons = [[-20.0, -20.0], [20.0, -20.0], [20.0, 20.0], [-20.0, 20.0]];
+    let truth = |t: f64| {
+        let a = 0.1 * t;
+        (
+            10.0 * a.cos(),
+            10.0 * a.sin(),
+            a + std::f64::consts::FRAC_PI_2,
+        )
+    };
+    let (x0, y0, th0) = truth(0.0);
+    let mut f = TdoaEkf::new(&TdoaEkfParams {
+        initial_pose: Some(InitialPose {
+            x_m: x0,
+            y_m: y0,
+            theta_rad: th0,
+            sigma_xy_m: 0.5,
+            sigma_theta_rad: 0.1,
+        }),
+        use_gyro: false,
+        ..TdoaEkfParams::default()
+    });
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let noise = Normal::new(0.0, 0.5).unwrap();
+    let mut worst_late = 0.0f64;
+    for k in 1..=6000 {
+        let t = 0.1 * f64::from(k);
+        // 1 m/s along the circle, 0.01 rad per step.
+        f.increment(t, 0.1, 0.01, 0.1, false);
+        if k % 2 == 0 {
+            let (x, y, _) = truth(t);
+            let b = beacons[(k / 2) as usize % 4];
+            let d = (x - b[0]).hypot(y - b[1]);
+            f.range(t, b, 1.07 * d + 0.5 + noise.sample(&mut rng), 0.5);
+        }
+        if t > 120.0 {
+            let (x, y, _) = truth(t);
+            let p = f.pose().unwrap();
+            worst_late = worst_late.max((p.x_m - x).hypot(p.y_m - y));
+        }
+    }
+    let scale = f.range_scale().unwrap();
+    assert!((scale - 0.07).abs() < 0.01, "scale {scale}");
+    assert!(worst_late < 0.6, "error {worst_late} m");
+}
+
+#[test]
+fn without_a_start_pose_the_filter_starts_from_a_consistent_cycle_and_finds_its_heading() {
+    let (inputs, truth) = run(90.0, Trouble::default(), 6);
+    let mut f = TdoaEkf::new(&TdoaEkfParams {
+        initial_pose: None,
+        ..params()
+    });
+    let mut errs = Vec::new();
+    let mut next = 0;
+    for input in &inputs {
+        while next < truth.len() && truth[next].0 < input.t_s() {
+            let (t, x, y) = truth[next];
+            if let Some(p) = f.pose() {
+                errs.push((t, (p.x_m - x).hypot(p.y_m - y)));
+            }
+            next += 1;
+        }
+        f.step(input);
+    }
+    // Started within the first seconds, tracking after the heading came
+    // from the track; a start is not a re-initialisation event.
+    assert!(
+        errs.first().is_some_and(|(t, _)| *t < 3.0),
+        "{:?}",
+        errs.first()
+    );
+    let (mean, max) = mean_max(&errs, 30.0, 90.0);
+    assert!(mean < 0.03 && max < 0.10, "mean {mean} max {max}");
+    assert!(
+        f.reinitialisations().is_empty(),
+        "{:?}",
+        f.reinitialisations()
+    );
+}

@@ -40,6 +40,27 @@ pub(crate) fn symmetrise<const N: usize>(p: SMatrix<f64, N, N>) -> SMatrix<f64, 
     (p + p.transpose()) * 0.5
 }
 
+/// The constant-velocity model over `dt` seconds for position and velocity
+/// blocks of three axes starting at state indices `pos` and `vel`:
+/// `F` gets `dt` coupling velocity into position, `Q` the discretised
+/// white-noise acceleration of spectral density `accel_psd` (van Loan).
+pub(crate) fn constant_velocity<const N: usize>(
+    f: &mut SMatrix<f64, N, N>,
+    q: &mut SMatrix<f64, N, N>,
+    pos: usize,
+    vel: usize,
+    dt: f64,
+    accel_psd: f64,
+) {
+    for k in 0..3 {
+        f[(pos + k, vel + k)] = dt;
+        q[(pos + k, pos + k)] = accel_psd * dt.powi(3) / 3.0;
+        q[(pos + k, vel + k)] = accel_psd * dt * dt / 2.0;
+        q[(vel + k, pos + k)] = accel_psd * dt * dt / 2.0;
+        q[(vel + k, vel + k)] = accel_psd * dt;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

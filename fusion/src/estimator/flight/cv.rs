@@ -148,13 +148,7 @@ impl GuardedFilter for CvFilter {
         let q = self.params.accel_psd_m2_s3;
         let mut f = M7::identity();
         let mut qm = M7::zeros();
-        for k in 0..3 {
-            f[(k, k + 3)] = dt;
-            qm[(k, k)] = q * dt.powi(3) / 3.0;
-            qm[(k, k + 3)] = q * dt * dt / 2.0;
-            qm[(k + 3, k)] = q * dt * dt / 2.0;
-            qm[(k + 3, k + 3)] = q * dt;
-        }
+        crate::estimator::kf::constant_velocity(&mut f, &mut qm, 0, 3, dt, q);
         let p = crate::estimator::kf::predict(&self.p, &f, &qm);
         let x = f * self.x;
         if x.iter().chain(p.iter()).all(|v| v.is_finite()) {

@@ -180,14 +180,7 @@ impl TdoaEkf3d {
         let mut f = Matrix6::identity();
         let q = self.params.accel_psd_m2_s3;
         let mut qm = Matrix6::zeros();
-        for k in 0..3 {
-            f[(k, k + 3)] = dt;
-            // Discretised white-noise acceleration (van Loan).
-            qm[(k, k)] = q * dt.powi(3) / 3.0;
-            qm[(k, k + 3)] = q * dt * dt / 2.0;
-            qm[(k + 3, k)] = q * dt * dt / 2.0;
-            qm[(k + 3, k + 3)] = q * dt;
-        }
+        super::super::kf::constant_velocity(&mut f, &mut qm, 0, 3, dt, q);
         let p = super::super::kf::predict(&self.p, &f, &qm);
         let x = f * self.x;
         if x.iter().chain(p.iter()).all(|v| v.is_finite()) {

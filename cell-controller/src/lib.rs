@@ -9,6 +9,8 @@
 
 pub mod core;
 pub mod driver;
+#[cfg(test)]
+mod fixtures;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod sync;

@@ -147,23 +147,9 @@ impl BurstTimer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ickon_proto::msg::control::Emission;
 
     fn schedule() -> Schedule {
-        let e = |tx_id, cell: &str, ms| Emission {
-            tx_id,
-            cell_id: cell.into(),
-            offset: Duration::from_millis(ms),
-            slot: 0,
-        };
-        Schedule {
-            version: 4,
-            effective_cycle: 0,
-            cycle_period: Duration::from_millis(200),
-            slot_length: Duration::from_millis(25),
-            emissions: vec![e(11, "c1", 0), e(12, "c1", 25), e(21, "c2", 0)],
-            active_cells: vec!["c1".into(), "c2".into()],
-        }
+        crate::fixtures::schedule(4)
     }
 
     fn sync(offset_ms: i64) -> SyncEstimate {

@@ -1,24 +1,8 @@
 use super::*;
-use ickon_proto::msg::control::Emission;
 
 const MS: i64 = 1_000_000;
 
-fn schedule(version: u32) -> Schedule {
-    let e = |tx_id, cell: &str, ms| Emission {
-        tx_id,
-        cell_id: cell.into(),
-        offset: Duration::from_millis(ms),
-        slot: 0,
-    };
-    Schedule {
-        version,
-        effective_cycle: 0,
-        cycle_period: Duration::from_millis(200),
-        slot_length: Duration::from_millis(25),
-        emissions: vec![e(11, "c1", 0), e(12, "c1", 25), e(21, "c2", 0)],
-        active_cells: vec!["c1".into(), "c2".into()],
-    }
-}
+use crate::fixtures::schedule;
 
 /// A cell whose clock reads master + `offset_ms`, driven until it has
 /// synchronised; returns the core and the local time reached.

@@ -15,7 +15,7 @@ use ickon_proto::msg::control::{ClockReply, ClockRequest, CycleTrigger, Schedule
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{
-    NodeArgs, SimulatedClock, Stamped, put_counted, query_once, query_stamped, zerr,
+    NodeArgs, NodeError, SimulatedClock, Stamped, put_counted, query_once, query_stamped, zerr,
 };
 use tokio::sync::mpsc;
 use zenoh::Session;
@@ -85,7 +85,7 @@ async fn exchange(
     key: String,
     cell: String,
     clock: SimulatedClock,
-) -> anyhow::Result<Option<ClockSample>> {
+) -> Result<Option<ClockSample>, NodeError> {
     let t1 = clock.now();
     let request = encode(&ClockRequest { cell_id: cell, t1 })?;
     let reply: Option<Stamped<ClockReply>> =
@@ -114,7 +114,7 @@ pub async fn run(
     session: &Session,
     args: &CellArgs,
     shutdown: impl Future<Output = ()>,
-) -> anyhow::Result<()> {
+) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&args.node.site_name)?;
     let cell = args.cell.as_str();

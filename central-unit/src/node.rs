@@ -14,7 +14,7 @@ use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, SimulatedClock, put_counted, zerr};
+use ickon_runtime::{NodeArgs, NodeError, SimulatedClock, put_counted, zerr};
 use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::query::Query;
@@ -84,10 +84,11 @@ pub async fn run(
     site_toml: String,
     clock: SimulatedClock,
     shutdown: impl Future<Output = ()>,
-) -> anyhow::Result<()> {
+) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&site.name)?;
-    let mut core = CentralCore::new(site, site_toml, CentralConfig::default(), clock.now())?;
+    let mut core = CentralCore::new(site, site_toml, CentralConfig::default(), clock.now())
+        .map_err(|e| NodeError::Setup(e.to_string()))?;
     let s = core.latest_schedule();
     tracing::info!(
         "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",
@@ -244,7 +245,7 @@ fn answer_clock(q: &Query, clock: &SimulatedClock) {
         return;
     };
     let sent = encode(&CentralCore::clock_reply(req.t1, t2, clock.now()))
-        .map_err(anyhow::Error::from)
+        .map_err(NodeError::from)
         .and_then(|bytes| {
             q.reply(q.key_expr().clone(), bytes)
                 .express(true)

@@ -15,7 +15,7 @@ use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
-use ickon_runtime::{NodeArgs, fetch, put_counted, zerr};
+use ickon_runtime::{NodeArgs, NodeError, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
@@ -64,7 +64,7 @@ pub async fn run(
     session: &Session,
     settings: MsuSettings,
     shutdown: impl Future<Output = ()>,
-) -> anyhow::Result<MsuCounters> {
+) -> Result<MsuCounters, NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&settings.site_name)?;
     let robot = settings.robot.as_str();
@@ -86,16 +86,15 @@ pub async fn run(
         return Ok(MsuCounters::default());
     };
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
-    let spec = site
-        .robots
-        .iter()
-        .find(|r| r.id == robot)
-        .ok_or_else(|| anyhow::anyhow!("robot {robot:?} is not in site {:?}", site.name))?;
+    let spec = site.robots.iter().find(|r| r.id == robot).ok_or_else(|| {
+        NodeError::Setup(format!("robot {robot:?} is not in site {:?}", site.name))
+    })?;
     let config = match settings.estimator.clone() {
         Some(c) => c,
-        None => crate::estimator_for_site(&settings.estimator_name, &site, spec.start)?,
+        None => crate::estimator_for_site(&settings.estimator_name, &site, spec.start)
+            .map_err(|e| NodeError::Setup(e.to_string()))?,
     };
-    let estimator = estimator::build(&config)?;
+    let estimator = estimator::build(&config).map_err(|e| NodeError::Setup(e.to_string()))?;
     let mut core = MsuCore::new(
         MsuConfig::for_site(&site, settings.timing_sigma_s, settings.wheels),
         estimator,

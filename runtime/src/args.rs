@@ -8,6 +8,7 @@ use clap::Args;
 use zenoh::Session;
 
 use crate::clock::{SimulatedClock, system_now};
+use crate::error::NodeError;
 use crate::shutdown::shutdown_signal;
 
 /// The Zenoh connection flags, the same as Zenoh's own examples.
@@ -34,22 +35,27 @@ impl ZenohArgs {
     }
 
     /// The Zenoh configuration the flags describe.
-    pub fn zenoh_config(&self) -> anyhow::Result<zenoh::Config> {
+    pub fn zenoh_config(&self) -> Result<zenoh::Config, NodeError> {
         let mut config = match &self.config {
-            Some(path) => zenoh::Config::from_file(path)
-                .map_err(|e| anyhow::anyhow!("Zenoh config {}: {e}", path.display()))?,
+            Some(path) => zenoh::Config::from_file(path).map_err(|e| NodeError::Config {
+                what: path.display().to_string(),
+                reason: e.to_string(),
+            })?,
             None => zenoh::Config::default(),
         };
         let mut set = |k: &str, v: String| {
-            config
-                .insert_json5(k, &v)
-                .map_err(|e| anyhow::anyhow!("Zenoh config {k}: {e}"))
+            config.insert_json5(k, &v).map_err(|e| NodeError::Config {
+                what: k.to_string(),
+                reason: e.to_string(),
+            })
         };
+        // Serialising a list of strings cannot fail; were it to, the empty list says so.
+        let list = |items: &[String]| serde_json::to_string(items).unwrap_or_else(|_| "[]".into());
         if !self.connect.is_empty() {
-            set("connect/endpoints", serde_json::to_string(&self.connect)?)?;
+            set("connect/endpoints", list(&self.connect))?;
         }
         if !self.listen.is_empty() {
-            set("listen/endpoints", serde_json::to_string(&self.listen)?)?;
+            set("listen/endpoints", list(&self.listen))?;
         }
         if self.no_multicast_scouting {
             set("scouting/multicast/enabled", "false".into())?;
@@ -58,10 +64,10 @@ impl ZenohArgs {
     }
 
     /// Opens the session the flags describe.
-    pub async fn open(&self) -> anyhow::Result<Session> {
+    pub async fn open(&self) -> Result<Session, NodeError> {
         zenoh::open(self.zenoh_config()?)
             .await
-            .map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))
+            .map_err(|e| NodeError::Zenoh(format!("cannot open the session: {e}")))
     }
 }
 
@@ -91,12 +97,12 @@ pub struct NodeArgs {
 
 impl NodeArgs {
     /// The Zenoh configuration the flags describe.
-    pub fn zenoh_config(&self) -> anyhow::Result<zenoh::Config> {
+    pub fn zenoh_config(&self) -> Result<zenoh::Config, NodeError> {
         self.zenoh.zenoh_config()
     }
 
     /// Opens the session the flags describe.
-    pub async fn open(&self) -> anyhow::Result<Session> {
+    pub async fn open(&self) -> Result<Session, NodeError> {
         self.zenoh.open().await
     }
 

@@ -7,6 +7,7 @@
 //!   a `zenoh::Config`;
 //! - [`shutdown`]: a shutdown future (Ctrl-C, SIGTERM, or the parent process
 //!   going away);
+//! - [`error`]: [`NodeError`], the typed error of every node's edge;
 //! - [`clock`]: the system clock as a [`Time`](ickon_proto::time::Time), and
 //!   the simulated device clock that lets a node run with an injected offset
 //!   and drift;
@@ -18,6 +19,7 @@
 
 pub mod args;
 pub mod clock;
+pub mod error;
 pub mod process;
 pub mod publish;
 pub mod query;
@@ -26,13 +28,9 @@ pub mod shutdown;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
+pub use error::{NodeError, zerr};
 pub use process::{block_on, init_tracing, run_node};
 pub use publish::put_counted;
 pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;
-
-/// Turns a Zenoh error into an `anyhow` one (zenoh's error type is boxed).
-pub fn zerr(e: zenoh::Error) -> anyhow::Error {
-    anyhow::anyhow!("{e}")
-}

@@ -36,9 +36,9 @@ pub fn block_on<F: Future>(worker_threads: usize, work: F) -> Option<F::Output> 
 /// [`block_on`] for a node: success is exit code 0; an error is printed
 /// with its causes and gives exit code 1, as does a runtime that cannot
 /// start.
-pub fn run_node<T>(
+pub fn run_node<T, E: std::fmt::Display>(
     worker_threads: usize,
-    work: impl Future<Output = anyhow::Result<T>>,
+    work: impl Future<Output = Result<T, E>>,
 ) -> ExitCode {
     match block_on(worker_threads, work) {
         Some(Ok(_)) => ExitCode::SUCCESS,
@@ -56,9 +56,14 @@ mod tests {
 
     #[test]
     fn the_outcome_of_the_work_is_the_exit_code() {
-        assert_eq!(run_node(1, async { Ok(7) }), ExitCode::SUCCESS);
         assert_eq!(
-            run_node::<()>(1, async { Err(anyhow::anyhow!("no central unit")) }),
+            run_node(1, async { Ok::<_, crate::NodeError>(7) }),
+            ExitCode::SUCCESS
+        );
+        assert_eq!(
+            run_node::<(), _>(1, async {
+                Err(crate::NodeError::Setup("no central unit".into()))
+            }),
             ExitCode::FAILURE
         );
     }

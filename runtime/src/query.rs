@@ -6,7 +6,7 @@ use std::time::Duration;
 use serde::de::DeserializeOwned;
 use zenoh::Session;
 
-use crate::zerr;
+use crate::{NodeError, zerr};
 
 /// Asks `key` (with an optional CDR payload) until a decodable reply of type
 /// `T` arrives; `None` if `shutdown` completes first. Undecodable replies are
@@ -17,7 +17,7 @@ pub async fn fetch<T: DeserializeOwned>(
     payload: Option<Vec<u8>>,
     retry: Duration,
     shutdown: &mut (impl Future<Output = ()> + Unpin),
-) -> anyhow::Result<Option<T>> {
+) -> Result<Option<T>, NodeError> {
     loop {
         if let Some(v) = query_once(session, key, payload.clone(), Duration::from_secs(2)).await? {
             return Ok(Some(v));
@@ -36,7 +36,7 @@ pub async fn query_once<T: DeserializeOwned>(
     key: &str,
     payload: Option<Vec<u8>>,
     timeout: Duration,
-) -> anyhow::Result<Option<T>> {
+) -> Result<Option<T>, NodeError> {
     let mut get = session.get(key).timeout(timeout);
     if let Some(p) = payload {
         get = get.payload(p);
@@ -60,7 +60,7 @@ pub async fn wait_for_token(
     session: &Session,
     key: &str,
     timeout: Duration,
-) -> anyhow::Result<bool> {
+) -> Result<bool, NodeError> {
     let subscriber = session
         .liveliness()
         .declare_subscriber(key)
@@ -100,7 +100,7 @@ pub async fn query_stamped<T: DeserializeOwned>(
     payload: Vec<u8>,
     timeout: Duration,
     stamp: impl Fn() -> ickon_proto::time::Time + Clone + Send + Sync + 'static,
-) -> anyhow::Result<Option<Stamped<T>>> {
+) -> Result<Option<Stamped<T>>, NodeError> {
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
     let on_reply = stamp.clone();
     session

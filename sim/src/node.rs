@@ -15,7 +15,7 @@ use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, fetch, system_now, zerr};
+use ickon_runtime::{NodeArgs, NodeError, fetch, system_now, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Publisher;
 
@@ -54,7 +54,7 @@ pub async fn run(
     session: &Session,
     settings: WorldSettings,
     shutdown: impl Future<Output = ()>,
-) -> anyhow::Result<u64> {
+) -> Result<u64, NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&settings.site_name)?;
     let _token = session
@@ -74,7 +74,8 @@ pub async fn run(
         return Ok(0);
     };
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
-    let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)?;
+    let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)
+        .map_err(|e| NodeError::Setup(e.to_string()))?;
     let schedule_sub = session
         .declare_subscriber(keys.central_schedule())
         .await
@@ -155,7 +156,7 @@ pub async fn run(
     Ok(bursts_heard)
 }
 
-async fn publish(pubs: &[RobotPublishers], output: WorldOutput, t0: Time) -> anyhow::Result<()> {
+async fn publish(pubs: &[RobotPublishers], output: WorldOutput, t0: Time) -> Result<(), NodeError> {
     let (robot, bytes, publisher) = match &output {
         WorldOutput::Imu(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.imu)),
         WorldOutput::Odometry(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.odom)),
@@ -170,7 +171,9 @@ async fn publish(pubs: &[RobotPublishers], output: WorldOutput, t0: Time) -> any
     };
     match publisher {
         Some(p) => p.put(bytes).await.map_err(zerr),
-        None => anyhow::bail!("world output for unknown robot index {robot}"),
+        None => Err(NodeError::Setup(format!(
+            "world output for unknown robot index {robot}"
+        ))),
     }
 }
 

@@ -14,6 +14,8 @@ pub mod core;
 pub mod host;
 #[cfg(feature = "zenoh")]
 pub mod node;
+#[cfg(feature = "zenoh")]
+pub mod receivers;
 pub mod solver;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};

@@ -13,12 +13,13 @@ use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
 use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
-use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
+use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry};
 use ickon_proto::site::Site;
 use ickon_runtime::{NodeArgs, NodeError, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
+use crate::receivers::{ReceiverKind, ReceiverSource};
 use crate::{MsuConfig, MsuCore};
 
 /// How often the site and schedule are asked for until the central unit answers.
@@ -40,6 +41,8 @@ pub struct MsuSettings {
     pub timing_sigma_s: f64,
     /// The robot's nominal drive geometry.
     pub wheels: WheelGeometry,
+    /// Where the arrivals come from.
+    pub receivers: ReceiverKind,
 }
 
 /// Counters of one agent's run, logged at the end.
@@ -124,10 +127,7 @@ pub async fn run(
     core.set_schedule(schedule);
 
     let sub = |topic| keys.robot(robot, topic);
-    let ultrasound = session
-        .declare_subscriber(sub(RobotTopic::Ultrasound)?)
-        .await
-        .map_err(zerr)?;
+    let receivers = ReceiverSource::open(settings.receivers, session, &keys, robot).await?;
     let odom = session
         .declare_subscriber(sub(RobotTopic::Odom)?)
         .await
@@ -176,8 +176,16 @@ pub async fn run(
                     core.set_schedule(schedule);
                 }
             }
-            Ok(s) = ultrasound.recv_async() => {
-                if let Some(msg) = decoded!(s, UltrasoundArrivals) {
+            Some(received) = receivers.recv() => {
+                let msg = match received {
+                    Ok(msg) => Some(msg),
+                    Err(e) => {
+                        n.bad_messages += 1;
+                        tracing::debug!("robot {robot}: dropped undecodable arrivals: {e}");
+                        None
+                    }
+                };
+                if let Some(msg) = msg {
                     n.arrival_messages += 1;
                     match core.on_arrivals(&msg) {
                         Ok(Some(fix)) => {
@@ -260,6 +268,9 @@ pub struct MsuArgs {
     /// Wheel base of the robot, metres.
     #[arg(long, default_value_t = 0.33)]
     pub wheel_base_m: f64,
+    /// Where the arrivals come from.
+    #[arg(long, value_enum, default_value_t = ReceiverKind::Sim)]
+    pub receivers: ReceiverKind,
     /// Distance per encoder tick, metres (a Pioneer 3-DX by default).
     #[arg(long, default_value_t = PIONEER_M_PER_TICK)]
     pub m_per_tick: f64,
@@ -303,6 +314,7 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
             left_m_per_tick: args.m_per_tick,
             right_m_per_tick: args.m_per_tick,
         },
+        receivers: args.receivers,
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

@@ -84,15 +84,41 @@ pub struct NodeArgs {
     /// omitted. Other nodes take the site from the central unit.
     #[arg(long)]
     pub site: Option<PathBuf>,
-    /// Simulation only: offset of this node's clock from the true time, microseconds.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    /// Simulation only: offset of this node's clock from the true time,
+    /// microseconds (at most 1000 s either way).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = clock_offset_us)]
     pub clock_offset_us: f64,
-    /// Simulation only: drift of this node's clock, parts per million.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    /// Simulation only: drift of this node's clock, parts per million (at most 1000 either way).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = clock_drift_ppm)]
     pub clock_drift_ppm: f64,
     /// Stop when the parent process (the launcher) goes away.
     #[arg(long)]
     pub exit_with_parent: bool,
+}
+
+/// A finite number within `limit` either way.
+fn bounded(text: &str, limit: f64, unit: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number"))?;
+    if v.is_finite() && v.abs() <= limit {
+        Ok(v)
+    } else {
+        Err(format!(
+            "must be a finite number of at most {limit} {unit} either way"
+        ))
+    }
+}
+
+/// `--clock-offset-us`: a real clock is not 1000 s off once it runs NTP.
+fn clock_offset_us(text: &str) -> Result<f64, String> {
+    bounded(text, 1e9, "us")
+}
+
+/// `--clock-drift-ppm`: no crystal drifts by more than 1000 ppm.
+fn clock_drift_ppm(text: &str) -> Result<f64, String> {
+    bounded(text, 1_000.0, "ppm")
 }
 
 impl NodeArgs {
@@ -146,6 +172,40 @@ mod tests {
         assert!(cli.node.zenoh_config().is_ok());
         assert!(cli.node.zenoh.names_a_peer());
         assert_eq!(cli.node.clock_offset_us, -20_000.0);
+    }
+
+    #[test]
+    fn clock_flags_refuse_nan_infinity_and_absurd_values() {
+        use clap::Parser;
+        #[derive(Parser, Debug)]
+        struct Cli {
+            #[command(flatten)]
+            node: NodeArgs,
+        }
+        for (flag, value) in [
+            ("--clock-offset-us", "NaN"),
+            ("--clock-offset-us", "1e16"),
+            ("--clock-offset-us", "inf"),
+            ("--clock-drift-ppm", "-5000"),
+            ("--clock-drift-ppm", "abc"),
+        ] {
+            let err = Cli::try_parse_from(["x", flag, value])
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(flag), "{flag} {value}: {err}");
+        }
+        let ok = Cli::try_parse_from([
+            "x",
+            "--clock-offset-us",
+            "-50000",
+            "--clock-drift-ppm",
+            "99.5",
+        ])
+        .unwrap();
+        assert_eq!(
+            (ok.node.clock_offset_us, ok.node.clock_drift_ppm),
+            (-50_000.0, 99.5)
+        );
     }
 
     #[test]

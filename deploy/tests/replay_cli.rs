@@ -310,6 +310,18 @@ fn bad_input_exits_with_code_two_naming_file_and_line() {
         "{err}"
     );
 
+    // An anchor far beyond any flight volume (1e308 m overflowed every
+    // distance into inf and the replay printed inf and exited 0).
+    let far = temp_file(
+        "far_anchors.csv",
+        "constellation,anchor_id,x,y,z\n1,0,1e308,0,0\n1,1,1,0,0\n",
+    );
+    let err = bad(&flight, &far);
+    assert!(
+        err.contains("far_anchors.csv:2") && err.contains("anchor 0"),
+        "{err}"
+    );
+
     // An anchor file with several constellations needs --constellation.
     let out = ickon()
         .args(["replay", "util", "--data"])

@@ -198,6 +198,14 @@ fn print_table(file: &str, r: &Replayed, wall: Duration) {
     );
     for e in &r.reports {
         let s = &e.summary;
+        if s.scored == 0 {
+            // No estimate to score: say so rather than print zero errors.
+            println!(
+                "{:<10} published no estimate ({:.2} % of the measurements rejected)",
+                e.name, e.rejected_pct
+            );
+            continue;
+        }
         println!(
             "{:<10} {:9.4} {:9.4} {:9.4} {:9.4} {:9.4} {:10.2} {:8.1} {:7.2} {:11.1}",
             e.name,
@@ -208,7 +216,7 @@ fn print_table(file: &str, r: &Replayed, wall: Duration) {
             s.max_3d_m,
             e.rejected_pct,
             e.output_rate_hz,
-            e.output_began_s.unwrap_or(f64::NAN),
+            e.output_began_s.unwrap_or(0.0),
             e.published_pct,
         );
         if let Some(a) = &e.attitude {

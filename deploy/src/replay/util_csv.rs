@@ -97,6 +97,11 @@ pub struct Row {
     pub imu: Option<ImuRow>,
 }
 
+/// Largest anchor coordinate accepted, metres: UWB anchors reach a few
+/// hundred metres; a larger value is a unit or typing error, and squared
+/// it would overflow every distance computed from it.
+const MAX_ANCHOR_COORDINATE_M: f64 = 10_000.0;
+
 /// The anchors of one constellation, by id, metres. Two layouts: the
 /// extracts' `constellation,anchor_id,x,y,z` (then `constellation` is
 /// needed) and the raw logs' `anchor_id,x_m,y_m,z_m,...` (one layout per
@@ -133,6 +138,14 @@ pub fn read_anchors(
             reader.number(&fields, offset + 2, line)?,
             reader.number(&fields, offset + 3, line)?,
         ];
+        if let Some(v) = p.iter().find(|v| v.abs() > MAX_ANCHOR_COORDINATE_M) {
+            return Err(reader.malformed(
+                line,
+                format!(
+                    "anchor {id}: coordinate {v:e} m is beyond {MAX_ANCHOR_COORDINATE_M} m: not an anchor of a flight volume"
+                ),
+            ));
+        }
         if c == wanted && anchors.insert(id, p).is_some() {
             return Err(reader.malformed(line, format!("anchor {id} appears twice")));
         }

@@ -10,8 +10,11 @@
 //! [`CentralConfig::schedule_announce`] away, so that every cell has it
 //! before it is used and all switch at the same cycle.
 //!
-//! A cell is reported `up` while its token is present and it takes part in
-//! the schedule of the last triggered cycle; the cycle at which that last
+//! A cell is reported `up` while its token is present, it takes part in
+//! the schedule of the last triggered cycle and it has not missed
+//! [`crate::health::MISSED_IN_A_ROW_FOR_DOWN`] scheduled cycles in a row (a
+//! hung cell keeps its token until the link lease expires; it stays in the
+//! schedule, so that it is up again as soon as it fires); the cycle at which that last
 //! changed is kept, so that the admin sees when a cell went down or came back.
 
 use std::collections::BTreeMap;
@@ -108,6 +111,7 @@ pub struct CentralCore {
     paused: bool,
     cells: BTreeMap<String, CellTracker>,
     robots: BTreeMap<String, RobotTracker>,
+    unknown_robot_messages: u64,
     any_cell_seen: bool,
 }
 
@@ -136,6 +140,7 @@ impl CentralCore {
             paused: false,
             cells,
             robots: BTreeMap::new(),
+            unknown_robot_messages: 0,
             any_cell_seen: false,
         })
     }
@@ -301,7 +306,7 @@ impl CentralCore {
         let cycle = self.last_cycle();
         let scheduled = self.schedule_for(cycle).active_cells.clone();
         for (id, c) in &mut self.cells {
-            let up = c.alive && scheduled.contains(id);
+            let up = c.alive && scheduled.contains(id) && !c.hung();
             if up != c.up {
                 c.up = up;
                 c.state_since_cycle = cycle;
@@ -340,17 +345,40 @@ impl CentralCore {
 
     /// A robot's liveliness token appeared or disappeared.
     pub fn robot_alive(&mut self, id: &str, up: bool) {
-        self.robots.entry(id.to_string()).or_default().alive = up;
+        if let Some(r) = self.robot_mut(id) {
+            r.alive = up;
+        }
+    }
+
+    /// The tracker of robot `id` if the site has it. Robots the site does
+    /// not know are counted, not tracked: the table stays as large as the
+    /// site, whatever anyone publishes.
+    fn robot_mut(&mut self, id: &str) -> Option<&mut RobotTracker> {
+        if self.site.robots.iter().any(|r| r.id == id) {
+            Some(self.robots.entry(id.to_string()).or_default())
+        } else {
+            self.unknown_robot_messages += 1;
+            None
+        }
+    }
+
+    /// Messages from robot ids the site does not know, ignored so far.
+    pub fn unknown_robot_messages(&self) -> u64 {
+        self.unknown_robot_messages
     }
 
     /// A robot published a pose.
     pub fn on_pose(&mut self, id: &str, pose: RobotPose) {
-        self.robots.entry(id.to_string()).or_default().on_pose(pose);
+        if let Some(r) = self.robot_mut(id) {
+            r.on_pose(pose);
+        }
     }
 
     /// A robot published a fix at `now`.
     pub fn on_fix(&mut self, id: &str, now: Time) {
-        self.robots.entry(id.to_string()).or_default().on_fix(now);
+        if let Some(r) = self.robot_mut(id) {
+            r.on_fix(now);
+        }
     }
 
     /// The reply to a clock request that arrived at `t2` and leaves at `t3`.
@@ -462,6 +490,8 @@ impl CentralCore {
             self.cells.entry(c.id.clone()).or_default();
         }
         self.cells.retain(|id, _| site.cell(id).is_some());
+        self.robots
+            .retain(|id, _| site.robots.iter().any(|r| &r.id == id));
         self.site = site;
         self.site_toml = toml_text.to_string();
         self.site_version += 1;

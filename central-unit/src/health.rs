@@ -18,6 +18,10 @@ use ickon_proto::time::{Duration, Time};
 
 /// Fired cycles remembered per cell, to count missed ones.
 const FIRED_MEMORY: usize = 64;
+/// A live cell that fired nothing in this many scheduled cycles in a row is
+/// reported down (hung: its process stopped but its link, and so its
+/// liveliness token, lives on until the link lease expires).
+pub const MISSED_IN_A_ROW_FOR_DOWN: u32 = 2;
 /// Bursts behind the residual figures of a cell.
 pub const RESIDUAL_WINDOW: usize = 64;
 /// Fixes per second are counted over this window.
@@ -37,6 +41,7 @@ pub struct CellTracker {
     last_cycle_fired: u64,
     cycles_fired: u64,
     cycles_missed: u64,
+    missed_in_a_row: u32,
     residuals_ns: VecDeque<i64>,
 }
 
@@ -65,9 +70,17 @@ impl CellTracker {
     /// `cycle` is over and the cell was scheduled in it: counts it as missed
     /// if the cell is alive and fired nothing in it.
     pub fn check_fired(&mut self, cycle: u64) {
-        if self.alive && !self.fired.contains(&cycle) {
+        if self.fired.contains(&cycle) {
+            self.missed_in_a_row = 0;
+        } else if self.alive {
             self.cycles_missed += 1;
+            self.missed_in_a_row = self.missed_in_a_row.saturating_add(1);
         }
+    }
+
+    /// Whether the cell has gone quiet while its token is present.
+    pub fn hung(&self) -> bool {
+        self.missed_in_a_row >= MISSED_IN_A_ROW_FOR_DOWN
     }
 
     /// The admin view of this cell.

@@ -116,6 +116,8 @@ struct SimCell {
     asymmetry_ns: f64,
     /// The true time of the wake-up on the queue.
     wake_ns: Option<i64>,
+    /// Stopped (SIGSTOP): alive to the central unit, but it hears and does nothing.
+    hung: bool,
     /// Counts restarts, so that a message to a killed incarnation is dropped.
     incarnation: u32,
     errors_ns: Vec<i64>,
@@ -173,6 +175,7 @@ impl ControlPlane {
                     core: None,
                     asymmetry_ns: rng::normal(&mut r, clocks.net_asymmetry_sigma_us) * 1e3,
                     wake_ns: None,
+                    hung: false,
                     incarnation: 0,
                     errors_ns: Vec::new(),
                     counters_before: CellCounters::default(),
@@ -278,6 +281,28 @@ impl ControlPlane {
             }
             _ => false,
         }
+    }
+
+    /// Stops cell `id` as SIGSTOP would: its token stays, it fires, answers
+    /// and hears nothing until [`resume_cell`](Self::resume_cell) (what it
+    /// missed meanwhile is lost). `false` for an unknown cell.
+    pub fn hang_cell(&mut self, id: &str) -> bool {
+        let Some(i) = self.cell_index(id) else {
+            return false;
+        };
+        self.cells[i].hung = true;
+        self.cells[i].wake_ns = None;
+        true
+    }
+
+    /// Lets a hung cell go on. `false` for an unknown cell.
+    pub fn resume_cell(&mut self, id: &str) -> bool {
+        let Some(i) = self.cell_index(id) else {
+            return false;
+        };
+        self.cells[i].hung = false;
+        self.deliver_to_cell(i, CellEvent::Tick);
+        true
     }
 
     /// Steps cell `id`'s clock by `step` (a clock that jumped: a bad
@@ -437,6 +462,9 @@ impl ControlPlane {
     /// what it asks for; a dead cell hears nothing.
     fn deliver_to_cell(&mut self, i: usize, event: CellEvent) {
         let local = self.cells[i].local(self.now_ns);
+        if self.cells[i].hung {
+            return;
+        }
         let Some(core) = self.cells[i].core.as_mut() else {
             return;
         };

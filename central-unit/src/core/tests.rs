@@ -41,11 +41,25 @@ fn health(c: &CentralCore, id: &str) -> ickon_proto::msg::admin::CellHealth {
 
 /// Runs `core` for `n` cycles from `now`, every cycle at its trigger time;
 /// returns the time after them and the triggers.
+/// Every scheduled cell fires (one burst each) in every triggered cycle.
 fn run_cycles(c: &mut CentralCore, n: usize) -> Vec<CycleTrigger> {
     let mut all = Vec::new();
     for _ in 0..n {
         let now = c.next_wake();
-        all.extend(triggers(&c.tick(now)));
+        let fired = triggers(&c.tick(now));
+        for t in &fired {
+            let cells = c.schedule_for(t.cycle).active_cells.clone();
+            for id in cells {
+                c.on_burst(&Burst {
+                    cell_id: id,
+                    tx_id: 0,
+                    cycle: t.cycle,
+                    scheduled: t.start,
+                    actual: t.start,
+                });
+            }
+        }
+        all.extend(fired);
     }
     all
 }
@@ -251,4 +265,62 @@ fn events_reach_the_same_state_as_the_methods_and_due_triggers_come_with_them() 
     // Before it, nothing is emitted.
     let early = Time::from_nanos(c.next_wake().as_nanos() - 1);
     assert!(c.handle(early, Event::Tick).is_empty());
+}
+
+#[test]
+fn robots_the_site_does_not_know_are_counted_not_tracked() {
+    let mut c = core();
+    for k in 0..10_000 {
+        c.handle(
+            Time(k),
+            Event::Fix {
+                robot: format!("x{k}"),
+            },
+        );
+    }
+    c.handle(
+        Time(0),
+        Event::RobotAlive {
+            id: "x1".into(),
+            up: true,
+        },
+    );
+    c.handle(Time(1), Event::Fix { robot: "r1".into() });
+    let ids: Vec<String> = c.status(Time(2)).robots.into_iter().map(|r| r.id).collect();
+    assert_eq!(ids, vec!["r1".to_string()]);
+    assert_eq!(c.unknown_robot_messages(), 10_001);
+}
+
+#[test]
+fn a_live_cell_that_stops_firing_is_down_after_two_missed_cycles() {
+    let mut c = all_alive();
+    run_cycles(&mut c, 4);
+    assert!(health(&c, "c2").up);
+    // c2 hangs: the others go on firing, c2 fires nothing, its token stays.
+    let mut down_after = None;
+    for k in 1..=6 {
+        let now = c.next_wake();
+        for t in triggers(&c.tick(now)) {
+            for id in ["c1", "c3", "c4"] {
+                c.on_burst(&Burst {
+                    cell_id: id.into(),
+                    tx_id: 0,
+                    cycle: t.cycle,
+                    scheduled: t.start,
+                    actual: t.start,
+                });
+            }
+        }
+        if down_after.is_none() && !health(&c, "c2").up {
+            down_after = Some(k);
+        }
+    }
+    // Checked two cycles after each: the second missed cycle is seen at
+    // the fourth trigger after the hang.
+    assert_eq!(down_after, Some(4));
+    assert!(health(&c, "c1").up && health(&c, "c3").up);
+    assert!(c.latest_schedule().active_cells.contains(&"c2".to_string()));
+    // It fires again: up as soon as a fired cycle is checked.
+    run_cycles(&mut c, 3);
+    assert!(health(&c, "c2").up);
 }

@@ -227,3 +227,57 @@ fn a_clock_step_of_ten_ms_is_detected_and_resynchronised() {
             .all(|r| r.counters.clock_steps == 0)
     );
 }
+
+#[test]
+fn a_hung_cell_is_reported_down_from_missed_cycles_and_up_when_it_fires_again() {
+    let site = lab();
+    let profile = NoiseProfile::paper();
+    let mut cp = ControlPlane::new(&site, &profile.clocks, 13).unwrap();
+    let mut fired = Vec::new();
+    run(&mut cp, 6.0, &mut fired);
+    let victim = site.cells[3].id.clone();
+    let up = |cp: &ControlPlane| {
+        cp.central()
+            .status(cp.now())
+            .cells
+            .iter()
+            .find(|c| c.id == victim)
+            .map(|c| c.up)
+            .unwrap()
+    };
+    assert!(up(&cp));
+    assert!(cp.hang_cell(&victim));
+    let hung_at = cp.central().last_cycle();
+    let period_s = cp.schedule_for(hung_at).cycle_period.as_secs_f64();
+    // Down once two scheduled cycles have gone by without a burst (checked
+    // two cycles after each, so four triggers after the hang at most).
+    let mut down_at = None;
+    for _ in 0..40 {
+        let until = cp.now().as_secs_f64() + period_s / 4.0;
+        run(&mut cp, until, &mut fired);
+        if !up(&cp) {
+            down_at = Some(cp.central().last_cycle());
+            break;
+        }
+    }
+    let down_at = down_at.expect("reported down");
+    assert!(
+        down_at <= hung_at + 4,
+        "hung in cycle {hung_at}, down at {down_at}"
+    );
+    // The token never went: the schedule keeps the cell.
+    assert!(
+        cp.central()
+            .latest_schedule()
+            .active_cells
+            .contains(&victim)
+    );
+    assert!(cp.resume_cell(&victim));
+    let resumed_at = cp.central().last_cycle();
+    let until = cp.now().as_secs_f64() + 6.0 * period_s;
+    run(&mut cp, until, &mut fired);
+    assert!(up(&cp), "up again after resuming in cycle {resumed_at}");
+    let health = cp.central().status(cp.now());
+    let h = health.cells.iter().find(|c| c.id == victim).unwrap();
+    assert!(h.cycles_missed >= 2, "{h:?}");
+}

@@ -106,6 +106,9 @@ pub struct CellCounters {
     pub clock_exchanges: u64,
     /// Clock steps detected (an exchange far outside what the estimate allows).
     pub clock_steps: u64,
+    /// Triggers refused because they start too far from now (forged, or
+    /// from a central unit whose clock jumped).
+    pub triggers_refused: u64,
 }
 
 impl CellCounters {
@@ -118,6 +121,7 @@ impl CellCounters {
             triggers_unplanned: self.triggers_unplanned + later.triggers_unplanned,
             clock_exchanges: self.clock_exchanges + later.clock_exchanges,
             clock_steps: self.clock_steps + later.clock_steps,
+            triggers_refused: self.triggers_refused + later.triggers_refused,
         }
     }
 }
@@ -126,6 +130,12 @@ impl CellCounters {
 /// own delay, four sigmas of the estimate and this much is a clock step, not
 /// noise: the cell synchronises afresh instead of firing on a stale line.
 const STEP_TOLERANCE: Duration = Duration::from_micros(100);
+
+/// A trigger is planned only if its cycle starts within this long of now:
+/// the central unit sends it a few tens of milliseconds ahead, so anything
+/// further is forged or broken, and planning it would hold bursts (and
+/// memory) for a cycle that never comes.
+const TRIGGER_HORIZON: Duration = Duration::from_millis(10_000);
 
 /// A planned burst waiting to be programmed, ordered by its master time.
 type PendingBurst = Reverse<(Time, u32, u64, Time)>;
@@ -310,6 +320,18 @@ impl CellCore {
 
     /// Plans a trigger, or keeps it until its schedule arrives.
     fn on_trigger(&mut self, trigger: CycleTrigger, now: Time) {
+        if let Some(est) = self.sync.estimate() {
+            let ahead = trigger.start.since(est.to_master(now));
+            if ahead.as_nanos().unsigned_abs() > TRIGGER_HORIZON.as_nanos().unsigned_abs() {
+                self.counters.triggers_refused += 1;
+                tracing::debug!(
+                    "cell {}: trigger for cycle {} starts {ahead} from now: refused",
+                    self.cell_id,
+                    trigger.cycle
+                );
+                return;
+            }
+        }
         if !self.timer.has_schedule(trigger.schedule_version) {
             // A cell that started late (or missed a put) asks for the schedule;
             // the trigger is planned when it comes, its past slots skipped.

@@ -197,3 +197,34 @@ fn status_goes_out_every_period_with_the_master_time() {
         s.offset_ns
     );
 }
+
+#[test]
+fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
+    let (mut core, now) = synced_cell(0);
+    core.handle(now, Event::Schedule(schedule(4)));
+    for k in 0..1_000u64 {
+        core.handle(
+            now,
+            Event::Trigger(CycleTrigger {
+                cycle: (1 << 62) + k,
+                start: now + Duration::from_millis(3_600_000),
+                schedule_version: 4,
+            }),
+        );
+    }
+    assert_eq!(core.counters().triggers_refused, 1_000);
+    // Nothing pending: the next wake-up is a clock exchange or a status.
+    assert!(core.next_wake() <= now + CellConfig::default().status_every);
+    // A real trigger still fires.
+    let start = now + Duration::from_millis(100);
+    core.handle(
+        now,
+        Event::Trigger(CycleTrigger {
+            cycle: 5,
+            start,
+            schedule_version: 4,
+        }),
+    );
+    let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(300));
+    assert_eq!(fired.len(), 2);
+}

@@ -16,6 +16,7 @@ use nalgebra::Matrix2;
 use crate::assembly::AssemblyError;
 use crate::host::FusionHost;
 use crate::solver::FixSolver;
+use crate::time_gate::{TimeGate, Verdict};
 
 /// What the MSU knows about its site and its robot.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,6 +58,12 @@ pub enum MsuError {
     /// The estimator rejected the input.
     #[error(transparent)]
     Estimator(#[from] EstimatorError),
+    /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
+    #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
+    FromTheFuture {
+        /// How far ahead, seconds.
+        ahead_s: f64,
+    },
 }
 
 /// The per-robot MSU state machine.
@@ -64,6 +71,7 @@ pub struct MsuCore {
     solver: FixSolver,
     host: FusionHost,
     fix_seq: u64,
+    time_gate: TimeGate,
 }
 
 impl MsuCore {
@@ -80,6 +88,7 @@ impl MsuCore {
             solver: FixSolver::new(config),
             host: FusionHost::new(estimators),
             fix_seq: 0,
+            time_gate: TimeGate::default(),
         }
     }
 
@@ -98,11 +107,27 @@ impl MsuCore {
         &self.host
     }
 
+    /// Inputs refused for being stamped far ahead of the others.
+    pub fn refused_from_the_future(&self) -> u64 {
+        self.time_gate.refused()
+    }
+
+    /// Lets `stamp` through the time gate, or says why not.
+    fn gate(&mut self, stamp: ickon_proto::time::Time) -> Result<(), MsuError> {
+        match self.time_gate.check(stamp.as_secs_f64()) {
+            Verdict::Accept => Ok(()),
+            Verdict::FromTheFuture { ahead_s } => Err(MsuError::FromTheFuture { ahead_s }),
+        }
+    }
+
     /// Solves one cycle and hands the fix and the cycle's range differences
     /// to the estimators. `Ok(Some(fix))` for every valid fix, whether or
     /// not an estimator took it (refusals are counted by the host);
     /// `Ok(None)`: no fix this cycle; `Err`: the message cannot be used.
     pub fn on_arrivals(&mut self, msg: &UltrasoundArrivals) -> Result<Option<Fix>, MsuError> {
+        if let Some(last) = msg.arrivals.iter().map(|a| a.t_arrival).max() {
+            self.gate(last)?;
+        }
         let hint = self.host.pose(0).map(|p| [p.x_m, p.y_m]);
         let solved = self.solver.solve(msg, hint)?;
         for sample in solved.range_differences {
@@ -131,6 +156,7 @@ impl MsuCore {
 
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
     pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
+        self.gate(odom.stamp)?;
         let geometry = self.solver.config().wheels;
         self.host.feed(&Input::Encoders(EncoderSample {
             t_s: odom.stamp.as_secs_f64(),
@@ -143,6 +169,7 @@ impl MsuCore {
 
     /// Feeds one gyro sample.
     pub fn on_imu(&mut self, imu: &Imu) -> Result<(), MsuError> {
+        self.gate(imu.stamp)?;
         self.host.feed(&Input::Gyro(GyroSample {
             t_s: imu.stamp.as_secs_f64(),
             rate_rad_s: imu.gyro_z_rad_s,
@@ -152,6 +179,7 @@ impl MsuCore {
 
     /// Feeds one obstacle-sensor sample.
     pub fn on_range(&mut self, r: &ObstacleRanges) -> Result<(), MsuError> {
+        self.gate(r.stamp)?;
         self.host.feed(&Input::Range(RangeSample {
             t_s: r.stamp.as_secs_f64(),
             left_ultrasonic_m: r.left_valid.then_some(r.left_m),
@@ -385,6 +413,39 @@ mod tests {
             core.pose_of(2).map(|p| p.estimator),
             Some("tdoa-ekf".into())
         );
+    }
+
+    #[test]
+    fn one_sample_stamped_an_hour_ahead_does_not_silence_the_robot() {
+        let mut core = core_with("tdoa-ekf");
+        let fix = |core: &mut MsuCore, k: u64| {
+            let mut msg = arrivals([2.2, 1.4, 0.5], &[]);
+            msg.seq = k;
+            for a in &mut msg.arrivals {
+                a.t_arrival = a.t_arrival + Duration::from_millis(200 * k as i64);
+            }
+            core.on_arrivals(&msg)
+        };
+        for k in 0..5 {
+            let _ = fix(&mut core, k);
+        }
+        let refused_before = core.host().refused(0);
+        let bogus = core.on_imu(&Imu {
+            stamp: Time::from_secs_f64(3_610.0),
+            gyro_z_rad_s: 0.0,
+        });
+        assert!(
+            matches!(bogus, Err(MsuError::FromTheFuture { .. })),
+            "{bogus:?}"
+        );
+        assert_eq!(core.refused_from_the_future(), 1);
+        // Real inputs go on being fused.
+        for k in 5..10 {
+            assert!(fix(&mut core, k).unwrap().is_some());
+        }
+        assert_eq!(core.host().refused(0), refused_before, "nothing wedged");
+        let pose = core.pose().unwrap();
+        assert!(pose.stamp.as_secs_f64() < 100.0, "{pose:?}");
     }
 
     #[test]

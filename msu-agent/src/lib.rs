@@ -17,6 +17,7 @@ pub mod node;
 #[cfg(feature = "zenoh")]
 pub mod receivers;
 pub mod solver;
+pub mod time_gate;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};

@@ -107,6 +107,23 @@ impl Ord for Entry {
     }
 }
 
+/// A cell's sync errors over a run, summed as they come (a run of hours
+/// keeps three numbers, not every burst).
+#[derive(Debug, Clone, Copy, Default)]
+struct SyncErrorSum {
+    bursts: u64,
+    max_abs_ns: u64,
+    sum_sq_ns2: f64,
+}
+
+impl SyncErrorSum {
+    fn add(&mut self, error_ns: i64) {
+        self.bursts += 1;
+        self.max_abs_ns = self.max_abs_ns.max(error_ns.unsigned_abs());
+        self.sum_sq_ns2 += (error_ns as f64) * (error_ns as f64);
+    }
+}
+
 /// One simulated cell: its clock, its core while it runs, its path.
 struct SimCell {
     id: String,
@@ -120,7 +137,7 @@ struct SimCell {
     hung: bool,
     /// Counts restarts, so that a message to a killed incarnation is dropped.
     incarnation: u32,
-    errors_ns: Vec<i64>,
+    sync: SyncErrorSum,
     counters_before: CellCounters,
 }
 
@@ -177,7 +194,7 @@ impl ControlPlane {
                     wake_ns: None,
                     hung: false,
                     incarnation: 0,
-                    errors_ns: Vec::new(),
+                    sync: SyncErrorSum::default(),
                     counters_before: CellCounters::default(),
                 }
             })
@@ -226,24 +243,13 @@ impl ControlPlane {
         self.cells
             .iter()
             .map(|c| {
-                let n = c.errors_ns.len();
-                let max = c
-                    .errors_ns
-                    .iter()
-                    .map(|e| e.unsigned_abs())
-                    .max()
-                    .unwrap_or(0);
-                let ms = c
-                    .errors_ns
-                    .iter()
-                    .map(|&e| (e as f64) * (e as f64))
-                    .sum::<f64>()
-                    / n.max(1) as f64;
+                let s = c.sync;
+                let ms = s.sum_sq_ns2 / s.bursts.max(1) as f64;
                 let now = c.core.as_ref().map(CellCore::counters).unwrap_or_default();
                 CellSyncReport {
                     cell_id: c.id.clone(),
-                    bursts: n as u64,
-                    sync_error_max_us: max as f64 * 1e-3,
+                    bursts: s.bursts,
+                    sync_error_max_us: s.max_abs_ns as f64 * 1e-3,
                     sync_error_rms_us: ms.sqrt() * 1e-3,
                     counters: c.counters_before.then(now),
                 }
@@ -481,7 +487,7 @@ impl ControlPlane {
                         scheduled: b.master,
                         actual,
                     };
-                    cell.errors_ns.push(fired.sync_error_ns());
+                    cell.sync.add(fired.sync_error_ns());
                     let report = Burst {
                         cell_id: cell.id.clone(),
                         tx_id: b.tx_id,

@@ -61,6 +61,15 @@ pub(crate) fn constant_velocity<const N: usize>(
     }
 }
 
+/// The standard deviation of the worst of the three axes of the position
+/// block starting at state index `first`.
+pub(crate) fn largest_axis_sigma<const N: usize>(p: &SMatrix<f64, N, N>, first: usize) -> f64 {
+    (first..first + 3)
+        .map(|k| p[(k, k)])
+        .fold(0.0_f64, f64::max)
+        .sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

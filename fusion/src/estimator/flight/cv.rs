@@ -161,10 +161,7 @@ impl GuardedFilter for CvFilter {
     }
 
     fn position_sigma_m(&self) -> f64 {
-        (0..3)
-            .map(|k| self.p[(k, k)])
-            .fold(0.0_f64, f64::max)
-            .sqrt()
+        crate::estimator::kf::largest_axis_sigma(&self.p, 0)
     }
 
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {

@@ -261,10 +261,7 @@ impl GuardedFilter for ImuFilter {
     }
 
     fn position_sigma_m(&self) -> f64 {
-        (0..3)
-            .map(|k| self.cov[(P + k, P + k)])
-            .fold(0.0_f64, f64::max)
-            .sqrt()
+        crate::estimator::kf::largest_axis_sigma(&self.cov, P)
     }
 
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {

@@ -224,7 +224,7 @@ impl Window {
             return None;
         }
         let cov = second.covariance_m2;
-        let sigma = (0..3).map(|k| cov[(k, k)]).fold(0.0_f64, f64::max).sqrt();
+        let sigma = crate::estimator::kf::largest_axis_sigma(&cov, 0);
         Some((second.position_m, sigma, rms))
     }
 }

@@ -10,6 +10,7 @@
 
 pub mod assembly;
 mod config;
+pub mod config_file;
 pub mod core;
 pub mod host;
 #[cfg(feature = "zenoh")]
@@ -21,6 +22,7 @@ pub mod time_gate;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};
+pub use config_file::{MsuConfigError, MsuTuning};
 pub use core::{MsuConfig, MsuCore, MsuError};
 pub use host::FusionHost;
 pub use solver::{FixSolver, SolvedCycle};

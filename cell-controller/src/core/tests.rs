@@ -239,7 +239,7 @@ fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
         start,
         schedule_version: 4,
     };
-    core.handle(now, Event::Trigger(trigger.clone()));
+    core.handle(now, Event::Trigger(trigger));
     let out = core.handle(now, Event::Shutdown);
     match out.as_slice() {
         [Output::Status(s)] => assert_eq!(s.faults, ["stopping: 2 planned bursts dropped"]),

@@ -13,9 +13,12 @@
 //! solver works with ([`ickon_fusion::tdoa::dop`]), and `fusion` is pure math
 //! with no I/O, so the core stays sans-IO.
 
+pub mod admin_json;
 pub mod core;
 pub mod coverage;
 pub mod health;
+#[cfg(feature = "zenoh")]
+pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod schedule;

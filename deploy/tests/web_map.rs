@@ -51,10 +51,11 @@ fn start_sim(dir: &Path, port: u16) -> ChildGuard {
     ChildGuard::spawn("sim", cmd, dir).expect("ickon sim starts")
 }
 
-/// The pid of the sim's cell controller `cell` (a child process of `sim`).
-fn cell_pid(sim: u32, cell: &str) -> Option<i32> {
+/// The pid of a child process of `parent` whose command line has the
+/// consecutive arguments `wanted` (`["--cell", "c2"]`, `["node", "central"]`).
+fn child_pid(parent: u32, wanted: &[&str]) -> Option<u32> {
     std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
-        let pid: i32 = e.file_name().to_str()?.parse().ok()?;
+        let pid: u32 = e.file_name().to_str()?.parse().ok()?;
         let stat = std::fs::read_to_string(e.path().join("stat")).ok()?;
         let ppid: u32 = stat
             .rsplit_once(") ")?
@@ -65,7 +66,7 @@ fn cell_pid(sim: u32, cell: &str) -> Option<i32> {
             .ok()?;
         let cmdline = std::fs::read_to_string(e.path().join("cmdline")).ok()?;
         let args: Vec<&str> = cmdline.split('\0').collect();
-        (ppid == sim && args.windows(2).any(|w| w == ["--cell", cell])).then_some(pid)
+        (ppid == parent && args.windows(wanted.len()).any(|w| w == wanted)).then_some(pid)
     })
 }
 
@@ -165,7 +166,12 @@ fn the_browser_shows_the_live_site_and_a_killed_cell_goes_down_within_two_cycles
             a["id"]
         );
     }
-    std::fs::write(dir.path().join("page.png"), browser.screenshot()).expect("screenshot");
+    // `ICKON_WEB_SCREENSHOT=FILE` keeps the picture (the README's).
+    let png = browser.screenshot();
+    assert!(png.starts_with(b"\x89PNG"), "a PNG screenshot");
+    if let Some(path) = std::env::var_os("ICKON_WEB_SCREENSHOT") {
+        std::fs::write(path, &png).expect("screenshot written");
+    }
     // Loading and a second of live updates went without a console error.
     // (Checked here: once a node dies, `ickon sim` stops the whole mesh by
     // design, and the page then rightly logs its failed reconnections.)
@@ -177,9 +183,9 @@ fn the_browser_shows_the_live_site_and_a_killed_cell_goes_down_within_two_cycles
     );
 
     // Kill a cell controller outright; the page must show it down within two cycles.
-    let pid = cell_pid(sim.pid(), "c2").expect("the sim's c2 process");
+    let pid = child_pid(sim.pid(), &["--cell", "c2"]).expect("the sim's c2 process");
     nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(pid),
+        nix::unistd::Pid::from_raw(i32::try_from(pid).expect("pid")),
         nix::sys::signal::Signal::SIGKILL,
     )
     .expect("kill c2");
@@ -226,26 +232,42 @@ fn cpu_s(pid: u32) -> f64 {
     ticks as f64 / 100.0
 }
 
-/// The pid of the sim's central unit.
-fn central_pid(sim: u32) -> Option<u32> {
-    std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
-        let pid: u32 = e.file_name().to_str()?.parse().ok()?;
-        let stat = std::fs::read_to_string(e.path().join("stat")).ok()?;
-        let ppid: u32 = stat
-            .rsplit_once(") ")?
-            .1
-            .split_whitespace()
-            .nth(1)?
-            .parse()
-            .ok()?;
-        let cmdline = std::fs::read_to_string(e.path().join("cmdline")).ok()?;
-        (ppid == sim && cmdline.contains("node\0central\0")).then_some(pid)
+/// A live-stream client that reads everything and draws nothing (the
+/// central unit's work per client is the same as for a browser's page).
+fn stream_reader(
+    port: u16,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> std::thread::JoinHandle<u64> {
+    std::thread::spawn(move || {
+        let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).expect("connect");
+        s.set_read_timeout(Some(Duration::from_millis(200)))
+            .expect("timeout");
+        std::io::Write::write_all(&mut s, b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+            .expect("request");
+        let (mut buf, mut total) = (vec![0u8; 65_536], 0u64);
+        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            match std::io::Read::read(&mut s, &mut buf) {
+                Ok(0) => break,
+                Ok(n) => total += n as u64,
+                Err(_) => {}
+            }
+        }
+        total
     })
 }
 
-/// One 30 s run with `clients` browser tabs on the map: the central unit's
+/// Who watches the map during a measured run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Watchers {
+    /// Headless Chromium tabs, five per browser instance.
+    Browsers,
+    /// Plain readers of the event stream.
+    Streams,
+}
+
+/// One 30 s run with `clients` watchers on the map: the central unit's
 /// CPU share of one core over 15 s of it, and the sim's JSON report.
-fn measured_run(chromium: &Path, clients: usize) -> (f64, Value) {
+fn measured_run(chromium: &Path, clients: usize, watchers: Watchers) -> (f64, Value) {
     let dir = tempfile::tempdir().expect("temp dir");
     let port = free_tcp_port().expect("port");
     let mut cmd = Command::new(ICKON);
@@ -271,13 +293,26 @@ fn measured_run(chromium: &Path, clients: usize) -> (f64, Value) {
             .then_some(())
     })
     .expect("sim live");
-    let central = central_pid(sim.pid()).expect("central pid");
-    let mut browser = (clients > 0).then(|| Browser::launch(chromium, dir.path()));
-    if let Some(b) = browser.as_mut() {
-        for _ in 0..clients {
-            b.open_tab(&format!("http://127.0.0.1:{port}/"));
-        }
-        poll_until(Duration::from_secs(30), "every tab connected", || {
+    let central = child_pid(sim.pid(), &["node", "central"]).expect("central pid");
+    // A browser opens at most six HTTP/1.1 connections to one host, and
+    // each open stream holds one: five tabs per browser instance.
+    let tabs = if watchers == Watchers::Browsers {
+        clients
+    } else {
+        0
+    };
+    let mut browsers: Vec<Browser> = (0..tabs.div_ceil(5))
+        .map(|k| Browser::launch(chromium, &dir.path().join(format!("browser-{k}"))))
+        .collect();
+    for k in 0..tabs {
+        browsers[k / 5].open_tab(&format!("http://127.0.0.1:{port}/"));
+    }
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let readers: Vec<_> = (0..clients - tabs)
+        .map(|_| stream_reader(port, stop.clone()))
+        .collect();
+    if clients > 0 {
+        poll_until(Duration::from_secs(60), "every tab connected", || {
             let s = get_json(port, "/api/live")?;
             (s["clients"].as_u64()? >= clients as u64).then_some(())
         })
@@ -288,7 +323,11 @@ fn measured_run(chromium: &Path, clients: usize) -> (f64, Value) {
     let share = (cpu_s(central) - c0) / t0.elapsed().as_secs_f64();
     let live = get_json(port, "/api/live").expect("live");
     poll_until(Duration::from_secs(60), "sim done", || sim.exit_status()).expect("sim ends");
-    drop(browser);
+    drop(browsers);
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    for r in readers {
+        assert!(r.join().expect("reader") > 0, "a stream reader got nothing");
+    }
     let log = sim.log();
     let json = &log[log.find("\n{\n").expect("json report") + 1..];
     let end = json.find("\n}\n").expect("json end") + 2;
@@ -299,14 +338,18 @@ fn measured_run(chromium: &Path, clients: usize) -> (f64, Value) {
 }
 
 #[test]
-#[ignore = "a measurement (two 30 s runs): cargo nextest run -p ickon --run-ignored only web_map"]
+#[ignore = "a measurement (three 30 s runs): cargo nextest run -p ickon --test web_map --run-ignored only"]
 fn ten_browser_clients_cost_the_central_unit_under_five_percent_of_a_core() {
     let Some(chromium) = chromium_or_skip() else {
         return;
     };
     let mut shares = Vec::new();
-    for clients in [0, 10] {
-        let (share, report) = measured_run(&chromium, clients);
+    for (clients, watchers) in [
+        (0, Watchers::Streams),
+        (10, Watchers::Streams),
+        (10, Watchers::Browsers),
+    ] {
+        let (share, report) = measured_run(&chromium, clients, watchers);
         let robots: Vec<String> = report["robots"]
             .as_array()
             .expect("robots")
@@ -325,7 +368,7 @@ fn ten_browser_clients_cost_the_central_unit_under_five_percent_of_a_core() {
             .map(|c| format!("{} {}", c["id"], c["sync_error_max_us"]))
             .collect();
         eprintln!(
-            "{clients} clients (seen {}, dropped {}): central {:.2} % of a core; robots {}; cells sync {}",
+            "{clients} clients ({watchers:?}; seen {}, dropped {}): central {:.2} % of a core; robots {}; cells sync {}",
             report["web_clients_seen"],
             report["web_clients_dropped"],
             share * 100.0,
@@ -339,4 +382,64 @@ fn ten_browser_clients_cost_the_central_unit_under_five_percent_of_a_core() {
         "ten clients cost {:.2} % of a core",
         (shares[1] - shares[0]) * 100.0
     );
+}
+
+/// A lone central unit serving the map on `port` (no cells, no robots: it
+/// still publishes its status, which is all the page needs to be live).
+fn start_central(dir: &Path, port: u16, name: &str) -> ChildGuard {
+    let zenoh = free_tcp_port().expect("zenoh port");
+    let mut cmd = Command::new(ICKON);
+    cmd.args([
+        "node",
+        "central",
+        "--no-multicast-scouting",
+        "--site-name",
+        "lab",
+    ])
+    .arg("--listen")
+    .arg(format!("tcp/127.0.0.1:{zenoh}"))
+    .arg("--http")
+    .arg(format!("127.0.0.1:{port}"));
+    ChildGuard::spawn(name, cmd, dir).expect("central starts")
+}
+
+#[test]
+fn the_page_reconnects_by_itself_when_the_central_unit_restarts() {
+    let Some(chromium) = chromium_or_skip() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let port = free_tcp_port().expect("port");
+    let mut central = start_central(dir.path(), port, "central-1");
+    poll_until(START_TIMEOUT, "status served", || {
+        get_json(port, "/api/status")
+    })
+    .unwrap_or_else(|e| panic!("{e}: {}", central.log_tail(20)));
+    let mut browser = Browser::launch(&chromium, dir.path());
+    browser.navigate(&format!("http://127.0.0.1:{port}/"));
+    let live = "(() => ({ messages: window.ickon ? window.ickon.messages : 0, conn: document.getElementById('conn').textContent }))()";
+    poll_until(Duration::from_secs(30), "page live", || {
+        let v = browser.eval(live);
+        (v["conn"] == "live" && v["messages"].as_u64()? > 0).then_some(())
+    })
+    .expect("the page goes live");
+
+    central.kill().expect("kill central");
+    let before = poll_until(Duration::from_secs(10), "page notices", || {
+        let v = browser.eval(live);
+        (v["conn"] != "live").then(|| v["messages"].as_u64())
+    })
+    .expect("the page shows the lost stream")
+    .expect("messages");
+    let mut restarted = start_central(dir.path(), port, "central-2");
+    poll_until(Duration::from_secs(60), "page live again", || {
+        assert!(
+            restarted.exit_status().is_none(),
+            "{}",
+            restarted.log_tail(20)
+        );
+        let v = browser.eval(live);
+        (v["conn"] == "live" && v["messages"].as_u64()? > before + 5).then_some(())
+    })
+    .expect("the page reconnects and updates again");
 }

@@ -311,16 +311,17 @@ impl LiveView {
     }
 }
 
-/// Rounds `v` to a multiple of `step` (keeps the pushed JSON short).
-fn round(v: f64, step: f64) -> f64 {
-    (v / step).round() * step
+/// Rounds `v` to `1 / per_unit` (keeps the pushed JSON short; dividing
+/// last gives the nearest double, so 1.021 prints as 1.021).
+fn round(v: f64, per_unit: f64) -> f64 {
+    (v * per_unit).round() / per_unit
 }
 
 fn pose_view(x_m: f64, y_m: f64, theta_rad: f64) -> PoseView {
     PoseView {
-        x_m: round(x_m, 1e-3),
-        y_m: round(y_m, 1e-3),
-        theta_rad: round(theta_rad, 1e-3),
+        x_m: round(x_m, 1e3),
+        y_m: round(y_m, 1e3),
+        theta_rad: round(theta_rad, 1e3),
     }
 }
 
@@ -342,13 +343,13 @@ fn robot_snapshot(health: RobotJson, state: Option<&RobotState>, now: Time) -> R
         .as_ref()
         .map(|(p, _)| pose_view(p.x_m, p.y_m, p.theta_rad));
     let fix = r.fix.as_ref().map(|(f, at)| FixView {
-        x_m: round(f.x_m, 1e-3),
-        y_m: round(f.y_m, 1e-3),
+        x_m: round(f.x_m, 1e3),
+        y_m: round(f.y_m, 1e3),
         ellipse: Ellipse::two_sigma(f.covariance[0], f.covariance[1], f.covariance[4]).map(|e| {
             Ellipse {
-                a_m: round(e.a_m, 1e-4),
-                b_m: round(e.b_m, 1e-4),
-                angle_rad: round(e.angle_rad, 1e-3),
+                a_m: round(e.a_m, 1e4),
+                b_m: round(e.b_m, 1e4),
+                angle_rad: round(e.angle_rad, 1e3),
             }
         }),
         quality: format!("{:?}", f.quality).to_lowercase(),
@@ -366,7 +367,7 @@ fn robot_snapshot(health: RobotJson, state: Option<&RobotState>, now: Time) -> R
         let gap = |t: &Truth| t.robot_clock.as_nanos().abs_diff(p.stamp.as_nanos());
         let t = r.truths.iter().min_by_key(|t| gap(t))?;
         (gap(t) <= TRUTH_MATCH.as_nanos().unsigned_abs())
-            .then(|| round((p.x_m - t.x_m).hypot(p.y_m - t.y_m) * 1e3, 0.1))
+            .then(|| round((p.x_m - t.x_m).hypot(p.y_m - t.y_m) * 1e3, 10.0))
     });
     RobotSnapshot {
         health,
@@ -378,7 +379,7 @@ fn robot_snapshot(health: RobotJson, state: Option<&RobotState>, now: Time) -> R
         trail: r
             .trail
             .iter()
-            .map(|p| [round(p[0], 1e-3), round(p[1], 1e-3)])
+            .map(|p| [round(p[0], 1e3), round(p[1], 1e3)])
             .collect(),
     }
 }

@@ -111,6 +111,7 @@ impl Browser {
     /// Starts `chromium` with a fresh profile under `dir` and opens a blank page.
     pub fn launch(chromium: &Path, dir: &Path) -> Self {
         let profile = dir.join("chromium-profile");
+        std::fs::create_dir_all(dir).expect("browser dir");
         std::fs::create_dir_all(&profile).expect("profile dir");
         let mut cmd = Command::new(chromium);
         cmd.args([

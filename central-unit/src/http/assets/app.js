@@ -9,12 +9,17 @@ const MARGIN_M = 0.6;
 // A cell counts as firing this long after its last burst arrived.
 const FLASH_MS = 160;
 const TRAIL_PIECES = 5;
+// The side panel's tables are rebuilt at most this often (the map itself
+// follows every snapshot): text changing 20 times a second cannot be read,
+// and rebuilding it costs the browser more than the whole map.
+const PANEL_MS = 250;
 
 const state = {
   site: null,
   snap: null,
   frame: 0,
   scheduleVersion: null,
+  panelAt: -Infinity,
   messages: 0,
   robots: new Map(),
   cells: new Map(),
@@ -168,6 +173,20 @@ function render() {
   for (const [id, c] of state.txs) c.setAttribute("class", firing.has(id) ? "tx fire" : "tx");
   for (const r of snap.robots) drawRobot(r);
 
+  const now = performance.now();
+  if (now - state.panelAt >= PANEL_MS) {
+    state.panelAt = now;
+    renderPanel(snap);
+  }
+  if (snap.schedule_version !== state.scheduleVersion) {
+    const first = state.scheduleVersion === null;
+    state.scheduleVersion = snap.schedule_version;
+    loadSchedule();
+    if (!first) loadSite();
+  }
+}
+
+function renderPanel(snap) {
   document.getElementById("cycle").textContent =
     `cycle ${snap.cycle}${snap.paused ? " (paused)" : ""} · ${fmt(snap.update_rate_hz, 2)} cycles/s`;
   const robots = document.querySelector("#robots tbody");
@@ -183,12 +202,6 @@ function render() {
   }));
   document.getElementById("clients").textContent =
     `web clients ${snap.clients}, dropped as slow ${snap.clients_dropped}; messages ignored ${snap.ignored_messages}`;
-  if (snap.schedule_version !== state.scheduleVersion) {
-    const first = state.scheduleVersion === null;
-    state.scheduleVersion = snap.schedule_version;
-    loadSchedule();
-    if (!first) loadSite();
-  }
 }
 
 async function loadSchedule() {

@@ -97,6 +97,35 @@ fn the_browser_shows_the_live_site_and_a_killed_cell_goes_down_within_two_cycles
     })
     .unwrap_or_else(|e| panic!("{e}: {}", sim.log_tail(30)));
     assert_eq!(status["site"], "lab");
+    // The simulated robots stand still for their first seconds: wait until
+    // every one is under way (0.2 m from where it was first posed).
+    let start: Vec<(f64, f64)> = status["robots"]
+        .as_array()
+        .expect("robots")
+        .iter()
+        .map(|r| {
+            (
+                r["pose"]["x_m"].as_f64().unwrap_or(0.0),
+                r["pose"]["y_m"].as_f64().unwrap_or(0.0),
+            )
+        })
+        .collect();
+    poll_until(START_TIMEOUT, "every robot under way", || {
+        let s = get_json(port, "/api/robots")?;
+        let robots = s["robots"].as_array()?;
+        robots
+            .iter()
+            .zip(&start)
+            .all(|(r, (x, y))| {
+                let (rx, ry) = (
+                    r["pose"]["x_m"].as_f64().unwrap_or(*x),
+                    r["pose"]["y_m"].as_f64().unwrap_or(*y),
+                );
+                (rx - x).hypot(ry - y) > 0.2
+            })
+            .then_some(())
+    })
+    .unwrap_or_else(|e| panic!("{e}: {}", sim.log_tail(30)));
     let schedule = get_json(port, "/api/schedule").expect("schedule");
     let period_ms = schedule["period_ms"].as_f64().expect("period");
     assert!(
@@ -417,7 +446,9 @@ fn the_page_reconnects_by_itself_when_the_central_unit_restarts() {
     .unwrap_or_else(|e| panic!("{e}: {}", central.log_tail(20)));
     let mut browser = Browser::launch(&chromium, dir.path());
     browser.navigate(&format!("http://127.0.0.1:{port}/"));
-    let live = "(() => ({ messages: window.ickon ? window.ickon.messages : 0, conn: document.getElementById('conn').textContent }))()";
+    // Safe on any document: the page may still be loading.
+    let live = "(() => { const c = document.getElementById('conn'); \
+        return { messages: window.ickon ? window.ickon.messages : 0, conn: c ? c.textContent : '' }; })()";
     poll_until(Duration::from_secs(30), "page live", || {
         let v = browser.eval(live);
         (v["conn"] == "live" && v["messages"].as_u64()? > 0).then_some(())

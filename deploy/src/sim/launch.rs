@@ -70,3 +70,22 @@ pub(super) fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
         format!("{drift_ppm:.1}"),
     ]
 }
+
+/// Adds the web map's flags of `ickon sim --http` to the central unit's
+/// command; the address it will serve, if any: the one asked for, or the
+/// next free port above it when it is taken (the URL is printed).
+pub(super) fn http_flags(
+    args: &SimArgs,
+    central: &mut Command,
+) -> anyhow::Result<Option<std::net::SocketAddr>> {
+    let Some(wanted) = args.http else {
+        return Ok(None);
+    };
+    let addr = ickon_central::http::first_free_addr(wanted)
+        .ok_or_else(|| anyhow::anyhow!("no free port for the web map from {wanted}"))?;
+    central.arg("--http").arg(addr.to_string());
+    if let Some(token) = &args.http_token_file {
+        central.arg("--http-token-file").arg(token);
+    }
+    Ok(Some(addr))
+}

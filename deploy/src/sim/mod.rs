@@ -60,6 +60,13 @@ pub struct SimArgs {
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Serve the live web map from the central unit on ADDR, or the next
+    /// free port above it (with no ADDR: 127.0.0.1:8080); the URL is printed.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
+    pub http: Option<std::net::SocketAddr>,
+    /// File with the token that allows pause, resume and reload over HTTP.
+    #[arg(long, value_name = "FILE", requires = "http")]
+    pub http_token_file: Option<PathBuf>,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -154,10 +161,9 @@ async fn run_mesh(
     let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
     let mut sup = supervisor::Supervisor::new();
 
-    sup.spawn(
-        "central",
-        node_command(args, site, "central", "", &central)?,
-    )?;
+    let mut central_cmd = node_command(args, site, "central", "", &central)?;
+    let web = launch::http_flags(args, &mut central_cmd)?;
+    sup.spawn("central", central_cmd)?;
     let session = open_observer(&central).await?;
     let alive = session
         .liveliness()
@@ -272,6 +278,9 @@ async fn run_mesh(
     };
     if let Err(e) = run_dir.write(&run) {
         eprintln!("warning: `ickon admin` will not find this run: {e}");
+    }
+    if let Some(addr) = web {
+        eprintln!("ickon sim: live map at http://{addr}/");
     }
     let outcome = observe(
         args, site, &keys, &session, &central, &alive, &mut sup, quiet,

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{admin, eval, node, replay, sim, site_cmd};
+use crate::{admin, eval, node, replay, router, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -40,6 +40,8 @@ pub enum Command {
         #[command(subcommand)]
         action: SiteAction,
     },
+    /// Run a Zenoh router: the hub of a floor, every node its client.
+    Router(router::RouterArgs),
     /// Run one node of the mesh (used by `ickon sim`; the standalone binaries
     /// do the same for deployment).
     #[command(hide = true)]
@@ -61,8 +63,12 @@ pub enum Command {
 pub enum SiteAction {
     /// Validate a site file and print a summary; exit code 2 when it is invalid.
     Check {
-        /// The site file (TOML); the built-in default site when omitted.
+        /// A built-in site (`lab`, `warehouse`) or a site file (TOML); the
+        /// built-in `lab` when omitted.
         file: Option<PathBuf>,
+        /// The same as the positional argument, spelled as elsewhere.
+        #[arg(long = "site", conflicts_with = "file")]
+        site: Option<PathBuf>,
     },
 }
 
@@ -70,12 +76,13 @@ pub enum SiteAction {
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Site {
-            action: SiteAction::Check { file },
-        } => site_cmd::check(file.as_deref()),
+            action: SiteAction::Check { file, site },
+        } => site_cmd::check(file.or(site).as_deref()),
         Command::Replay { source } => replay::run(source),
         Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Node { role } => node::run(role),
+        Command::Router(args) => router::run(args),
         Command::Admin { command } => admin::run(command),
     }
 }

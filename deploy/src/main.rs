@@ -9,6 +9,7 @@ mod eval;
 mod font;
 mod node;
 mod replay;
+mod router;
 mod sim;
 mod site_cmd;
 

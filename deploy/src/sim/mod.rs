@@ -5,9 +5,11 @@
 //! cell controller per cell, the world, and one MSU agent per robot: the same
 //! library code as the standalone `ickon-central`, `ickon-cell`, `ickon-world`
 //! and `ickon-msu` binaries, so that `cargo run -p ickon -- sim` needs no other
-//! build step. Every node is a Zenoh peer listening on its own loopback port
-//! and connecting to the central unit's; multicast scouting is off so that two
-//! runs on one machine never meet. The launcher watches the mesh with its own
+//! build step. As on a site, a Zenoh router (`ickon router`, its own
+//! supervised process) listens on a loopback port and every node is its
+//! client (`--mesh peer` lays out the old full mesh of peers instead, to
+//! compare); multicast scouting is off so that two runs on one machine never
+//! meet, and Zenoh's thread pools are kept small in every node. The launcher watches the mesh with its own
 //! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
 //! status line, and a summary at the end.
 
@@ -31,14 +33,17 @@ use serde::Serialize;
 use zenoh::sample::SampleKind;
 
 use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
-use launch::{CLOCK_STREAM, clock_flags, free_port, node_command};
+pub use launch::Mesh;
+use launch::{
+    CLOCK_STREAM, clock_flags, free_port, node_command, router_command, wait_for_listener,
+};
 use observe::{observe, open_observer};
 use report::render_report;
 
 /// Arguments of `ickon sim`.
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// Site file (TOML); the built-in lab site when omitted.
+    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Number of robots: the first N robots of the site, each on its own route.
@@ -59,6 +64,10 @@ pub struct SimArgs {
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// How the nodes reach each other: through a router, as on a site, or
+    /// as a full mesh of peers (the layout before routers, to compare).
+    #[arg(long, value_enum, default_value = "router")]
+    pub mesh: Mesh,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -81,7 +90,10 @@ struct SimReport {
     /// Cycles per second of the schedule with every cell up: the fixes each
     /// robot can get per second at most.
     update_rate_hz: f64,
-    /// The central unit's endpoint (tells this run's processes apart).
+    /// How the nodes reached each other.
+    mesh: Mesh,
+    /// The endpoint every node connected to: the router's (the central
+    /// unit's with `--mesh peer`); it tells this run's processes apart.
     central_endpoint: String,
     zenoh_hop_p50_us: Option<f64>,
     zenoh_hop_p99_us: Option<f64>,
@@ -143,7 +155,8 @@ async fn run_mesh(
     let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
     let update_rate_hz =
         ickon_central::update_rate_hz(&ickon_central::compute_schedule(site, &all_cells, 1, 0)?);
-    let central = format!("tcp/127.0.0.1:{}", free_port()?);
+    let hub_port = free_port()?;
+    let hub = format!("tcp/127.0.0.1:{hub_port}");
     let robots: Vec<String> = site
         .robots
         .iter()
@@ -153,11 +166,21 @@ async fn run_mesh(
     let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
     let mut sup = supervisor::Supervisor::new();
 
-    sup.spawn(
-        "central",
-        node_command(args, site, "central", "", &central)?,
-    )?;
-    let session = open_observer(&central).await?;
+    match args.mesh {
+        Mesh::Router => {
+            sup.spawn("router", router_command(&hub)?)?;
+            if let Err(e) = wait_for_listener(hub_port, &mut sup, STARTUP_TIMEOUT).await {
+                sup.stop_all(STOP_GRACE);
+                eprintln!("error: {e:#}");
+                return Ok(ExitCode::from(EXIT_FAILURE));
+            }
+            sup.spawn("central", node_command(args, site, "central", &hub, "")?)?;
+        }
+        Mesh::Peer => {
+            sup.spawn("central", node_command(args, site, "central", "", &hub)?)?;
+        }
+    }
+    let session = open_observer(&hub, args.mesh).await?;
     let alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all())
@@ -165,12 +188,12 @@ async fn run_mesh(
         .await
         .map_err(|e| anyhow::anyhow!("liveliness subscriber: {e}"))?;
     for cell in &site.cells {
-        let mut cmd = node_command(args, site, "cell", &central, "tcp/127.0.0.1:0")?;
+        let mut cmd = node_command(args, site, "cell", &hub, "tcp/127.0.0.1:0")?;
         cmd.args(["--cell", &cell.id])
             .args(clock_flags(&mut clocks));
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }
-    let mut world = node_command(args, site, "world", &central, "tcp/127.0.0.1:0")?;
+    let mut world = node_command(args, site, "world", &hub, "tcp/127.0.0.1:0")?;
     world.args([
         "--robots",
         &robots.join(","),
@@ -182,7 +205,7 @@ async fn run_mesh(
     sup.spawn("world", world)?;
     let drive = ickon_sim::robot::DriveSpec::default();
     for robot in &robots {
-        let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
+        let mut cmd = node_command(args, site, "msu", &hub, "tcp/127.0.0.1:0")?;
         // The same estimator set-up as `ickon eval`: the robot's start pose
         // and the profile's sensor data sheet.
         let start = site
@@ -269,7 +292,7 @@ async fn run_mesh(
     let run_dir = ickon_runtime::RunDir::standard();
     let run = ickon_runtime::RunFile {
         site: site.name.clone(),
-        central: vec![central.clone()],
+        central: vec![hub.clone()],
         pid: std::process::id(),
         started_unix_s: std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -278,10 +301,7 @@ async fn run_mesh(
     if let Err(e) = run_dir.write(&run) {
         eprintln!("warning: `ickon admin` will not find this run: {e}");
     }
-    let outcome = observe(
-        args, site, &keys, &session, &central, &alive, &mut sup, quiet,
-    )
-    .await;
+    let outcome = observe(args, site, &keys, &session, &hub, &alive, &mut sup, quiet).await;
     let _ = run_dir.remove(&site.name, run.pid);
     let killed = sup.stop_all(STOP_GRACE);
     let _ = session.close().await;
@@ -300,7 +320,8 @@ async fn run_mesh(
         seed: args.seed,
         duration_s: args.duration,
         update_rate_hz,
-        central_endpoint: central.clone(),
+        mesh: args.mesh,
+        central_endpoint: hub.clone(),
         zenoh_hop_p50_us: metrics::percentile(&stats.hop_latencies_us, 50.0),
         zenoh_hop_p99_us: metrics::percentile(&stats.hop_latencies_us, 99.0),
         robots: robots

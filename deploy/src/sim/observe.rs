@@ -11,21 +11,24 @@ use zenoh::sample::SampleKind;
 
 use super::metrics::RunStats;
 use super::report::status_line;
-use super::{SimArgs, supervisor};
+use super::{Mesh, SimArgs, supervisor};
 
-pub(super) async fn open_observer(central: &str) -> anyhow::Result<zenoh::Session> {
+/// The launcher's own session: a client of the run's router, or a peer of
+/// the full mesh (`Mesh::Peer`), connected to `hub`.
+pub(super) async fn open_observer(hub: &str, mesh: Mesh) -> anyhow::Result<zenoh::Session> {
     let mut config = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
         c.insert_json5(k, v)
             .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
     };
-    set(&mut config, "mode", "\"peer\"")?;
-    set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
-    set(
-        &mut config,
-        "connect/endpoints",
-        &format!("[\"{central}\"]"),
-    )?;
+    match mesh {
+        Mesh::Router => set(&mut config, "mode", "\"client\"")?,
+        Mesh::Peer => {
+            set(&mut config, "mode", "\"peer\"")?;
+            set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
+        }
+    }
+    set(&mut config, "connect/endpoints", &format!("[\"{hub}\"]"))?;
     set(&mut config, "scouting/multicast/enabled", "false")?;
     zenoh::open(config)
         .await
@@ -56,7 +59,7 @@ pub(super) async fn observe(
     site: &Site,
     keys: &Keys,
     session: &zenoh::Session,
-    central: &str,
+    hub: &str,
     alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     sup: &mut supervisor::Supervisor,
     quiet: bool,
@@ -85,7 +88,7 @@ pub(super) async fn observe(
 
     // The plain one-hop latency: a second session in this process subscribes
     // to probes the observer publishes; both share this process's clock.
-    let probe_session = open_observer(central).await?;
+    let probe_session = open_observer(hub, args.mesh).await?;
     let probe_sub = probe_session
         .declare_subscriber(keys.sim_probe())
         .await

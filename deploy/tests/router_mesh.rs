@@ -61,15 +61,13 @@ fn client(role: &str, site: &str, router: &str) -> Command {
     cmd
 }
 
-/// Waits until `count` poses of each robot arrive on `sub`.
-fn poses_flow(
-    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-    keys: &Keys,
-    count: usize,
-    nodes: &mut [ChildGuard],
-    what: &str,
-) {
-    let mut seen = std::collections::BTreeMap::<String, usize>::new();
+type Sub = zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>;
+
+/// Waits until `count` poses and three fixes of each robot arrive on `sub`
+/// (a fix needs the cells' bursts to have crossed from one router to the
+/// other, and the arrivals back).
+fn poses_flow(sub: &Sub, keys: &Keys, count: usize, nodes: &mut [ChildGuard], what: &str) {
+    let mut seen = std::collections::BTreeMap::<(String, bool), usize>::new();
     poll_until(START_TIMEOUT, what, || {
         for n in nodes.iter_mut() {
             if let Some(status) = n.exit_status() {
@@ -77,15 +75,22 @@ fn poses_flow(
             }
         }
         while let Ok(Some(s)) = sub.try_recv() {
-            if let Ok(ickon_proto::keys::Key::Robot(id, RobotTopic::Pose)) =
-                keys.parse(s.key_expr().as_str())
-            {
-                *seen.entry(id).or_default() += 1;
+            match keys.parse(s.key_expr().as_str()) {
+                Ok(ickon_proto::keys::Key::Robot(id, RobotTopic::Pose)) => {
+                    *seen.entry((id, false)).or_default() += 1;
+                }
+                Ok(ickon_proto::keys::Key::Robot(id, RobotTopic::Fix)) => {
+                    *seen.entry((id, true)).or_default() += 1;
+                }
+                _ => {}
             }
         }
+        let has = |r: &str, fix: bool, n: usize| {
+            seen.get(&(r.to_string(), fix)).copied().unwrap_or(0) >= n
+        };
         ROBOTS
             .iter()
-            .all(|r| seen.get(*r).copied().unwrap_or(0) >= count)
+            .all(|r| has(r, false, count) && has(r, true, 3))
             .then_some(())
     })
     .unwrap_or_else(|e| {
@@ -131,7 +136,7 @@ fn two_linked_routers_carry_the_site_and_clients_reconnect_to_a_router_that_retu
     let observer = Observer::open(std::slice::from_ref(&floor_1)).expect("observer");
     let poses = observer
         .session()
-        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
+        .declare_subscriber(format!("{}/robot/**", keys.prefix()))
         .with(FifoChannel::new(100_000))
         .wait()
         .expect("subscriber");

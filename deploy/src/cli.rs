@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{admin, eval, node, replay, router, sim, site_cmd};
+use crate::{admin, bench, eval, node, replay, router, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -39,6 +39,12 @@ pub enum Command {
         /// What to do with the site file.
         #[command(subcommand)]
         action: SiteAction,
+    },
+    /// Benchmarks of the whole system.
+    Bench {
+        /// Which benchmark.
+        #[command(subcommand)]
+        command: bench::BenchCommand,
     },
     /// Run a Zenoh router: the hub of a floor, every node its client.
     Router(router::RouterArgs),
@@ -83,6 +89,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Eval(args) => eval::run(args),
         Command::Node { role } => node::run(role),
         Command::Router(args) => router::run(args),
+        Command::Bench { command } => bench::run(command),
         Command::Admin { command } => admin::run(command),
     }
 }

@@ -4,6 +4,7 @@
 //! module of the subcommand, and turn its result into an exit code.
 
 mod admin;
+mod bench;
 mod cli;
 mod eval;
 mod font;

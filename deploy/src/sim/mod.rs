@@ -18,6 +18,7 @@ mod metrics;
 mod observe;
 mod report;
 mod supervisor;
+mod usage;
 
 pub use metrics::{CellSummary, RobotSummary};
 
@@ -81,34 +82,73 @@ const MAX_CLOCK_DRIFT_PPM: f64 = 100.0;
 
 /// The JSON document of `ickon sim --json`.
 #[derive(Debug, Serialize)]
-struct SimReport {
-    site: String,
-    profile: String,
-    estimator: String,
-    seed: u64,
-    duration_s: f64,
+pub struct SimReport {
+    pub site: String,
+    pub profile: String,
+    pub estimator: String,
+    pub seed: u64,
+    pub duration_s: f64,
     /// Cycles per second of the schedule with every cell up: the fixes each
     /// robot can get per second at most.
-    update_rate_hz: f64,
+    pub update_rate_hz: f64,
     /// How the nodes reached each other.
-    mesh: Mesh,
+    pub mesh: Mesh,
     /// The endpoint every node connected to: the router's (the central
     /// unit's with `--mesh peer`); it tells this run's processes apart.
-    central_endpoint: String,
-    zenoh_hop_p50_us: Option<f64>,
-    zenoh_hop_p99_us: Option<f64>,
-    robots: Vec<RobotSummary>,
-    cells: Vec<CellSummary>,
-    bad_messages: u64,
+    pub central_endpoint: String,
+    pub zenoh_hop_p50_us: Option<f64>,
+    pub zenoh_hop_p99_us: Option<f64>,
+    pub robots: Vec<RobotSummary>,
+    pub cells: Vec<CellSummary>,
+    pub bad_messages: u64,
+    /// Cycles the central unit triggered while the run was watched.
+    pub cycles_triggered: u64,
+    /// Of those, per second of the run.
+    pub cycles_per_s: f64,
+    /// CPU time and peak memory per kind of process, read just before they stopped.
+    pub processes: Vec<usage::KindUsage>,
 }
 
 /// Runs `ickon sim` and returns the exit code.
 pub fn run(args: SimArgs) -> ExitCode {
+    let (site, profile) = match check_args(&args) {
+        Ok(checked) => checked,
+        Err(code) => return code,
+    };
+    match ickon_runtime::block_on(2, measure(&args, &site, &profile)) {
+        None => ExitCode::from(EXIT_FAILURE),
+        Some(Err(e)) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(EXIT_FAILURE)
+        }
+        Some(Ok(Err(code))) => code,
+        Some(Ok(Ok((report, failure)))) => {
+            if args.json {
+                match serde_json::to_string_pretty(&report) {
+                    Ok(text) => println!("{text}"),
+                    Err(e) => eprintln!("error: {e}"),
+                }
+            } else {
+                print!("{}", render_report(&report));
+            }
+            match failure {
+                Some(why) => {
+                    eprintln!("error: {why}");
+                    ExitCode::from(EXIT_FAILURE)
+                }
+                None => ExitCode::SUCCESS,
+            }
+        }
+    }
+}
+
+/// Loads the site and checks the flags; on bad input, says why and gives exit code 2.
+pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProfile), ExitCode> {
     let (site, _text, _name) = match Site::load_or_default(args.site.as_deref()) {
         Ok(loaded) => loaded,
         Err(e) => {
             eprintln!("error: {e}");
-            return ExitCode::from(EXIT_BAD_INPUT);
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
         }
     };
     if args.robots == 0 || args.robots > site.robots.len() {
@@ -119,38 +159,36 @@ pub fn run(args: SimArgs) -> ExitCode {
             site.robots.len(),
             site.robots.len()
         );
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
     let profile = match ickon_sim::profile::NoiseProfile::by_name(&args.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
-            return ExitCode::from(EXIT_BAD_INPUT);
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
         }
     };
     if let Err(e) = ickon_fusion::estimator::EstimatorConfig::default_for(&args.estimator) {
         eprintln!("error: {e}");
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
         eprintln!("error: --duration must be between 0 and 86400 seconds");
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
-    match ickon_runtime::block_on(2, run_mesh(&args, &site, &profile)) {
-        Some(Ok(code)) => code,
-        None => ExitCode::from(EXIT_FAILURE),
-        Some(Err(e)) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(EXIT_FAILURE)
-        }
-    }
+    Ok((site, profile))
 }
 
-async fn run_mesh(
+/// What a run gives: its report and, if it failed, why; or, when it could
+/// not start (already said on stderr), the exit code.
+pub type Measured = Result<(SimReport, Option<String>), ExitCode>;
+
+/// Runs the mesh once and measures it (`ickon sim`, and each size of `ickon bench scale`).
+pub async fn measure(
     args: &SimArgs,
     site: &Site,
     profile: &ickon_sim::profile::NoiseProfile,
-) -> anyhow::Result<ExitCode> {
+) -> anyhow::Result<Measured> {
     let keys = Keys::new(&site.name)?;
     let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
     let update_rate_hz =
@@ -172,7 +210,7 @@ async fn run_mesh(
             if let Err(e) = wait_for_listener(hub_port, &mut sup, STARTUP_TIMEOUT).await {
                 sup.stop_all(STOP_GRACE);
                 eprintln!("error: {e:#}");
-                return Ok(ExitCode::from(EXIT_FAILURE));
+                return Ok(Err(ExitCode::from(EXIT_FAILURE)));
             }
             sup.spawn("central", node_command(args, site, "central", &hub, "")?)?;
         }
@@ -260,7 +298,7 @@ async fn run_mesh(
         if let Some(dead) = sup.first_dead() {
             sup.stop_all(STOP_GRACE);
             eprintln!("error: node {} {} during start-up", dead.name, dead.status);
-            return Ok(ExitCode::from(EXIT_FAILURE));
+            return Ok(Err(ExitCode::from(EXIT_FAILURE)));
         }
         if started.elapsed() > STARTUP_TIMEOUT {
             sup.stop_all(STOP_GRACE);
@@ -303,6 +341,10 @@ async fn run_mesh(
     }
     let outcome = observe(args, site, &keys, &session, &hub, &alive, &mut sup, quiet).await;
     let _ = run_dir.remove(&site.name, run.pid);
+    let mut used = sup.usage();
+    if let Some(me) = usage::read(std::process::id()) {
+        used.push(("launcher".to_string(), me));
+    }
     let killed = sup.stop_all(STOP_GRACE);
     let _ = session.close().await;
     let (stats, failure) = outcome?;
@@ -313,6 +355,7 @@ async fn run_mesh(
             killed.join(", ")
         );
     }
+    let completed = metrics::completed_cycles(&stats.cycles_triggered);
     let report = SimReport {
         site: site.name.clone(),
         profile: args.profile.clone(),
@@ -330,8 +373,8 @@ async fn run_mesh(
                 stats
                     .robots
                     .get(r)
-                    .map(|s| s.summary(r))
-                    .unwrap_or_else(|| metrics::RobotStats::default().summary(r))
+                    .map(|s| s.summary(r, completed.len()))
+                    .unwrap_or_else(|| metrics::RobotStats::default().summary(r, completed.len()))
             })
             .collect(),
         cells: site
@@ -341,22 +384,14 @@ async fn run_mesh(
                 stats
                     .cells
                     .get(&c.id)
-                    .map(|s| s.summary(&c.id))
-                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id))
+                    .map(|s| s.summary(&c.id, &completed))
+                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id, &completed))
             })
             .collect(),
         bad_messages: stats.bad_messages.values().sum(),
+        cycles_triggered: stats.cycles_triggered.len() as u64,
+        cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
+        processes: usage::by_kind(&used),
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", render_report(&report));
-    }
-    match failure {
-        Some(why) => {
-            eprintln!("error: {why}");
-            Ok(ExitCode::from(EXIT_FAILURE))
-        }
-        None => Ok(ExitCode::SUCCESS),
-    }
+    Ok(Ok((report, failure)))
 }

@@ -4,7 +4,7 @@
 use std::time::{Duration, Instant};
 
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::control::Burst;
+use ickon_proto::msg::control::{Burst, CycleTrigger};
 use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use zenoh::sample::SampleKind;
@@ -85,6 +85,10 @@ pub(super) async fn observe(
         .declare_subscriber(keys.sim_truth_all())
         .await
         .map_err(z)?;
+    let triggers = session
+        .declare_subscriber(keys.central_cycle())
+        .await
+        .map_err(z)?;
 
     // The plain one-hop latency: a second session in this process subscribes
     // to probes the observer publishes; both share this process's clock.
@@ -150,6 +154,12 @@ pub(super) async fn observe(
                 let key = s.key_expr().as_str().to_string();
                 if let (Ok(Key::Robot(id, _)), Some(p)) = (keys.parse(&key), decode_or_count::<RobotPose>(&mut stats, &key, &s.payload().to_bytes())) {
                     stats.robots.entry(id).or_default().on_pose(&p, at);
+                }
+            }
+            Ok(s) = triggers.recv_async() => {
+                let key = s.key_expr().as_str().to_string();
+                if let Some(t) = decode_or_count::<CycleTrigger>(&mut stats, &key, &s.payload().to_bytes()) {
+                    stats.cycles_triggered.insert(t.cycle);
                 }
             }
             Ok(s) = truth.recv_async() => {

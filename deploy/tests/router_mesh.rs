@@ -158,3 +158,55 @@ fn two_linked_routers_carry_the_site_and_clients_reconnect_to_a_router_that_retu
     let after: Vec<u32> = nodes.iter().map(ChildGuard::pid).collect();
     assert_eq!(pids, after, "no node was restarted");
 }
+
+/// The children of `parent` whose command line holds `word` as an argument.
+fn children_running(parent: u32, word: &str) -> Vec<u32> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    dir.filter_map(|e| e.ok()?.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|pid| {
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+            let ppid = stat
+                .rsplit(')')
+                .next()
+                .and_then(|rest| rest.split_whitespace().nth(1))
+                .and_then(|p| p.parse::<u32>().ok());
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            ppid == Some(parent) && cmdline.split(|b| *b == 0).any(|arg| arg == word.as_bytes())
+        })
+        .collect()
+}
+
+#[test]
+fn ickon_sim_reports_a_router_that_dies_like_any_node() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut sim = Command::new(ICKON);
+    sim.args(["sim", "--robots", "1", "--duration", "120"]);
+    let mut sim = ChildGuard::spawn("sim", sim, dir.path()).expect("ickon sim starts");
+    // Wait until the run is up (its status line), then kill its router.
+    poll_until(START_TIMEOUT, "the sim to run", || {
+        if let Some(status) = sim.exit_status() {
+            panic!("ickon sim {status}:\n{}", sim.log());
+        }
+        sim.log().contains("nodes live").then_some(())
+    })
+    .unwrap_or_else(|e| panic!("{e}\n{}", sim.log()));
+    let routers = children_running(sim.pid(), "router");
+    assert_eq!(routers.len(), 1, "one router child: {routers:?}");
+    nix_kill(routers[0]);
+    let status = poll_until(START_TIMEOUT, "the sim to stop", || sim.exit_status())
+        .unwrap_or_else(|e| panic!("{e}\n{}", sim.log()));
+    assert_eq!(status.code(), Some(1), "{}", sim.log());
+    assert!(sim.log().contains("node router"), "{}", sim.log());
+}
+
+/// SIGKILL to `pid` (the `kill` command: no unsafe code in tests either).
+fn nix_kill(pid: u32) {
+    let ok = Command::new("kill")
+        .args(["-KILL", &pid.to_string()])
+        .status()
+        .expect("kill runs")
+        .success();
+    assert!(ok, "kill -KILL {pid}");
+}

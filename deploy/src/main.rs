@@ -8,6 +8,7 @@ mod cli;
 mod eval;
 mod font;
 mod node;
+mod record;
 mod replay;
 mod sim;
 mod site_cmd;

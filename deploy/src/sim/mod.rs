@@ -59,6 +59,11 @@ pub struct SimArgs {
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Record every message of the run into this MCAP file (as `ickon
+    /// record`; refused if it exists), with what a replay needs to run the
+    /// MSU cores as the agents did.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -88,6 +93,9 @@ struct SimReport {
     robots: Vec<RobotSummary>,
     cells: Vec<CellSummary>,
     bad_messages: u64,
+    /// The recording of `--record`: file, messages per topic, rates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    recorded: Option<crate::record::RecordReport>,
 }
 
 /// Runs `ickon sim` and returns the exit code.
@@ -157,7 +165,31 @@ async fn run_mesh(
         "central",
         node_command(args, site, "central", "", &central)?,
     )?;
+    let msus = msu_starts(args, site, profile, &robots)?;
     let session = open_observer(&central).await?;
+    // Recording starts before the first cell, so that it holds every burst.
+    let recording = match &args.record {
+        Some(path) => {
+            let settings = [
+                ("profile", args.profile.clone()),
+                ("seed", args.seed.to_string()),
+                ("estimator", args.estimator.clone()),
+                ("robots", robots.join(",")),
+                ("duration_s", args.duration.to_string()),
+            ];
+            let metadata = crate::record::sim_hook::sim_metadata(&site.name, &settings, &msus);
+            match crate::record::sim_hook::SimRecording::start(&session, &keys, path, &metadata) {
+                Ok(r) => Some(r),
+                Err(e) => {
+                    sup.stop_all(STOP_GRACE);
+                    let _ = session.close().await;
+                    eprintln!("error: --record: {e}");
+                    return Ok(ExitCode::from(EXIT_BAD_INPUT));
+                }
+            }
+        }
+        None => None,
+    };
     let alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all())
@@ -180,27 +212,17 @@ async fn run_mesh(
         &args.seed.to_string(),
     ]);
     sup.spawn("world", world)?;
-    let drive = ickon_sim::robot::DriveSpec::default();
-    for robot in &robots {
+    for msu in &msus {
         let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
-        // The same estimator set-up as `ickon eval`: the robot's start pose
-        // and the profile's sensor data sheet.
-        let start = site
-            .robots
-            .iter()
-            .find(|r| &r.id == robot)
-            .map_or([0.0; 3], |r| r.start);
-        let config = ickon_sim::engine::estimator_config(&args.estimator, start, site, profile)?;
-        let timing_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
-        cmd.args(["--robot", robot, "--estimator", &args.estimator])
+        cmd.args(["--robot", &msu.robot, "--estimator", &args.estimator])
             .arg("--estimator-json")
-            .arg(serde_json::to_string(&config)?)
-            .args(["--timing-sigma-us", &format!("{timing_us:.3}")])
+            .arg(&msu.estimator_json)
+            .args(["--timing-sigma-us", &format!("{:.3}", msu.timing_sigma_us)])
             // The nominal drive of the simulated robots (what the agent
             // converts encoder ticks with).
-            .args(["--wheel-base-m", &drive.wheel_base_m.to_string()])
-            .args(["--m-per-tick", &drive.m_per_tick().to_string()]);
-        sup.spawn(&format!("msu {robot}"), cmd)?;
+            .args(["--wheel-base-m", &msu.wheel_base_m.to_string()])
+            .args(["--m-per-tick", &msu.m_per_tick.to_string()]);
+        sup.spawn(&format!("msu {}", msu.robot), cmd)?;
     }
 
     // Wait until every node has announced itself, or one died, or time is up.
@@ -283,6 +305,10 @@ async fn run_mesh(
     )
     .await;
     let _ = run_dir.remove(&site.name, run.pid);
+    let recorded = match recording {
+        Some(r) => Some(r.finish().await),
+        None => None,
+    };
     let killed = sup.stop_all(STOP_GRACE);
     let _ = session.close().await;
     let (stats, failure) = outcome?;
@@ -325,12 +351,22 @@ async fn run_mesh(
             })
             .collect(),
         bad_messages: stats.bad_messages.values().sum(),
+        recorded: recorded.as_ref().and_then(|r| r.as_ref().ok()).cloned(),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print!("{}", render_report(&report));
     }
+    if let Some(report) = &report.recorded {
+        if !args.json {
+            eprint!("{}", report.render());
+        }
+    }
+    let failure = match (failure, recorded) {
+        (None, Some(Err(e))) => Some(e),
+        (f, _) => f,
+    };
     match failure {
         Some(why) => {
             eprintln!("error: {why}");
@@ -338,4 +374,39 @@ async fn run_mesh(
         }
         None => Ok(ExitCode::SUCCESS),
     }
+}
+
+/// What each MSU agent is started with: the same estimator set-up as `ickon
+/// eval` (the robot's start pose and the profile's sensor data sheet), and
+/// the nominal drive of the simulated robots (what the agent converts
+/// encoder ticks with).
+fn msu_starts(
+    args: &SimArgs,
+    site: &Site,
+    profile: &ickon_sim::profile::NoiseProfile,
+    robots: &[String],
+) -> anyhow::Result<Vec<crate::record::sim_hook::MsuStart>> {
+    let drive = ickon_sim::robot::DriveSpec::default();
+    robots
+        .iter()
+        .map(|robot| {
+            let start = site
+                .robots
+                .iter()
+                .find(|r| &r.id == robot)
+                .map_or([0.0; 3], |r| r.start);
+            let config =
+                ickon_sim::engine::estimator_config(&args.estimator, start, site, profile)?;
+            // Rounded as the flag is written, so a replay uses the agent's value.
+            let timing_sigma_us: f64 =
+                format!("{:.3}", ickon_sim::engine::timing_sigma_s(profile) * 1e6).parse()?;
+            Ok(crate::record::sim_hook::MsuStart {
+                robot: robot.clone(),
+                estimator_json: serde_json::to_string(&config)?,
+                timing_sigma_us,
+                wheel_base_m: drive.wheel_base_m,
+                m_per_tick: drive.m_per_tick(),
+            })
+        })
+        .collect()
 }

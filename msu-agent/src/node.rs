@@ -5,16 +5,18 @@
 
 use std::future::Future;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use clap::Args;
 
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
-use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
-use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry};
+use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
+use ickon_proto::{DecodeError, decode};
 use ickon_runtime::{NodeArgs, NodeError, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
@@ -60,6 +62,38 @@ pub struct MsuCounters {
     pub refused_inputs: u64,
     /// Fixes and poses that could not be published (logged at debug level).
     pub failed_puts: u64,
+    /// Inputs dropped because the input queue was full (the core fell behind).
+    pub queue_full: u64,
+}
+
+/// Inputs the agent's queue holds (seconds of a robot's sensor stream).
+const INPUT_QUEUE: usize = 4096;
+
+/// One input as it arrived, decoded in the receiving callback.
+enum Arrived {
+    Arrivals(Result<UltrasoundArrivals, DecodeError>),
+    Odometry(Result<Odometry, DecodeError>),
+    Imu(Result<Imu, DecodeError>),
+    Range(Result<ObstacleRanges, DecodeError>),
+}
+
+/// A decoded input.
+enum Input {
+    Arrivals(UltrasoundArrivals),
+    Odometry(Odometry),
+    Imu(Imu),
+    Range(ObstacleRanges),
+}
+
+impl Arrived {
+    fn decoded(self) -> Result<Input, DecodeError> {
+        Ok(match self {
+            Arrived::Arrivals(r) => Input::Arrivals(r?),
+            Arrived::Odometry(r) => Input::Odometry(r?),
+            Arrived::Imu(r) => Input::Imu(r?),
+            Arrived::Range(r) => Input::Range(r?),
+        })
+    }
 }
 
 /// Runs the agent until `shutdown` completes; returns its counters.
@@ -127,19 +161,45 @@ pub async fn run(
     core.set_schedule(schedule);
 
     let sub = |topic| keys.robot(robot, topic);
-    let receivers = ReceiverSource::open(settings.receivers, session, &keys, robot).await?;
-    let odom = session
+    // Every input goes through one queue in the order it arrives, so that
+    // the core sees the robot's messages in one defined order (the order a
+    // recorder of the site stores them in; a replay then reproduces this
+    // agent's poses exactly). A full queue drops and counts.
+    let (tx, mut inputs) = tokio::sync::mpsc::channel::<Arrived>(INPUT_QUEUE);
+    let queue_full = Arc::new(AtomicU64::new(0));
+    let sink = |wrap: fn(&[u8]) -> Arrived| {
+        let (tx, full) = (tx.clone(), queue_full.clone());
+        move |sample: zenoh::sample::Sample| {
+            if tx.try_send(wrap(&sample.payload().to_bytes())).is_err() {
+                full.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    };
+    let _receivers = {
+        let (tx, full) = (tx.clone(), queue_full.clone());
+        ReceiverSource::open(settings.receivers, session, &keys, robot, move |a| {
+            if tx.try_send(Arrived::Arrivals(a)).is_err() {
+                full.fetch_add(1, Ordering::Relaxed);
+            }
+        })
+        .await?
+    };
+    let _odom = session
         .declare_subscriber(sub(RobotTopic::Odom)?)
+        .callback(sink(|b| Arrived::Odometry(decode(b))))
         .await
         .map_err(zerr)?;
-    let imu = session
+    let _imu = session
         .declare_subscriber(sub(RobotTopic::Imu)?)
+        .callback(sink(|b| Arrived::Imu(decode(b))))
         .await
         .map_err(zerr)?;
-    let range = session
+    let _range = session
         .declare_subscriber(sub(RobotTopic::Range)?)
+        .callback(sink(|b| Arrived::Range(decode(b))))
         .await
         .map_err(zerr)?;
+    drop(tx);
     let fix_pub = session
         .declare_publisher(sub(RobotTopic::Fix)?)
         .express(true)
@@ -155,60 +215,52 @@ pub async fn run(
         .map_err(zerr)?;
 
     let mut n = MsuCounters::default();
-    macro_rules! decoded {
-        ($sample:expr, $t:ty) => {
-            match decode::<$t>(&$sample.payload().to_bytes()) {
-                Ok(v) => Some(v),
-                Err(e) => {
-                    n.bad_messages += 1;
-                    tracing::debug!("dropped undecodable {}: {e}", $sample.key_expr());
-                    None
-                }
-            }
-        };
-    }
     loop {
         tokio::select! {
             _ = &mut shutdown => break,
             Ok(s) = schedule_sub.recv_async() => {
-                if let Some(schedule) = decoded!(s, Schedule) {
-                    tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
-                    core.set_schedule(schedule);
-                }
-            }
-            Some(received) = receivers.recv() => {
-                let msg = match received {
-                    Ok(msg) => Some(msg),
+                match decode::<Schedule>(&s.payload().to_bytes()) {
+                    Ok(schedule) => {
+                        tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
+                        core.set_schedule(schedule);
+                    }
                     Err(e) => {
                         n.bad_messages += 1;
-                        tracing::debug!("robot {robot}: dropped undecodable arrivals: {e}");
-                        None
-                    }
-                };
-                if let Some(msg) = msg {
-                    n.arrival_messages += 1;
-                    match core.on_arrivals(&msg) {
-                        Ok(Some(fix)) => {
-                            if !put_counted(&fix_pub, &fix).await { n.failed_puts += 1; }
-                            n.fixes += 1;
-                            // Publish the pose that absorbed the fix at once:
-                            // this is the latency a user of the pose sees.
-                            if let Some(pose) = core.pose() {
-                                if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
-                                n.poses += 1;
-                            }
-                        }
-                        Ok(None) => {}
-                        Err(e) => {
-                            n.refused_inputs += 1;
-                            tracing::debug!("robot {robot}: cycle {} not used: {e}", msg.seq);
-                        }
+                        tracing::debug!("dropped undecodable schedule: {e}");
                     }
                 }
             }
-            Ok(s) = odom.recv_async() => {
-                if let Some(msg) = decoded!(s, Odometry) {
-                    match core.on_odometry(&msg) {
+            Some(input) = inputs.recv() => {
+                let decoded = input.decoded();
+                let Ok(input) = decoded else {
+                    n.bad_messages += 1;
+                    if let Err(e) = decoded {
+                        tracing::debug!("robot {robot}: dropped an undecodable input: {e}");
+                    }
+                    continue;
+                };
+                match input {
+                    Input::Arrivals(msg) => {
+                        n.arrival_messages += 1;
+                        match core.on_arrivals(&msg) {
+                            Ok(Some(fix)) => {
+                                if !put_counted(&fix_pub, &fix).await { n.failed_puts += 1; }
+                                n.fixes += 1;
+                                // Publish the pose that absorbed the fix at once:
+                                // this is the latency a user of the pose sees.
+                                if let Some(pose) = core.pose() {
+                                    if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
+                                    n.poses += 1;
+                                }
+                            }
+                            Ok(None) => {}
+                            Err(e) => {
+                                n.refused_inputs += 1;
+                                tracing::debug!("robot {robot}: cycle {} not used: {e}", msg.seq);
+                            }
+                        }
+                    }
+                    Input::Odometry(msg) => match core.on_odometry(&msg) {
                         Ok(()) => {
                             if let Some(pose) = core.pose() {
                                 if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
@@ -219,25 +271,22 @@ pub async fn run(
                             n.refused_inputs += 1;
                             tracing::debug!("robot {robot}: odometry refused: {e}");
                         }
+                    },
+                    Input::Imu(msg) => {
+                        if core.on_imu(&msg).is_err() {
+                            n.refused_inputs += 1;
+                        }
                     }
-                }
-            }
-            Ok(s) = imu.recv_async() => {
-                if let Some(msg) = decoded!(s, Imu) {
-                    if core.on_imu(&msg).is_err() {
-                        n.refused_inputs += 1;
-                    }
-                }
-            }
-            Ok(s) = range.recv_async() => {
-                if let Some(msg) = decoded!(s, ObstacleRanges) {
-                    if core.on_range(&msg).is_err() {
-                        n.refused_inputs += 1;
+                    Input::Range(msg) => {
+                        if core.on_range(&msg).is_err() {
+                            n.refused_inputs += 1;
+                        }
                     }
                 }
             }
         }
     }
+    n.queue_full = queue_full.load(Ordering::Relaxed);
     tracing::info!("robot {robot}: stopping: {n:?}");
     Ok(n)
 }

@@ -78,6 +78,28 @@ pub fn sim_metadata(
     m
 }
 
+/// Opens the recorder's own session: a peer listening on `listen` (which
+/// the world, the cells and the MSU agents are told to connect to, so that
+/// their first messages already reach it: in a peer mesh data goes only over
+/// direct links, and a link made later by gossip would miss them) and
+/// connected to the central unit.
+pub async fn open_session(central: &str, listen: &str) -> Result<zenoh::Session, String> {
+    let mut config = zenoh::Config::default();
+    for (k, v) in [
+        ("mode", "\"peer\"".to_string()),
+        ("listen/endpoints", format!("[\"{listen}\"]")),
+        ("connect/endpoints", format!("[\"{central}\"]")),
+        ("scouting/multicast/enabled", "false".to_string()),
+    ] {
+        config
+            .insert_json5(k, &v)
+            .map_err(|e| format!("zenoh config {k}: {e}"))?;
+    }
+    zenoh::open(config)
+        .await
+        .map_err(|e| format!("cannot open the recorder's Zenoh session: {e}"))
+}
+
 impl SimRecording {
     /// Creates `path` and starts recording everything of the site of `keys`.
     pub fn start(

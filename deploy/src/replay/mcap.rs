@@ -393,10 +393,13 @@ fn replay_robot(
 fn compare(name: &str, live: &[(u64, Vec<u8>)], replayed: &[Published]) -> LiveCheck {
     // Paired by stamp (a pose's stamp is its newest input's), so that a
     // sample the recorder missed shifts nothing.
-    let mut by_stamp: std::collections::HashMap<i64, &Published> = Default::default();
+    // A pose after an odometry sample and one after a fix can share a
+    // stamp: the n-th of a stamp pairs with the n-th.
+    let mut by_stamp: std::collections::HashMap<i64, Vec<&Published>> = Default::default();
     for p in replayed {
-        by_stamp.entry(p.pose.stamp.as_nanos()).or_insert(p);
+        by_stamp.entry(p.pose.stamp.as_nanos()).or_default().push(p);
     }
+    let mut seen: std::collections::HashMap<i64, usize> = Default::default();
     let mut check = LiveCheck {
         estimator: name.to_string(),
         live_poses: live.len(),
@@ -412,10 +415,12 @@ fn compare(name: &str, live: &[(u64, Vec<u8>)], replayed: &[Published]) -> LiveC
         let Some(lp) = mcap_feed::live_pose(bytes) else {
             continue;
         };
-        let Some(p) = by_stamp.get(&lp.stamp_ns) else {
+        let nth = seen.entry(lp.stamp_ns).or_insert(0);
+        let Some(p) = by_stamp.get(&lp.stamp_ns).and_then(|v| v.get(*nth)) else {
             check.first_difference.get_or_insert(i);
             continue;
         };
+        *nth += 1;
         check.paired += 1;
         let d = mcap_feed::difference(&lp, &p.pose);
         check.max_difference = check.max_difference.max(d);

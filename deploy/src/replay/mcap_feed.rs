@@ -280,19 +280,26 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         let mut exact = 0usize;
         let mut worst = 0.0f64;
         let limit = best.map_or(f64::INFINITY, |b| b.probe_difference);
+        // Paired by stamp: a live pose the replay does not make (an input
+        // the recorder missed) is passed over; a replayed pose the agent did
+        // not publish means the agent was not listening yet.
         run(&mut core, &stream.inputs, from, |p| {
+            let stamp = p.pose.stamp.as_nanos();
+            while live.get(k).is_some_and(|(_, lp)| lp.stamp_ns < stamp) {
+                k += 1;
+            }
             let Some((bytes, lp)) = live.get(k) else {
                 return false;
             };
+            if lp.stamp_ns != stamp {
+                worst = f64::INFINITY;
+                return false;
+            }
             k += 1;
             if *bytes == pose_bytes(&p.pose) {
                 exact += 1;
             }
-            worst = worst.max(if lp.stamp_ns == p.pose.stamp.as_nanos() {
-                difference(lp, &p.pose)
-            } else {
-                f64::INFINITY
-            });
+            worst = worst.max(difference(lp, &p.pose));
             worst < limit && k < want
         });
         if k < want {

@@ -168,8 +168,24 @@ async fn run_mesh(
     let msus = msu_starts(args, site, profile, &robots)?;
     let session = open_observer(&central).await?;
     // Recording starts before the first cell, so that it holds every burst.
-    let recording = match &args.record {
-        Some(path) => {
+    let recorder_endpoint = match args.record {
+        Some(_) => Some(format!("tcp/127.0.0.1:{}", free_port()?)),
+        None => None,
+    };
+    let recorder_session = match &recorder_endpoint {
+        Some(listen) => match crate::record::sim_hook::open_session(&central, listen).await {
+            Ok(s) => Some(s),
+            Err(e) => {
+                sup.stop_all(STOP_GRACE);
+                let _ = session.close().await;
+                eprintln!("error: --record: {e}");
+                return Ok(ExitCode::from(EXIT_FAILURE));
+            }
+        },
+        None => None,
+    };
+    let recording = match (&args.record, &recorder_session) {
+        (Some(path), Some(rec_session)) => {
             let settings = [
                 ("profile", args.profile.clone()),
                 ("seed", args.seed.to_string()),
@@ -178,7 +194,8 @@ async fn run_mesh(
                 ("duration_s", args.duration.to_string()),
             ];
             let metadata = crate::record::sim_hook::sim_metadata(&site.name, &settings, &msus);
-            match crate::record::sim_hook::SimRecording::start(&session, &keys, path, &metadata) {
+            match crate::record::sim_hook::SimRecording::start(rec_session, &keys, path, &metadata)
+            {
                 Ok(r) => Some(r),
                 Err(e) => {
                     sup.stop_all(STOP_GRACE);
@@ -188,8 +205,13 @@ async fn run_mesh(
                 }
             }
         }
-        None => None,
+        _ => None,
     };
+    // The nodes whose messages a replay needs connect to the recorder directly.
+    let to_recorder: Vec<String> = recorder_endpoint
+        .iter()
+        .flat_map(|e| ["--connect".to_string(), e.clone()])
+        .collect();
     let alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all())
@@ -199,7 +221,8 @@ async fn run_mesh(
     for cell in &site.cells {
         let mut cmd = node_command(args, site, "cell", &central, "tcp/127.0.0.1:0")?;
         cmd.args(["--cell", &cell.id])
-            .args(clock_flags(&mut clocks));
+            .args(clock_flags(&mut clocks))
+            .args(&to_recorder);
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }
     let mut world = node_command(args, site, "world", &central, "tcp/127.0.0.1:0")?;
@@ -211,6 +234,7 @@ async fn run_mesh(
         "--seed",
         &args.seed.to_string(),
     ]);
+    world.args(&to_recorder);
     sup.spawn("world", world)?;
     for msu in &msus {
         let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
@@ -221,7 +245,8 @@ async fn run_mesh(
             // The nominal drive of the simulated robots (what the agent
             // converts encoder ticks with).
             .args(["--wheel-base-m", &msu.wheel_base_m.to_string()])
-            .args(["--m-per-tick", &msu.m_per_tick.to_string()]);
+            .args(["--m-per-tick", &msu.m_per_tick.to_string()])
+            .args(&to_recorder);
         sup.spawn(&format!("msu {}", msu.robot), cmd)?;
     }
 
@@ -310,6 +335,9 @@ async fn run_mesh(
         None => None,
     };
     let killed = sup.stop_all(STOP_GRACE);
+    if let Some(s) = recorder_session {
+        let _ = s.close().await;
+    }
     let _ = session.close().await;
     let (stats, failure) = outcome?;
     if !killed.is_empty() {

@@ -211,6 +211,7 @@ pub fn run(args: &McapArgs) -> ExitCode {
             "complete": rec.complete,
             "site": rec.site,
             "messages": rec.messages.len(),
+            "last_log_time_ns": rec.messages.iter().map(|m| m.log_time_ns).max(),
             "problems": problems,
             "robots": robots,
             "wall_s": wall_s,
@@ -344,7 +345,7 @@ fn replay_robot(
             mcap_feed::PROBE_POSES
         )));
     }
-    let from = join.map_or(0, |j| j.from);
+    let start = join.unwrap_or_default();
     let mut live = None;
     let mut estimators = Vec::new();
     for name in names {
@@ -363,7 +364,7 @@ fn replay_robot(
             continue;
         };
         let mut published = Vec::new();
-        mcap_feed::run(&mut core, &stream.inputs, from, |p| {
+        mcap_feed::run(&mut core, &stream.inputs, start, |p| {
             published.push(p);
             true
         });

@@ -26,6 +26,10 @@ use crate::record::channels::POSE_FRAME;
 
 /// Poses that must match for a joining point to be taken.
 pub const PROBE_POSES: usize = 20;
+/// Leading gyro samples tried as unheard after the joining point.
+const MAX_LATE_IMU: usize = 4;
+/// Leading range samples tried as unheard after the joining point.
+const MAX_LATE_RANGE: usize = 1;
 /// Recorded inputs tried as the joining point, at most.
 const MAX_JOIN_CANDIDATES: usize = 5_000;
 
@@ -153,15 +157,19 @@ pub struct Published {
     pub pose: RobotPose,
 }
 
-/// Feeds `inputs[from..]` to `core` (after the last schedule before `from`),
+/// Feeds `inputs[join.from..]` to `core` (after the last schedule before
+/// it; the first `join.late_imu` gyro and `join.late_range` range samples
+/// left out: the agent subscribes to them a moment after the others),
 /// calling `publish` for every pose the live agent would have published;
 /// `publish` returns `false` to stop early.
 pub fn run(
     core: &mut MsuCore,
     inputs: &[(u64, Input)],
-    from: usize,
+    join: Join,
     mut publish: impl FnMut(Published) -> bool,
 ) {
+    let from = join.from;
+    let (mut late_imu, mut late_range) = (join.late_imu, join.late_range);
     if let Some(Input::Schedule(s)) = inputs[..from.min(inputs.len())]
         .iter()
         .rev()
@@ -178,6 +186,14 @@ pub fn run(
             }
             Input::Arrivals(m) => matches!(core.on_arrivals(m), Ok(Some(_))),
             Input::Odometry(m) => core.on_odometry(m).is_ok(),
+            Input::Imu(_) if late_imu > 0 => {
+                late_imu -= 1;
+                false
+            }
+            Input::Range(_) if late_range > 0 => {
+                late_range -= 1;
+                false
+            }
             Input::Imu(m) => {
                 let _ = core.on_imu(m);
                 false
@@ -248,6 +264,10 @@ pub struct Join {
     pub from: usize,
     /// Recorded inputs of the robot before it (the agent was not listening yet).
     pub skipped_inputs: usize,
+    /// Gyro samples after it the agent had not subscribed to yet.
+    pub late_imu: usize,
+    /// Obstacle-range samples after it the agent had not subscribed to yet.
+    pub late_range: usize,
     /// Largest difference over the first poses compared (see [`difference`]).
     pub probe_difference: f64,
 }
@@ -274,16 +294,32 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         .map(|(k, _)| k)
         .take(MAX_JOIN_CANDIDATES);
     let mut best: Option<Join> = None;
-    for from in candidates {
+    let tries = candidates.flat_map(|from| {
+        (0..=MAX_LATE_IMU).flat_map(move |late_imu| {
+            (0..=MAX_LATE_RANGE).map(move |late_range| (from, late_imu, late_range))
+        })
+    });
+    for (from, late_imu, late_range) in tries {
         let mut core = make()?;
         let mut k = 0usize;
         let mut exact = 0usize;
         let mut worst = 0.0f64;
         let limit = best.map_or(f64::INFINITY, |b| b.probe_difference);
+        let skipped_inputs = stream.inputs[..from]
+            .iter()
+            .filter(|(_, i)| !matches!(i, Input::Schedule(_)))
+            .count();
+        let mut join = Join {
+            from,
+            skipped_inputs,
+            late_imu,
+            late_range,
+            probe_difference: 0.0,
+        };
         // Paired by stamp: a live pose the replay does not make (an input
         // the recorder missed) is passed over; a replayed pose the agent did
         // not publish means the agent was not listening yet.
-        run(&mut core, &stream.inputs, from, |p| {
+        run(&mut core, &stream.inputs, join, |p| {
             let stamp = p.pose.stamp.as_nanos();
             while live.get(k).is_some_and(|(_, lp)| lp.stamp_ns < stamp) {
                 k += 1;
@@ -305,15 +341,7 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         if k < want {
             worst = f64::INFINITY;
         }
-        let skipped_inputs = stream.inputs[..from]
-            .iter()
-            .filter(|(_, i)| !matches!(i, Input::Schedule(_)))
-            .count();
-        let join = Join {
-            from,
-            skipped_inputs,
-            probe_difference: worst,
-        };
+        join.probe_difference = worst;
         if exact == want {
             return Some(join);
         }

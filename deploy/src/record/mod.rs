@@ -13,6 +13,8 @@ pub mod bench;
 pub mod channels;
 pub mod live;
 pub mod sim_hook;
+#[cfg(test)]
+mod tests;
 pub mod writer;
 
 use std::collections::BTreeMap;

@@ -15,7 +15,7 @@ mod mcap;
 mod mcap_feed;
 mod mcap_out;
 mod mcap_plot;
-mod mcap_read;
+pub(crate) mod mcap_read;
 mod mcap_score;
 mod plaza;
 mod plaza_csv;

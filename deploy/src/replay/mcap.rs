@@ -102,6 +102,8 @@ struct RobotReport {
     truth_samples: usize,
     join: Option<Join>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    note: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     live: Option<LiveCheck>,
     estimators: Vec<EstimatorResult>,
     #[serde(skip)]
@@ -338,13 +340,14 @@ fn replay_robot(
         let make = || make_core(setup, site, c);
         mcap_feed::join_point(&make, stream)
     });
-    if join.is_none() {
-        problems.push(Problem(format!(
-            "robot {}: no recorded input reproduces the stamps of the agent's first {} poses with {live_name}: the replay starts at the first input and is not the live run",
-            stream.id,
+    // Not bad input: a recorder that joined a running site cannot know the
+    // agent's state, so the live run cannot be reproduced; said, not failed.
+    let note = (join.is_none() && !stream.live_poses.is_empty()).then(|| {
+        format!(
+            "no recorded input reproduces the stamps of the agent's first {} poses with {live_name} (a recording begun after the agent, or another estimator set-up): the replay starts at the first input and is not the live run",
             mcap_feed::PROBE_POSES
-        )));
-    }
+        )
+    });
     let start = join.unwrap_or_default();
     let mut live = None;
     let mut estimators = Vec::new();
@@ -385,6 +388,7 @@ fn replay_robot(
         inputs: stream.inputs.len(),
         truth_samples: stream.truth.len(),
         join,
+        note,
         live,
         estimators,
         truth: stream.truth.clone(),
@@ -482,6 +486,9 @@ fn print_text(
                 ))
             ),
             None => println!(),
+        }
+        if let Some(note) = &r.note {
+            println!("{}: note: {note}", r.id);
         }
     }
     let scores: Vec<Score> = robots

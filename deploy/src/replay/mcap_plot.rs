@@ -10,6 +10,7 @@ use plotters::prelude::*;
 
 use super::mcap_feed::Published;
 use super::mcap_score::truth_at;
+use super::plaza_plot::{gridlines, span};
 use crate::font::{DrawError, FAMILY, axes, legend};
 
 const PALETTE: [RGBColor; 7] = [
@@ -24,32 +25,6 @@ const PALETTE: [RGBColor; 7] = [
 const GRID: RGBColor = RGBColor(220, 220, 220);
 /// Errors above this are drawn at it (a lost estimator would flatten the rest).
 const ERROR_TOP_M: f64 = 0.5;
-
-fn span(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-        (lo.min(v), hi.max(v))
-    });
-    if lo.is_finite() && hi > lo {
-        (lo, hi)
-    } else {
-        (0.0, 1.0)
-    }
-}
-
-fn gridlines(x: (f64, f64), y: (f64, f64), step: (f64, f64)) -> Vec<[(f64, f64); 2]> {
-    let mut out = Vec::new();
-    let mut v = (x.0 / step.0).ceil() * step.0;
-    while v <= x.1 {
-        out.push([(v, y.0), (v, y.1)]);
-        v += step.0;
-    }
-    let mut h = (y.0 / step.1).ceil() * step.1;
-    while h <= y.1 {
-        out.push([(x.0, h), (x.1, h)]);
-        h += step.1;
-    }
-    out
-}
 
 /// Writes both pictures of one robot into `dir`.
 pub fn write(

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{admin, bench, eval, msu_cmd, node, replay, router, sim, site_cmd};
+use crate::{admin, bench, eval, msu_cmd, node, record, replay, router, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -62,6 +62,8 @@ pub enum Command {
         #[command(subcommand)]
         role: node::Role,
     },
+    /// Record every message of a running site into an MCAP file (Foxglove, `ros2 bag`).
+    Record(record::RecordArgs),
     /// Replay recorded measurements through the positioning stack.
     Replay {
         /// Which recorded data set.
@@ -104,6 +106,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Msu {
             action: MsuAction::Check { file },
         } => msu_cmd::check(&file),
+        Command::Record(args) => record::run(args),
         Command::Replay { source } => replay::run(source),
         Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),

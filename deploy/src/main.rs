@@ -10,6 +10,7 @@ mod eval;
 mod font;
 mod msu_cmd;
 mod node;
+mod record;
 mod replay;
 mod router;
 mod sim;

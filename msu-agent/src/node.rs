@@ -6,16 +6,18 @@
 use std::future::Future;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use clap::Args;
 
 use ickon_fusion::estimator;
-use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
-use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry};
+use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
+use ickon_proto::{DecodeError, decode};
 use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
@@ -56,6 +58,32 @@ pub struct MsuCounters {
     pub refused_inputs: u64,
     /// Fixes and poses that could not be published (logged at debug level).
     pub failed_puts: u64,
+    /// Inputs dropped because the input queue was full (the core fell behind).
+    pub queue_full: u64,
+}
+
+/// Inputs the agent's queue holds (seconds of a robot's sensor stream).
+const INPUT_QUEUE: usize = 4096;
+
+/// One input as it arrived, decoded in the receiving callback.
+enum Arrived {
+    Arrivals(Result<UltrasoundArrivals, DecodeError>),
+    Odometry(Result<Odometry, DecodeError>),
+    Imu(Result<Imu, DecodeError>),
+    Range(Result<ObstacleRanges, DecodeError>),
+}
+
+impl Arrived {
+    /// The core's event, or what could not be decoded (with its kind, for
+    /// the rate-limited log).
+    fn into_event(self) -> Result<Event, (&'static str, DecodeError)> {
+        Ok(match self {
+            Arrived::Arrivals(r) => Event::Arrivals(r.map_err(|e| ("undecodable arrivals", e))?),
+            Arrived::Odometry(r) => Event::Odometry(r.map_err(|e| ("undecodable odometry", e))?),
+            Arrived::Imu(r) => Event::Imu(r.map_err(|e| ("undecodable imu", e))?),
+            Arrived::Range(r) => Event::Range(r.map_err(|e| ("undecodable ranges", e))?),
+        })
+    }
 }
 
 /// Runs the agent until `shutdown` completes; returns its counters.
@@ -116,19 +144,45 @@ pub async fn run(
     core.set_schedule(schedule);
 
     let sub = |topic| keys.robot(robot, topic);
-    let receivers = ReceiverSource::open(settings.receivers, session, &keys, robot).await?;
-    let odom = session
+    // Every input goes through one queue in the order it arrives, so that
+    // the core sees the robot's messages in one defined order (the order a
+    // recorder of the site stores them in; a replay then reproduces this
+    // agent's poses exactly). A full queue drops and counts.
+    let (tx, mut inputs) = tokio::sync::mpsc::channel::<Arrived>(INPUT_QUEUE);
+    let queue_full = Arc::new(AtomicU64::new(0));
+    let sink = |wrap: fn(&[u8]) -> Arrived| {
+        let (tx, full) = (tx.clone(), queue_full.clone());
+        move |sample: zenoh::sample::Sample| {
+            if tx.try_send(wrap(&sample.payload().to_bytes())).is_err() {
+                full.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    };
+    let _receivers = {
+        let (tx, full) = (tx.clone(), queue_full.clone());
+        ReceiverSource::open(settings.receivers, session, &keys, robot, move |a| {
+            if tx.try_send(Arrived::Arrivals(a)).is_err() {
+                full.fetch_add(1, Ordering::Relaxed);
+            }
+        })
+        .await?
+    };
+    let _odom = session
         .declare_subscriber(sub(RobotTopic::Odom)?)
+        .callback(sink(|b| Arrived::Odometry(decode(b))))
         .await
         .map_err(zerr)?;
-    let imu = session
+    let _imu = session
         .declare_subscriber(sub(RobotTopic::Imu)?)
+        .callback(sink(|b| Arrived::Imu(decode(b))))
         .await
         .map_err(zerr)?;
-    let range = session
+    let _range = session
         .declare_subscriber(sub(RobotTopic::Range)?)
+        .callback(sink(|b| Arrived::Range(decode(b))))
         .await
         .map_err(zerr)?;
+    drop(tx);
     let fix_pub = session
         .declare_publisher(sub(RobotTopic::Fix)?)
         .express(true)
@@ -173,19 +227,18 @@ pub async fn run(
                 tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
                 Event::Schedule(schedule)
             }),
-            Some(received) = receivers.recv() => match received {
-                Ok(msg) => {
-                    n.arrival_messages += 1;
-                    Some(Event::Arrivals(msg))
+            Some(input) = inputs.recv() => match input.into_event() {
+                Ok(event) => {
+                    if matches!(event, Event::Arrivals(_)) {
+                        n.arrival_messages += 1;
+                    }
+                    Some(event)
                 }
-                Err(e) => {
-                    bad(&mut n, "undecodable arrivals", e.to_string());
+                Err((kind, e)) => {
+                    bad(&mut n, kind, e.to_string());
                     None
                 }
             },
-            Ok(s) = odom.recv_async() => decoded!(s, Odometry, "undecodable odometry").map(Event::Odometry),
-            Ok(s) = imu.recv_async() => decoded!(s, Imu, "undecodable imu").map(Event::Imu),
-            Ok(s) = range.recv_async() => decoded!(s, ObstacleRanges, "undecodable ranges").map(Event::Range),
         };
         let Some(event) = event else { continue };
         for output in core.handle(event) {
@@ -213,6 +266,7 @@ pub async fn run(
             }
         }
     }
+    n.queue_full = queue_full.load(Ordering::Relaxed);
     tracing::info!("robot {robot}: stopping: {n:?}");
     Ok(n)
 }

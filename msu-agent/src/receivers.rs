@@ -9,9 +9,7 @@ use ickon_proto::msg::robot::UltrasoundArrivals;
 use ickon_proto::{DecodeError, decode};
 use ickon_runtime::{NodeError, zerr};
 use zenoh::Session;
-use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::Subscriber;
-use zenoh::sample::Sample;
 
 /// Which receiver source the agent uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
@@ -21,38 +19,33 @@ pub enum ReceiverKind {
     Sim,
 }
 
-/// An open receiver source.
+/// An open receiver source; it hands each cycle's arrivals to the sink it
+/// was opened with (`Err(..)` for a message that does not decode, to count
+/// and drop), in the order they come, until it is dropped.
 pub enum ReceiverSource {
     /// Arrivals from the simulated world, over Zenoh.
-    Sim(Subscriber<FifoChannelHandler<Sample>>),
+    Sim(Subscriber<()>),
 }
 
 impl ReceiverSource {
-    /// Opens the source `kind` for `robot`.
+    /// Opens the source `kind` for `robot`, delivering to `sink`.
     pub async fn open(
         kind: ReceiverKind,
         session: &Session,
         keys: &Keys,
         robot: &str,
+        sink: impl Fn(Result<UltrasoundArrivals, DecodeError>) + Send + Sync + 'static,
     ) -> Result<Self, NodeError> {
         match kind {
             ReceiverKind::Sim => Ok(Self::Sim(
                 session
                     .declare_subscriber(keys.robot(robot, RobotTopic::Ultrasound)?)
+                    .callback(move |sample| {
+                        sink(decode::<UltrasoundArrivals>(&sample.payload().to_bytes()))
+                    })
                     .await
                     .map_err(zerr)?,
             )),
-        }
-    }
-
-    /// The next cycle's arrivals; `Some(Err(..))` for a message that does
-    /// not decode (to count and drop), `None` once the source has closed.
-    pub async fn recv(&self) -> Option<Result<UltrasoundArrivals, DecodeError>> {
-        match self {
-            Self::Sim(sub) => {
-                let sample = sub.recv_async().await.ok()?;
-                Some(decode::<UltrasoundArrivals>(&sample.payload().to_bytes()))
-            }
         }
     }
 }

@@ -97,7 +97,15 @@ pub async fn run(
     }
     let mut pubs = Vec::new();
     for id in world.robot_ids() {
-        let publisher = |key: String| session.declare_publisher(key).express(true);
+        // Block, not drop, when a subscriber's link is full: a sample lost
+        // to one subscriber only (the MSU or a recorder) would make a
+        // recording differ from what the MSU saw.
+        let publisher = |key: String| {
+            session
+                .declare_publisher(key)
+                .express(true)
+                .congestion_control(zenoh::qos::CongestionControl::Block)
+        };
         pubs.push(RobotPublishers {
             ultrasound: publisher(keys.robot(id, RobotTopic::Ultrasound)?)
                 .await

@@ -72,7 +72,10 @@ pub struct Score {
     pub crlb_mm: Option<f64>,
 }
 
-fn row(tour: Option<u32>, pos_m: &[f64], head_rad: &[f64]) -> Row {
+/// The row of one tour (or of any set of scored points): position errors
+/// in metres and signed heading errors in radians; `ickon replay mcap`
+/// scores a recording with it too.
+pub fn row(tour: Option<u32>, pos_m: &[f64], head_rad: &[f64]) -> Row {
     let n = pos_m.len().max(1) as f64;
     let mean = pos_m.iter().sum::<f64>() / n;
     let var = pos_m.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n;

@@ -82,6 +82,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             mesh: args.mesh,
             http: None,
             http_token_file: None,
+            record: None,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

@@ -7,7 +7,7 @@
 //! `--json`), the progress bar to stderr.
 
 mod plot;
-mod table;
+pub(crate) mod table;
 
 use std::io::IsTerminal;
 use std::path::PathBuf;

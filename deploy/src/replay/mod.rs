@@ -11,6 +11,12 @@
 
 mod attitude;
 mod estimators;
+mod mcap;
+mod mcap_feed;
+mod mcap_out;
+mod mcap_plot;
+pub(crate) mod mcap_read;
+mod mcap_score;
 mod plaza;
 mod plaza_csv;
 mod plaza_plot;
@@ -39,6 +45,9 @@ pub enum ReplaySource {
     Util(UtilArgs),
     /// CMU Plaza runs: a wheeled robot's odometry and radio ranges, with truth.
     Plaza(plaza::PlazaArgs),
+    /// An MCAP recording of `ickon record` or `ickon sim --record`, through
+    /// the MSU cores again (scored against its truth).
+    Mcap(mcap::McapArgs),
 }
 
 /// Arguments of `ickon replay util`.
@@ -133,6 +142,7 @@ pub fn run(source: ReplaySource) -> ExitCode {
     match source {
         ReplaySource::Util(args) => util(&args),
         ReplaySource::Plaza(args) => plaza::run(&args),
+        ReplaySource::Mcap(args) => mcap::run(&args),
     }
 }
 

@@ -21,7 +21,9 @@ pub fn write(dir: &Path, r: &RunReport) -> Result<(), DrawError> {
     errors(&dir.join(format!("{}_error.png", r.run)), r)
 }
 
-fn span(values: impl Iterator<Item = f64>) -> (f64, f64) {
+/// The range of `values`, or 0..1 when they span nothing (shared with
+/// the MCAP replay's pictures).
+pub(super) fn span(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
         (lo.min(v), hi.max(v))
     });
@@ -32,7 +34,8 @@ fn span(values: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
-fn gridlines(x: (f64, f64), y: (f64, f64), step: (f64, f64)) -> Vec<[(f64, f64); 2]> {
+/// Grid lines every `step` across the box `x` by `y`.
+pub(super) fn gridlines(x: (f64, f64), y: (f64, f64), step: (f64, f64)) -> Vec<[(f64, f64); 2]> {
     let mut out = Vec::new();
     let mut v = (x.0 / step.0).ceil() * step.0;
     while v <= x.1 {

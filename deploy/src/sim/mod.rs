@@ -77,6 +77,11 @@ pub struct SimArgs {
     /// as a full mesh of peers (the layout before routers, to compare).
     #[arg(long, value_enum, default_value = "router")]
     pub mesh: Mesh,
+    /// Record every message of the run into this MCAP file (as `ickon
+    /// record`; refused if it exists), with what a replay needs to run the
+    /// MSU cores as the agents did.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -115,6 +120,9 @@ pub struct SimReport {
     pub cycles_per_s: f64,
     /// CPU time and peak memory per kind of process, read just before they stopped.
     pub processes: Vec<usage::KindUsage>,
+    /// The recording of `--record`: file, messages per topic, rates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recorded: Option<crate::record::RecordReport>,
 }
 
 /// Runs `ickon sim` and returns the exit code.
@@ -138,6 +146,9 @@ pub fn run(args: SimArgs) -> ExitCode {
                 }
             } else {
                 print!("{}", render_report(&report));
+                if let Some(recorded) = &report.recorded {
+                    eprint!("{}", recorded.render());
+                }
             }
             match failure {
                 Some(why) => {
@@ -226,7 +237,56 @@ pub async fn measure(
     };
     let web = launch::http_flags(args, &mut central_cmd)?;
     sup.spawn("central", central_cmd)?;
+    let msus = msu_starts(args, site, profile, &robots)?;
     let session = open_observer(&hub, args.mesh).await?;
+    // Recording starts before the first cell, so that it holds every burst.
+    let recorder_endpoint = match args.record {
+        Some(_) => Some(format!("tcp/127.0.0.1:{}", free_port()?)),
+        None => None,
+    };
+    let recorder_session = match &recorder_endpoint {
+        Some(listen) => match crate::record::sim_hook::open_session(&hub, listen).await {
+            Ok(s) => Some(s),
+            Err(e) => {
+                sup.stop_all(STOP_GRACE);
+                let _ = session.close().await;
+                eprintln!("error: --record: {e}");
+                return Ok(Err(ExitCode::from(EXIT_FAILURE)));
+            }
+        },
+        None => None,
+    };
+    let recording = match (&args.record, &recorder_session) {
+        (Some(path), Some(rec_session)) => {
+            let settings = [
+                ("profile", args.profile.clone()),
+                ("seed", args.seed.to_string()),
+                ("estimator", args.estimator.clone()),
+                ("robots", robots.join(",")),
+                ("duration_s", args.duration.to_string()),
+            ];
+            let metadata = crate::record::sim_hook::sim_metadata(&site.name, &settings, &msus);
+            match crate::record::sim_hook::SimRecording::start(rec_session, &keys, path, &metadata)
+            {
+                Ok(r) => Some(r),
+                Err(e) => {
+                    sup.stop_all(STOP_GRACE);
+                    let _ = session.close().await;
+                    eprintln!("error: --record: {e}");
+                    return Ok(Err(ExitCode::from(EXIT_BAD_INPUT)));
+                }
+            }
+        }
+        _ => None,
+    };
+    // In a peer mesh, the nodes whose messages a replay needs also connect
+    // to the recorder directly; through a router (a client keeps one
+    // connection) the recorder hears them by the router, as every observer.
+    let to_recorder: Vec<String> = recorder_endpoint
+        .iter()
+        .filter(|_| args.mesh == Mesh::Peer)
+        .flat_map(|e| ["--connect".to_string(), e.clone()])
+        .collect();
     let alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all())
@@ -236,7 +296,8 @@ pub async fn measure(
     for cell in &site.cells {
         let mut cmd = node_command(args, site, "cell", &hub, "tcp/127.0.0.1:0")?;
         cmd.args(["--cell", &cell.id])
-            .args(clock_flags(&mut clocks));
+            .args(clock_flags(&mut clocks))
+            .args(&to_recorder);
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }
     let mut world = node_command(args, site, "world", &hub, "tcp/127.0.0.1:0")?;
@@ -248,6 +309,7 @@ pub async fn measure(
         "--seed",
         &args.seed.to_string(),
     ]);
+    world.args(&to_recorder);
     sup.spawn("world", world)?;
     // Every agent reads one configuration file, as a deployed one does: the
     // estimator as `ickon eval` sets it up for the profile's data sheet,
@@ -259,11 +321,12 @@ pub async fn measure(
         ickon_sim::engine::timing_sigma_s(profile),
         drive.geometry(),
     )?)?;
-    for robot in &robots {
+    for msu in &msus {
         let mut cmd = node_command(args, site, "msu", &hub, "tcp/127.0.0.1:0")?;
-        cmd.args(["--robot", robot, "--config"])
-            .arg(msu_file.path());
-        sup.spawn(&format!("msu {robot}"), cmd)?;
+        cmd.args(["--robot", &msu.robot, "--config"])
+            .arg(msu_file.path())
+            .args(&to_recorder);
+        sup.spawn(&format!("msu {}", msu.robot), cmd)?;
     }
 
     // Wait until every node has announced itself, or one died, or time is up.
@@ -350,7 +413,14 @@ pub async fn measure(
     if let Some(me) = usage::read(std::process::id()) {
         used.push(("launcher".to_string(), me));
     }
+    let recorded = match recording {
+        Some(r) => Some(r.finish().await),
+        None => None,
+    };
     let killed = sup.stop_all(STOP_GRACE);
+    if let Some(s) = recorder_session {
+        let _ = s.close().await;
+    }
     let _ = session.close().await;
     let (stats, failure) = outcome?;
     if !killed.is_empty() {
@@ -397,6 +467,46 @@ pub async fn measure(
         cycles_triggered: stats.cycles_triggered.len() as u64,
         cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
         processes: usage::by_kind(&used),
+        recorded: recorded.as_ref().and_then(|r| r.as_ref().ok()).cloned(),
+    };
+    let failure = match (failure, recorded) {
+        (None, Some(Err(e))) => Some(e),
+        (f, _) => f,
     };
     Ok(Ok((report, failure)))
+}
+
+/// What each MSU agent is started with: the same estimator set-up as `ickon
+/// eval` (the robot's start pose and the profile's sensor data sheet), and
+/// the nominal drive of the simulated robots (what the agent converts
+/// encoder ticks with).
+fn msu_starts(
+    args: &SimArgs,
+    site: &Site,
+    profile: &ickon_sim::profile::NoiseProfile,
+    robots: &[String],
+) -> anyhow::Result<Vec<crate::record::sim_hook::MsuStart>> {
+    let drive = ickon_sim::robot::DriveSpec::default();
+    robots
+        .iter()
+        .map(|robot| {
+            let start = site
+                .robots
+                .iter()
+                .find(|r| &r.id == robot)
+                .map_or([0.0; 3], |r| r.start);
+            let config =
+                ickon_sim::engine::estimator_config(&args.estimator, start, site, profile)?;
+            // The value the agent's configuration file holds (`msu_file`):
+            // a float written in full, so the replay uses the agent's value.
+            let timing_sigma_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
+            Ok(crate::record::sim_hook::MsuStart {
+                robot: robot.clone(),
+                estimator_json: serde_json::to_string(&config)?,
+                timing_sigma_us,
+                wheel_base_m: drive.wheel_base_m,
+                m_per_tick: drive.m_per_tick(),
+            })
+        })
+        .collect()
 }

@@ -8,6 +8,7 @@ pub mod admin;
 pub mod control;
 pub mod robot;
 pub mod ros;
+pub mod ros_msgs;
 
 #[cfg(test)]
 mod tests;

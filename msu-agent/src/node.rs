@@ -20,6 +20,7 @@ use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
 use crate::receivers::{ReceiverKind, ReceiverSource};
+use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
 use crate::{MsuConfig, MsuCore};
 
 /// How often the site and schedule are asked for until the central unit answers.
@@ -43,6 +44,8 @@ pub struct MsuSettings {
     pub wheels: WheelGeometry,
     /// Where the arrivals come from.
     pub receivers: ReceiverKind,
+    /// The ROS 2 side, when enabled (validated).
+    pub ros2: Option<Ros2Plan>,
 }
 
 /// Counters of one agent's run, logged at the end.
@@ -154,7 +157,45 @@ pub async fn run(
         .await
         .map_err(zerr)?;
 
+    let mut ros = match settings.ros2.clone() {
+        Some(plan) => Some(Ros2Link::open(session, plan, settings.wheels).await?),
+        None => None,
+    };
+
     let mut n = MsuCounters::default();
+    // Every pose goes out on our key and, with --ros2, on ROS 2.
+    macro_rules! publish_pose {
+        ($pose:expr) => {{
+            let pose = $pose;
+            if !put_counted(&pose_pub, &pose).await {
+                n.failed_puts += 1;
+            }
+            n.poses += 1;
+            if let Some(r) = ros.as_mut() {
+                r.publish_pose(&pose).await;
+            }
+        }};
+    }
+    // Odometry from our key or from ROS 2: the same handling.
+    macro_rules! on_odometry {
+        ($msg:expr) => {{
+            let msg = $msg;
+            match core.on_odometry(&msg) {
+                Ok(()) => {
+                    if let Some(r) = ros.as_mut() {
+                        r.note_odometry(&msg);
+                    }
+                    if let Some(pose) = core.pose() {
+                        publish_pose!(pose);
+                    }
+                }
+                Err(e) => {
+                    n.refused_inputs += 1;
+                    tracing::debug!("robot {robot}: odometry refused: {e}");
+                }
+            }
+        }};
+    }
     macro_rules! decoded {
         ($sample:expr, $t:ty) => {
             match decode::<$t>(&$sample.payload().to_bytes()) {
@@ -193,10 +234,8 @@ pub async fn run(
                             n.fixes += 1;
                             // Publish the pose that absorbed the fix at once:
                             // this is the latency a user of the pose sees.
-                            if let Some(pose) = core.pose() {
-                                if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
-                                n.poses += 1;
-                            }
+                            if let Some(pose) = core.pose() { publish_pose!(pose); }
+                            if let Some(r) = ros.as_mut() { r.publish_fix(&fix).await; }
                         }
                         Ok(None) => {}
                         Err(e) => {
@@ -207,21 +246,14 @@ pub async fn run(
                 }
             }
             Ok(s) = odom.recv_async() => {
-                if let Some(msg) = decoded!(s, Odometry) {
-                    match core.on_odometry(&msg) {
-                        Ok(()) => {
-                            if let Some(pose) = core.pose() {
-                                if !put_counted(&pose_pub, &pose).await { n.failed_puts += 1; }
-                                n.poses += 1;
-                            }
-                        }
-                        Err(e) => {
-                            n.refused_inputs += 1;
-                            tracing::debug!("robot {robot}: odometry refused: {e}");
-                        }
-                    }
-                }
+                if let Some(msg) = decoded!(s, Odometry) { on_odometry!(msg); }
             }
+            input = crate::ros2::next_input(&mut ros) => match input {
+                Ros2Input::Odometry(msg) => on_odometry!(msg),
+                Ros2Input::Imu(msg) => {
+                    if core.on_imu(&msg).is_err() { n.refused_inputs += 1; }
+                }
+            },
             Ok(s) = imu.recv_async() => {
                 if let Some(msg) = decoded!(s, Imu) {
                     if core.on_imu(&msg).is_err() {
@@ -239,6 +271,9 @@ pub async fn run(
         }
     }
     tracing::info!("robot {robot}: stopping: {n:?}");
+    if let Some(r) = &ros {
+        tracing::info!("robot {robot}: ros2: {:?}", r.counters());
+    }
     Ok(n)
 }
 
@@ -274,6 +309,9 @@ pub struct MsuArgs {
     /// Distance per encoder tick, metres (a Pioneer 3-DX by default).
     #[arg(long, default_value_t = PIONEER_M_PER_TICK)]
     pub m_per_tick: f64,
+    /// The ROS 2 side (`--ros2` and `--ros2-*`).
+    #[command(flatten)]
+    pub ros2: Ros2Options,
 }
 
 /// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
@@ -303,6 +341,18 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
         );
         return ExitCode::from(2);
     }
+    let ros2 = if args.ros2.enabled {
+        let env_domain = std::env::var("ROS_DOMAIN_ID").ok();
+        match Ros2Plan::new(&args.ros2, &args.robot, env_domain.as_deref()) {
+            Ok(plan) => Some(plan),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    } else {
+        None
+    };
     let settings = MsuSettings {
         site_name: args.mesh.site_name.clone(),
         robot: args.robot.clone(),
@@ -315,6 +365,7 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
             right_m_per_tick: args.m_per_tick,
         },
         receivers: args.receivers,
+        ros2,
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

@@ -59,6 +59,11 @@ pub struct SimArgs {
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Run the ROS 2 path end to end: the world publishes each robot's
+    /// odometry and gyro as ROS 2 topics (rmw_zenoh) and the MSU agents read
+    /// them there (`ickon-msu --ros2`) and publish ROS 2 poses too.
+    #[arg(long)]
+    pub ros2: bool,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -77,6 +82,8 @@ struct SimReport {
     profile: String,
     estimator: String,
     seed: u64,
+    /// Whether odometry and gyro went over ROS 2 (`--ros2`).
+    ros2: bool,
     duration_s: f64,
     /// Cycles per second of the schedule with every cell up: the fixes each
     /// robot can get per second at most.
@@ -179,6 +186,9 @@ async fn run_mesh(
         "--seed",
         &args.seed.to_string(),
     ]);
+    if args.ros2 {
+        world.arg("--ros2");
+    }
     sup.spawn("world", world)?;
     let drive = ickon_sim::robot::DriveSpec::default();
     for robot in &robots {
@@ -200,6 +210,9 @@ async fn run_mesh(
             // converts encoder ticks with).
             .args(["--wheel-base-m", &drive.wheel_base_m.to_string()])
             .args(["--m-per-tick", &drive.m_per_tick().to_string()]);
+        if args.ros2 {
+            cmd.arg("--ros2");
+        }
         sup.spawn(&format!("msu {robot}"), cmd)?;
     }
 
@@ -298,6 +311,7 @@ async fn run_mesh(
         profile: args.profile.clone(),
         estimator: args.estimator.clone(),
         seed: args.seed,
+        ros2: args.ros2,
         duration_s: args.duration,
         update_rate_hz,
         central_endpoint: central.clone(),

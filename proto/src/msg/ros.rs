@@ -323,3 +323,65 @@ impl Imu {
         }
     }
 }
+
+impl Odometry {
+    /// A planar odometry sample: the body at `pose` (`x, y, theta` in
+    /// `odom_frame`) moving at `twist` (`v` forward, `omega` about z), with
+    /// the variances of those five values; the rest is marked unobserved.
+    pub fn planar(
+        stamp: Time,
+        odom_frame: &str,
+        base_frame: &str,
+        pose: [f64; 3],
+        twist: [f64; 2],
+        pose_variance: [f64; 3],
+        twist_variance: [f64; 2],
+    ) -> Self {
+        let mut pose_cov = [0.0; 36];
+        pose_cov[0] = pose_variance[0];
+        pose_cov[7] = pose_variance[1];
+        pose_cov[35] = pose_variance[2];
+        let mut twist_cov = [0.0; 36];
+        twist_cov[0] = twist_variance[0];
+        twist_cov[35] = twist_variance[1];
+        for k in [2usize, 3, 4] {
+            pose_cov[k * 6 + k] = UNOBSERVED_VARIANCE;
+        }
+        for k in [1usize, 2, 3, 4] {
+            twist_cov[k * 6 + k] = UNOBSERVED_VARIANCE;
+        }
+        Odometry {
+            header: Header {
+                stamp: stamp.into(),
+                frame_id: odom_frame.to_string(),
+            },
+            child_frame_id: base_frame.to_string(),
+            pose: PoseWithCovariance {
+                pose: Pose {
+                    position: Point {
+                        x: pose[0],
+                        y: pose[1],
+                        z: 0.0,
+                    },
+                    orientation: Quaternion::from_yaw(pose[2]),
+                },
+                covariance: pose_cov,
+            },
+            twist: TwistWithCovariance {
+                twist: Twist {
+                    linear: Vector3 {
+                        x: twist[0],
+                        y: 0.0,
+                        z: 0.0,
+                    },
+                    angular: Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: twist[1],
+                    },
+                },
+                covariance: twist_cov,
+            },
+        }
+    }
+}

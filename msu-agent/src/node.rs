@@ -309,9 +309,10 @@ pub struct MsuArgs {
     /// Distance per encoder tick, metres (a Pioneer 3-DX by default).
     #[arg(long, default_value_t = PIONEER_M_PER_TICK)]
     pub m_per_tick: f64,
-    /// The ROS 2 side (`--ros2` and `--ros2-*`).
+    /// The ROS 2 side (`--ros2` and `--ros2-*`); boxed, as it is most of
+    /// the arguments' size.
     #[command(flatten)]
-    pub ros2: Ros2Options,
+    pub ros2: Box<Ros2Options>,
 }
 
 /// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad

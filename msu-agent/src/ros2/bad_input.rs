@@ -65,7 +65,8 @@ impl BadInputLog {
         k.count += 1;
         let due = match k.last_logged_s {
             None => true,
-            Some(t) => !(now_s - t < LOG_INTERVAL_S),
+            // A non-finite clock logs every time rather than never.
+            Some(t) => (now_s - t).partial_cmp(&LOG_INTERVAL_S) != Some(std::cmp::Ordering::Less),
         };
         if !due {
             k.unlogged += 1;

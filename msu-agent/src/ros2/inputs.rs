@@ -175,7 +175,8 @@ impl InputDecoder {
             + p.orientation.z.powi(2)
             + p.orientation.w.powi(2))
         .sqrt();
-        if !(norm > 1e-6) {
+        // A (near) zero quaternion is no rotation at all; the norm is finite here.
+        if norm <= 1e-6 {
             return Err(BadInputKind::NonFinite);
         }
         let stamp = Self::stamp(&mut self.newest_odom, m.header.stamp)?;

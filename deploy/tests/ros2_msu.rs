@@ -87,12 +87,20 @@ fn msu_pose_follows_ros2_odometry_and_imu_made_by_rosbags() {
         .arg(&file);
     let _central = ChildGuard::spawn("central", cmd, dir.path()).expect("central starts");
     let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "msu", "--robot", "r1", "--estimator", "odometry", "--ros2"])
-        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
-        .args(["--connect", &central_endpoint, "--site-name", &site])
-        .arg("--site")
-        .arg(&file)
-        .env("RUST_LOG", "info");
+    cmd.args([
+        "node",
+        "msu",
+        "--robot",
+        "r1",
+        "--estimator",
+        "odometry",
+        "--ros2",
+    ])
+    .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
+    .args(["--connect", &central_endpoint, "--site-name", &site])
+    .arg("--site")
+    .arg(&file)
+    .env("RUST_LOG", "info");
     let mut msu = ChildGuard::spawn("msu", cmd, dir.path()).expect("msu starts");
 
     let observer = Observer::open(std::slice::from_ref(&central_endpoint)).expect("observer");
@@ -120,7 +128,10 @@ fn msu_pose_follows_ros2_odometry_and_imu_made_by_rosbags() {
             panic!("msu {status}:\n{}", msu.log());
         }
         while let Ok(Some(s)) = tokens.try_recv() {
-            if s.key_expr().as_str().contains("/MS/%/%r1/ickon_msu/%r1%odom/") {
+            if s.key_expr()
+                .as_str()
+                .contains("/MS/%/%r1/ickon_msu/%r1%odom/")
+            {
                 return Some(());
             }
         }
@@ -150,7 +161,10 @@ fn msu_pose_follows_ros2_odometry_and_imu_made_by_rosbags() {
             put(ODOM_KEY, &good[..good.len() / 2], Some(&mut odom_stamper));
             put(ODOM_KEY, good, None);
             put(ODOM_KEY, &odom_bytes[0], Some(&mut odom_stamper)); // backwards
-            let wrong = ODOM_KEY.replace("nav_msgs::msg::dds_::Odometry_", "sensor_msgs::msg::dds_::Imu_");
+            let wrong = ODOM_KEY.replace(
+                "nav_msgs::msg::dds_::Odometry_",
+                "sensor_msgs::msg::dds_::Imu_",
+            );
             put(&wrong, &imu_bytes[k], Some(&mut odom_stamper));
             let mut nan = good.clone();
             // The pose covariance starts after header (stamp 8 + frame
@@ -188,9 +202,20 @@ fn msu_pose_follows_ros2_odometry_and_imu_made_by_rosbags() {
     })
     .unwrap_or_else(|e| panic!("{e}\n{}", msu.log()));
     let err_m = (last.x_m - want[0]).hypot(last.y_m - want[1]);
-    assert!(err_m < 0.01, "pose {last:?}, expected {want:?} ({err_m} m off)\n{}", msu.log());
-    let dth = (last.theta_rad - want[2]).sin().atan2((last.theta_rad - want[2]).cos());
-    assert!(dth.abs() < 0.01, "heading {} expected {}", last.theta_rad, want[2]);
+    assert!(
+        err_m < 0.01,
+        "pose {last:?}, expected {want:?} ({err_m} m off)\n{}",
+        msu.log()
+    );
+    let dth = (last.theta_rad - want[2])
+        .sin()
+        .atan2((last.theta_rad - want[2]).cos());
+    assert!(
+        dth.abs() < 0.01,
+        "heading {} expected {}",
+        last.theta_rad,
+        want[2]
+    );
 
     // The same pose on ROS 2.
     let mut ros_last = None;

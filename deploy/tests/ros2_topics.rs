@@ -171,7 +171,10 @@ fn rmw_zenoh_keys_attachments_tokens_and_payloads_are_what_ros2_expects() {
     };
     let mut gids = BTreeSet::new();
     for s in &samples {
-        let a = s.attachment().expect("every sample has the attachment").to_bytes();
+        let a = s
+            .attachment()
+            .expect("every sample has the attachment")
+            .to_bytes();
         assert_eq!(a.len(), 33, "{}", s.key_expr());
         assert_eq!(a[16], 0x10);
         let a = Attachment::parse(&a).expect("attachment");
@@ -198,9 +201,19 @@ fn rmw_zenoh_keys_attachments_tokens_and_payloads_are_what_ros2_expects() {
     assert!(close(&pp["position"]["x"], 3.25) && close(&pp["position"]["y"], -1.5));
     assert!(close(&pp["orientation"]["z"], (0.375f64).sin()));
     assert!(close(&pp["orientation"]["w"], (0.375f64).cos()));
-    let cov = pose_msg["pose"]["covariance"].as_array().expect("covariance");
+    let cov = pose_msg["pose"]["covariance"]
+        .as_array()
+        .expect("covariance");
     assert_eq!(cov.len(), 36);
-    for (i, v) in [(0, 4e-4), (1, 1e-5), (5, 0.0), (6, 1e-5), (7, 9e-4), (35, 2e-3), (14, 1e6)] {
+    for (i, v) in [
+        (0, 4e-4),
+        (1, 1e-5),
+        (5, 0.0),
+        (6, 1e-5),
+        (7, 9e-4),
+        (35, 2e-3),
+        (14, 1e6),
+    ] {
         assert!(close(&cov[i], v), "covariance[{i}] = {}", cov[i]);
     }
 
@@ -268,7 +281,10 @@ fn bridge_mode_publishes_on_the_bare_topic_without_attachment_or_tokens() {
     assert_eq!(keys, BTreeSet::from(["r1/pose", "r1/ickon/fix", "tf"]));
     assert!(samples.iter().all(|s| s.attachment().is_none()));
     assert!(matches!(tokens.try_recv(), Ok(None)), "no rmw_zenoh tokens");
-    let pose = samples.iter().find(|s| s.key_expr().as_str() == "r1/pose").unwrap();
+    let pose = samples
+        .iter()
+        .find(|s| s.key_expr().as_str() == "r1/pose")
+        .unwrap();
     let msg = decode(
         &rosbags,
         "geometry_msgs/msg/PoseWithCovarianceStamped",

@@ -34,8 +34,6 @@ pub const DEFAULT_IMU_TOPIC: &str = "imu";
 pub const DEFAULT_MAP_FRAME: &str = "map";
 /// REP-105 odometry frame.
 pub const DEFAULT_ODOM_FRAME: &str = "odom";
-/// REP-105 body frame.
-pub const DEFAULT_BASE_FRAME: &str = "base_link";
 /// How far ahead the `map -> odom` transform is stamped, seconds: nav2's
 /// AMCL default `transform_tolerance`, so that nav2 finds the transform at
 /// the times it asks for between two of our poses.
@@ -85,10 +83,6 @@ pub struct Ros2Options {
     /// Odometry frame, child of the transform.
     #[arg(long = "ros2-odom-frame", default_value = DEFAULT_ODOM_FRAME)]
     pub odom_frame: String,
-    /// The robot's body frame (documented in the pose's meaning; the
-    /// odometry says which body frame it tracks).
-    #[arg(long = "ros2-base-frame", default_value = DEFAULT_BASE_FRAME)]
-    pub base_frame: String,
     /// Read odometry and IMU from ROS 2 (`false`: publish only).
     #[arg(long = "ros2-inputs", action = clap::ArgAction::Set, default_value_t = true)]
     pub inputs: bool,
@@ -116,7 +110,6 @@ impl Default for Ros2Options {
             imu_topic: DEFAULT_IMU_TOPIC.into(),
             map_frame: DEFAULT_MAP_FRAME.into(),
             odom_frame: DEFAULT_ODOM_FRAME.into(),
-            base_frame: DEFAULT_BASE_FRAME.into(),
             inputs: true,
             publish_tf: true,
             tf_tolerance_s: DEFAULT_TF_TOLERANCE_S,

@@ -68,12 +68,10 @@ pub struct Ros2Plan {
     pub odom: Option<PlannedTopic>,
     /// IMU subscriber, when inputs are read.
     pub imu: Option<PlannedTopic>,
-    /// Frames: fixed, odometry, body.
+    /// Fixed frame (of the pose, parent of the transform).
     pub map_frame: String,
-    /// Odometry frame.
+    /// Odometry frame (child of the transform).
     pub odom_frame: String,
-    /// Body frame.
-    pub base_frame: String,
     /// How far ahead the transform is stamped, seconds.
     pub tf_tolerance_s: f64,
 }
@@ -227,7 +225,6 @@ impl Ros2Plan {
             imu,
             map_frame: frame("map_frame", &options.map_frame)?,
             odom_frame: frame("odom_frame", &options.odom_frame)?,
-            base_frame: frame("base_frame", &options.base_frame)?,
             tf_tolerance_s: options.tf_tolerance_s,
         })
     }

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{admin, eval, node, replay, sim, site_cmd};
+use crate::{admin, eval, msu_cmd, node, replay, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -40,6 +40,12 @@ pub enum Command {
         #[command(subcommand)]
         action: SiteAction,
     },
+    /// Work with MSU agent configuration files.
+    Msu {
+        /// What to do with the configuration file.
+        #[command(subcommand)]
+        action: MsuAction,
+    },
     /// Run one node of the mesh (used by `ickon sim`; the standalone binaries
     /// do the same for deployment).
     #[command(hide = true)]
@@ -66,16 +72,43 @@ pub enum SiteAction {
     },
 }
 
+/// Actions on MSU configuration files.
+#[derive(Debug, Subcommand)]
+pub enum MsuAction {
+    /// Validate an MSU configuration file (`ickon-msu --config FILE`) and
+    /// print what it sets; exit code 2 when it is invalid.
+    Check {
+        /// The configuration file (TOML; `deploy/msu.toml` is an example).
+        file: PathBuf,
+    },
+}
+
 /// Runs the parsed command line and returns the process exit code.
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Site {
             action: SiteAction::Check { file },
         } => site_cmd::check(file.as_deref()),
+        Command::Msu {
+            action: MsuAction::Check { file },
+        } => msu_cmd::check(&file),
         Command::Replay { source } => replay::run(source),
         Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Node { role } => node::run(role),
         Command::Admin { command } => admin::run(command),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    /// clap checks a command line's definition only when it is parsed: a
+    /// flag defined twice (a node's own `--config` beside the Zenoh one)
+    /// would panic in the first process that starts that node.
+    #[test]
+    fn every_subcommand_is_well_formed() {
+        super::Cli::command().debug_assert();
     }
 }

@@ -7,6 +7,7 @@ mod admin;
 mod cli;
 mod eval;
 mod font;
+mod msu_cmd;
 mod node;
 mod replay;
 mod sim;

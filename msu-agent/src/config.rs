@@ -22,13 +22,19 @@ pub fn estimator_for_site(
     start: [f64; 3],
 ) -> Result<EstimatorConfig, UnknownEstimator> {
     let mut c = EstimatorConfig::default_for(name)?;
+    apply_site(&mut c, site, start);
+    Ok(c)
+}
+
+/// Gives `c` what only the site knows: the start pose, and for `tdoa-ekf`
+/// the receivers' height and the floor it must stay on.
+pub(crate) fn apply_site(c: &mut EstimatorConfig, site: &Site, start: [f64; 3]) {
     c.set_initial_pose(start);
-    if let EstimatorConfig::TdoaEkf(p) = &mut c {
+    if let EstimatorConfig::TdoaEkf(p) = c {
         p.receiver_height_m = site.msu.height_m;
         let (min_m, max_m) = site.bounds();
         p.floor = Some(Floor { min_m, max_m });
     }
-    Ok(c)
 }
 
 impl MsuConfig {

@@ -14,6 +14,7 @@ use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, Ult
 use nalgebra::Matrix2;
 
 use crate::assembly::AssemblyError;
+use crate::fusion_clock::FusionClock;
 use crate::host::FusionHost;
 use crate::solver::FixSolver;
 use crate::time_gate::{TimeGate, Verdict};
@@ -72,6 +73,8 @@ pub struct MsuCore {
     host: FusionHost,
     fix_seq: u64,
     time_gate: TimeGate,
+    /// Wire time to fusion time and back, exactly.
+    clock: FusionClock,
 }
 
 impl MsuCore {
@@ -89,6 +92,7 @@ impl MsuCore {
             host: FusionHost::new(estimators),
             fix_seq: 0,
             time_gate: TimeGate::default(),
+            clock: FusionClock::default(),
         }
     }
 
@@ -129,7 +133,7 @@ impl MsuCore {
             self.gate(last)?;
         }
         let hint = self.host.pose(0).map(|p| [p.x_m, p.y_m]);
-        let solved = self.solver.solve(msg, hint)?;
+        let solved = self.solver.solve(msg, hint, &mut self.clock)?;
         for sample in solved.range_differences {
             // A refused difference (a reflection failing the physical check,
             // an outlier at the gate, one too late for the history) leaves
@@ -142,7 +146,7 @@ impl MsuCore {
         self.fix_seq = msg.seq;
         let c = &fix.covariance;
         let sample = FixSample {
-            t_s: fix.stamp.as_secs_f64(),
+            t_s: self.clock.to_fusion(fix.stamp),
             x_m: fix.x_m,
             y_m: fix.y_m,
             covariance: Matrix2::new(c[0], c[1], c[3], c[4]),
@@ -159,7 +163,7 @@ impl MsuCore {
         self.gate(odom.stamp)?;
         let geometry = self.solver.config().wheels;
         self.host.feed(&Input::Encoders(EncoderSample {
-            t_s: odom.stamp.as_secs_f64(),
+            t_s: self.clock.to_fusion(odom.stamp),
             left_ticks: odom.left_ticks,
             right_ticks: odom.right_ticks,
             geometry,
@@ -171,7 +175,7 @@ impl MsuCore {
     pub fn on_imu(&mut self, imu: &Imu) -> Result<(), MsuError> {
         self.gate(imu.stamp)?;
         self.host.feed(&Input::Gyro(GyroSample {
-            t_s: imu.stamp.as_secs_f64(),
+            t_s: self.clock.to_fusion(imu.stamp),
             rate_rad_s: imu.gyro_z_rad_s,
         }))?;
         Ok(())
@@ -181,7 +185,7 @@ impl MsuCore {
     pub fn on_range(&mut self, r: &ObstacleRanges) -> Result<(), MsuError> {
         self.gate(r.stamp)?;
         self.host.feed(&Input::Range(RangeSample {
-            t_s: r.stamp.as_secs_f64(),
+            t_s: self.clock.to_fusion(r.stamp),
             left_ultrasonic_m: r.left_valid.then_some(r.left_m),
             right_ultrasonic_m: r.right_valid.then_some(r.right_m),
             left_ir_m: r.left_ir_valid.then_some(r.left_ir_m),
@@ -201,7 +205,7 @@ impl MsuCore {
         let p = self.host.pose(i)?;
         let c = p.covariance;
         Some(RobotPose {
-            stamp: ickon_proto::time::Time::from_secs_f64(p.t_s),
+            stamp: self.clock.to_wire(p.t_s),
             x_m: p.x_m,
             y_m: p.y_m,
             theta_rad: p.theta_rad,

@@ -10,7 +10,9 @@
 
 pub mod assembly;
 mod config;
+pub mod config_file;
 pub mod core;
+pub mod fusion_clock;
 pub mod host;
 #[cfg(feature = "zenoh")]
 pub mod node;
@@ -23,6 +25,7 @@ pub mod time_gate;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};
+pub use config_file::{MsuConfigError, MsuTuning};
 pub use core::{MsuConfig, MsuCore, MsuError};
 pub use host::FusionHost;
 pub use solver::{FixSolver, SolvedCycle};

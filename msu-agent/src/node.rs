@@ -4,12 +4,13 @@
 //! module only moves bytes.
 
 use std::future::Future;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Args;
 
-use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
+use ickon_fusion::estimator;
 use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
@@ -21,7 +22,7 @@ use zenoh::qos::{CongestionControl, Priority};
 
 use crate::receivers::{ReceiverKind, ReceiverSource};
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
-use crate::{MsuConfig, MsuCore};
+use crate::{MsuCore, MsuTuning};
 
 /// How often the site and schedule are asked for until the central unit answers.
 const FETCH_RETRY: Duration = Duration::from_millis(500);
@@ -33,15 +34,10 @@ pub struct MsuSettings {
     pub site_name: String,
     /// Robot id.
     pub robot: String,
-    /// Estimator configuration (name and parameters); `None`: the registry
-    /// defaults of `estimator_name`, starting at the robot's start pose.
-    pub estimator: Option<EstimatorConfig>,
-    /// Estimator name, used when `estimator` is `None`.
-    pub estimator_name: String,
-    /// One-sigma timing noise of one arrival, seconds.
-    pub timing_sigma_s: f64,
-    /// The robot's nominal drive geometry.
-    pub wheels: WheelGeometry,
+    /// The estimator, the solver's noise and gates, and the drive geometry
+    /// (a configuration file's, or one estimator's defaults); the site
+    /// fetched from the central unit fills in the rest.
+    pub tuning: MsuTuning,
     /// Where the arrivals come from.
     pub receivers: ReceiverKind,
     /// The ROS 2 side, when enabled (validated).
@@ -95,16 +91,9 @@ pub async fn run(
     let spec = site.robots.iter().find(|r| r.id == robot).ok_or_else(|| {
         NodeError::Setup(format!("robot {robot:?} is not in site {:?}", site.name))
     })?;
-    let config = match settings.estimator.clone() {
-        Some(c) => c,
-        None => crate::estimator_for_site(&settings.estimator_name, &site, spec.start)
-            .map_err(|e| NodeError::Setup(e.to_string()))?,
-    };
+    let config = settings.tuning.estimator_for(&site, spec.start);
     let estimator = estimator::build(&config).map_err(|e| NodeError::Setup(e.to_string()))?;
-    let mut core = MsuCore::new(
-        MsuConfig::for_site(&site, settings.timing_sigma_s, settings.wheels),
-        estimator,
-    );
+    let mut core = MsuCore::new(settings.tuning.msu_config(&site), estimator);
     let schedule_sub = session
         .declare_subscriber(keys.central_schedule())
         .await
@@ -158,7 +147,7 @@ pub async fn run(
         .map_err(zerr)?;
 
     let mut ros = match settings.ros2.clone() {
-        Some(plan) => Some(Ros2Link::open(session, plan, settings.wheels).await?),
+        Some(plan) => Some(Ros2Link::open(session, plan, settings.tuning.wheels).await?),
         None => None,
     };
 
@@ -277,10 +266,6 @@ pub async fn run(
     Ok(n)
 }
 
-/// Metres per encoder tick of a Pioneer 3-DX (wheel radius 0.0975 m, 500
-/// lines x 38.3 gear per wheel turn): the default drive of the site's robots.
-pub const PIONEER_M_PER_TICK: f64 = 2.0 * std::f64::consts::PI * 0.0975 / (500.0 * 38.3);
-
 /// Arguments of `ickon-msu` (and `ickon node msu`).
 #[derive(Debug, Clone, Args)]
 pub struct MsuArgs {
@@ -290,57 +275,81 @@ pub struct MsuArgs {
     /// The robot this agent serves.
     #[arg(long)]
     pub robot: String,
-    /// Estimator name (`tdoa-ekf`, ours and the most accurate; the seeds'
-    /// `odometry`, `msu-raw`, `ickon-akf`, `gyro-ckf`, `cda`, `cda-msu`).
-    #[arg(long, default_value = "tdoa-ekf")]
-    pub estimator: String,
-    /// Estimator configuration as JSON (`{"name": "...", ...}`); overrides `--estimator`.
+    /// The MSU configuration file (TOML: estimator, each input's noise and
+    /// gate, drive geometry; see `deploy/msu.toml`). Without it, the
+    /// defaults of `--estimator`.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Estimator name when there is no configuration file (`tdoa-ekf`, ours
+    /// and the most accurate; the seeds' `odometry`, `msu-raw`, `ickon-akf`,
+    /// `gyro-ckf`, `cda`, `cda-msu`).
+    #[arg(long, conflicts_with = "config")]
+    pub estimator: Option<String>,
+    /// One-sigma timing noise of one arrival, microseconds (the MSU's data
+    /// sheet); overrides the file's `fix.timing_sigma_us` (default 50).
     #[arg(long)]
-    pub estimator_json: Option<String>,
-    /// One-sigma timing noise of one arrival, microseconds (the MSU's data sheet).
-    #[arg(long, default_value_t = 50.0)]
-    pub timing_sigma_us: f64,
-    /// Wheel base of the robot, metres.
-    #[arg(long, default_value_t = 0.33)]
-    pub wheel_base_m: f64,
+    pub timing_sigma_us: Option<f64>,
+    /// Wheel base of the robot, metres; overrides the file's `robot.wheel_base_m`.
+    #[arg(long)]
+    pub wheel_base_m: Option<f64>,
+    /// Distance per encoder tick, metres; overrides the file's
+    /// `robot.m_per_tick` (default: a Pioneer 3-DX).
+    #[arg(long)]
+    pub m_per_tick: Option<f64>,
     /// Where the arrivals come from.
     #[arg(long, value_enum, default_value_t = ReceiverKind::Sim)]
     pub receivers: ReceiverKind,
-    /// Distance per encoder tick, metres (a Pioneer 3-DX by default).
-    #[arg(long, default_value_t = PIONEER_M_PER_TICK)]
-    pub m_per_tick: f64,
     /// The ROS 2 side (`--ros2` and `--ros2-*`); boxed, as it is most of
     /// the arguments' size.
     #[command(flatten)]
     pub ros2: Box<Ros2Options>,
 }
 
-/// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
-/// arguments, 1 for a failure at run time.
-pub fn main_with(args: MsuArgs) -> ExitCode {
-    let estimator = match &args.estimator_json {
-        Some(json) => match serde_json::from_str::<EstimatorConfig>(json) {
-            Ok(c) => Some(c),
-            Err(e) => {
-                eprintln!("error: --estimator-json: {e}");
-                return ExitCode::from(2);
-            }
-        },
-        None => match EstimatorConfig::default_for(&args.estimator) {
-            Ok(_) => None,
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::from(2);
-            }
-        },
+/// The agent's tuning from its flags: the configuration file or the
+/// estimator's defaults, then the flags that override single values.
+pub fn tuning_from_args(args: &MsuArgs) -> Result<MsuTuning, String> {
+    let mut tuning = match (&args.config, &args.estimator) {
+        (Some(path), _) => MsuTuning::load(path).map_err(|e| e.to_string())?,
+        (None, name) => MsuTuning::defaults(name.as_deref().unwrap_or(DEFAULT_ESTIMATOR))
+            .map_err(|e| e.to_string())?,
     };
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    if !(positive(args.timing_sigma_us) && positive(args.wheel_base_m) && positive(args.m_per_tick))
-    {
-        eprintln!(
-            "error: --timing-sigma-us, --wheel-base-m and --m-per-tick must be positive numbers"
+    let positive = |flag: &str, v: Option<f64>| match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{flag} must be a positive number")),
+        other => Ok(other),
+    };
+    if let Some(us) = positive("--timing-sigma-us", args.timing_sigma_us)? {
+        tuning.solver.timing_sigma_s = us * 1e-6;
+    }
+    if let Some(m) = positive("--wheel-base-m", args.wheel_base_m)? {
+        tuning.wheels.wheel_base_m = m;
+    }
+    if let Some(m) = positive("--m-per-tick", args.m_per_tick)? {
+        tuning.wheels.left_m_per_tick = m;
+        tuning.wheels.right_m_per_tick = m;
+    }
+    Ok(tuning)
+}
+
+/// The estimator an agent runs when neither a file nor `--estimator` names one.
+pub const DEFAULT_ESTIMATOR: &str = "tdoa-ekf";
+
+/// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
+/// arguments or configuration, 1 for a failure at run time.
+pub fn main_with(args: MsuArgs) -> ExitCode {
+    let tuning = match tuning_from_args(&args) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    for w in &tuning.warnings {
+        tracing::warn!(
+            "{}:{w}",
+            args.config
+                .as_ref()
+                .map_or(String::new(), |p| p.display().to_string())
         );
-        return ExitCode::from(2);
     }
     let ros2 = if args.ros2.enabled {
         let env_domain = std::env::var("ROS_DOMAIN_ID").ok();
@@ -357,14 +366,7 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
     let settings = MsuSettings {
         site_name: args.mesh.site_name.clone(),
         robot: args.robot.clone(),
-        estimator,
-        estimator_name: args.estimator.clone(),
-        timing_sigma_s: args.timing_sigma_us * 1e-6,
-        wheels: WheelGeometry {
-            wheel_base_m: args.wheel_base_m,
-            left_m_per_tick: args.m_per_tick,
-            right_m_per_tick: args.m_per_tick,
-        },
+        tuning,
         receivers: args.receivers,
         ros2,
     };

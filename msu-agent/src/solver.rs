@@ -14,6 +14,7 @@ use nalgebra::{Vector2, Vector3};
 
 use crate::assembly::{Signal, assemble};
 use crate::core::{MsuConfig, MsuError};
+use crate::fusion_clock::FusionClock;
 
 /// The solver's own last fix serves as the root hint for this long.
 const OWN_HINT_MAX_AGE: Duration = Duration::from_millis(2_000);
@@ -85,11 +86,12 @@ impl FixSolver {
         &mut self,
         msg: &UltrasoundArrivals,
         hint: Option<[f64; 2]>,
+        clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
         let schedule = self.schedule.as_ref().ok_or(MsuError::NoSchedule)?;
         let c = self.config.speed_of_sound_m_s;
         let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
-        let range_differences = self.range_differences(&cycle.signals);
+        let range_differences = self.range_differences(&cycle.signals, clock);
         let signals: Vec<tdoa::Signal> = cycle
             .signals
             .iter()
@@ -187,13 +189,17 @@ impl FixSolver {
     /// pair (about 1 cm at 0.3 m/s), where a common reference would span the
     /// whole cycle. Each pair is stamped at its later arrival; its sigma is
     /// that of two arrivals.
-    fn range_differences(&self, signals: &[Signal]) -> Vec<RangeDifferenceSample> {
+    fn range_differences(
+        &self,
+        signals: &[Signal],
+        clock: &mut FusionClock,
+    ) -> Vec<RangeDifferenceSample> {
         let sigma_m =
             std::f64::consts::SQRT_2 * self.config.speed_of_sound_m_s * self.config.timing_sigma_s;
         signals
             .windows(2)
             .map(|pair| RangeDifferenceSample {
-                t_s: pair[1].t_arrival.as_secs_f64(),
+                t_s: clock.to_fusion(pair[1].t_arrival),
                 a_m: pair[0].tx_m,
                 b_m: pair[1].tx_m,
                 d_m: pair[1].pseudo_range_m - pair[0].pseudo_range_m,

@@ -15,8 +15,10 @@ use crate::shutdown::shutdown_signal;
 #[derive(Debug, Clone, Default, Args)]
 pub struct ZenohArgs {
     /// A Zenoh configuration file (JSON5); the flags below override it.
-    #[arg(short = 'c', long = "config")]
-    pub config: Option<PathBuf>,
+    /// (Not `--config`: that names a node's own configuration, e.g. the
+    /// MSU agent's.)
+    #[arg(long = "zenoh-config", value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
     /// Endpoints to connect to, e.g. `tcp/127.0.0.1:7447` (repeatable).
     #[arg(short = 'e', long = "connect")]
     pub connect: Vec<String>,
@@ -31,12 +33,12 @@ pub struct ZenohArgs {
 impl ZenohArgs {
     /// Whether the user said where to connect (a config file or an endpoint).
     pub fn names_a_peer(&self) -> bool {
-        self.config.is_some() || !self.connect.is_empty()
+        self.zenoh_config.is_some() || !self.connect.is_empty()
     }
 
     /// The Zenoh configuration the flags describe.
     pub fn zenoh_config(&self) -> Result<zenoh::Config, NodeError> {
-        let mut config = match &self.config {
+        let mut config = match &self.zenoh_config {
             Some(path) => zenoh::Config::from_file(path).map_err(|e| NodeError::Config {
                 what: path.display().to_string(),
                 reason: e.to_string(),
@@ -211,12 +213,12 @@ mod tests {
     #[test]
     fn a_missing_config_file_is_a_clear_error() {
         let mut args = ZenohArgs {
-            config: Some("/nonexistent/zenoh.json5".into()),
+            zenoh_config: Some("/nonexistent/zenoh.json5".into()),
             ..ZenohArgs::default()
         };
         let err = args.zenoh_config().unwrap_err().to_string();
         assert!(err.contains("/nonexistent/zenoh.json5"), "{err}");
-        args.config = None;
+        args.zenoh_config = None;
         assert!(args.zenoh_config().is_ok());
         assert!(!args.names_a_peer());
     }

@@ -246,12 +246,7 @@ pub fn run(
     let mut world = World::new(site, route, &config.profile, config.seed);
     let s0 = world.robot.state;
     let start = [s0.x_m, s0.y_m, s0.theta_rad];
-    let m = world.drive.m_per_tick();
-    let wheels = WheelGeometry {
-        wheel_base_m: world.drive.wheel_base_m,
-        left_m_per_tick: m,
-        right_m_per_tick: m,
-    };
+    let wheels = world.drive.geometry();
     let msu = msu_config(site, &config.profile, wheels);
     // One MSU: each cycle solved once, every estimator fed the same fix.
     let mut estimators = Vec::new();

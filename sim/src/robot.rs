@@ -50,6 +50,16 @@ impl DriveSpec {
     pub fn m_per_tick(&self) -> f64 {
         2.0 * std::f64::consts::PI * self.wheel_radius_m / self.ticks_per_turn
     }
+
+    /// The nominal geometry an MSU agent converts this drive's ticks with.
+    pub fn geometry(&self) -> ickon_fusion::estimator::WheelGeometry {
+        let m = self.m_per_tick();
+        ickon_fusion::estimator::WheelGeometry {
+            wheel_base_m: self.wheel_base_m,
+            left_m_per_tick: m,
+            right_m_per_tick: m,
+        }
+    }
 }
 
 /// True state of a robot.

@@ -208,7 +208,7 @@ fn zenoh_config(common: &Common) -> Result<(zenoh::Config, String), String> {
                 )
             };
             format!(
-                "{e}{hint}\n  give -e/--connect ENDPOINT or -c/--config FILE to reach a site elsewhere"
+                "{e}{hint}\n  give -e/--connect ENDPOINT or --zenoh-config FILE to reach a site elsewhere"
             )
         })?;
         let to = format!(
@@ -223,7 +223,7 @@ fn zenoh_config(common: &Common) -> Result<(zenoh::Config, String), String> {
         (flags, to)
     };
     let mut config = flags.zenoh_config().map_err(|e| format!("{e:#}"))?;
-    if flags.config.is_none() {
+    if flags.zenoh_config.is_none() {
         config
             .insert_json5("mode", "\"client\"")
             .map_err(|e| format!("Zenoh config mode: {e}"))?;

@@ -13,6 +13,7 @@
 
 mod launch;
 mod metrics;
+mod msu_file;
 mod observe;
 mod report;
 mod supervisor;
@@ -190,26 +191,20 @@ async fn run_mesh(
         world.arg("--ros2");
     }
     sup.spawn("world", world)?;
+    // Every agent reads one configuration file, as a deployed one does: the
+    // estimator as `ickon eval` sets it up for the profile's data sheet,
+    // the simulated robots' nominal drive, the arrivals' timing noise (the
+    // site gives each agent its robot's start pose).
     let drive = ickon_sim::robot::DriveSpec::default();
+    let msu_file = msu_file::write_temp(&msu_file::render(
+        &ickon_sim::engine::estimator_config(&args.estimator, [0.0; 3], site, profile)?,
+        ickon_sim::engine::timing_sigma_s(profile),
+        drive.geometry(),
+    )?)?;
     for robot in &robots {
         let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
-        // The same estimator set-up as `ickon eval`: the robot's start pose
-        // and the profile's sensor data sheet.
-        let start = site
-            .robots
-            .iter()
-            .find(|r| &r.id == robot)
-            .map_or([0.0; 3], |r| r.start);
-        let config = ickon_sim::engine::estimator_config(&args.estimator, start, site, profile)?;
-        let timing_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
-        cmd.args(["--robot", robot, "--estimator", &args.estimator])
-            .arg("--estimator-json")
-            .arg(serde_json::to_string(&config)?)
-            .args(["--timing-sigma-us", &format!("{timing_us:.3}")])
-            // The nominal drive of the simulated robots (what the agent
-            // converts encoder ticks with).
-            .args(["--wheel-base-m", &drive.wheel_base_m.to_string()])
-            .args(["--m-per-tick", &drive.m_per_tick().to_string()]);
+        cmd.args(["--robot", robot, "--config"])
+            .arg(msu_file.path());
         if args.ros2 {
             cmd.arg("--ros2");
         }

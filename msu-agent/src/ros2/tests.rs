@@ -400,13 +400,12 @@ fn plan_resolves_names_under_the_robot_namespace() {
 #[test]
 fn options_deserialize_with_defaults_and_refuse_unknown_fields() {
     let o: Ros2Options =
-        serde_json::from_str(r#"{"enabled": true, "odom_topic": "wheel/odom", "mode": "bridge"}"#)
-            .unwrap();
+        toml::from_str("enabled = true\nodom_topic = \"wheel/odom\"\nmode = \"bridge\"\n").unwrap();
     assert!(o.enabled);
     assert_eq!(o.odom_topic, "wheel/odom");
     assert_eq!(o.mode, Ros2Mode::Bridge);
     assert_eq!(o.pose_topic, "pose");
-    assert!(serde_json::from_str::<Ros2Options>(r#"{"pose_topics": "x"}"#).is_err());
+    assert!(toml::from_str::<Ros2Options>("pose_topics = \"x\"").is_err());
 }
 
 #[test]

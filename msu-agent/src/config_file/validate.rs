@@ -1,0 +1,439 @@
+//! From TOML text to a validated [`MsuTuning`], collecting every problem
+//! with its line and column.
+
+use std::ops::Range;
+
+use ickon_fusion::estimator::tdoa_ekf::GroundNoise;
+use ickon_fusion::estimator::{EstimatorConfig, WheelGeometry, names};
+
+use super::apply::{self, Touched};
+use super::raw::{Num, RawMsuFile};
+use super::{ConfigIssue, MsuConfigError, MsuTuning, SolverTuning, pioneer_wheels};
+
+/// Where a value must lie, and in what unit it is named in messages.
+struct Bounds {
+    lo: f64,
+    hi: f64,
+    /// Whether `lo` itself is refused (a noise of zero, a rate of zero).
+    lo_open: bool,
+    unit: &'static str,
+}
+
+const fn positive(hi: f64, unit: &'static str) -> Bounds {
+    Bounds {
+        lo: 0.0,
+        hi,
+        lo_open: true,
+        unit,
+    }
+}
+
+const fn non_negative(hi: f64, unit: &'static str) -> Bounds {
+    Bounds {
+        lo: 0.0,
+        hi,
+        lo_open: false,
+        unit,
+    }
+}
+
+struct Ctx<'a> {
+    text: &'a str,
+    issues: Vec<ConfigIssue>,
+    warnings: Vec<ConfigIssue>,
+}
+
+impl Ctx<'_> {
+    fn at(&self, span: Range<usize>, field: &str, message: String) -> ConfigIssue {
+        let offset = span.start.min(self.text.len());
+        let before = &self.text[..offset];
+        let line = before.matches('\n').count() + 1;
+        let column = before.rfind('\n').map_or(offset, |nl| offset - nl - 1) + 1;
+        ConfigIssue {
+            line,
+            column,
+            field: field.to_string(),
+            message,
+        }
+    }
+
+    fn issue(&mut self, span: Range<usize>, field: &str, message: impl Into<String>) {
+        let i = self.at(span, field, message.into());
+        self.issues.push(i);
+    }
+
+    fn warn(&mut self, span: Range<usize>, field: &str, message: impl Into<String>) {
+        let i = self.at(span, field, message.into());
+        self.warnings.push(i);
+    }
+
+    /// The value of an optional number if it is finite and within `b`.
+    fn num(&mut self, v: &Option<Num>, field: &str, b: Bounds) -> Option<(f64, Range<usize>)> {
+        let v = v.as_ref()?;
+        let x = *v.get_ref();
+        let below = if b.lo_open { x <= b.lo } else { x < b.lo };
+        if !x.is_finite() {
+            self.issue(v.span(), field, "must be a finite number (not nan or inf)");
+            None
+        } else if below || x > b.hi {
+            let lo = if b.lo_open { "above" } else { "from" };
+            self.issue(
+                v.span(),
+                field,
+                format!(
+                    "{x} {} is out of range: expected {lo} {} up to {} {}",
+                    b.unit, b.lo, b.hi, b.unit
+                ),
+            );
+            None
+        } else {
+            Some((x, v.span()))
+        }
+    }
+}
+
+/// Whether the dotted `path` is set in `table`.
+fn in_table(table: &toml::Table, path: &str) -> bool {
+    let mut node = table;
+    let mut parts = path.split('.').peekable();
+    while let Some(part) = parts.next() {
+        match (node.get(part), parts.peek()) {
+            (None, _) => return false,
+            (Some(_), None) => return true,
+            (Some(toml::Value::Table(t)), Some(_)) => node = t,
+            (Some(_), Some(_)) => return false,
+        }
+    }
+    false
+}
+
+/// The estimator named in `[filter]` with `[filter.params]` over its
+/// defaults; `None` (with the issue recorded) when either is wrong.
+fn estimator(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<EstimatorConfig> {
+    let filter = raw.filter.get_ref();
+    let name = filter.estimator.get_ref();
+    let defaults = match EstimatorConfig::default_for(name) {
+        Ok(c) => c,
+        Err(_) => {
+            ctx.issue(
+                filter.estimator.span(),
+                "filter.estimator",
+                format!("unknown estimator `{name}` (known: {})", names().join(", ")),
+            );
+            return None;
+        }
+    };
+    let Some(params) = &filter.params else {
+        return Some(defaults);
+    };
+    let mut table = params.get_ref().clone();
+    if table.contains_key("name") {
+        ctx.issue(
+            params.span(),
+            "filter.params.name",
+            "the estimator is named by `filter.estimator`, not here",
+        );
+        return None;
+    }
+    table.insert("name".into(), toml::Value::String(name.clone()));
+    match toml::Value::Table(table).try_into::<EstimatorConfig>() {
+        Ok(c) => Some(c),
+        Err(e) => {
+            ctx.issue(
+                params.span(),
+                "filter.params",
+                format!("{} (parameters of `{name}`)", e.message().trim()),
+            );
+            None
+        }
+    }
+}
+
+pub(super) fn parse_and_validate(text: &str, file: &str) -> Result<MsuTuning, MsuConfigError> {
+    let mut ctx = Ctx {
+        text,
+        issues: Vec::new(),
+        warnings: Vec::new(),
+    };
+    let invalid = |mut issues: Vec<ConfigIssue>| {
+        issues.sort_by_key(|i| (i.line, i.column));
+        MsuConfigError::Invalid {
+            file: file.to_string(),
+            issues,
+        }
+    };
+    let raw: RawMsuFile = match toml::from_str(text) {
+        Ok(raw) => raw,
+        Err(e) => {
+            ctx.issue(e.span().unwrap_or(0..0), "(syntax)", e.message().trim());
+            return Err(invalid(ctx.issues));
+        }
+    };
+    let tuning = build(&mut ctx, &raw);
+    match tuning {
+        Some(mut t) if ctx.issues.is_empty() => {
+            ctx.warnings.sort_by_key(|i| (i.line, i.column));
+            t.warnings = ctx.warnings;
+            Ok(t)
+        }
+        _ => Err(invalid(ctx.issues)),
+    }
+}
+
+/// Every value of the file, checked, and applied where the estimator uses it.
+fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
+    let estimator = estimator(ctx, raw);
+    let filter = raw.filter.get_ref();
+    let name = filter.estimator.get_ref().clone();
+    let empty = toml::Table::new();
+    let params = filter.params.as_ref().map_or(&empty, |p| p.get_ref());
+
+    // Every value is range-checked even when the estimator is unknown, so
+    // that one run lists every problem.
+    let history = ctx.num(
+        &filter.history_s,
+        "filter.history_s",
+        non_negative(60.0, "s"),
+    );
+    let start = filter.start.as_ref().and_then(|s| {
+        let [x, y, heading_deg] = *s.get_ref();
+        if [x, y, heading_deg].iter().all(|v| v.is_finite()) && heading_deg.abs() <= 360.0 {
+            Some([x, y, heading_deg.to_radians()])
+        } else {
+            ctx.issue(
+                s.span(),
+                "filter.start",
+                "expected [x_m, y_m, heading_deg]: finite numbers, heading within +-360 deg",
+            );
+            None
+        }
+    });
+
+    let robot = raw.robot.as_ref().map(|r| r.get_ref());
+    let wheel_base =
+        robot.and_then(|r| ctx.num(&r.wheel_base_m, "robot.wheel_base_m", positive(10.0, "m")));
+    let m_per_tick =
+        robot.and_then(|r| ctx.num(&r.m_per_tick, "robot.m_per_tick", positive(1.0, "m")));
+
+    let fix = raw.fix.as_ref().map(|f| f.get_ref());
+    let timing = fix.and_then(|f| {
+        ctx.num(
+            &f.timing_sigma_us,
+            "fix.timing_sigma_us",
+            positive(10_000.0, "us"),
+        )
+    });
+    let residual_gate = fix.and_then(|f| {
+        ctx.num(
+            &f.residual_gate_m,
+            "fix.residual_gate_m",
+            positive(100.0, "m"),
+        )
+    });
+    let max_sigma =
+        fix.and_then(|f| ctx.num(&f.max_sigma_m, "fix.max_sigma_m", positive(100.0, "m")));
+    let sigma_floor = fix.and_then(|f| {
+        ctx.num(
+            &f.sigma_floor_mm,
+            "fix.sigma_floor_mm",
+            positive(10_000.0, "mm"),
+        )
+    });
+
+    let rd = raw.range_differences.as_ref().map(|r| r.get_ref());
+    let gate_sigma = rd.and_then(|r| {
+        ctx.num(
+            &r.gate_sigma,
+            "range_differences.gate_sigma",
+            positive(100.0, "sigma"),
+        )
+    });
+    let late_soft = rd.and_then(|r| {
+        ctx.num(
+            &r.late_soft_sigma,
+            "range_differences.late_soft_sigma",
+            positive(100.0, "sigma"),
+        )
+    });
+
+    let odo = raw.odometry.as_ref().map(|o| o.get_ref());
+    let distance = odo.and_then(|o| {
+        ctx.num(
+            &o.distance_sigma_fraction,
+            "odometry.distance_sigma_fraction",
+            non_negative(1.0, ""),
+        )
+    });
+    let heading_per_m = odo.and_then(|o| {
+        ctx.num(
+            &o.heading_sigma_deg_per_m,
+            "odometry.heading_sigma_deg_per_m",
+            non_negative(360.0, "deg/m"),
+        )
+    });
+    let heading_per_turn = odo.and_then(|o| {
+        ctx.num(
+            &o.heading_sigma_per_turn,
+            "odometry.heading_sigma_per_turn",
+            non_negative(1.0, ""),
+        )
+    });
+
+    let gyro = raw.gyro.as_ref().map(|g| g.get_ref());
+    let white = gyro.and_then(|g| {
+        ctx.num(
+            &g.white_noise_deg_s,
+            "gyro.white_noise_deg_s",
+            positive(100.0, "deg/s"),
+        )
+    });
+    let rate = gyro.and_then(|g| ctx.num(&g.rate_hz, "gyro.rate_hz", positive(100_000.0, "Hz")));
+    let bias_sigma = gyro.and_then(|g| {
+        ctx.num(
+            &g.bias_sigma_deg_s,
+            "gyro.bias_sigma_deg_s",
+            positive(100.0, "deg/s"),
+        )
+    });
+    let bias_walk = gyro.and_then(|g| {
+        ctx.num(
+            &g.bias_walk_deg_s_sqrt_s,
+            "gyro.bias_walk_deg_s_sqrt_s",
+            non_negative(10.0, "deg/s/sqrt(s)"),
+        )
+    });
+    let scale =
+        gyro.and_then(|g| ctx.num(&g.scale_error, "gyro.scale_error", non_negative(1.0, "")));
+    let max_gap = gyro.and_then(|g| ctx.num(&g.max_gap_s, "gyro.max_gap_s", positive(60.0, "s")));
+
+    let heading_sigma = raw.receiver_heading.as_ref().and_then(|h| {
+        ctx.num(
+            &h.get_ref().sigma_deg,
+            "receiver_heading.sigma_deg",
+            non_negative(360.0, "deg"),
+        )
+    });
+
+    let mut c = estimator?;
+    let put = |ctx: &mut Ctx, span: Range<usize>, field: &str, touched: Touched| {
+        if touched.is_empty() {
+            ctx.warn(
+                span,
+                field,
+                format!("not used by estimator `{name}`: ignored"),
+            );
+        } else if let Some(p) = touched.iter().find(|p| in_table(params, p)) {
+            ctx.issue(
+                span,
+                field,
+                format!("also set as `{p}` in [filter.params]: set it in one place"),
+            );
+        }
+    };
+    let mut each = |ctx: &mut Ctx,
+                    v: Option<(f64, Range<usize>)>,
+                    field: &str,
+                    f: fn(&mut EstimatorConfig, f64) -> Touched| {
+        if let Some((x, span)) = v {
+            let touched = f(&mut c, x);
+            put(ctx, span, field, touched);
+        }
+    };
+    each(ctx, history, "filter.history_s", apply::history_s);
+    each(
+        ctx,
+        sigma_floor,
+        "fix.sigma_floor_mm",
+        apply::fix_sigma_floor_mm,
+    );
+    each(
+        ctx,
+        gate_sigma,
+        "range_differences.gate_sigma",
+        apply::range_gate_sigma,
+    );
+    each(
+        ctx,
+        late_soft,
+        "range_differences.late_soft_sigma",
+        apply::range_late_soft_sigma,
+    );
+    each(
+        ctx,
+        distance,
+        "odometry.distance_sigma_fraction",
+        apply::odometry_distance,
+    );
+    each(
+        ctx,
+        heading_per_m,
+        "odometry.heading_sigma_deg_per_m",
+        apply::odometry_heading_per_m,
+    );
+    each(
+        ctx,
+        heading_per_turn,
+        "odometry.heading_sigma_per_turn",
+        apply::odometry_heading_per_turn,
+    );
+    each(
+        ctx,
+        bias_sigma,
+        "gyro.bias_sigma_deg_s",
+        apply::gyro_bias_sigma,
+    );
+    each(
+        ctx,
+        bias_walk,
+        "gyro.bias_walk_deg_s_sqrt_s",
+        apply::gyro_bias_walk,
+    );
+    each(ctx, scale, "gyro.scale_error", apply::gyro_scale_error);
+    each(ctx, max_gap, "gyro.max_gap_s", apply::gyro_max_gap);
+    each(
+        ctx,
+        heading_sigma,
+        "receiver_heading.sigma_deg",
+        apply::receiver_heading_sigma,
+    );
+    if white.is_some() || rate.is_some() {
+        // The two go together (the angle random walk is their ratio): one
+        // without the other takes the data-sheet default of the other.
+        let sheet = GroundNoise::default();
+        let w = white.as_ref().map_or(sheet.gyro_white_deg_s, |v| v.0);
+        let r = rate.as_ref().map_or(sheet.gyro_rate_hz, |v| v.0);
+        let span = white.or(rate).map(|v| v.1).unwrap_or(0..0);
+        let touched = apply::gyro_white_noise(&mut c, w, r);
+        put(ctx, span, "gyro.white_noise_deg_s", touched);
+    }
+    if let Some(u) = gyro.and_then(|g| g.use_gyro.as_ref()) {
+        let touched = apply::gyro_use(&mut c, *u.get_ref());
+        put(ctx, u.span(), "gyro.use", touched);
+    }
+    if let Err(e) = c.validate() {
+        let span = filter
+            .params
+            .as_ref()
+            .map_or(raw.filter.span(), |p| p.span());
+        ctx.issue(span, "filter.params", e.to_string());
+    }
+
+    let sheet = pioneer_wheels();
+    let wheels = WheelGeometry {
+        wheel_base_m: wheel_base.map_or(sheet.wheel_base_m, |v| v.0),
+        left_m_per_tick: m_per_tick.as_ref().map_or(sheet.left_m_per_tick, |v| v.0),
+        right_m_per_tick: m_per_tick.as_ref().map_or(sheet.right_m_per_tick, |v| v.0),
+    };
+    let defaults = SolverTuning::default();
+    Some(MsuTuning {
+        estimator: c,
+        start,
+        solver: SolverTuning {
+            timing_sigma_s: timing.map_or(defaults.timing_sigma_s, |v| v.0 * 1e-6),
+            residual_gate_m: residual_gate.map(|v| v.0),
+            max_fix_sigma_m: max_sigma.map_or(defaults.max_fix_sigma_m, |v| v.0),
+        },
+        wheels,
+        warnings: Vec::new(),
+    })
+}

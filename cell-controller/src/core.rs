@@ -74,6 +74,10 @@ pub enum Event {
     ClockExchange(Option<ClockSample>),
     /// The central unit's liveliness token appeared (`true`) or went (`false`).
     CentralAlive(bool),
+    /// The process is stopping: bursts not yet handed to the driver are
+    /// dropped (a cell that is going away must not fire half a cycle
+    /// later), one last status says so, and every later event is ignored.
+    Shutdown,
 }
 
 /// What the harness must do.
@@ -159,6 +163,7 @@ pub struct CellCore {
     central_lost: bool,
     counters: CellCounters,
     faults: Vec<String>,
+    stopped: bool,
 }
 
 impl CellCore {
@@ -181,6 +186,7 @@ impl CellCore {
             central_lost: false,
             counters: CellCounters::default(),
             faults: Vec::new(),
+            stopped: false,
         }
     }
 
@@ -201,6 +207,9 @@ impl CellCore {
 
     /// The local time at which the cell must be given [`Event::Tick`] next.
     pub fn next_wake(&self) -> Time {
+        if self.stopped {
+            return Time::from_nanos(i64::MAX);
+        }
         let mut wake = self.next_status;
         if !self.clock_in_flight {
             wake = wake.min(self.next_sync);
@@ -227,7 +236,19 @@ impl CellCore {
     /// Takes `event` at local time `now`, then does whatever is due.
     pub fn handle(&mut self, now: Time, event: Event) -> Vec<Output> {
         let mut out = Vec::new();
+        if self.stopped {
+            return out;
+        }
         match event {
+            Event::Shutdown => {
+                let dropped = self.pending.len();
+                self.pending.clear();
+                self.waiting = None;
+                self.stopped = true;
+                self.faults = vec![format!("stopping: {dropped} planned bursts dropped")];
+                out.push(Output::Status(self.status(now)));
+                return out;
+            }
             Event::Tick => {}
             Event::Trigger(t) => self.on_trigger(t, now),
             Event::Schedule(s) => {

@@ -169,10 +169,14 @@ pub async fn run(
     );
 
     let mut failures = Failures::default();
-    loop {
+    let mut stopping = false;
+    while !stopping {
         let wake = core.next_wake().since(clock.now()).to_std();
         let event = tokio::select! {
-            _ = &mut shutdown => break,
+            _ = &mut shutdown => {
+                stopping = true;
+                Event::Shutdown
+            }
             _ = tokio::time::sleep(wake) => Event::Tick,
             Some(ev) = replies.recv() => ev,
             Ok(s) = central_alive.recv_async() => Event::CentralAlive(s.kind() != SampleKind::Delete),

@@ -453,6 +453,69 @@ mod tests {
     }
 
     #[test]
+    fn the_event_contract_publishes_the_fix_then_its_pose_and_reports_refusals() {
+        use crate::events::{Event, InputKind, Output};
+        let mut core = core_with("ickon-akf");
+        let out = core.handle(Event::Arrivals(arrivals([1.7, 2.9, 0.5], &[])));
+        assert!(
+            matches!(out.as_slice(), [Output::Fix(f), Output::Pose(p)] if f.stamp == p.stamp),
+            "{out:?}"
+        );
+        let out = core.handle(Event::Imu(Imu {
+            stamp: Time::from_secs_f64(3_610.0),
+            gyro_z_rad_s: 0.0,
+        }));
+        assert!(
+            matches!(
+                out.as_slice(),
+                [Output::Refused {
+                    input: InputKind::Imu,
+                    error: MsuError::FromTheFuture { .. }
+                }]
+            ),
+            "{out:?}"
+        );
+        let out = core.handle(Event::Arrivals(UltrasoundArrivals {
+            seq: 8,
+            arrivals: vec![],
+        }));
+        assert!(
+            matches!(
+                out.as_slice(),
+                [Output::Refused {
+                    input: InputKind::Arrivals,
+                    ..
+                }]
+            ),
+            "{out:?}"
+        );
+    }
+
+    #[test]
+    fn a_pose_carries_the_exact_nanosecond_of_the_input_it_answers() {
+        use crate::events::{Event, Output};
+        let mut core = core_with("odometry");
+        // Unix time with odd nanoseconds: as f64 seconds it keeps only
+        // about a quarter of a microsecond.
+        let t0 = Time::from_nanos(1_764_000_000_123_456_789);
+        for k in 0..20_i64 {
+            let stamp = t0 + Duration::from_nanos(k * 10_000_001);
+            let out = core.handle(Event::Odometry(Odometry {
+                stamp,
+                x_m: 0.0,
+                y_m: 0.0,
+                theta_rad: 0.0,
+                left_ticks: 10 * k,
+                right_ticks: 11 * k,
+            }));
+            match out.as_slice() {
+                [Output::Pose(p)] => assert_eq!(p.stamp, stamp, "sample {k}"),
+                other => panic!("sample {k}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
     fn arrivals_before_any_schedule_are_an_error() {
         let mut c = core();
         c.solver.clear_schedule();

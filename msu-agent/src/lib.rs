@@ -12,6 +12,7 @@ pub mod assembly;
 mod config;
 pub mod config_file;
 pub mod core;
+pub mod events;
 pub mod fusion_clock;
 pub mod host;
 #[cfg(feature = "zenoh")]
@@ -27,5 +28,6 @@ pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};
 pub use config_file::{MsuConfigError, MsuTuning};
 pub use core::{MsuConfig, MsuCore, MsuError};
+pub use events::{Event, InputKind, Output};
 pub use host::FusionHost;
 pub use solver::{FixSolver, SolvedCycle};

@@ -16,13 +16,13 @@ use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry};
 use ickon_proto::site::Site;
-use ickon_runtime::{NodeArgs, NodeError, fetch, put_counted, zerr};
+use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, put_counted, zerr};
 use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
 use crate::receivers::{ReceiverKind, ReceiverSource};
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
-use crate::{MsuCore, MsuTuning};
+use crate::{Event, InputKind, MsuCore, MsuTuning, Output};
 
 /// How often the site and schedule are asked for until the central unit answers.
 const FETCH_RETRY: Duration = Duration::from_millis(500);
@@ -152,111 +152,92 @@ pub async fn run(
     };
 
     let mut n = MsuCounters::default();
-    // Every pose goes out on our key and, with --ros2, on ROS 2.
-    macro_rules! publish_pose {
-        ($pose:expr) => {{
-            let pose = $pose;
-            if !put_counted(&pose_pub, &pose).await {
-                n.failed_puts += 1;
-            }
-            n.poses += 1;
-            if let Some(r) = ros.as_mut() {
-                r.publish_pose(&pose).await;
-            }
-        }};
-    }
-    // Odometry from our key or from ROS 2: the same handling.
-    macro_rules! on_odometry {
-        ($msg:expr) => {{
-            let msg = $msg;
-            match core.on_odometry(&msg) {
-                Ok(()) => {
-                    if let Some(r) = ros.as_mut() {
-                        r.note_odometry(&msg);
-                    }
-                    if let Some(pose) = core.pose() {
-                        publish_pose!(pose);
-                    }
-                }
-                Err(e) => {
-                    n.refused_inputs += 1;
-                    tracing::debug!("robot {robot}: odometry refused: {e}");
-                }
-            }
-        }};
-    }
+    // Bad input is logged once per kind per window, with the count held back.
+    let mut log_limit = LogLimiter::<&'static str>::default();
+    let mut bad = |n: &mut MsuCounters, kind: &'static str, what: String| {
+        n.bad_messages += 1;
+        if let Some(held) = log_limit.admit(kind, std::time::Instant::now()) {
+            tracing::warn!(
+                "robot {robot}: dropped {kind}: {what} ({held} more since the last report)"
+            );
+        }
+    };
     macro_rules! decoded {
-        ($sample:expr, $t:ty) => {
+        ($sample:expr, $t:ty, $kind:expr) => {
             match decode::<$t>(&$sample.payload().to_bytes()) {
                 Ok(v) => Some(v),
                 Err(e) => {
-                    n.bad_messages += 1;
-                    tracing::debug!("dropped undecodable {}: {e}", $sample.key_expr());
+                    bad(&mut n, $kind, format!("{}: {e}", $sample.key_expr()));
                     None
                 }
             }
         };
     }
+    let mut refusal_limit = LogLimiter::<InputKind>::default();
     loop {
-        tokio::select! {
+        let event = tokio::select! {
             _ = &mut shutdown => break,
-            Ok(s) = schedule_sub.recv_async() => {
-                if let Some(schedule) = decoded!(s, Schedule) {
-                    tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
-                    core.set_schedule(schedule);
-                }
-            }
-            Some(received) = receivers.recv() => {
-                let msg = match received {
-                    Ok(msg) => Some(msg),
-                    Err(e) => {
-                        n.bad_messages += 1;
-                        tracing::debug!("robot {robot}: dropped undecodable arrivals: {e}");
-                        None
-                    }
-                };
-                if let Some(msg) = msg {
+            Ok(s) = schedule_sub.recv_async() => decoded!(s, Schedule, "undecodable schedule").map(|schedule| {
+                tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
+                Event::Schedule(schedule)
+            }),
+            Some(received) = receivers.recv() => match received {
+                Ok(msg) => {
                     n.arrival_messages += 1;
-                    match core.on_arrivals(&msg) {
-                        Ok(Some(fix)) => {
-                            if !put_counted(&fix_pub, &fix).await { n.failed_puts += 1; }
-                            n.fixes += 1;
-                            // Publish the pose that absorbed the fix at once:
-                            // this is the latency a user of the pose sees.
-                            if let Some(pose) = core.pose() { publish_pose!(pose); }
-                            if let Some(r) = ros.as_mut() { r.publish_fix(&fix).await; }
-                        }
-                        Ok(None) => {}
-                        Err(e) => {
-                            n.refused_inputs += 1;
-                            tracing::debug!("robot {robot}: cycle {} not used: {e}", msg.seq);
-                        }
-                    }
+                    Some(Event::Arrivals(msg))
                 }
-            }
-            Ok(s) = odom.recv_async() => {
-                if let Some(msg) = decoded!(s, Odometry) { on_odometry!(msg); }
-            }
-            input = crate::ros2::next_input(&mut ros) => match input {
-                Ros2Input::Odometry(msg) => on_odometry!(msg),
-                Ros2Input::Imu(msg) => {
-                    if core.on_imu(&msg).is_err() { n.refused_inputs += 1; }
+                Err(e) => {
+                    bad(&mut n, "undecodable arrivals", e.to_string());
+                    None
                 }
             },
-            Ok(s) = imu.recv_async() => {
-                if let Some(msg) = decoded!(s, Imu) {
-                    if core.on_imu(&msg).is_err() {
-                        n.refused_inputs += 1;
+            Ok(s) = odom.recv_async() => decoded!(s, Odometry, "undecodable odometry").map(Event::Odometry),
+            Ok(s) = imu.recv_async() => decoded!(s, Imu, "undecodable imu").map(Event::Imu),
+            // With --ros2: the robot's odometry and gyro from ROS 2 topics.
+            input = crate::ros2::next_input(&mut ros) => Some(match input {
+                Ros2Input::Odometry(msg) => Event::Odometry(msg),
+                Ros2Input::Imu(msg) => Event::Imu(msg),
+            }),
+            Ok(s) = range.recv_async() => decoded!(s, ObstacleRanges, "undecodable ranges").map(Event::Range),
+        };
+        let Some(event) = event else { continue };
+        if let (Some(r), Event::Odometry(odom)) = (ros.as_mut(), &event) {
+            // The odometry frame's track, for map -> odom.
+            r.note_odometry(odom);
+        }
+        let mut ros_fix = None;
+        for output in core.handle(event) {
+            match output {
+                Output::Fix(fix) => {
+                    if !put_counted(&fix_pub, &fix).await {
+                        n.failed_puts += 1;
+                    }
+                    n.fixes += 1;
+                    // Its ROS 2 copy waits until the pose that absorbed it is out.
+                    ros_fix = Some(fix);
+                }
+                Output::Pose(pose) => {
+                    if !put_counted(&pose_pub, &pose).await {
+                        n.failed_puts += 1;
+                    }
+                    n.poses += 1;
+                    // The ROS 2 copy after ours: it adds nothing ahead of it.
+                    if let Some(r) = ros.as_mut() {
+                        r.publish_pose(&pose).await;
+                    }
+                }
+                Output::Refused { input, error } => {
+                    n.refused_inputs += 1;
+                    if let Some(held) = refusal_limit.admit(input, std::time::Instant::now()) {
+                        tracing::debug!(
+                            "robot {robot}: {input:?} not used: {error} ({held} more since)"
+                        );
                     }
                 }
             }
-            Ok(s) = range.recv_async() => {
-                if let Some(msg) = decoded!(s, ObstacleRanges) {
-                    if core.on_range(&msg).is_err() {
-                        n.refused_inputs += 1;
-                    }
-                }
-            }
+        }
+        if let (Some(r), Some(fix)) = (ros.as_mut(), ros_fix) {
+            r.publish_fix(&fix).await;
         }
     }
     tracing::info!("robot {robot}: stopping: {n:?}");

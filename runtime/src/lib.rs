@@ -14,12 +14,14 @@
 //! - [`query`]: a query with a timeout, one that retries until the central
 //!   unit answers, and a wait for a liveliness token;
 //! - [`publish`]: a put whose failure is counted, never fatal;
+//! - [`log_limit`]: logs of bad input bounded to one line per kind per window;
 //! - [`runfile`]: the run file through which `ickon admin` finds an
 //!   `ickon sim` running on the same machine.
 
 pub mod args;
 pub mod clock;
 pub mod error;
+pub mod log_limit;
 pub mod process;
 pub mod publish;
 pub mod query;
@@ -29,6 +31,7 @@ pub mod shutdown;
 pub use args::{NodeArgs, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
 pub use error::{NodeError, zerr};
+pub use log_limit::LogLimiter;
 pub use process::{block_on, init_tracing, run_node};
 pub use publish::put_counted;
 pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};

@@ -15,12 +15,12 @@ use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, NodeError, fetch, system_now, zerr};
+use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, system_now, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Publisher;
 
 use crate::profile::NoiseProfile;
-use crate::realtime::{RealtimeWorld, WorldOutput};
+use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
 use crate::ros2_sensors::RosSensorPublishers;
 
 /// Physics and sensors advance this often.
@@ -99,7 +99,7 @@ pub async fn run(
     )
     .await?
     {
-        world.set_schedule(&schedule);
+        let _ = world.handle(system_now(), WorldEvent::Schedule(schedule));
     }
     let mut pubs = Vec::new();
     for id in world.robot_ids() {
@@ -133,37 +133,48 @@ pub async fn run(
         settings.profile.name
     );
 
-    let t0 = system_now();
-    let seconds = |t: Time| t.since(t0).as_secs_f64();
     let mut tick = tokio::time::interval(TICK);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let mut out = Vec::new();
     let mut bursts_heard = 0u64;
+    let mut log_limit = LogLimiter::<&'static str>::default();
     loop {
-        tokio::select! {
+        let event = tokio::select! {
             _ = &mut shutdown => break,
-            Ok(s) = schedule_sub.recv_async() => {
-                match decode::<Schedule>(&s.payload().to_bytes()) {
-                    Ok(schedule) => world.set_schedule(&schedule),
-                    Err(e) => tracing::warn!("undecodable schedule: {e}"),
-                }
-            }
-            Ok(s) = bursts.recv_async() => {
-                match decode::<Burst>(&s.payload().to_bytes()) {
-                    Ok(b) => {
-                        bursts_heard += 1;
-                        world.on_burst(b.cycle, b.tx_id, seconds(b.actual));
+            Ok(s) = schedule_sub.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
+                Ok(schedule) => Some(WorldEvent::Schedule(schedule)),
+                Err(e) => {
+                    if let Some(held) = log_limit.admit("schedule", std::time::Instant::now()) {
+                        tracing::warn!("undecodable schedule: {e} ({held} more since)");
                     }
-                    Err(e) => tracing::warn!("undecodable burst on {}: {e}", s.key_expr()),
+                    None
                 }
-            }
-            _ = tick.tick() => {
-                world.advance(seconds(system_now()), &mut out);
-                for o in out.drain(..) {
-                    publish(&mut pubs, o, t0).await?;
+            },
+            Ok(s) = bursts.recv_async() => match decode::<Burst>(&s.payload().to_bytes()) {
+                Ok(b) => {
+                    bursts_heard += 1;
+                    Some(WorldEvent::Burst(b))
                 }
-            }
+                Err(e) => {
+                    if let Some(held) = log_limit.admit("burst", std::time::Instant::now()) {
+                        tracing::warn!("undecodable burst on {}: {e} ({held} more since)", s.key_expr());
+                    }
+                    None
+                }
+            },
+            _ = tick.tick() => Some(WorldEvent::Tick),
+        };
+        let Some(event) = event else { continue };
+        let outputs = world.handle(system_now(), event);
+        let epoch = world.epoch().unwrap_or(Time::ZERO);
+        for o in outputs {
+            publish(&mut pubs, o, epoch).await?;
         }
+    }
+    if world.bursts_ignored() > 0 {
+        tracing::warn!(
+            "world: {} burst reports ignored (stamped more than 10 s from now)",
+            world.bursts_ignored()
+        );
     }
     Ok(bursts_heard)
 }

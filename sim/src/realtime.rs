@@ -6,12 +6,14 @@
 //! records an emission, [`RealtimeWorld::advance`] moves every robot to a
 //! time and returns what its sensors produced on the way (gyro, odometry,
 //! obstacle ranges, truth, and the arrivals of every cycle whose sound has
-//! arrived). Times are true seconds since the world started; the adapter
-//! owns the clock.
+//! arrived). Its contract is the one of every node:
+//! [`RealtimeWorld::handle`] takes `now` and one [`WorldEvent`] and returns
+//! the outputs. Inside, times are true seconds since the first event (the
+//! world's epoch); the adapter owns the clock.
 
 use std::collections::BTreeMap;
 
-use ickon_proto::msg::control::Schedule;
+use ickon_proto::msg::control::{Burst, Schedule};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -51,6 +53,22 @@ pub enum WorldOutput {
     Arrivals(usize, UltrasoundArrivals),
 }
 
+/// Something that happened to the world.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WorldEvent {
+    /// A (new) schedule from the central unit.
+    Schedule(Schedule),
+    /// A cell's report of a burst it fired (its `actual` time on the true
+    /// time base).
+    Burst(Burst),
+    /// Time to move the robots to `now`.
+    Tick,
+}
+
+/// A burst reported further than this from `now` cannot be real (a forged
+/// or corrupt report): it is ignored instead of holding a cycle open.
+const MAX_BURST_SKEW_S: f64 = 10.0;
+
 #[derive(Debug, Default)]
 struct PendingCycle {
     emissions: Vec<(u32, f64)>,
@@ -73,6 +91,8 @@ pub struct RealtimeWorld {
     emissions_per_cycle: Option<usize>,
     period_s: f64,
     max_flight_s: f64,
+    epoch: Option<Time>,
+    bursts_ignored: u64,
 }
 
 /// Decorrelates the random streams of the robots of one run.
@@ -117,7 +137,39 @@ impl RealtimeWorld {
             emissions_per_cycle: None,
             period_s: 1.0,
             max_flight_s,
+            epoch: None,
+            bursts_ignored: 0,
         })
+    }
+
+    /// Handles one event at true time `now` and returns what the sensors
+    /// produced. The first event fixes the world's epoch.
+    pub fn handle(&mut self, now: Time, event: WorldEvent) -> Vec<WorldOutput> {
+        let epoch = *self.epoch.get_or_insert(now);
+        let seconds = |t: Time| t.since(epoch).as_secs_f64();
+        let mut out = Vec::new();
+        match event {
+            WorldEvent::Schedule(s) => self.set_schedule(&s),
+            WorldEvent::Burst(b) => {
+                if (seconds(b.actual) - seconds(now)).abs() > MAX_BURST_SKEW_S {
+                    self.bursts_ignored += 1;
+                } else {
+                    self.on_burst(b.cycle, b.tx_id, seconds(b.actual));
+                }
+            }
+            WorldEvent::Tick => self.advance(seconds(now), &mut out),
+        }
+        out
+    }
+
+    /// The true time the world's seconds count from (the first event's `now`).
+    pub fn epoch(&self) -> Option<Time> {
+        self.epoch
+    }
+
+    /// Burst reports ignored for being stamped far from `now`.
+    pub fn bursts_ignored(&self) -> u64 {
+        self.bursts_ignored
     }
 
     /// The robots, in the order of the indices in [`WorldOutput`].
@@ -311,6 +363,41 @@ mod tests {
         world.on_burst(1, 31, start);
         world.advance(start + 2.0, &mut out);
         assert_eq!(count(&out)[4], 2);
+    }
+
+    #[test]
+    fn the_event_contract_delivers_a_cycle_and_ignores_a_forged_far_burst() {
+        use ickon_proto::msg::control::Burst;
+        let (_site, mut world, schedule) = setup("ideal");
+        let t0 = Time::from_nanos(1_764_000_000_000_000_000);
+        let at = |s: f64| t0 + ickon_proto::time::Duration::from_secs_f64(s);
+        assert!(
+            world
+                .handle(t0, WorldEvent::Schedule(schedule.clone()))
+                .is_empty()
+        );
+        assert_eq!(world.epoch(), Some(t0));
+        let burst = |tx_id: u32, actual: Time| Burst {
+            cell_id: "c1".into(),
+            tx_id,
+            cycle: 1,
+            scheduled: actual,
+            actual,
+        };
+        // A forged report of cycle 1 an hour ahead: ignored, counted.
+        let forged = world.handle(at(3.0), WorldEvent::Burst(burst(31, at(3_603.0))));
+        assert!(forged.is_empty());
+        assert_eq!(world.bursts_ignored(), 1);
+        for e in &schedule.emissions {
+            world.handle(
+                at(3.0),
+                WorldEvent::Burst(burst(e.tx_id, at(3.0 + e.offset.as_secs_f64()))),
+            );
+        }
+        let out = world.handle(at(4.5), WorldEvent::Tick);
+        let c = count(&out);
+        assert_eq!(c[4], 2, "one cycle for each robot: {c:?}");
+        assert!(c[0] > 0 && c[1] > 0, "sensors ran: {c:?}");
     }
 
     #[test]

@@ -228,3 +228,35 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(300));
     assert_eq!(fired.len(), 2);
 }
+
+#[test]
+fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
+    let (mut core, now) = synced_cell(40);
+    core.handle(now, Event::Schedule(schedule(4)));
+    let start = Time::from_nanos(now.as_nanos() - 40 * MS + 300 * MS);
+    let trigger = CycleTrigger {
+        cycle: 3,
+        start,
+        schedule_version: 4,
+    };
+    core.handle(now, Event::Trigger(trigger));
+    let out = core.handle(now, Event::Shutdown);
+    match out.as_slice() {
+        [Output::Status(s)] => assert_eq!(s.faults, ["stopping: 2 planned bursts dropped"]),
+        other => panic!("{other:?}"),
+    }
+    // Nothing fires, nothing is asked for, whatever comes after.
+    assert!(core.handle(now, Event::Trigger(trigger)).is_empty());
+    let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(400));
+    assert!(fired.is_empty(), "{fired:?}");
+    assert!(
+        core.handle(now + Duration::from_millis(5_000), Event::Tick)
+            .is_empty()
+    );
+    assert_eq!(
+        core.next_wake(),
+        Time::from_nanos(i64::MAX),
+        "never woken again"
+    );
+    assert_eq!(core.counters().cycles_fired, 0);
+}

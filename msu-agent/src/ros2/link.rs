@@ -4,12 +4,13 @@
 //! MSU inputs through the pure [`InputDecoder`]. Bad samples are counted
 //! and logged by [`BadInputLog`]; nothing here ends the agent.
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use ickon_fusion::estimator::WheelGeometry;
 use ickon_proto::msg::robot::{Fix, Odometry, RobotPose};
 use ickon_proto::ros::SampleStamper;
-use ickon_runtime::{NodeError, system_now, zerr};
+use ickon_runtime::{LogLimiter, NodeError, system_now, zerr};
 use serde::Serialize;
 use zenoh::Session;
 use zenoh::handlers::FifoChannelHandler;
@@ -18,7 +19,7 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Sample;
 
-use super::bad_input::BadInputLog;
+use super::bad_input::BadInputKind;
 use super::inputs::{InputDecoder, InputTopic, Ros2Input};
 use super::outputs::{OdomHistory, fix_message, pose_message, tf_message};
 use super::plan::{PlannedTopic, Ros2Plan};
@@ -94,8 +95,8 @@ pub struct Ros2Link {
     odom_sub: Option<Sub>,
     imu_sub: Option<Sub>,
     decoder: InputDecoder,
-    log: BadInputLog,
-    started: Instant,
+    log: LogLimiter<BadInputKind>,
+    bad_by_kind: BTreeMap<BadInputKind, u64>,
     odom: OdomHistory,
     counters: Ros2Counters,
 }
@@ -152,8 +153,8 @@ impl Ros2Link {
             tf,
             odom_sub,
             imu_sub,
-            log: BadInputLog::default(),
-            started: Instant::now(),
+            log: LogLimiter::default(),
+            bad_by_kind: BTreeMap::new(),
             odom: OdomHistory::default(),
             counters: Ros2Counters::default(),
         })
@@ -183,9 +184,13 @@ impl Ros2Link {
                 }
                 Err(kind) => {
                     self.counters.bad_inputs += 1;
-                    let now_s = self.started.elapsed().as_secs_f64();
-                    if let Some(line) = self.log.record(kind, key, now_s) {
-                        tracing::warn!("{line}");
+                    let count = self.bad_by_kind.entry(kind).or_default();
+                    *count += 1;
+                    if let Some(held) = self.log.admit(kind, Instant::now()) {
+                        tracing::warn!(
+                            "ros2 {key}: dropped: {} ({held} more since the last report; {count} so far)",
+                            kind.describe()
+                        );
                     }
                 }
             }
@@ -242,8 +247,8 @@ impl Ros2Link {
     }
 
     /// Bad input seen, by kind.
-    pub fn bad_input(&self) -> &BadInputLog {
-        &self.log
+    pub fn bad_input(&self) -> &BTreeMap<BadInputKind, u64> {
+        &self.bad_by_kind
     }
 }
 

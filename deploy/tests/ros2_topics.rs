@@ -82,7 +82,7 @@ fn publish_once(session: &zenoh::Session, options: &Ros2Options) {
             left_ticks: 0,
             right_ticks: 0,
         });
-        link.publish_pose(&pose()).await;
+        link.publish_pose(&pose(), true).await;
         link.publish_fix(&fix()).await;
         // Keep the tokens alive while the test looks at them.
         tokio::time::sleep(Duration::from_millis(1500)).await;

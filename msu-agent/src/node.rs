@@ -222,8 +222,9 @@ pub async fn run(
                     }
                     n.poses += 1;
                     // The ROS 2 copy after ours: it adds nothing ahead of it.
+                    // A pose after a fix in one batch absorbed it.
                     if let Some(r) = ros.as_mut() {
-                        r.publish_pose(&pose).await;
+                        r.publish_pose(&pose, ros_fix.is_some()).await;
                     }
                 }
                 Output::Refused { input, error } => {

@@ -10,6 +10,7 @@ use std::time::Instant;
 use ickon_fusion::estimator::WheelGeometry;
 use ickon_proto::msg::robot::{Fix, Odometry, RobotPose};
 use ickon_proto::ros::SampleStamper;
+use ickon_proto::time::Time;
 use ickon_runtime::{LogLimiter, NodeError, system_now, zerr};
 use serde::Serialize;
 use zenoh::Session;
@@ -98,8 +99,14 @@ pub struct Ros2Link {
     log: LogLimiter<BadInputKind>,
     bad_by_kind: BTreeMap<BadInputKind, u64>,
     odom: OdomHistory,
+    /// The pose stamp of the last `map -> odom` sent.
+    last_tf_stamp: Option<Time>,
     counters: Ros2Counters,
 }
+
+/// Longest time between two `map -> odom` transforms without a fix, seconds
+/// of pose time: well inside the 1 s the transform is stamped ahead.
+pub const TF_REFRESH_S: f64 = 0.25;
 
 impl Ros2Link {
     /// Declares the node on `session`; `wheels` is the drive geometry the
@@ -156,6 +163,7 @@ impl Ros2Link {
             log: LogLimiter::default(),
             bad_by_kind: BTreeMap::new(),
             odom: OdomHistory::default(),
+            last_tf_stamp: None,
             counters: Ros2Counters::default(),
         })
     }
@@ -202,14 +210,26 @@ impl Ros2Link {
         self.odom.push(odom);
     }
 
-    /// Publishes the fused pose and, when enabled, `map -> odom`.
-    pub async fn publish_pose(&mut self, pose: &RobotPose) {
+    /// Publishes the fused pose and, when enabled, `map -> odom`: with a
+    /// pose that has just absorbed a fix (`absorbed_fix`), or when the last
+    /// transform is [`TF_REFRESH_S`] older than the pose. Between fixes the
+    /// pose moves with the odometry and `map -> odom` stays as it was, so
+    /// sending it with every odometry-rate pose would only add work (AMCL
+    /// too sends it per scan, not per odometry sample).
+    pub async fn publish_pose(&mut self, pose: &RobotPose, absorbed_fix: bool) {
         let Some(msg) = pose_message(pose, &self.plan.map_frame) else {
             self.counters.not_finite += 1;
             return;
         };
         let ok = self.pose.put(&msg).await;
         self.count(ok);
+        let due = absorbed_fix
+            || self.last_tf_stamp.is_none_or(|t| {
+                pose.stamp.since(t).as_secs_f64() >= TF_REFRESH_S || pose.stamp < t
+            });
+        if !due {
+            return;
+        }
         let tf = tf_message(
             pose,
             &self.odom,
@@ -220,6 +240,7 @@ impl Ros2Link {
         if let (Some(publisher), Some(msg)) = (self.tf.as_mut(), tf) {
             let ok = publisher.put(&msg).await;
             self.count(ok);
+            self.last_tf_stamp = Some(pose.stamp);
         }
     }
 

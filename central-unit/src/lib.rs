@@ -5,7 +5,10 @@
 //! cycle and is the time master of the cell controllers, tracks the health
 //! of cells and robots ([`health`]), and evaluates the coverage of the floor
 //! ([`coverage`]). The core ([`core`]) is a sans-IO state machine; the Zenoh
-//! node (feature `zenoh`) only moves its inputs and outputs.
+//! node (feature `zenoh`) only moves its inputs and outputs, and with
+//! `--http` serves the live web map and JSON API (`http`) beside it. The
+//! admin answers' JSON documents ([`admin_json`]) are shared by the web map
+//! and `ickon admin --json`.
 //!
 //! Dependencies: besides `proto` and `runtime` (DESIGN section 2) this crate
 //! uses `ickon-fusion`, a deliberate departure from the list there: the HDOP
@@ -13,9 +16,12 @@
 //! solver works with ([`ickon_fusion::tdoa::dop`]), and `fusion` is pure math
 //! with no I/O, so the core stays sans-IO.
 
+pub mod admin_json;
 pub mod core;
 pub mod coverage;
 pub mod health;
+#[cfg(feature = "zenoh")]
+pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod schedule;

@@ -29,6 +29,9 @@ pub struct CentralArgs {
     /// Connection and simulation flags.
     #[command(flatten)]
     pub node: NodeArgs,
+    /// The web map's flags.
+    #[command(flatten)]
+    pub http: crate::http::HttpArgs,
 }
 
 /// Runs the central unit as a process: loads the site, opens the session,
@@ -48,11 +51,16 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             site.name,
             args.node.zenoh.listen
         );
+        let keys = Keys::new(&site.name)?;
+        let web = crate::http::WebMap::start(&session, &keys, &site, &args.http)
+            .await
+            .map_err(|e| NodeError::Setup(e.to_string()))?;
         let r = run(
             &session,
             site,
             text,
             args.node.clock(),
+            web.as_ref(),
             args.node.shutdown(),
         )
         .await;
@@ -77,12 +85,14 @@ async fn reply<T: serde::Serialize>(query: &Query, value: &T) {
 }
 
 /// Serves `site` until `shutdown` completes. `clock` is the master time base
-/// (the system clock, with an injected offset and drift in a simulation).
+/// (the system clock, with an injected offset and drift in a simulation);
+/// `web`, when given, is handed the status several times a second.
 pub async fn run(
     session: &Session,
     site: Site,
     site_toml: String,
     clock: SimulatedClock,
+    web: Option<&crate::http::WebMap>,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
@@ -160,11 +170,16 @@ pub async fn run(
         .map_err(zerr)?;
 
     let (mut failed_puts, mut undecodable) = (0u64, 0u64);
+    let mut web_ticks = tokio::time::interval(crate::http::feed::SNAPSHOT_PERIOD);
     loop {
         let wake = core.next_wake().since(clock.now()).to_std();
         let event = tokio::select! {
             _ = &mut shutdown => break,
             _ = tokio::time::sleep(wake) => Event::Tick,
+            _ = web_ticks.tick(), if web.is_some() => {
+                if let Some(w) = web { w.publish(core.status(clock.now())); }
+                continue;
+            }
             Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
             Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await; continue; }
             Ok(q) = admin_q.recv_async() => {

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{admin, eval, msu_cmd, node, replay, sim, site_cmd};
+use crate::{admin, bench, eval, msu_cmd, node, replay, router, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -46,6 +46,14 @@ pub enum Command {
         #[command(subcommand)]
         action: MsuAction,
     },
+    /// Benchmarks of the whole system.
+    Bench {
+        /// Which benchmark.
+        #[command(subcommand)]
+        command: bench::BenchCommand,
+    },
+    /// Run a Zenoh router: the hub of a floor, every node its client.
+    Router(router::RouterArgs),
     /// Run one node of the mesh (used by `ickon sim`; the standalone binaries
     /// do the same for deployment).
     #[command(hide = true)]
@@ -67,8 +75,12 @@ pub enum Command {
 pub enum SiteAction {
     /// Validate a site file and print a summary; exit code 2 when it is invalid.
     Check {
-        /// The site file (TOML); the built-in default site when omitted.
+        /// A built-in site (`lab`, `warehouse`) or a site file (TOML); the
+        /// built-in `lab` when omitted.
         file: Option<PathBuf>,
+        /// The same as the positional argument, spelled as elsewhere.
+        #[arg(long = "site", conflicts_with = "file")]
+        site: Option<PathBuf>,
     },
 }
 
@@ -87,8 +99,8 @@ pub enum MsuAction {
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Site {
-            action: SiteAction::Check { file },
-        } => site_cmd::check(file.as_deref()),
+            action: SiteAction::Check { file, site },
+        } => site_cmd::check(file.or(site).as_deref()),
         Command::Msu {
             action: MsuAction::Check { file },
         } => msu_cmd::check(&file),
@@ -96,6 +108,8 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Sim(args) => sim::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Node { role } => node::run(role),
+        Command::Router(args) => router::run(args),
+        Command::Bench { command } => bench::run(command),
         Command::Admin { command } => admin::run(command),
     }
 }

@@ -4,12 +4,14 @@
 //! module of the subcommand, and turn its result into an exit code.
 
 mod admin;
+mod bench;
 mod cli;
 mod eval;
 mod font;
 mod msu_cmd;
 mod node;
 mod replay;
+mod router;
 mod sim;
 mod site_cmd;
 

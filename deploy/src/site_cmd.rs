@@ -3,22 +3,20 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use ickon_proto::site::{DEFAULT_SITE_FILE_NAME, Site};
+use ickon_proto::site::Site;
 
 use crate::cli::EXIT_BAD_INPUT;
 
-/// Validates a site file (the built-in site when `file` is `None`) and prints
-/// its summary on stdout; every problem goes to stderr with exit code 2.
+/// Validates a site (a built-in name or a file; the built-in `lab` when
+/// `file` is `None`) and prints its summary on stdout; every problem goes to
+/// stderr with exit code 2.
 pub fn check(file: Option<&Path>) -> ExitCode {
-    let (site, name) = match file {
-        Some(path) => match Site::from_file(path) {
-            Ok(site) => (site, path.display().to_string()),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::from(EXIT_BAD_INPUT);
-            }
-        },
-        None => (Site::default_site(), DEFAULT_SITE_FILE_NAME.to_string()),
+    let (site, _, name) = match Site::load_or_default(file) {
+        Ok(loaded) => loaded,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
     };
     print!("{}", summary(&site, &name));
     ExitCode::SUCCESS

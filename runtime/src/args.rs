@@ -28,7 +28,23 @@ pub struct ZenohArgs {
     /// Turn multicast scouting off (isolated meshes, tests).
     #[arg(long)]
     pub no_multicast_scouting: bool,
+    /// Zenoh mode: `client` (of a router, as on a site), `peer` or `router`;
+    /// the config file's, else Zenoh's default (`peer`), when not given.
+    #[arg(short = 'm', long, value_parser = ["client", "peer", "router"])]
+    pub mode: Option<String>,
 }
+
+/// The `ZENOH_RUNTIME` setting that keeps a node's Zenoh thread pools small:
+/// receiving, accepting and the network tasks are handed to the one-thread
+/// application pool, so a node runs Zenoh on two threads (application and
+/// transmission) instead of six. Read once by Zenoh when its first session
+/// opens, so it is set in the environment of the process (`ickon sim` does so
+/// for its nodes, the systemd units for a site). Zenoh's own default pools
+/// are sized for one busy process per machine, not a hundred small ones.
+pub const LEAN_ZENOH_RUNTIME: &str = "(app: (worker_threads: 1), tx: (worker_threads: 1), rx: (handover: app), acc: (handover: app), net: (handover: app))";
+
+/// The environment variable Zenoh reads its thread pools' sizes from.
+pub const ZENOH_RUNTIME_ENV: &str = "ZENOH_RUNTIME";
 
 impl ZenohArgs {
     /// Whether the user said where to connect (a config file or an endpoint).
@@ -62,6 +78,9 @@ impl ZenohArgs {
         if self.no_multicast_scouting {
             set("scouting/multicast/enabled", "false".into())?;
         }
+        if let Some(mode) = &self.mode {
+            set("mode", format!("{mode:?}"))?;
+        }
         Ok(config)
     }
 
@@ -82,8 +101,9 @@ pub struct NodeArgs {
     /// Site name, the `<site>` of every key.
     #[arg(long, default_value = "lab")]
     pub site_name: String,
-    /// Site file (TOML); the central unit serves it, the built-in site when
-    /// omitted. Other nodes take the site from the central unit.
+    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); the central
+    /// unit serves it, the built-in `lab` when omitted. Other nodes take the
+    /// site from the central unit.
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Simulation only: offset of this node's clock from the true time,
@@ -170,8 +190,11 @@ mod tests {
             "--no-multicast-scouting",
             "--clock-offset-us",
             "-20000",
+            "--mode",
+            "client",
         ]);
-        assert!(cli.node.zenoh_config().is_ok());
+        let config = cli.node.zenoh_config().unwrap();
+        assert_eq!(config.get_json("mode").unwrap(), "\"client\"");
         assert!(cli.node.zenoh.names_a_peer());
         assert_eq!(cli.node.clock_offset_us, -20_000.0);
     }

@@ -28,7 +28,7 @@ pub mod query;
 pub mod runfile;
 pub mod shutdown;
 
-pub use args::{NodeArgs, ZenohArgs};
+pub use args::{LEAN_ZENOH_RUNTIME, NodeArgs, ZENOH_RUNTIME_ENV, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
 pub use error::{NodeError, zerr};
 pub use log_limit::LogLimiter;

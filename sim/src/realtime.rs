@@ -117,7 +117,9 @@ impl RealtimeWorld {
             let route = site
                 .route(&spec.route)
                 .ok_or_else(|| RealtimeError::UnknownRoute(id.clone(), spec.route.clone()))?;
-            worlds.push(World::new(site, route, profile, robot_seed(seed, i)));
+            // Robots sharing a route start spread along it (the site's `start`).
+            let route = route.starting_near([spec.start[0], spec.start[1]]);
+            worlds.push(World::new(site, &route, profile, robot_seed(seed, i)));
         }
         let max_flight_s = (profile.ultrasound.max_range_m
             + profile.ultrasound.reflection_extra_m[1])

@@ -3,76 +3,11 @@
 
 use std::fmt::Write;
 
+use ickon_central::admin_json::CoverageJson;
+use ickon_central::admin_json::coverage_summary;
 use ickon_proto::msg::admin::CoverageReport;
-use serde::Serialize;
 
 use super::format::to_json;
-
-/// Figures of a coverage grid over the points on the floor.
-#[derive(Debug, Serialize, PartialEq)]
-pub struct CoverageSummary {
-    /// Grid points on the floor.
-    pub floor_points: usize,
-    /// Of those, points where a 2D fix is possible (HDOP > 0).
-    pub fix_points: usize,
-    /// `fix_points / floor_points`.
-    pub fix_share: f64,
-    /// Fewest transmitters heard at a floor point.
-    pub visible_min: Option<u32>,
-    /// Median HDOP where a fix is possible.
-    pub hdop_median: Option<f64>,
-    /// 95th percentile of the HDOP where a fix is possible.
-    pub hdop_p95: Option<f64>,
-    /// Largest HDOP where a fix is possible.
-    pub hdop_max: Option<f64>,
-}
-
-/// Summarises a coverage grid.
-pub fn coverage_summary(r: &CoverageReport) -> CoverageSummary {
-    let floor: Vec<usize> = (0..r.on_floor.len()).filter(|&i| r.on_floor[i]).collect();
-    let mut hdops: Vec<f64> = floor
-        .iter()
-        .filter_map(|&i| r.hdop.get(i).copied())
-        .filter(|&h| h > 0.0)
-        .collect();
-    hdops.sort_by(f64::total_cmp);
-    let rank = |p: f64| -> Option<f64> {
-        let n = hdops.len();
-        (n > 0).then(|| hdops[(((p / 100.0) * n as f64).ceil() as usize).clamp(1, n) - 1])
-    };
-    CoverageSummary {
-        floor_points: floor.len(),
-        fix_points: hdops.len(),
-        fix_share: if floor.is_empty() {
-            0.0
-        } else {
-            hdops.len() as f64 / floor.len() as f64
-        },
-        visible_min: floor
-            .iter()
-            .filter_map(|&i| r.visible.get(i).copied())
-            .min(),
-        hdop_median: rank(50.0),
-        hdop_p95: rank(95.0),
-        hdop_max: hdops.last().copied(),
-    }
-}
-
-/// `coverage --json`.
-#[derive(Debug, Serialize)]
-struct CoverageJson<'a> {
-    schedule_version: u32,
-    resolution_m: f64,
-    height_m: f64,
-    origin_x_m: f64,
-    origin_y_m: f64,
-    columns: u32,
-    rows: u32,
-    summary: CoverageSummary,
-    on_floor: &'a [bool],
-    visible: &'a [u32],
-    hdop: &'a [f64],
-}
 
 /// The map character of one grid point: blank off the floor, `x` without a
 /// fix, else the HDOP class `1` (< 1.5) to `5` (>= 8).
@@ -95,19 +30,7 @@ const MAP_WIDTH: usize = 100;
 pub fn coverage(r: &CoverageReport, json: bool) -> anyhow::Result<String> {
     let summary = coverage_summary(r);
     if json {
-        return to_json(&CoverageJson {
-            schedule_version: r.schedule_version,
-            resolution_m: r.resolution_m,
-            height_m: r.height_m,
-            origin_x_m: r.origin_x_m,
-            origin_y_m: r.origin_y_m,
-            columns: r.columns,
-            rows: r.rows,
-            summary,
-            on_floor: &r.on_floor,
-            visible: &r.visible,
-            hdop: &r.hdop,
-        });
+        return to_json(&CoverageJson::from(r));
     }
     let opt = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
     let mut out = String::new();

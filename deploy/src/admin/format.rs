@@ -1,116 +1,17 @@
 //! What `ickon admin` prints: readable tables, or one JSON document.
 //!
-//! JSON uses the units of the wire messages converted for people where a
-//! name says so (`sync_error_us`, `offset_us`, `drift_ppm`, `period_ms`);
-//! a figure that is not known yet is `null`, never a made-up zero.
+//! The JSON documents are [`ickon_central::admin_json`]'s, which the web
+//! map's `/api/*` endpoints serve too.
 
 use std::fmt::Write;
 
-use ickon_proto::msg::admin::{AdminAck, CellHealth, RobotHealth, StatusReport};
+use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson};
+use ickon_proto::msg::admin::{AdminAck, StatusReport};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
-/// One cell in JSON.
-#[derive(Debug, Serialize)]
-pub struct CellJson {
-    id: String,
-    /// `up` or `down`.
-    state: &'static str,
-    state_since_cycle: u64,
-    /// Largest |actual - scheduled| of its recent bursts, microseconds.
-    sync_error_us: Option<f64>,
-    sync_error_rms_us: Option<f64>,
-    residual_samples: u32,
-    /// The cell's own one-sigma estimate, microseconds.
-    sync_sigma_us: f64,
-    offset_us: f64,
-    drift_ppm: f64,
-    cycles_fired: u64,
-    last_cycle_fired: u64,
-    cycles_missed: u64,
-    slots_skipped: u64,
-}
-
-impl From<&CellHealth> for CellJson {
-    fn from(c: &CellHealth) -> Self {
-        let measured = c.residual_samples > 0;
-        Self {
-            id: c.id.clone(),
-            state: if c.up { "up" } else { "down" },
-            state_since_cycle: c.state_since_cycle,
-            sync_error_us: measured.then_some(c.residual_max_ns as f64 / 1e3),
-            sync_error_rms_us: measured.then_some(c.residual_rms_ns as f64 / 1e3),
-            residual_samples: c.residual_samples,
-            sync_sigma_us: c.sync_sigma_ns as f64 / 1e3,
-            offset_us: c.offset_ns as f64 / 1e3,
-            drift_ppm: c.drift_ppb as f64 / 1e3,
-            cycles_fired: c.cycles_fired,
-            last_cycle_fired: c.last_cycle_fired,
-            cycles_missed: c.cycles_missed,
-            slots_skipped: c.slots_skipped,
-        }
-    }
-}
-
-/// A robot's last pose in JSON.
-#[derive(Debug, Serialize)]
-struct PoseJson {
-    x_m: f64,
-    y_m: f64,
-    theta_rad: f64,
-}
-
-/// One robot in JSON.
-#[derive(Debug, Serialize)]
-pub struct RobotJson {
-    id: String,
-    /// `up` or `down`.
-    state: &'static str,
-    fixes_per_s: f64,
-    estimator: Option<String>,
-    pose: Option<PoseJson>,
-}
-
-impl From<&RobotHealth> for RobotJson {
-    fn from(r: &RobotHealth) -> Self {
-        Self {
-            id: r.id.clone(),
-            state: if r.up { "up" } else { "down" },
-            fixes_per_s: r.fixes_per_s,
-            estimator: (!r.estimator.is_empty()).then(|| r.estimator.clone()),
-            pose: r.pose_valid.then_some(PoseJson {
-                x_m: r.x_m,
-                y_m: r.y_m,
-                theta_rad: r.theta_rad,
-            }),
-        }
-    }
-}
-
-/// `status --json`.
-#[derive(Debug, Serialize)]
-struct StatusJson {
-    site: String,
-    cycle: u64,
-    paused: bool,
-    schedule_version: u32,
-    update_rate_hz: f64,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    cells: Option<Vec<CellJson>>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    robots: Option<Vec<RobotJson>>,
-}
-
 fn status_json(s: &StatusReport, cells: bool, robots: bool) -> StatusJson {
-    StatusJson {
-        site: s.site.clone(),
-        cycle: s.cycle,
-        paused: s.paused,
-        schedule_version: s.schedule_version,
-        update_rate_hz: s.update_rate_hz,
-        cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
-        robots: robots.then(|| s.robots.iter().map(RobotJson::from).collect()),
-    }
+    StatusJson::new(s, cells, robots)
 }
 
 pub(super) fn to_json<T: Serialize>(value: &T) -> anyhow::Result<String> {
@@ -260,49 +161,12 @@ pub fn sync(s: &StatusReport, json: bool) -> anyhow::Result<String> {
     Ok(out)
 }
 
-/// `schedule --json`.
-#[derive(Debug, Serialize)]
-struct ScheduleJson<'a> {
-    version: u32,
-    effective_cycle: u64,
-    period_ms: f64,
-    slot_ms: f64,
-    update_rate_hz: f64,
-    active_cells: &'a [String],
-    emissions: Vec<EmissionJson<'a>>,
-}
-
-#[derive(Debug, Serialize)]
-struct EmissionJson<'a> {
-    tx_id: u32,
-    cell_id: &'a str,
-    slot: u32,
-    offset_ms: f64,
-}
-
 /// `schedule`.
 pub fn schedule(s: &Schedule, json: bool) -> anyhow::Result<String> {
     let ms = |d: ickon_proto::time::Duration| d.as_secs_f64() * 1e3;
     let rate = ickon_central::update_rate_hz(s);
     if json {
-        return to_json(&ScheduleJson {
-            version: s.version,
-            effective_cycle: s.effective_cycle,
-            period_ms: ms(s.cycle_period),
-            slot_ms: ms(s.slot_length),
-            update_rate_hz: rate,
-            active_cells: &s.active_cells,
-            emissions: s
-                .emissions
-                .iter()
-                .map(|e| EmissionJson {
-                    tx_id: e.tx_id,
-                    cell_id: &e.cell_id,
-                    slot: e.slot,
-                    offset_ms: ms(e.offset),
-                })
-                .collect(),
-        });
+        return to_json(&ScheduleJson::from(s));
     }
     let mut out = String::new();
     let _ = writeln!(
@@ -343,6 +207,7 @@ pub fn ack(a: &AdminAck, json: bool) -> anyhow::Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ickon_proto::msg::admin::{CellHealth, RobotHealth};
     use ickon_proto::time::Time;
 
     fn report() -> StatusReport {

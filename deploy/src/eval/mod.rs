@@ -25,7 +25,7 @@ use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
 /// Arguments of `ickon eval`.
 #[derive(Debug, Clone, Args)]
 pub struct EvalArgs {
-    /// The site file (TOML); the built-in default site when omitted.
+    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Estimator name, or `all`.

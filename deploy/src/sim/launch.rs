@@ -34,26 +34,94 @@ pub(super) fn free_port() -> std::io::Result<u16> {
         .port())
 }
 
-/// The `ickon node <role>` command line shared by every node of the mesh.
+/// How the nodes of a run reach each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mesh {
+    /// As on a site: one router process, every node its client.
+    Router,
+    /// Every node a peer listening on loopback, connected to the central
+    /// unit, gossip making a full mesh (the layout before routers; kept to
+    /// compare).
+    Peer,
+}
+
+/// The `ickon node <role>` command line shared by every node of the mesh:
+/// a client of the router at `hub` (`Mesh::Router`), or a peer listening on
+/// `listen` and connected to `hub` (`Mesh::Peer`; no `hub` for the first).
 pub(super) fn node_command(
     args: &SimArgs,
     site: &Site,
     role: &str,
-    central: &str,
+    hub: &str,
     listen: &str,
 ) -> anyhow::Result<Command> {
-    let exe = std::env::current_exe()?;
-    let mut cmd = Command::new(exe);
-    cmd.args(["node", role, "--no-multicast-scouting", "--listen", listen]);
+    let mut cmd = lean_command()?;
+    cmd.args(["node", role, "--no-multicast-scouting"]);
+    match args.mesh {
+        Mesh::Router => {
+            cmd.args(["--mode", "client"]);
+        }
+        Mesh::Peer => {
+            cmd.args(["--mode", "peer", "--listen", listen]);
+        }
+    }
     cmd.args(["--site-name", &site.name]);
-    if !central.is_empty() {
-        cmd.args(["--connect", central]);
+    if !hub.is_empty() {
+        cmd.args(["--connect", hub]);
     }
     if let Some(site) = &args.site {
         cmd.arg("--site").arg(site);
     }
     cmd.arg("--exit-with-parent");
     Ok(cmd)
+}
+
+/// The `ickon router` command line of a run's router, listening on `endpoint`.
+pub(super) fn router_command(endpoint: &str) -> anyhow::Result<Command> {
+    let mut cmd = lean_command()?;
+    cmd.args(["router", "--no-multicast-scouting", "--listen", endpoint]);
+    cmd.arg("--exit-with-parent");
+    Ok(cmd)
+}
+
+/// This executable, with Zenoh's thread pools kept small (unless the user
+/// chose their own `ZENOH_RUNTIME`): a hundred processes on two cores.
+fn lean_command() -> anyhow::Result<Command> {
+    let mut cmd = Command::new(std::env::current_exe()?);
+    if std::env::var_os(ickon_runtime::ZENOH_RUNTIME_ENV).is_none() {
+        cmd.env(
+            ickon_runtime::ZENOH_RUNTIME_ENV,
+            ickon_runtime::LEAN_ZENOH_RUNTIME,
+        );
+    }
+    Ok(cmd)
+}
+
+/// Waits until something accepts TCP connections on the loopback `port`
+/// (the router listens), the router dies, or `timeout` passes.
+pub(super) async fn wait_for_listener(
+    port: u16,
+    sup: &mut super::supervisor::Supervisor,
+    timeout: std::time::Duration,
+) -> anyhow::Result<()> {
+    let deadline = tokio::time::Instant::now() + timeout;
+    loop {
+        // A loopback connect is answered at once: accepted or refused.
+        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
+            return Ok(());
+        }
+        if let Some(dead) = sup.first_dead() {
+            anyhow::bail!("node {} {} during start-up", dead.name, dead.status);
+        }
+        if tokio::time::Instant::now() > deadline {
+            anyhow::bail!(
+                "the router does not listen on port {port} after {} s",
+                timeout.as_secs()
+            );
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
 }
 
 /// Stream of the injected clock errors, so that changing the world's noise
@@ -69,4 +137,23 @@ pub(super) fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
         "--clock-drift-ppm".into(),
         format!("{drift_ppm:.1}"),
     ]
+}
+
+/// Adds the web map's flags of `ickon sim --http` to the central unit's
+/// command; the address it will serve, if any: the one asked for, or the
+/// next free port above it when it is taken (the URL is printed).
+pub(super) fn http_flags(
+    args: &SimArgs,
+    central: &mut Command,
+) -> anyhow::Result<Option<std::net::SocketAddr>> {
+    let Some(wanted) = args.http else {
+        return Ok(None);
+    };
+    let addr = ickon_central::http::first_free_addr(wanted)
+        .ok_or_else(|| anyhow::anyhow!("no free port for the web map from {wanted}"))?;
+    central.arg("--http").arg(addr.to_string());
+    if let Some(token) = &args.http_token_file {
+        central.arg("--http-token-file").arg(token);
+    }
+    Ok(Some(addr))
 }

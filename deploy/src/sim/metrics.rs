@@ -131,9 +131,11 @@ impl RobotStats {
         Some((a.x_m + w * (b.x_m - a.x_m), a.y_m + w * (b.y_m - a.y_m)))
     }
 
-    /// The summary of this robot.
-    pub fn summary(&self, id: &str) -> RobotSummary {
+    /// The summary of this robot; `cycles`: the cycles triggered and over
+    /// while the run was watched.
+    pub fn summary(&self, id: &str, cycles: usize) -> RobotSummary {
         let n = self.errors_m.len() as f64;
+        let share = |count: u64| (cycles > 0).then(|| (count as f64 / cycles as f64).min(1.0));
         let mean = (n > 0.0).then(|| self.errors_m.iter().sum::<f64>() / n);
         let rmse = (n > 0.0).then(|| (self.errors_m.iter().map(|e| e * e).sum::<f64>() / n).sqrt());
         RobotSummary {
@@ -141,6 +143,8 @@ impl RobotStats {
             fixes: self.fixes,
             poses: self.poses,
             arrival_messages: self.arrival_messages,
+            arrivals_share: share(self.arrival_messages),
+            fix_share: share(self.fixes),
             scored_poses: self.errors_m.len() as u64,
             mean_mm: mean.map(|m| m * 1e3),
             rmse_mm: rmse.map(|m| m * 1e3),
@@ -173,10 +177,13 @@ impl CellStats {
         self.cycles.len() as u64
     }
 
-    /// The summary of this cell.
-    pub fn summary(&self, id: &str) -> CellSummary {
+    /// The summary of this cell; `completed`: the cycles triggered and
+    /// over while the run was watched.
+    pub fn summary(&self, id: &str, completed: &BTreeSet<u64>) -> CellSummary {
+        let fired = completed.intersection(&self.cycles).count();
         CellSummary {
             id: id.to_string(),
+            fired_share: (!completed.is_empty()).then(|| fired as f64 / completed.len() as f64),
             cycles_fired: self.cycles_fired(),
             bursts: self.bursts,
             sync_error_us: percentile(&self.sync_errors_us, 99.0),
@@ -196,6 +203,10 @@ pub struct RobotSummary {
     pub poses: u64,
     /// Ultrasound arrival messages received (one per cycle heard).
     pub arrival_messages: u64,
+    /// Arrival messages per cycle triggered while watched (at most 1).
+    pub arrivals_share: Option<f64>,
+    /// Fixes per cycle triggered while watched (at most 1).
+    pub fix_share: Option<f64>,
     /// Poses scored against truth (after the warm-up).
     pub scored_poses: u64,
     /// Mean position error, mm.
@@ -217,6 +228,9 @@ pub struct CellSummary {
     pub id: String,
     /// Cycles in which it fired.
     pub cycles_fired: u64,
+    /// Share of the cycles triggered (and over) while the run was watched
+    /// in which it fired.
+    pub fired_share: Option<f64>,
     /// Bursts it fired.
     pub bursts: u64,
     /// 99th percentile of |actual - scheduled| emission time, us.
@@ -236,6 +250,16 @@ pub struct RunStats {
     pub hop_latencies_us: Vec<f64>,
     /// Messages that could not be decoded, per key.
     pub bad_messages: HashMap<String, u64>,
+    /// Cycles the central unit triggered while the run was watched.
+    pub cycles_triggered: BTreeSet<u64>,
+}
+
+/// Triggered cycles whose bursts and arrivals had time to be seen: all but
+/// the newest two (a trigger goes out ahead of its cycle, which may end
+/// after the run stops watching).
+pub fn completed_cycles(triggered: &BTreeSet<u64>) -> BTreeSet<u64> {
+    let keep = triggered.len().saturating_sub(2);
+    triggered.iter().copied().take(keep).collect()
 }
 
 #[cfg(test)]
@@ -286,7 +310,7 @@ mod tests {
         // The robot clock runs 100 s ahead of true time; a pose 20 mm off.
         r.on_pose(&pose(100.0, 0.0, 0), now);
         r.on_pose(&pose(105.0, 5.02, 0), now);
-        let s = r.summary("r1");
+        let s = r.summary("r1", 10);
         assert_eq!(s.poses, 2);
         assert_eq!(s.scored_poses, 1, "the first pose is inside the warm-up");
         assert!((s.mean_mm.unwrap() - 20.0).abs() < 1e-6);
@@ -295,7 +319,7 @@ mod tests {
         r.on_pose(&pose(100.0 + last, last, 0), now);
         r.on_pose(&pose(100.0 + last + 0.02, last + 0.02, 0), now);
         r.on_pose(&pose(100.0 + last + 0.5, 0.0, 0), now);
-        let s = r.summary("r1");
+        let s = r.summary("r1", 10);
         assert_eq!(s.scored_poses, 3, "far past the truth is not scored");
         assert!((s.mean_mm.unwrap() - 20.0 / 3.0).abs() < 1e-6);
     }
@@ -311,7 +335,7 @@ mod tests {
             &pose(1.1, 0.0, 7),
             later + std::time::Duration::from_millis(100),
         );
-        let s = r.summary("r1");
+        let s = r.summary("r1", 10);
         assert_eq!(s.latency_p50_us.map(|v| v.round()), Some(800.0));
         assert_eq!(s.latency_p99_us.map(|v| v.round()), Some(800.0));
     }
@@ -328,7 +352,8 @@ mod tests {
                 actual: Time(1_000_000 + err * 1_000),
             });
         }
-        let s = c.summary("c1");
+        let s = c.summary("c1", &(0..5).collect());
+        assert_eq!(s.fired_share, Some(0.4));
         assert_eq!(s.cycles_fired, 2);
         assert_eq!(s.bursts, 3);
         assert_eq!(s.sync_error_max_us, Some(50.0));

@@ -5,9 +5,11 @@
 //! cell controller per cell, the world, and one MSU agent per robot: the same
 //! library code as the standalone `ickon-central`, `ickon-cell`, `ickon-world`
 //! and `ickon-msu` binaries, so that `cargo run -p ickon -- sim` needs no other
-//! build step. Every node is a Zenoh peer listening on its own loopback port
-//! and connecting to the central unit's; multicast scouting is off so that two
-//! runs on one machine never meet. The launcher watches the mesh with its own
+//! build step. As on a site, a Zenoh router (`ickon router`, its own
+//! supervised process) listens on a loopback port and every node is its
+//! client (`--mesh peer` lays out the old full mesh of peers instead, to
+//! compare); multicast scouting is off so that two runs on one machine never
+//! meet, and Zenoh's thread pools are kept small in every node. The launcher watches the mesh with its own
 //! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
 //! status line, and a summary at the end.
 
@@ -17,6 +19,7 @@ mod msu_file;
 mod observe;
 mod report;
 mod supervisor;
+mod usage;
 
 pub use metrics::{CellSummary, RobotSummary};
 
@@ -32,14 +35,17 @@ use serde::Serialize;
 use zenoh::sample::SampleKind;
 
 use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
-use launch::{CLOCK_STREAM, clock_flags, free_port, node_command};
+pub use launch::Mesh;
+use launch::{
+    CLOCK_STREAM, clock_flags, free_port, node_command, router_command, wait_for_listener,
+};
 use observe::{observe, open_observer};
 use report::render_report;
 
 /// Arguments of `ickon sim`.
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// Site file (TOML); the built-in lab site when omitted.
+    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Number of robots: the first N robots of the site, each on its own route.
@@ -65,6 +71,17 @@ pub struct SimArgs {
     /// them there (`ickon-msu --ros2`) and publish ROS 2 poses too.
     #[arg(long)]
     pub ros2: bool,
+    /// Serve the live web map from the central unit on ADDR, or the next
+    /// free port above it (with no ADDR: 127.0.0.1:8080); the URL is printed.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
+    pub http: Option<std::net::SocketAddr>,
+    /// File with the token that allows pause, resume and reload over HTTP.
+    #[arg(long, value_name = "FILE", requires = "http")]
+    pub http_token_file: Option<PathBuf>,
+    /// How the nodes reach each other: through a router, as on a site, or
+    /// as a full mesh of peers (the layout before routers, to compare).
+    #[arg(long, value_enum, default_value = "router")]
+    pub mesh: Mesh,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -78,33 +95,75 @@ const MAX_CLOCK_DRIFT_PPM: f64 = 100.0;
 
 /// The JSON document of `ickon sim --json`.
 #[derive(Debug, Serialize)]
-struct SimReport {
-    site: String,
-    profile: String,
-    estimator: String,
-    seed: u64,
+pub struct SimReport {
+    pub site: String,
+    pub profile: String,
+    pub estimator: String,
+    pub seed: u64,
     /// Whether odometry and gyro went over ROS 2 (`--ros2`).
-    ros2: bool,
-    duration_s: f64,
+    pub ros2: bool,
+    pub duration_s: f64,
     /// Cycles per second of the schedule with every cell up: the fixes each
     /// robot can get per second at most.
-    update_rate_hz: f64,
-    /// The central unit's endpoint (tells this run's processes apart).
-    central_endpoint: String,
-    zenoh_hop_p50_us: Option<f64>,
-    zenoh_hop_p99_us: Option<f64>,
-    robots: Vec<RobotSummary>,
-    cells: Vec<CellSummary>,
-    bad_messages: u64,
+    pub update_rate_hz: f64,
+    /// How the nodes reached each other.
+    pub mesh: Mesh,
+    /// The endpoint every node connected to: the router's (the central
+    /// unit's with `--mesh peer`); it tells this run's processes apart.
+    pub central_endpoint: String,
+    pub zenoh_hop_p50_us: Option<f64>,
+    pub zenoh_hop_p99_us: Option<f64>,
+    pub robots: Vec<RobotSummary>,
+    pub cells: Vec<CellSummary>,
+    pub bad_messages: u64,
+    /// Cycles the central unit triggered while the run was watched.
+    pub cycles_triggered: u64,
+    /// Of those, per second of the run.
+    pub cycles_per_s: f64,
+    /// CPU time and peak memory per kind of process, read just before they stopped.
+    pub processes: Vec<usage::KindUsage>,
 }
 
 /// Runs `ickon sim` and returns the exit code.
 pub fn run(args: SimArgs) -> ExitCode {
+    let (site, profile) = match check_args(&args) {
+        Ok(checked) => checked,
+        Err(code) => return code,
+    };
+    match ickon_runtime::block_on(2, measure(&args, &site, &profile)) {
+        None => ExitCode::from(EXIT_FAILURE),
+        Some(Err(e)) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(EXIT_FAILURE)
+        }
+        Some(Ok(Err(code))) => code,
+        Some(Ok(Ok((report, failure)))) => {
+            if args.json {
+                match serde_json::to_string_pretty(&report) {
+                    Ok(text) => println!("{text}"),
+                    Err(e) => eprintln!("error: {e}"),
+                }
+            } else {
+                print!("{}", render_report(&report));
+            }
+            match failure {
+                Some(why) => {
+                    eprintln!("error: {why}");
+                    ExitCode::from(EXIT_FAILURE)
+                }
+                None => ExitCode::SUCCESS,
+            }
+        }
+    }
+}
+
+/// Loads the site and checks the flags; on bad input, says why and gives exit code 2.
+pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProfile), ExitCode> {
     let (site, _text, _name) = match Site::load_or_default(args.site.as_deref()) {
         Ok(loaded) => loaded,
         Err(e) => {
             eprintln!("error: {e}");
-            return ExitCode::from(EXIT_BAD_INPUT);
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
         }
     };
     if args.robots == 0 || args.robots > site.robots.len() {
@@ -115,43 +174,42 @@ pub fn run(args: SimArgs) -> ExitCode {
             site.robots.len(),
             site.robots.len()
         );
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
     let profile = match ickon_sim::profile::NoiseProfile::by_name(&args.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
-            return ExitCode::from(EXIT_BAD_INPUT);
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
         }
     };
     if let Err(e) = ickon_fusion::estimator::EstimatorConfig::default_for(&args.estimator) {
         eprintln!("error: {e}");
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
         eprintln!("error: --duration must be between 0 and 86400 seconds");
-        return ExitCode::from(EXIT_BAD_INPUT);
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
-    match ickon_runtime::block_on(2, run_mesh(&args, &site, &profile)) {
-        Some(Ok(code)) => code,
-        None => ExitCode::from(EXIT_FAILURE),
-        Some(Err(e)) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(EXIT_FAILURE)
-        }
-    }
+    Ok((site, profile))
 }
 
-async fn run_mesh(
+/// What a run gives: its report and, if it failed, why; or, when it could
+/// not start (already said on stderr), the exit code.
+pub type Measured = Result<(SimReport, Option<String>), ExitCode>;
+
+/// Runs the mesh once and measures it (`ickon sim`, and each size of `ickon bench scale`).
+pub async fn measure(
     args: &SimArgs,
     site: &Site,
     profile: &ickon_sim::profile::NoiseProfile,
-) -> anyhow::Result<ExitCode> {
+) -> anyhow::Result<Measured> {
     let keys = Keys::new(&site.name)?;
     let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
     let update_rate_hz =
         ickon_central::update_rate_hz(&ickon_central::compute_schedule(site, &all_cells, 1, 0)?);
-    let central = format!("tcp/127.0.0.1:{}", free_port()?);
+    let hub_port = free_port()?;
+    let hub = format!("tcp/127.0.0.1:{hub_port}");
     let robots: Vec<String> = site
         .robots
         .iter()
@@ -161,11 +219,21 @@ async fn run_mesh(
     let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
     let mut sup = supervisor::Supervisor::new();
 
-    sup.spawn(
-        "central",
-        node_command(args, site, "central", "", &central)?,
-    )?;
-    let session = open_observer(&central).await?;
+    let mut central_cmd = match args.mesh {
+        Mesh::Router => {
+            sup.spawn("router", router_command(&hub)?)?;
+            if let Err(e) = wait_for_listener(hub_port, &mut sup, STARTUP_TIMEOUT).await {
+                sup.stop_all(STOP_GRACE);
+                eprintln!("error: {e:#}");
+                return Ok(Err(ExitCode::from(EXIT_FAILURE)));
+            }
+            node_command(args, site, "central", &hub, "")?
+        }
+        Mesh::Peer => node_command(args, site, "central", "", &hub)?,
+    };
+    let web = launch::http_flags(args, &mut central_cmd)?;
+    sup.spawn("central", central_cmd)?;
+    let session = open_observer(&hub, args.mesh).await?;
     let alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all())
@@ -173,12 +241,12 @@ async fn run_mesh(
         .await
         .map_err(|e| anyhow::anyhow!("liveliness subscriber: {e}"))?;
     for cell in &site.cells {
-        let mut cmd = node_command(args, site, "cell", &central, "tcp/127.0.0.1:0")?;
+        let mut cmd = node_command(args, site, "cell", &hub, "tcp/127.0.0.1:0")?;
         cmd.args(["--cell", &cell.id])
             .args(clock_flags(&mut clocks));
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }
-    let mut world = node_command(args, site, "world", &central, "tcp/127.0.0.1:0")?;
+    let mut world = node_command(args, site, "world", &hub, "tcp/127.0.0.1:0")?;
     world.args([
         "--robots",
         &robots.join(","),
@@ -202,7 +270,7 @@ async fn run_mesh(
         drive.geometry(),
     )?)?;
     for robot in &robots {
-        let mut cmd = node_command(args, site, "msu", &central, "tcp/127.0.0.1:0")?;
+        let mut cmd = node_command(args, site, "msu", &hub, "tcp/127.0.0.1:0")?;
         cmd.args(["--robot", robot, "--config"])
             .arg(msu_file.path());
         if args.ros2 {
@@ -245,7 +313,7 @@ async fn run_mesh(
         if let Some(dead) = sup.first_dead() {
             sup.stop_all(STOP_GRACE);
             eprintln!("error: node {} {} during start-up", dead.name, dead.status);
-            return Ok(ExitCode::from(EXIT_FAILURE));
+            return Ok(Err(ExitCode::from(EXIT_FAILURE)));
         }
         if started.elapsed() > STARTUP_TIMEOUT {
             sup.stop_all(STOP_GRACE);
@@ -277,7 +345,7 @@ async fn run_mesh(
     let run_dir = ickon_runtime::RunDir::standard();
     let run = ickon_runtime::RunFile {
         site: site.name.clone(),
-        central: vec![central.clone()],
+        central: vec![hub.clone()],
         pid: std::process::id(),
         started_unix_s: std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -286,11 +354,15 @@ async fn run_mesh(
     if let Err(e) = run_dir.write(&run) {
         eprintln!("warning: `ickon admin` will not find this run: {e}");
     }
-    let outcome = observe(
-        args, site, &keys, &session, &central, &alive, &mut sup, quiet,
-    )
-    .await;
+    if let Some(addr) = web {
+        eprintln!("ickon sim: live map at http://{addr}/");
+    }
+    let outcome = observe(args, site, &keys, &session, &hub, &alive, &mut sup, quiet).await;
     let _ = run_dir.remove(&site.name, run.pid);
+    let mut used = sup.usage();
+    if let Some(me) = usage::read(std::process::id()) {
+        used.push(("launcher".to_string(), me));
+    }
     let killed = sup.stop_all(STOP_GRACE);
     let _ = session.close().await;
     let (stats, failure) = outcome?;
@@ -301,6 +373,7 @@ async fn run_mesh(
             killed.join(", ")
         );
     }
+    let completed = metrics::completed_cycles(&stats.cycles_triggered);
     let report = SimReport {
         site: site.name.clone(),
         profile: args.profile.clone(),
@@ -309,7 +382,8 @@ async fn run_mesh(
         ros2: args.ros2,
         duration_s: args.duration,
         update_rate_hz,
-        central_endpoint: central.clone(),
+        mesh: args.mesh,
+        central_endpoint: hub.clone(),
         zenoh_hop_p50_us: metrics::percentile(&stats.hop_latencies_us, 50.0),
         zenoh_hop_p99_us: metrics::percentile(&stats.hop_latencies_us, 99.0),
         robots: robots
@@ -318,8 +392,8 @@ async fn run_mesh(
                 stats
                     .robots
                     .get(r)
-                    .map(|s| s.summary(r))
-                    .unwrap_or_else(|| metrics::RobotStats::default().summary(r))
+                    .map(|s| s.summary(r, completed.len()))
+                    .unwrap_or_else(|| metrics::RobotStats::default().summary(r, completed.len()))
             })
             .collect(),
         cells: site
@@ -329,22 +403,14 @@ async fn run_mesh(
                 stats
                     .cells
                     .get(&c.id)
-                    .map(|s| s.summary(&c.id))
-                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id))
+                    .map(|s| s.summary(&c.id, &completed))
+                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id, &completed))
             })
             .collect(),
         bad_messages: stats.bad_messages.values().sum(),
+        cycles_triggered: stats.cycles_triggered.len() as u64,
+        cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
+        processes: usage::by_kind(&used),
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", render_report(&report));
-    }
-    match failure {
-        Some(why) => {
-            eprintln!("error: {why}");
-            Ok(ExitCode::from(EXIT_FAILURE))
-        }
-        None => Ok(ExitCode::SUCCESS),
-    }
+    Ok(Ok((report, failure)))
 }

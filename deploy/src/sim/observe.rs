@@ -4,28 +4,31 @@
 use std::time::{Duration, Instant};
 
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::control::Burst;
+use ickon_proto::msg::control::{Burst, CycleTrigger};
 use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use zenoh::sample::SampleKind;
 
 use super::metrics::RunStats;
 use super::report::status_line;
-use super::{SimArgs, supervisor};
+use super::{Mesh, SimArgs, supervisor};
 
-pub(super) async fn open_observer(central: &str) -> anyhow::Result<zenoh::Session> {
+/// The launcher's own session: a client of the run's router, or a peer of
+/// the full mesh (`Mesh::Peer`), connected to `hub`.
+pub(super) async fn open_observer(hub: &str, mesh: Mesh) -> anyhow::Result<zenoh::Session> {
     let mut config = zenoh::Config::default();
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
         c.insert_json5(k, v)
             .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
     };
-    set(&mut config, "mode", "\"peer\"")?;
-    set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
-    set(
-        &mut config,
-        "connect/endpoints",
-        &format!("[\"{central}\"]"),
-    )?;
+    match mesh {
+        Mesh::Router => set(&mut config, "mode", "\"client\"")?,
+        Mesh::Peer => {
+            set(&mut config, "mode", "\"peer\"")?;
+            set(&mut config, "listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
+        }
+    }
+    set(&mut config, "connect/endpoints", &format!("[\"{hub}\"]"))?;
     set(&mut config, "scouting/multicast/enabled", "false")?;
     zenoh::open(config)
         .await
@@ -56,7 +59,7 @@ pub(super) async fn observe(
     site: &Site,
     keys: &Keys,
     session: &zenoh::Session,
-    central: &str,
+    hub: &str,
     alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     sup: &mut supervisor::Supervisor,
     quiet: bool,
@@ -82,10 +85,14 @@ pub(super) async fn observe(
         .declare_subscriber(keys.sim_truth_all())
         .await
         .map_err(z)?;
+    let triggers = session
+        .declare_subscriber(keys.central_cycle())
+        .await
+        .map_err(z)?;
 
     // The plain one-hop latency: a second session in this process subscribes
     // to probes the observer publishes; both share this process's clock.
-    let probe_session = open_observer(central).await?;
+    let probe_session = open_observer(hub, args.mesh).await?;
     let probe_sub = probe_session
         .declare_subscriber(keys.sim_probe())
         .await
@@ -147,6 +154,12 @@ pub(super) async fn observe(
                 let key = s.key_expr().as_str().to_string();
                 if let (Ok(Key::Robot(id, _)), Some(p)) = (keys.parse(&key), decode_or_count::<RobotPose>(&mut stats, &key, &s.payload().to_bytes())) {
                     stats.robots.entry(id).or_default().on_pose(&p, at);
+                }
+            }
+            Ok(s) = triggers.recv_async() => {
+                let key = s.key_expr().as_str().to_string();
+                if let Some(t) = decode_or_count::<CycleTrigger>(&mut stats, &key, &s.payload().to_bytes()) {
+                    stats.cycles_triggered.insert(t.cycle);
                 }
             }
             Ok(s) = truth.recv_async() => {

@@ -45,6 +45,14 @@ impl Supervisor {
         Ok(())
     }
 
+    /// CPU time and peak memory of every child still running, by name.
+    pub fn usage(&self) -> Vec<(String, super::usage::ProcUsage)> {
+        self.nodes
+            .iter()
+            .filter_map(|n| Some((n.name.clone(), super::usage::read(n.child.id())?)))
+            .collect()
+    }
+
     /// Number of children spawned.
     pub fn len(&self) -> usize {
         self.nodes.len()

@@ -45,52 +45,56 @@ pub const DEFAULT_TF_TOLERANCE_S: f64 = 1.0;
 pub struct Ros2Options {
     /// Speak ROS 2: publish the pose, the fix and `map -> odom`, and read
     /// odometry and IMU from ROS 2 topics.
-    #[arg(long = "ros2")]
+    #[arg(id = "ros2", long = "ros2")]
     pub enabled: bool,
     /// rmw-zenoh (ROS 2 on Zenoh) or bridge (DDS behind zenoh-bridge-ros2dds).
-    #[arg(long = "ros2-mode", value_enum, default_value_t = Ros2Mode::RmwZenoh)]
+    #[arg(id = "ros2_mode", long = "ros2-mode", value_enum, default_value_t = Ros2Mode::RmwZenoh)]
     pub mode: Ros2Mode,
     /// ROS domain id; default `ROS_DOMAIN_ID`, else 0.
-    #[arg(long = "ros2-domain")]
+    #[arg(id = "ros2_domain", long = "ros2-domain")]
     pub domain: Option<u32>,
     /// Namespace of the node and its relative topics; default `/<robot id>`.
-    #[arg(long = "ros2-namespace")]
+    #[arg(id = "ros2_namespace", long = "ros2-namespace")]
     pub namespace: Option<String>,
     /// Node name (what `ros2 node list` shows).
-    #[arg(long = "ros2-node-name", default_value = DEFAULT_NODE_NAME)]
+    #[arg(id = "ros2_node_name", long = "ros2-node-name", default_value = DEFAULT_NODE_NAME)]
     pub node_name: String,
     /// The bridge's namespace (`zenoh-bridge-ros2dds --namespace`), bridge mode only.
-    #[arg(long = "ros2-bridge-namespace", default_value = "")]
+    #[arg(
+        id = "ros2_bridge_namespace",
+        long = "ros2-bridge-namespace",
+        default_value = ""
+    )]
     pub bridge_namespace: String,
     /// Fused pose topic (`geometry_msgs/msg/PoseWithCovarianceStamped`).
-    #[arg(long = "ros2-pose-topic", default_value = DEFAULT_POSE_TOPIC)]
+    #[arg(id = "ros2_pose_topic", long = "ros2-pose-topic", default_value = DEFAULT_POSE_TOPIC)]
     pub pose_topic: String,
     /// Raw fix topic (same type).
-    #[arg(long = "ros2-fix-topic", default_value = DEFAULT_FIX_TOPIC)]
+    #[arg(id = "ros2_fix_topic", long = "ros2-fix-topic", default_value = DEFAULT_FIX_TOPIC)]
     pub fix_topic: String,
     /// Transform topic (`tf2_msgs/msg/TFMessage`).
-    #[arg(long = "ros2-tf-topic", default_value = DEFAULT_TF_TOPIC)]
+    #[arg(id = "ros2_tf_topic", long = "ros2-tf-topic", default_value = DEFAULT_TF_TOPIC)]
     pub tf_topic: String,
     /// Odometry input topic (`nav_msgs/msg/Odometry`).
-    #[arg(long = "ros2-odom-topic", default_value = DEFAULT_ODOM_TOPIC)]
+    #[arg(id = "ros2_odom_topic", long = "ros2-odom-topic", default_value = DEFAULT_ODOM_TOPIC)]
     pub odom_topic: String,
     /// IMU input topic (`sensor_msgs/msg/Imu`; its z rate is the gyro).
-    #[arg(long = "ros2-imu-topic", default_value = DEFAULT_IMU_TOPIC)]
+    #[arg(id = "ros2_imu_topic", long = "ros2-imu-topic", default_value = DEFAULT_IMU_TOPIC)]
     pub imu_topic: String,
     /// Fixed frame of the pose and parent of the transform.
-    #[arg(long = "ros2-map-frame", default_value = DEFAULT_MAP_FRAME)]
+    #[arg(id = "ros2_map_frame", long = "ros2-map-frame", default_value = DEFAULT_MAP_FRAME)]
     pub map_frame: String,
     /// Odometry frame, child of the transform.
-    #[arg(long = "ros2-odom-frame", default_value = DEFAULT_ODOM_FRAME)]
+    #[arg(id = "ros2_odom_frame", long = "ros2-odom-frame", default_value = DEFAULT_ODOM_FRAME)]
     pub odom_frame: String,
     /// Read odometry and IMU from ROS 2 (`false`: publish only).
-    #[arg(long = "ros2-inputs", action = clap::ArgAction::Set, default_value_t = true)]
+    #[arg(id = "ros2_inputs", long = "ros2-inputs", action = clap::ArgAction::Set, default_value_t = true)]
     pub inputs: bool,
     /// Publish `map -> odom` on the transform topic.
-    #[arg(long = "ros2-tf", action = clap::ArgAction::Set, default_value_t = true)]
+    #[arg(id = "ros2_tf", long = "ros2-tf", action = clap::ArgAction::Set, default_value_t = true)]
     pub publish_tf: bool,
     /// How far ahead `map -> odom` is stamped, seconds (AMCL's `transform_tolerance`).
-    #[arg(long = "ros2-tf-tolerance-s", default_value_t = DEFAULT_TF_TOLERANCE_S)]
+    #[arg(id = "ros2_tf_tolerance_s", long = "ros2-tf-tolerance-s", default_value_t = DEFAULT_TF_TOLERANCE_S)]
     pub tf_tolerance_s: f64,
 }
 

@@ -42,8 +42,8 @@ pub fn contains(polygon: &[Point2], p: Point2, tol_m: f64) -> bool {
     inside
 }
 
-/// Distance from `p` to the segment `a`-`b`, metres.
-pub fn distance_to_segment(p: Point2, a: Point2, b: Point2) -> f64 {
+/// The point of the segment `a`-`b` nearest to `p`.
+pub fn closest_on_segment(p: Point2, a: Point2, b: Point2) -> Point2 {
     let ab = [b[0] - a[0], b[1] - a[1]];
     let len2 = ab[0] * ab[0] + ab[1] * ab[1];
     let t = if len2 > 0.0 {
@@ -51,7 +51,12 @@ pub fn distance_to_segment(p: Point2, a: Point2, b: Point2) -> f64 {
     } else {
         0.0
     };
-    let q = [a[0] + t * ab[0], a[1] + t * ab[1]];
+    [a[0] + t * ab[0], a[1] + t * ab[1]]
+}
+
+/// Distance from `p` to the segment `a`-`b`, metres.
+pub fn distance_to_segment(p: Point2, a: Point2, b: Point2) -> f64 {
+    let q = closest_on_segment(p, a, b);
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
 }
 

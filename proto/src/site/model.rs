@@ -90,6 +90,55 @@ impl Route {
     pub fn length_m(&self) -> f64 {
         geometry::polyline_length(&self.points, self.closed)
     }
+
+    /// The point of the route nearest to `p`, and the index of the segment it lies on.
+    pub fn nearest_point(&self, p: Point2) -> (Point2, usize) {
+        let mut best = (f64::INFINITY, self.points.first().copied().unwrap_or(p), 0);
+        for (i, (a, b)) in geometry::polyline_segments(&self.points, self.closed).enumerate() {
+            let q = geometry::closest_on_segment(p, a, b);
+            let d = (q[0] - p[0]).hypot(q[1] - p[1]);
+            if d < best.0 {
+                best = (d, q, i);
+            }
+        }
+        (best.1, best.2)
+    }
+
+    /// The route as a robot starting at `p` drives it: it begins at the
+    /// route's point nearest to `p` and then follows the same vertices (a
+    /// closed route comes round to where it began; an open one drops what lies
+    /// before). Robots sharing a route start spread along it this way, each
+    /// on its own copy. Reference points are kept as they are.
+    pub fn starting_near(&self, p: Point2) -> Route {
+        let (q, seg) = self.nearest_point(p);
+        let n = self.points.len();
+        let tail: Vec<Point2> = if self.closed {
+            (1..=n).map(|k| self.points[(seg + k) % n]).collect()
+        } else {
+            self.points[(seg + 1).min(n)..].to_vec()
+        };
+        let mut points = vec![q];
+        for v in tail {
+            let last = points[points.len() - 1];
+            if (v[0] - last[0]).hypot(v[1] - last[1]) > 1e-9 {
+                points.push(v);
+            }
+        }
+        // The closing vertex may coincide with the new start.
+        if self.closed && points.len() > 1 {
+            let last = points[points.len() - 1];
+            if (q[0] - last[0]).hypot(q[1] - last[1]) <= 1e-9 {
+                points.pop();
+            }
+        }
+        if points.len() < 2 {
+            return self.clone();
+        }
+        Route {
+            points,
+            ..self.clone()
+        }
+    }
 }
 
 /// A robot and the route it drives.

@@ -25,6 +25,9 @@ const DEFAULT_REFERENCE_POINTS: i64 = 60;
 const DEFAULT_ROUTE_SPEED_M_S: f64 = 0.3;
 /// Cells need at least this many transmitters for a 2D fix with known height.
 const MIN_TRANSMITTERS_PER_CELL: usize = 3;
+/// How far a robot's `start` may lie from its route: the world starts it on the
+/// route, so its filter's start pose must be there too.
+const MAX_START_OFF_ROUTE_M: f64 = 0.5;
 
 struct Ctx<'a> {
     text: &'a str,
@@ -580,14 +583,31 @@ fn validate_robots(ctx: &mut Ctx, raw: &[RawRobot], site: &Site) -> Vec<RobotSpe
         let start = match (&r.start, route) {
             (Some(s), _) => {
                 let v = *s.get_ref();
-                if ctx.finite_all(s.span(), &format!("{field}.start"), &v)
-                    && site.cell_at([v[0], v[1]]).is_none()
-                {
-                    ctx.issue(
-                        s.span(),
-                        format!("{field}.start"),
-                        format!("start ({}, {}) lies outside every cell", v[0], v[1]),
-                    );
+                if ctx.finite_all(s.span(), &format!("{field}.start"), &v) {
+                    if site.cell_at([v[0], v[1]]).is_none() {
+                        ctx.issue(
+                            s.span(),
+                            format!("{field}.start"),
+                            format!("start ({}, {}) lies outside every cell", v[0], v[1]),
+                        );
+                    }
+                    // The world starts the robot on its route at the point
+                    // nearest `start`; far from it, the pose given to the
+                    // robot's filter would be wrong.
+                    if let Some(route) = route.filter(|r| r.points.len() >= 2) {
+                        let (q, _) = route.nearest_point([v[0], v[1]]);
+                        let off_m = (q[0] - v[0]).hypot(q[1] - v[1]);
+                        if off_m > MAX_START_OFF_ROUTE_M {
+                            ctx.issue(
+                                s.span(),
+                                format!("{field}.start"),
+                                format!(
+                                    "start ({}, {}) is {off_m:.2} m from route {:?}: at most {MAX_START_OFF_ROUTE_M} m",
+                                    v[0], v[1], route.name
+                                ),
+                            );
+                        }
+                    }
                 }
                 [v[0], v[1], v[2].to_radians()]
             }

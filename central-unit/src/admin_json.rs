@@ -1,0 +1,292 @@
+//! The JSON documents of the admin answers, shared by `ickon admin --json`
+//! and the web map's `/api/*` endpoints so that both say the same thing in
+//! the same shape.
+//!
+//! JSON uses the units of the wire messages converted for people where a
+//! name says so (`sync_error_us`, `offset_us`, `drift_ppm`, `period_ms`);
+//! a figure that is not known yet is `null`, never a made-up zero.
+
+use ickon_proto::msg::admin::{CellHealth, CoverageReport, RobotHealth, StatusReport};
+use ickon_proto::msg::control::Schedule;
+use serde::Serialize;
+
+/// One cell in JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct CellJson {
+    /// Cell id.
+    pub id: String,
+    /// `up` or `down`.
+    pub state: &'static str,
+    /// The last triggered cycle when `state` last changed.
+    pub state_since_cycle: u64,
+    /// Largest |actual - scheduled| of its recent bursts, microseconds.
+    pub sync_error_us: Option<f64>,
+    /// RMS of the same residuals, microseconds.
+    pub sync_error_rms_us: Option<f64>,
+    /// Bursts behind the two figures above.
+    pub residual_samples: u32,
+    /// The cell's own one-sigma estimate, microseconds.
+    pub sync_sigma_us: f64,
+    /// Estimated offset master minus cell clock, microseconds.
+    pub offset_us: f64,
+    /// Estimated drift of the cell clock, ppm.
+    pub drift_ppm: f64,
+    /// Cycles fired since the central unit started.
+    pub cycles_fired: u64,
+    /// Last cycle it fired.
+    pub last_cycle_fired: u64,
+    /// Scheduled cycles it did not fire.
+    pub cycles_missed: u64,
+    /// Slots it skipped (its own count).
+    pub slots_skipped: u64,
+}
+
+impl From<&CellHealth> for CellJson {
+    fn from(c: &CellHealth) -> Self {
+        let measured = c.residual_samples > 0;
+        Self {
+            id: c.id.clone(),
+            state: if c.up { "up" } else { "down" },
+            state_since_cycle: c.state_since_cycle,
+            sync_error_us: measured.then_some(c.residual_max_ns as f64 / 1e3),
+            sync_error_rms_us: measured.then_some(c.residual_rms_ns as f64 / 1e3),
+            residual_samples: c.residual_samples,
+            sync_sigma_us: c.sync_sigma_ns as f64 / 1e3,
+            offset_us: c.offset_ns as f64 / 1e3,
+            drift_ppm: c.drift_ppb as f64 / 1e3,
+            cycles_fired: c.cycles_fired,
+            last_cycle_fired: c.last_cycle_fired,
+            cycles_missed: c.cycles_missed,
+            slots_skipped: c.slots_skipped,
+        }
+    }
+}
+
+/// A robot's last pose in JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct PoseJson {
+    /// Position, metres.
+    pub x_m: f64,
+    /// Position, metres.
+    pub y_m: f64,
+    /// Heading, radians.
+    pub theta_rad: f64,
+}
+
+/// One robot in JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct RobotJson {
+    /// Robot id.
+    pub id: String,
+    /// `up` or `down`.
+    pub state: &'static str,
+    /// Fixes per second over the last few seconds.
+    pub fixes_per_s: f64,
+    /// Estimator named in its last pose.
+    pub estimator: Option<String>,
+    /// Its last pose, if any.
+    pub pose: Option<PoseJson>,
+}
+
+impl From<&RobotHealth> for RobotJson {
+    fn from(r: &RobotHealth) -> Self {
+        Self {
+            id: r.id.clone(),
+            state: if r.up { "up" } else { "down" },
+            fixes_per_s: r.fixes_per_s,
+            estimator: (!r.estimator.is_empty()).then(|| r.estimator.clone()),
+            pose: r.pose_valid.then_some(PoseJson {
+                x_m: r.x_m,
+                y_m: r.y_m,
+                theta_rad: r.theta_rad,
+            }),
+        }
+    }
+}
+
+/// `status --json` (and `cells`, `robots`, `sync`, which leave a part out).
+#[derive(Debug, Clone, Serialize)]
+pub struct StatusJson {
+    /// Site name.
+    pub site: String,
+    /// Last cycle triggered.
+    pub cycle: u64,
+    /// Whether cycle triggers are paused.
+    pub paused: bool,
+    /// Version of the schedule in force.
+    pub schedule_version: u32,
+    /// Cycles per second of the schedule in force.
+    pub update_rate_hz: f64,
+    /// Every cell, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cells: Option<Vec<CellJson>>,
+    /// Every robot seen, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robots: Option<Vec<RobotJson>>,
+}
+
+impl StatusJson {
+    /// The document of `s`, with its cells and/or robots.
+    pub fn new(s: &StatusReport, cells: bool, robots: bool) -> Self {
+        Self {
+            site: s.site.clone(),
+            cycle: s.cycle,
+            paused: s.paused,
+            schedule_version: s.schedule_version,
+            update_rate_hz: s.update_rate_hz,
+            cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
+            robots: robots.then(|| s.robots.iter().map(RobotJson::from).collect()),
+        }
+    }
+}
+
+/// `schedule --json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScheduleJson {
+    /// Schedule version.
+    pub version: u32,
+    /// First cycle it is used in.
+    pub effective_cycle: u64,
+    /// Cycle period, milliseconds.
+    pub period_ms: f64,
+    /// Slot length, milliseconds.
+    pub slot_ms: f64,
+    /// Cycles per second.
+    pub update_rate_hz: f64,
+    /// Cells that fire.
+    pub active_cells: Vec<String>,
+    /// Every emission of a cycle.
+    pub emissions: Vec<EmissionJson>,
+}
+
+/// One emission of a schedule in JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct EmissionJson {
+    /// Transmitter id.
+    pub tx_id: u32,
+    /// Its cell.
+    pub cell_id: String,
+    /// Its slot.
+    pub slot: u32,
+    /// Its offset from the cycle start, milliseconds.
+    pub offset_ms: f64,
+}
+
+impl From<&Schedule> for ScheduleJson {
+    fn from(s: &Schedule) -> Self {
+        let ms = |d: ickon_proto::time::Duration| d.as_secs_f64() * 1e3;
+        Self {
+            version: s.version,
+            effective_cycle: s.effective_cycle,
+            period_ms: ms(s.cycle_period),
+            slot_ms: ms(s.slot_length),
+            update_rate_hz: crate::schedule::update_rate_hz(s),
+            active_cells: s.active_cells.clone(),
+            emissions: s
+                .emissions
+                .iter()
+                .map(|e| EmissionJson {
+                    tx_id: e.tx_id,
+                    cell_id: e.cell_id.clone(),
+                    slot: e.slot,
+                    offset_ms: ms(e.offset),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Figures of a coverage grid over the points on the floor.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CoverageSummary {
+    /// Grid points on the floor.
+    pub floor_points: usize,
+    /// Of those, points where a 2D fix is possible (HDOP > 0).
+    pub fix_points: usize,
+    /// `fix_points / floor_points`.
+    pub fix_share: f64,
+    /// Fewest transmitters heard at a floor point.
+    pub visible_min: Option<u32>,
+    /// Median HDOP where a fix is possible.
+    pub hdop_median: Option<f64>,
+    /// 95th percentile of the HDOP where a fix is possible.
+    pub hdop_p95: Option<f64>,
+    /// Largest HDOP where a fix is possible.
+    pub hdop_max: Option<f64>,
+}
+
+/// Summarises a coverage grid.
+pub fn coverage_summary(r: &CoverageReport) -> CoverageSummary {
+    let floor: Vec<usize> = (0..r.on_floor.len()).filter(|&i| r.on_floor[i]).collect();
+    let mut hdops: Vec<f64> = floor
+        .iter()
+        .filter_map(|&i| r.hdop.get(i).copied())
+        .filter(|&h| h > 0.0)
+        .collect();
+    hdops.sort_by(f64::total_cmp);
+    let rank = |p: f64| -> Option<f64> {
+        let n = hdops.len();
+        (n > 0).then(|| hdops[(((p / 100.0) * n as f64).ceil() as usize).clamp(1, n) - 1])
+    };
+    CoverageSummary {
+        floor_points: floor.len(),
+        fix_points: hdops.len(),
+        fix_share: if floor.is_empty() {
+            0.0
+        } else {
+            hdops.len() as f64 / floor.len() as f64
+        },
+        visible_min: floor
+            .iter()
+            .filter_map(|&i| r.visible.get(i).copied())
+            .min(),
+        hdop_median: rank(50.0),
+        hdop_p95: rank(95.0),
+        hdop_max: hdops.last().copied(),
+    }
+}
+
+/// `coverage --json`.
+#[derive(Debug, Serialize)]
+pub struct CoverageJson<'a> {
+    /// Version of the schedule whose transmitters were counted.
+    pub schedule_version: u32,
+    /// Grid spacing, metres.
+    pub resolution_m: f64,
+    /// Receiver height, metres.
+    pub height_m: f64,
+    /// x of the first grid point, metres.
+    pub origin_x_m: f64,
+    /// y of the first grid point, metres.
+    pub origin_y_m: f64,
+    /// Columns (along x).
+    pub columns: u32,
+    /// Rows (along y).
+    pub rows: u32,
+    /// Figures over the floor.
+    pub summary: CoverageSummary,
+    /// Whether each point is on the floor (row-major from the lower left).
+    pub on_floor: &'a [bool],
+    /// Transmitters in line of sight at each point.
+    pub visible: &'a [u32],
+    /// HDOP at each point (0: no fix).
+    pub hdop: &'a [f64],
+}
+
+impl<'a> From<&'a CoverageReport> for CoverageJson<'a> {
+    fn from(r: &'a CoverageReport) -> Self {
+        Self {
+            schedule_version: r.schedule_version,
+            resolution_m: r.resolution_m,
+            height_m: r.height_m,
+            origin_x_m: r.origin_x_m,
+            origin_y_m: r.origin_y_m,
+            columns: r.columns,
+            rows: r.rows,
+            summary: coverage_summary(r),
+            on_floor: &r.on_floor,
+            visible: &r.visible,
+            hdop: &r.hdop,
+        }
+    }
+}

@@ -90,6 +90,29 @@ fn publish_once(session: &zenoh::Session, options: &Ros2Options) {
     });
 }
 
+/// Waits until `observer` sees a token of `node`: the two sessions are
+/// connected and the observer's subscribers are known to the node.
+fn wait_connected(observer: &Observer, node: &Observer) {
+    let probe = "ickon_test/probe";
+    let seen = observer
+        .session()
+        .liveliness()
+        .declare_subscriber(probe)
+        .history(true)
+        .wait()
+        .expect("probe subscriber");
+    let _token = node
+        .session()
+        .liveliness()
+        .declare_token(probe)
+        .wait()
+        .expect("probe token");
+    poll_until(WAIT, "the two sessions to connect", || {
+        seen.try_recv().ok().flatten().map(|_| ())
+    })
+    .expect("sessions connect");
+}
+
 fn collect(sub: &Subscriber<FifoChannelHandler<Sample>>, n: usize) -> Vec<Sample> {
     let mut got = Vec::new();
     poll_until(WAIT, "the ROS 2 samples", || {
@@ -138,6 +161,7 @@ fn rmw_zenoh_keys_attachments_tokens_and_payloads_are_what_ros2_expects() {
         enabled: true,
         ..Ros2Options::default()
     };
+    wait_connected(&observer, &node);
     publish_once(node.session(), &options);
 
     // Tokens: the node, three publishers, two subscribers (ROS2.md).
@@ -275,6 +299,7 @@ fn bridge_mode_publishes_on_the_bare_topic_without_attachment_or_tokens() {
         mode: Ros2Mode::Bridge,
         ..Ros2Options::default()
     };
+    wait_connected(&observer, &node);
     publish_once(node.session(), &options);
     let samples = collect(&data, 3);
     let keys: BTreeSet<&str> = samples.iter().map(|s| s.key_expr().as_str()).collect();

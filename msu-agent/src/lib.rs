@@ -19,6 +19,8 @@ pub mod host;
 pub mod node;
 #[cfg(feature = "zenoh")]
 pub mod receivers;
+#[cfg(feature = "zenoh")]
+pub mod ros2;
 pub mod solver;
 pub mod time_gate;
 

@@ -23,6 +23,7 @@ use zenoh::Session;
 use zenoh::qos::{CongestionControl, Priority};
 
 use crate::receivers::{ReceiverKind, ReceiverSource};
+use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
 use crate::{Event, InputKind, MsuCore, MsuTuning, Output};
 
 /// How often the site and schedule are asked for until the central unit answers.
@@ -41,6 +42,8 @@ pub struct MsuSettings {
     pub tuning: MsuTuning,
     /// Where the arrivals come from.
     pub receivers: ReceiverKind,
+    /// The ROS 2 side, when enabled (validated).
+    pub ros2: Option<Ros2Plan>,
 }
 
 /// Counters of one agent's run, logged at the end.
@@ -197,6 +200,11 @@ pub async fn run(
         .await
         .map_err(zerr)?;
 
+    let mut ros = match settings.ros2.clone() {
+        Some(plan) => Some(Ros2Link::open(session, plan, settings.tuning.wheels).await?),
+        None => None,
+    };
+
     let mut n = MsuCounters::default();
     // Bad input is logged once per kind per window, with the count held back.
     let mut log_limit = LogLimiter::<&'static str>::default();
@@ -239,8 +247,18 @@ pub async fn run(
                     None
                 }
             },
+            // With --ros2: the robot's odometry and gyro from ROS 2 topics.
+            input = crate::ros2::next_input(&mut ros) => Some(match input {
+                Ros2Input::Odometry(msg) => Event::Odometry(msg),
+                Ros2Input::Imu(msg) => Event::Imu(msg),
+            }),
         };
         let Some(event) = event else { continue };
+        if let (Some(r), Event::Odometry(odom)) = (ros.as_mut(), &event) {
+            // The odometry frame's track, for map -> odom.
+            r.note_odometry(odom);
+        }
+        let mut ros_fix = None;
         for output in core.handle(event) {
             match output {
                 Output::Fix(fix) => {
@@ -248,12 +266,19 @@ pub async fn run(
                         n.failed_puts += 1;
                     }
                     n.fixes += 1;
+                    // Its ROS 2 copy waits until the pose that absorbed it is out.
+                    ros_fix = Some(fix);
                 }
                 Output::Pose(pose) => {
                     if !put_counted(&pose_pub, &pose).await {
                         n.failed_puts += 1;
                     }
                     n.poses += 1;
+                    // The ROS 2 copy after ours: it adds nothing ahead of it.
+                    // A pose after a fix in one batch absorbed it.
+                    if let Some(r) = ros.as_mut() {
+                        r.publish_pose(&pose, ros_fix.is_some()).await;
+                    }
                 }
                 Output::Refused { input, error } => {
                     n.refused_inputs += 1;
@@ -265,9 +290,15 @@ pub async fn run(
                 }
             }
         }
+        if let (Some(r), Some(fix)) = (ros.as_mut(), ros_fix) {
+            r.publish_fix(&fix).await;
+        }
     }
     n.queue_full = queue_full.load(Ordering::Relaxed);
     tracing::info!("robot {robot}: stopping: {n:?}");
+    if let Some(r) = &ros {
+        tracing::info!("robot {robot}: ros2: {:?}", r.counters());
+    }
     Ok(n)
 }
 
@@ -304,6 +335,10 @@ pub struct MsuArgs {
     /// Where the arrivals come from.
     #[arg(long, value_enum, default_value_t = ReceiverKind::Sim)]
     pub receivers: ReceiverKind,
+    /// The ROS 2 side (`--ros2` and `--ros2-*`); boxed, as it is most of
+    /// the arguments' size.
+    #[command(flatten)]
+    pub ros2: Box<Ros2Options>,
 }
 
 /// The agent's tuning from its flags: the configuration file or the
@@ -352,11 +387,24 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
                 .map_or(String::new(), |p| p.display().to_string())
         );
     }
+    let ros2 = if args.ros2.enabled {
+        let env_domain = std::env::var("ROS_DOMAIN_ID").ok();
+        match Ros2Plan::new(&args.ros2, &args.robot, env_domain.as_deref()) {
+            Ok(plan) => Some(plan),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    } else {
+        None
+    };
     let settings = MsuSettings {
         site_name: args.mesh.site_name.clone(),
         robot: args.robot.clone(),
         tuning,
         receivers: args.receivers,
+        ros2,
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

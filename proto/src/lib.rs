@@ -8,6 +8,8 @@
 //! - [`keys`]: the only place that spells a key expression.
 //! - [`time`]: [`Time`] and [`Duration`], integer nanoseconds.
 //! - [`msg`]: the messages, grouped by who sends them.
+//! - [`ros`]: ROS 2 over Zenoh (rmw_zenoh and the DDS bridge): keys,
+//!   liveliness tokens and the sample attachment.
 //! - [`site`]: the site model in TOML, its validation and the built-in default site.
 //!
 //! Conventions: SI units inside (metres, seconds, radians); field names carry
@@ -16,6 +18,7 @@
 pub mod codec;
 pub mod keys;
 pub mod msg;
+pub mod ros;
 pub mod site;
 pub mod time;
 mod wire_string;

@@ -26,6 +26,8 @@ pub mod profile;
 pub mod realtime;
 pub mod rng;
 pub mod robot;
+#[cfg(feature = "zenoh")]
+pub mod ros2_sensors;
 pub mod score;
 pub mod sensors;
 pub mod world;

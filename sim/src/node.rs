@@ -21,6 +21,7 @@ use zenoh::pubsub::Publisher;
 
 use crate::profile::NoiseProfile;
 use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
+use crate::ros2_sensors::RosSensorPublishers;
 
 /// Physics and sensors advance this often.
 const TICK: Duration = Duration::from_millis(5);
@@ -38,6 +39,9 @@ pub struct WorldSettings {
     pub profile: NoiseProfile,
     /// Run seed.
     pub seed: u64,
+    /// Publish odometry and gyro as ROS 2 topics (rmw_zenoh) instead of on
+    /// the ICKON keys.
+    pub ros2: bool,
 }
 
 /// One robot's publishers.
@@ -47,6 +51,8 @@ struct RobotPublishers {
     imu: Publisher<'static>,
     range: Publisher<'static>,
     truth: Publisher<'static>,
+    /// With `--ros2`: odometry and gyro go here instead.
+    ros: Option<RosSensorPublishers>,
 }
 
 /// Runs the world until `shutdown` completes; returns the bursts it heard.
@@ -120,6 +126,12 @@ pub async fn run(
                 .await
                 .map_err(zerr)?,
             truth: publisher(keys.sim_truth(id)?).await.map_err(zerr)?,
+            ros: if settings.ros2 {
+                let nid = u32::try_from(pubs.len()).unwrap_or(u32::MAX);
+                Some(RosSensorPublishers::open(session, id, nid).await?)
+            } else {
+                None
+            },
         });
     }
     tracing::info!(
@@ -163,7 +175,7 @@ pub async fn run(
         let outputs = world.handle(system_now(), event);
         let epoch = world.epoch().unwrap_or(Time::ZERO);
         for o in outputs {
-            publish(&pubs, o, epoch).await?;
+            publish(&mut pubs, o, epoch).await?;
         }
     }
     if world.bursts_ignored() > 0 {
@@ -175,7 +187,25 @@ pub async fn run(
     Ok(bursts_heard)
 }
 
-async fn publish(pubs: &[RobotPublishers], output: WorldOutput, t0: Time) -> Result<(), NodeError> {
+async fn publish(
+    pubs: &mut [RobotPublishers],
+    output: WorldOutput,
+    t0: Time,
+) -> Result<(), NodeError> {
+    // With --ros2 the robot's odometry and gyro are ROS 2 topics.
+    match &output {
+        WorldOutput::Odometry(i, m) => {
+            if let Some(ros) = pubs.get_mut(*i).and_then(|p| p.ros.as_mut()) {
+                return ros.odometry(m).await;
+            }
+        }
+        WorldOutput::Imu(i, m) => {
+            if let Some(ros) = pubs.get_mut(*i).and_then(|p| p.ros.as_mut()) {
+                return ros.imu(m).await;
+            }
+        }
+        _ => {}
+    }
     let (robot, bytes, publisher) = match &output {
         WorldOutput::Imu(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.imu)),
         WorldOutput::Odometry(i, m) => (*i, encode(m)?, pubs.get(*i).map(|p| &p.odom)),
@@ -211,6 +241,10 @@ pub struct WorldArgs {
     /// Seed of every random draw.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Publish each robot's odometry and gyro as ROS 2 topics (rmw_zenoh,
+    /// domain 0, `/<robot>/odom` and `/<robot>/imu`) instead of on the ICKON keys.
+    #[arg(long)]
+    pub ros2: bool,
 }
 
 /// Runs the world as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
@@ -228,6 +262,7 @@ pub fn main_with(args: WorldArgs) -> ExitCode {
         robots: args.robots.clone(),
         profile,
         seed: args.seed,
+        ros2: args.ros2,
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

@@ -10,7 +10,9 @@
 //!   polling a condition, never by sleeping a guessed time;
 //! - [`observer`]: [`Observer`], a Zenoh session of the test itself,
 //!   listening on `tcp/127.0.0.1:0` with multicast scouting off, its bound
-//!   locators read back.
+//!   locators read back;
+//! - [`rosbags`]: [`Rosbags`], the independent ROS 2 CDR decoder and
+//!   encoder (PyPI `rosbags`) the ROS 2 tests check against.
 //!
 //! The test binaries themselves live with the crates they test (e.g.
 //! `deploy/tests/mesh_control.rs` for the `ickon` binary).
@@ -18,9 +20,11 @@
 pub mod child;
 pub mod observer;
 pub mod port;
+pub mod rosbags;
 pub mod wait;
 
 pub use child::ChildGuard;
 pub use observer::Observer;
 pub use port::{free_tcp_port, loopback_endpoint};
+pub use rosbags::Rosbags;
 pub use wait::{TimedOut, poll_until};

@@ -83,6 +83,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             http: None,
             http_token_file: None,
             record: None,
+            ros2: false,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

@@ -66,6 +66,11 @@ pub struct SimArgs {
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Run the ROS 2 path end to end: the world publishes each robot's
+    /// odometry and gyro as ROS 2 topics (rmw_zenoh) and the MSU agents read
+    /// them there (`ickon-msu --ros2`) and publish ROS 2 poses too.
+    #[arg(long)]
+    pub ros2: bool,
     /// Serve the live web map from the central unit on ADDR, or the next
     /// free port above it (with no ADDR: 127.0.0.1:8080); the URL is printed.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
@@ -100,6 +105,8 @@ pub struct SimReport {
     pub profile: String,
     pub estimator: String,
     pub seed: u64,
+    /// Whether odometry and gyro went over ROS 2 (`--ros2`).
+    pub ros2: bool,
     pub duration_s: f64,
     /// Cycles per second of the schedule with every cell up: the fixes each
     /// robot can get per second at most.
@@ -310,6 +317,9 @@ pub async fn measure(
         &args.seed.to_string(),
     ]);
     world.args(&to_recorder);
+    if args.ros2 {
+        world.arg("--ros2");
+    }
     sup.spawn("world", world)?;
     // Every agent reads one configuration file, as a deployed one does: the
     // estimator as `ickon eval` sets it up for the profile's data sheet,
@@ -326,6 +336,9 @@ pub async fn measure(
         cmd.args(["--robot", &msu.robot, "--config"])
             .arg(msu_file.path())
             .args(&to_recorder);
+        if args.ros2 {
+            cmd.arg("--ros2");
+        }
         sup.spawn(&format!("msu {}", msu.robot), cmd)?;
     }
 
@@ -436,6 +449,7 @@ pub async fn measure(
         profile: args.profile.clone(),
         estimator: args.estimator.clone(),
         seed: args.seed,
+        ros2: args.ros2,
         duration_s: args.duration,
         update_rate_hz,
         mesh: args.mesh,

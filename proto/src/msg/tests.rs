@@ -4,7 +4,7 @@
 use super::admin::*;
 use super::control::*;
 use super::robot::*;
-use super::ros::*;
+use super::ros::PoseWithCovarianceStamped;
 use crate::codec::{DecodeError, decode, encode};
 use crate::time::{Duration, Time};
 use serde::Serialize;

@@ -16,6 +16,7 @@
 //! their unit where it is not SI or not obvious (`drift_ppb`, `offset_ns`).
 
 pub mod codec;
+pub mod file_issue;
 pub mod keys;
 pub mod msg;
 pub mod ros;

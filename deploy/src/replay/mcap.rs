@@ -49,11 +49,6 @@ pub struct McapArgs {
     pub site: Option<PathBuf>,
 }
 
-/// Nominal MSU settings of a robot when the recording does not say.
-const DEFAULT_TIMING_SIGMA_US: f64 = 50.0;
-/// Default wheel base of `ickon-msu`, metres.
-const DEFAULT_WHEEL_BASE_M: f64 = 0.33;
-
 /// How one robot's agent was set up.
 #[derive(Debug, Clone)]
 struct AgentSetup {
@@ -286,9 +281,12 @@ fn agent_setup(
             .ok()
     });
     AgentSetup {
-        timing_sigma_us: num("timing_sigma_us", DEFAULT_TIMING_SIGMA_US),
+        timing_sigma_us: num(
+            "timing_sigma_us",
+            ickon_msu::config_file::DEFAULT_TIMING_SIGMA_S * 1e6,
+        ),
         wheels: WheelGeometry {
-            wheel_base_m: num("wheel_base_m", DEFAULT_WHEEL_BASE_M),
+            wheel_base_m: num("wheel_base_m", ickon_msu::config_file::PIONEER_WHEEL_BASE_M),
             left_m_per_tick: m_per_tick,
             right_m_per_tick: m_per_tick,
         },

@@ -34,27 +34,7 @@ pub const PIONEER_WHEEL_BASE_M: f64 = 0.33;
 pub const DEFAULT_TIMING_SIGMA_S: f64 = 50e-6;
 
 /// One problem in an MSU configuration file.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ConfigIssue {
-    /// 1-based line of the offending value.
-    pub line: usize,
-    /// 1-based column of the offending value.
-    pub column: usize,
-    /// Dotted path of the key, e.g. `gyro.rate_hz`.
-    pub field: String,
-    /// What is wrong, in plain words.
-    pub message: String,
-}
-
-impl std::fmt::Display for ConfigIssue {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{}:{}: {}: {}",
-            self.line, self.column, self.field, self.message
-        )
-    }
-}
+pub type ConfigIssue = ickon_proto::file_issue::FileIssue;
 
 /// An MSU configuration file that could not be read or is not valid.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -78,15 +58,7 @@ pub enum MsuConfigError {
 }
 
 fn render(file: &str, issues: &[ConfigIssue]) -> String {
-    let mut s = format!(
-        "MSU configuration {file} has {} problem{}:",
-        issues.len(),
-        if issues.len() == 1 { "" } else { "s" }
-    );
-    for i in issues {
-        s.push_str(&format!("\n  {file}:{i}"));
-    }
-    s
+    ickon_proto::file_issue::render_issues("MSU configuration", file, issues)
 }
 
 /// How the fix solver judges one cycle.

@@ -44,27 +44,14 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn at(&self, span: Range<usize>, field: &str, message: String) -> ConfigIssue {
-        let offset = span.start.min(self.text.len());
-        let before = &self.text[..offset];
-        let line = before.matches('\n').count() + 1;
-        let column = before.rfind('\n').map_or(offset, |nl| offset - nl - 1) + 1;
-        ConfigIssue {
-            line,
-            column,
-            field: field.to_string(),
-            message,
-        }
-    }
-
     fn issue(&mut self, span: Range<usize>, field: &str, message: impl Into<String>) {
-        let i = self.at(span, field, message.into());
-        self.issues.push(i);
+        self.issues
+            .push(ConfigIssue::at(self.text, span, field, message));
     }
 
     fn warn(&mut self, span: Range<usize>, field: &str, message: impl Into<String>) {
-        let i = self.at(span, field, message.into());
-        self.warnings.push(i);
+        self.warnings
+            .push(ConfigIssue::at(self.text, span, field, message));
     }
 
     /// The value of an optional number if it is finite and within `b`.

@@ -38,17 +38,7 @@ pub const BUILTIN_SITES: [(&str, &str); 2] = [
 ];
 
 /// One problem found in a site file.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SiteIssue {
-    /// 1-based line of the offending value (0 when the problem concerns the whole file).
-    pub line: usize,
-    /// 1-based column of the offending value.
-    pub column: usize,
-    /// Dotted path of the field, e.g. `transmitters[3].position`.
-    pub field: String,
-    /// What is wrong, in plain words.
-    pub message: String,
-}
+pub type SiteIssue = crate::file_issue::FileIssue;
 
 /// A site file that could not be read or is not valid.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -72,18 +62,7 @@ pub enum SiteError {
 }
 
 fn render_issues(file: &str, issues: &[SiteIssue]) -> String {
-    let mut out = format!(
-        "site file {file} has {} problem{}:",
-        issues.len(),
-        if issues.len() == 1 { "" } else { "s" }
-    );
-    for i in issues {
-        out.push_str(&format!(
-            "\n  {file}:{}:{}: {}: {}",
-            i.line, i.column, i.field, i.message
-        ));
-    }
-    out
+    crate::file_issue::render_issues("site file", file, issues)
 }
 
 impl Site {

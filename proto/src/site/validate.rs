@@ -35,22 +35,9 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn line_col(&self, offset: usize) -> (usize, usize) {
-        let offset = offset.min(self.text.len());
-        let before = &self.text[..offset];
-        let line = before.matches('\n').count() + 1;
-        let col = before.rfind('\n').map_or(offset, |nl| offset - nl - 1) + 1;
-        (line, col)
-    }
-
     fn issue(&mut self, span: Range<usize>, field: impl Into<String>, message: impl Into<String>) {
-        let (line, column) = self.line_col(span.start);
-        self.issues.push(SiteIssue {
-            line,
-            column,
-            field: field.into(),
-            message: message.into(),
-        });
+        self.issues
+            .push(SiteIssue::at(self.text, span, field, message));
     }
 
     fn finite_all(&mut self, span: Range<usize>, field: &str, values: &[f64]) -> bool {

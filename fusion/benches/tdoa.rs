@@ -37,6 +37,7 @@ fn signals(n: usize, mode: Mode) -> Vec<Signal> {
             tx_m: s,
             // A deterministic stand-in for 1 cm of noise.
             pseudo_range_m: (p - s).norm() + 4.0 + 0.01 * (i as f64 * 2.39).sin(),
+            t_s: 0.0,
         })
         .collect()
 }

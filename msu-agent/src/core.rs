@@ -5,13 +5,11 @@
 //! estimators -> pose). An estimator refusing an input never withholds a fix.
 
 use ickon_fusion::estimator::{
-    EncoderSample, Estimator, EstimatorError, FixSample, GyroSample, Input, RangeSample,
-    WheelGeometry,
+    EncoderSample, Estimator, EstimatorError, GyroSample, Input, RangeSample, WheelGeometry,
 };
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::{Schedule, TransmitterEntry};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
-use nalgebra::Matrix2;
 
 use crate::assembly::AssemblyError;
 use crate::fusion_clock::FusionClock;
@@ -140,22 +138,14 @@ impl MsuCore {
             // the estimator as it was; the host counts it.
             let _ = self.host.feed(&Input::RangeDifference(sample));
         }
-        let Some(fix) = solved.fix else {
+        let Some((fix, wire)) = solved.fix else {
             return Ok(None);
         };
         self.fix_seq = msg.seq;
-        let c = &fix.covariance;
-        let sample = FixSample {
-            t_s: self.clock.to_fusion(fix.stamp),
-            x_m: fix.x_m,
-            y_m: fix.y_m,
-            covariance: Matrix2::new(c[0], c[1], c[3], c[4]),
-            heading_rad: fix.heading_valid.then_some(fix.heading_rad),
-        };
-        if let Err(e) = self.host.feed(&Input::Fix(sample)) {
+        if let Err(e) = self.host.feed(&Input::Fix(fix)) {
             tracing::debug!("fix of cycle {} not fused: {e}", msg.seq);
         }
-        Ok(Some(fix))
+        Ok(Some(wire))
     }
 
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).

@@ -22,9 +22,10 @@ const OWN_HINT_MAX_AGE: Duration = Duration::from_millis(2_000);
 /// What one cycle gave.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SolvedCycle {
-    /// The raw fix, `None` when the cycle gave none (too few or
-    /// inconsistent signals, degenerate geometry, off the floor, too uncertain).
-    pub fix: Option<Fix>,
+    /// The raw fix (what the estimators consume) and its wire encoding,
+    /// `None` when the cycle gave none (too few or inconsistent signals,
+    /// degenerate geometry, off the floor, too uncertain).
+    pub fix: Option<(tdoa::Fix, Fix)>,
     /// The cycle's range differences, for tightly coupled estimators,
     /// whether or not a fix was solved.
     pub range_differences: Vec<RangeDifferenceSample>,
@@ -99,6 +100,7 @@ impl FixSolver {
                 tx_id: s.tx_id,
                 tx_m: Vector3::from(s.tx_m),
                 pseudo_range_m: s.pseudo_range_m,
+                t_s: clock.to_fusion(s.t_arrival),
             })
             .collect();
         let no_fix = |range_differences| {
@@ -131,54 +133,33 @@ impl FixSolver {
         if !(sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m) {
             return no_fix(range_differences);
         }
-        let [x_m, y_m] = [sol.position_m[0], sol.position_m[1]];
-        let mut rejected = cycle.rejected.clone();
-        rejected.extend(sol.rejected.iter().map(|r| r.tx_id));
+        // The fix is stamped with the cycle's mean arrival time over every
+        // arrival (exact in nanoseconds); its fusion time is that instant's
+        // exact image, so the wire stamp and the estimators agree.
+        sol.t_s = clock.to_fusion(cycle.stamp);
         // Seed 000 s3.1.3: heading from the first emitted signal used (eq. 4-6).
-        let heading = sol.used_tx_ids.first().and_then(|id| {
+        sol.heading_rad = sol.used_tx_ids.first().and_then(|id| {
             let s = cycle.signals.iter().find(|s| s.tx_id == *id)?;
             tdoa::heading_from_first_receiver(
                 Vector2::new(s.tx_m[0], s.tx_m[1]),
-                Vector2::new(x_m, y_m),
+                sol.position_m.xy(),
                 usize::from(s.receiver_id),
                 &self.config.receiver_angles_rad,
             )
             .ok()
         });
-        let quality = match sol.quality {
-            tdoa::Quality::Good => FixQuality::Good,
-            tdoa::Quality::Minimal => FixQuality::Minimal,
-            tdoa::Quality::Ambiguous => FixQuality::Ambiguous,
-            tdoa::Quality::Suspect => FixQuality::Suspect,
-        };
-        if quality != FixQuality::Ambiguous {
-            self.last_fix = Some((cycle.stamp, Vector2::new(x_m, y_m)));
+        if sol.quality != tdoa::Quality::Ambiguous {
+            self.last_fix = Some((cycle.stamp, sol.position_m.xy()));
         }
+        let wire = wire_fix(
+            &sol,
+            cycle.stamp,
+            msg.seq,
+            self.config.height_m,
+            &cycle.rejected,
+        );
         Ok(SolvedCycle {
-            fix: Some(Fix {
-                stamp: cycle.stamp,
-                arrivals_seq: msg.seq,
-                x_m,
-                y_m,
-                z_m: self.config.height_m,
-                covariance: [
-                    cov[(0, 0)],
-                    cov[(0, 1)],
-                    0.0,
-                    cov[(1, 0)],
-                    cov[(1, 1)],
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                ],
-                heading_rad: heading.unwrap_or(0.0),
-                heading_valid: heading.is_some(),
-                used: sol.used_tx_ids,
-                rejected,
-                residuals_m: sol.residuals_m,
-                quality,
-            }),
+            fix: Some((sol, wire)),
             range_differences,
         })
     }
@@ -206,5 +187,50 @@ impl FixSolver {
                 sigma_m,
             })
             .collect()
+    }
+}
+
+/// The wire encoding of a fix (`robot/<id>/fix`): the solver's fix as it is,
+/// with the cycle's exact stamp, the arrivals it came from, the MSU height
+/// for `z`, and the arrivals that never reached the solver (unknown or
+/// repeated transmitter ids) listed as rejected with the solver's own.
+pub fn wire_fix(
+    fix: &tdoa::Fix,
+    stamp: Time,
+    arrivals_seq: u64,
+    height_m: f64,
+    unmatched: &[u32],
+) -> Fix {
+    let cov = fix.covariance_xy_m2();
+    let mut rejected = unmatched.to_vec();
+    rejected.extend(fix.rejected.iter().map(|r| r.tx_id));
+    Fix {
+        stamp,
+        arrivals_seq,
+        x_m: fix.position_m.x,
+        y_m: fix.position_m.y,
+        z_m: height_m,
+        covariance: [
+            cov[(0, 0)],
+            cov[(0, 1)],
+            0.0,
+            cov[(1, 0)],
+            cov[(1, 1)],
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        ],
+        heading_rad: fix.heading_rad.unwrap_or(0.0),
+        heading_valid: fix.heading_rad.is_some(),
+        used: fix.used_tx_ids.clone(),
+        rejected,
+        residuals_m: fix.residuals_m.clone(),
+        quality: match fix.quality {
+            tdoa::Quality::Good => FixQuality::Good,
+            tdoa::Quality::Minimal => FixQuality::Minimal,
+            tdoa::Quality::Ambiguous => FixQuality::Ambiguous,
+            tdoa::Quality::Suspect => FixQuality::Suspect,
+        },
     }
 }

@@ -99,7 +99,7 @@ impl HeadingPositionFusion {
     }
 
     /// Eq. 8 (if the fix has a heading) and eq. 16-19.
-    pub(crate) fn fix(&mut self, fix: &super::FixSample) {
+    pub(crate) fn fix(&mut self, fix: &crate::tdoa::Fix) {
         if let Some(h) = fix.heading_rad {
             self.heading.correct(h);
         }

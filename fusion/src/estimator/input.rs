@@ -1,8 +1,7 @@
 //! The measurements an estimator consumes, and their validation.
 
-use nalgebra::Matrix2;
-
 use super::EstimatorError;
+use crate::tdoa::Fix;
 
 /// Pose reported by the robot's relative positioning unit (seed 000:
 /// `x_b, y_b, gamma_b`), in the robot's own odometry frame.
@@ -50,23 +49,6 @@ pub struct GyroSample {
     pub t_s: f64,
     /// Yaw rate, counter-clockwise positive, in rad/s (raw: bias included).
     pub rate_rad_s: f64,
-}
-
-/// An absolute fix from the MSU.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FixSample {
-    /// Measurement time (the cycle's emission time, usually older than the
-    /// latest odometry), in seconds.
-    pub t_s: f64,
-    /// Position x in metres.
-    pub x_m: f64,
-    /// Position y in metres.
-    pub y_m: f64,
-    /// Covariance of the position as reported by the solver, in m^2.
-    pub covariance: Matrix2<f64>,
-    /// Heading from the first-hit receiver id (seed 000 eq. 4-6) or from two
-    /// MSUs on one robot (seed 002 eq. 1), in radians; `None` if absent.
-    pub heading_rad: Option<f64>,
 }
 
 /// Obstacle-sensor readings (seed 003 section 3.3). A range is `None` when the
@@ -136,7 +118,7 @@ impl RangeDifferenceSample {
 }
 
 /// One timestamped measurement.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Input {
     /// Robot odometry pose.
     Odometry(OdometrySample),
@@ -144,8 +126,8 @@ pub enum Input {
     Encoders(EncoderSample),
     /// Yaw rate.
     Gyro(GyroSample),
-    /// MSU fix.
-    Fix(FixSample),
+    /// MSU fix (the solver's own result, with the receiver-id heading).
+    Fix(Fix),
     /// Obstacle ranges.
     Range(RangeSample),
     /// One range difference between two transmitters (tightly coupled).
@@ -187,9 +169,12 @@ impl Input {
             }
             Input::Fix(s) => {
                 finite("t_s", s.t_s)?;
-                finite("x_m", s.x_m)?;
-                finite("y_m", s.y_m)?;
-                if !s.covariance.iter().all(|v| v.is_finite()) {
+                if !s.position_m.iter().all(|v| v.is_finite()) {
+                    return Err(EstimatorError::NonFinite {
+                        field: "position_m",
+                    });
+                }
+                if !s.covariance_m2.iter().all(|v| v.is_finite()) {
                     return Err(EstimatorError::NonFinite {
                         field: "covariance",
                     });

@@ -62,8 +62,8 @@ mod tests;
 pub use config_check::InvalidParameter;
 pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker};
 pub use input::{
-    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
-    RangeSample, WheelGeometry,
+    EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample, RangeSample,
+    WheelGeometry,
 };
 pub use registry::{
     EstimatorConfig, UnknownEstimator, build, build_by_name, names, two_sensor_heading,

@@ -16,7 +16,8 @@
 use nalgebra::{Matrix2, Matrix3};
 
 use super::replay::Core;
-use super::{FixSample, Input, PoseEstimate};
+use super::{Input, PoseEstimate};
+use crate::tdoa::Fix;
 
 /// Parameters of `msu-raw`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -41,7 +42,7 @@ impl Default for MsuRawParams {
 #[derive(Debug, Clone)]
 pub struct MsuRaw {
     params: MsuRawParams,
-    fix: Option<FixSample>,
+    fix: Option<Fix>,
     heading_rad: Option<f64>,
 }
 
@@ -63,7 +64,7 @@ impl Core for MsuRaw {
 
     fn step(&mut self, input: &Input) {
         if let Input::Fix(fix) = input {
-            self.fix = Some(*fix);
+            self.fix = Some(fix.clone());
             if let Some(h) = fix.heading_rad {
                 self.heading_rad = Some(h);
             }
@@ -71,8 +72,9 @@ impl Core for MsuRaw {
     }
 
     fn pose(&self) -> Option<PoseEstimate> {
-        let fix = self.fix?;
-        let mut p: Matrix2<f64> = (fix.covariance + fix.covariance.transpose()) * 0.5;
+        let fix = self.fix.as_ref()?;
+        let mut p: Matrix2<f64> =
+            (fix.covariance_xy_m2() + fix.covariance_xy_m2().transpose()) * 0.5;
         if p.cholesky().is_none() {
             p = Matrix2::from_diagonal(&p.diagonal().map(|v| v.abs().max(super::MIN_VARIANCE)));
         }
@@ -85,8 +87,8 @@ impl Core for MsuRaw {
         covariance[(2, 2)] = sigma_h * sigma_h;
         Some(PoseEstimate {
             t_s: fix.t_s,
-            x_m: fix.x_m,
-            y_m: fix.y_m,
+            x_m: fix.x_m(),
+            y_m: fix.y_m(),
             theta_rad: self.heading_rad.unwrap_or(0.0),
             covariance,
         })

@@ -31,8 +31,8 @@
 
 use nalgebra::{Matrix2, Vector2};
 
-use super::input::FixSample;
 use super::kf;
+use crate::tdoa::Fix;
 
 /// Parameters of the position AKF (seed 000 values by default).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -102,11 +102,11 @@ impl PositionAkf {
     /// Correction, eq. 16-19, or (re-)initialisation at the fix when the
     /// filter is empty or the last fix is older than `reinit_gap_s`.
     /// Returns `false` if the update was numerically refused.
-    pub fn correct(&mut self, fix: &FixSample) -> bool {
-        let z = Vector2::new(fix.x_m, fix.y_m);
+    pub fn correct(&mut self, fix: &Fix) -> bool {
+        let z = Vector2::new(fix.x_m(), fix.y_m());
         let stale = fix.t_s - self.last_fix_s > self.params.reinit_gap_s;
         let Some((s, p)) = self.state.filter(|_| !stale) else {
-            self.initialise(fix.x_m, fix.y_m, fix.covariance, fix.t_s);
+            self.initialise(fix.x_m(), fix.y_m(), fix.covariance_xy_m2(), fix.t_s);
             return true;
         };
         let residual = z - s;
@@ -145,14 +145,8 @@ impl PositionAkf {
 mod tests {
     use super::*;
 
-    fn fix(t_s: f64, x_m: f64, y_m: f64) -> FixSample {
-        FixSample {
-            t_s,
-            x_m,
-            y_m,
-            covariance: Matrix2::from_diagonal_element(1e-4),
-            heading_rad: None,
-        }
+    fn fix(t_s: f64, x_m: f64, y_m: f64) -> Fix {
+        Fix::from_position(t_s, x_m, y_m, Matrix2::from_diagonal_element(1e-4))
     }
 
     #[test]

@@ -75,7 +75,7 @@ impl<C: Core> Replay<C> {
         };
         let mut tail = Vec::with_capacity(self.history.len() - at + 1);
         for next in std::iter::once(input).chain(self.history.range(at..).map(|(i, _)| i)) {
-            tail.push((*next, state.clone()));
+            tail.push((next.clone(), state.clone()));
             state.step(next);
         }
         sane(&state).then_some(Rebuilt { state, at, tail })

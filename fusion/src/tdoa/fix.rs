@@ -45,9 +45,14 @@ pub struct Rejection {
     pub reason: RejectReason,
 }
 
-/// A position fix from one cycle.
+/// A position fix from one cycle: what the solver found, and the one fix
+/// type every estimator consumes (the wire's `robot/<id>/fix` is its
+/// encoding; `fusion` does not know the wire).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fix {
+    /// Time of the fix, seconds: the mean arrival time of the cycle's
+    /// signals (the robot's position is taken as the one at that instant).
+    pub t_s: f64,
     /// Receiver position, metres (in 2D, `z` is the given height).
     pub position_m: Vector3<f64>,
     /// Covariance of the position, m^2: `sigma^2 (J^T J)^-1` at the fix,
@@ -68,9 +73,53 @@ pub struct Fix {
     pub alternative_m: Option<Vector3<f64>>,
     /// Gauss-Newton iterations run (0 without refinement).
     pub iterations: u32,
+    /// Heading from the first-hit receiver id (seed 000 eq. 4-6) or from two
+    /// MSUs on one robot (seed 002 eq. 1), radians. The solver leaves it
+    /// `None`: only the MSU knows which receiver heard which signal, see
+    /// [`Fix::with_heading`].
+    pub heading_rad: Option<f64>,
 }
 
 impl Fix {
+    /// A fix known only by its position and covariance (a replayed or
+    /// synthetic source, or another positioning system): no signals behind
+    /// it, [`Quality::Minimal`] since nothing can be checked.
+    pub fn from_position(t_s: f64, x_m: f64, y_m: f64, covariance_xy_m2: Matrix2<f64>) -> Self {
+        let mut covariance_m2 = Matrix3::zeros();
+        covariance_m2
+            .fixed_view_mut::<2, 2>(0, 0)
+            .copy_from(&covariance_xy_m2);
+        Self {
+            t_s,
+            position_m: Vector3::new(x_m, y_m, 0.0),
+            covariance_m2,
+            bias_m: 0.0,
+            used_tx_ids: Vec::new(),
+            residuals_m: Vec::new(),
+            rejected: Vec::new(),
+            quality: Quality::Minimal,
+            alternative_m: None,
+            iterations: 0,
+            heading_rad: None,
+        }
+    }
+
+    /// The same fix with a heading measurement attached.
+    pub fn with_heading(mut self, heading_rad: Option<f64>) -> Self {
+        self.heading_rad = heading_rad;
+        self
+    }
+
+    /// Horizontal position, metres.
+    pub fn x_m(&self) -> f64 {
+        self.position_m.x
+    }
+
+    /// Horizontal position, metres.
+    pub fn y_m(&self) -> f64 {
+        self.position_m.y
+    }
+
     /// The horizontal block of the covariance, m^2.
     pub fn covariance_xy_m2(&self) -> Matrix2<f64> {
         self.covariance_m2.fixed_view::<2, 2>(0, 0).into_owned()

@@ -244,6 +244,7 @@ fn into_fix(
         Quality::Good
     };
     Fix {
+        t_s: signals.iter().map(|s| s.t_s).sum::<f64>() / signals.len().max(1) as f64,
         position_m: est.position_m,
         covariance_m2,
         bias_m: est.stats.bias_m,
@@ -256,5 +257,6 @@ fn into_fix(
         quality,
         alternative_m: est.alternative_m,
         iterations: est.iterations,
+        heading_rad: None,
     }
 }

@@ -20,6 +20,9 @@ pub struct Signal {
     /// `c (t_arrival - emission_offset)`, metres: the range plus the
     /// cycle's common unknown offset.
     pub pseudo_range_m: f64,
+    /// Arrival time on the receiver's time axis, seconds (any origin shared
+    /// by the cycle); the fix is stamped with the mean over the cycle.
+    pub t_s: f64,
 }
 
 impl Signal {
@@ -39,6 +42,7 @@ impl Signal {
             tx_id,
             tx_m,
             pseudo_range_m: speed_of_sound_m_s * (t_arrival_s - emission_offset_s),
+            t_s: t_arrival_s,
         })
     }
 }
@@ -62,6 +66,12 @@ pub(crate) fn validate(signals: &[Signal], need: usize) -> Result<(), SolveError
         if !s.pseudo_range_m.is_finite() {
             return Err(SolveError::NonFinite {
                 field: "pseudo_range_m",
+                index,
+            });
+        }
+        if !s.t_s.is_finite() {
+            return Err(SolveError::NonFinite {
+                field: "t_s",
                 index,
             });
         }

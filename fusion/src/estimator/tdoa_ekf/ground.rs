@@ -59,7 +59,7 @@ use super::recovery::{RecoveryParams, RejectionWatch};
 use crate::angle;
 use crate::estimator::dead_reckoning::IncrementTracker;
 use crate::estimator::replay::Core;
-use crate::estimator::{FixSample, InitialPose, Input, PoseEstimate, RangeDifferenceSample};
+use crate::estimator::{InitialPose, Input, PoseEstimate, RangeDifferenceSample};
 use crate::tdoa;
 
 /// An axis-aligned floor plan the robot cannot leave, metres.
@@ -605,6 +605,7 @@ impl TdoaEkf {
                 tx_id: i as u32,
                 tx_m: Vector3::from(a.tx_m),
                 pseudo_range_m: a.rho_m,
+                t_s: a.t_s,
             })
             .collect();
         let moves: Vec<Vector3<f64>> = arrivals
@@ -771,7 +772,7 @@ impl TdoaEkf {
     }
 
     /// Fuses the receiver-id heading of one MSU fix.
-    fn fix(&mut self, f: &FixSample) {
+    fn fix(&mut self, f: &tdoa::Fix) {
         let sigma = self.params.heading_sigma_deg.to_radians();
         let (Some(heading), true) = (f.heading_rad, sigma > 0.0) else {
             return;

@@ -205,13 +205,12 @@ fn ground_variant_uses_the_known_start_pose_and_ignores_fixes() {
         ..TdoaEkfParams::default()
     };
     let mut e = TdoaEkf::new(&params);
-    e.step(&Input::Fix(crate::estimator::FixSample {
-        t_s: 0.1,
-        x_m: 5.0,
-        y_m: 5.0,
-        covariance: nalgebra::Matrix2::identity() * 1e-4,
-        heading_rad: None,
-    }));
+    e.step(&Input::Fix(crate::tdoa::Fix::from_position(
+        0.1,
+        5.0,
+        5.0,
+        nalgebra::Matrix2::identity() * 1e-4,
+    )));
     let p = e.pose().unwrap();
     assert_eq!((p.x_m, p.y_m), (1.0, 2.0));
 }
@@ -229,13 +228,10 @@ fn the_receiver_id_heading_pulls_the_heading_and_a_wrong_sector_is_gated() {
         ..TdoaEkfParams::default()
     };
     let fix = |t_s: f64, heading: f64| {
-        Input::Fix(crate::estimator::FixSample {
-            t_s,
-            x_m: 9.0,
-            y_m: 9.0,
-            covariance: nalgebra::Matrix2::identity() * 1e-4,
-            heading_rad: Some(heading),
-        })
+        Input::Fix(
+            crate::tdoa::Fix::from_position(t_s, 9.0, 9.0, nalgebra::Matrix2::identity() * 1e-4)
+                .with_heading(Some(heading)),
+        )
     };
     let mut f = TdoaEkf::new(&params);
     f.step(&fix(0.1, 0.3));

@@ -9,9 +9,10 @@ use crate::estimator::gyro_ckf::GyroCkfParams;
 use crate::estimator::ickon_akf::IckonAkfParams;
 use crate::estimator::replay::Replay;
 use crate::estimator::{
-    EncoderSample, Estimator, EstimatorConfig, EstimatorError, FixSample, GyroSample, InitialPose,
-    Input, OdometrySample, RangeSample, build, names, two_sensor_heading,
+    EncoderSample, Estimator, EstimatorConfig, EstimatorError, GyroSample, InitialPose, Input,
+    OdometrySample, RangeSample, build, names, two_sensor_heading,
 };
+use crate::tdoa::Fix;
 
 fn odo(t_s: f64, x_m: f64, y_m: f64, theta_rad: f64) -> Input {
     Input::Odometry(OdometrySample {
@@ -23,13 +24,10 @@ fn odo(t_s: f64, x_m: f64, y_m: f64, theta_rad: f64) -> Input {
 }
 
 fn fix(t_s: f64, x_m: f64, y_m: f64, heading_rad: Option<f64>) -> Input {
-    Input::Fix(FixSample {
-        t_s,
-        x_m,
-        y_m,
-        covariance: Matrix2::from_diagonal_element(1e-4),
-        heading_rad,
-    })
+    Input::Fix(
+        Fix::from_position(t_s, x_m, y_m, Matrix2::from_diagonal_element(1e-4))
+            .with_heading(heading_rad),
+    )
 }
 
 fn gyro(t_s: f64, rate_rad_s: f64) -> Input {

@@ -7,9 +7,10 @@ use proptest::prelude::*;
 
 use super::runs::config;
 use crate::estimator::{
-    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
-    RangeSample, WheelGeometry, build, names,
+    EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample, RangeSample,
+    WheelGeometry, build, names,
 };
+use crate::tdoa::Fix;
 
 fn number() -> BoxedStrategy<f64> {
     prop_oneof![
@@ -68,13 +69,10 @@ fn input(t_s: f64) -> BoxedStrategy<Input> {
         number().prop_map(move |rate_rad_s| Input::Gyro(GyroSample { t_s, rate_rad_s })),
         (number(), number(), number(), number(), maybe(number())).prop_map(
             move |(x_m, y_m, a, b, heading_rad)| {
-                Input::Fix(FixSample {
-                    t_s,
-                    x_m,
-                    y_m,
-                    covariance: Matrix2::new(a, b, b, a),
-                    heading_rad,
-                })
+                Input::Fix(
+                    Fix::from_position(t_s, x_m, y_m, Matrix2::new(a, b, b, a))
+                        .with_heading(heading_rad),
+                )
             }
         ),
         (

@@ -8,9 +8,9 @@ use rand_distr::{Distribution, Normal};
 
 use crate::angle;
 use crate::estimator::{
-    EncoderSample, FixSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
-    WheelGeometry,
+    EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample, WheelGeometry,
 };
+use crate::tdoa::Fix;
 
 pub(super) const GEOMETRY: WheelGeometry = WheelGeometry {
     wheel_base_m: 0.33,
@@ -155,13 +155,15 @@ pub(super) fn circling_run(
             };
             events.push((
                 t + noise.fix_latency_s,
-                Input::Fix(FixSample {
-                    t_s: t,
-                    x_m: x + reflected + noise.fix_sigma_m * unit.sample(&mut rng),
-                    y_m: y + noise.fix_sigma_m * unit.sample(&mut rng),
-                    covariance: Matrix2::from_diagonal_element(noise.fix_sigma_m.powi(2) + 1e-6),
-                    heading_rad: Some(angle::wrap_pi(heading)),
-                }),
+                Input::Fix(
+                    Fix::from_position(
+                        t,
+                        x + reflected + noise.fix_sigma_m * unit.sample(&mut rng),
+                        y + noise.fix_sigma_m * unit.sample(&mut rng),
+                        Matrix2::from_diagonal_element(noise.fix_sigma_m.powi(2) + 1e-6),
+                    )
+                    .with_heading(Some(angle::wrap_pi(heading))),
+                ),
             ));
         }
     }
@@ -180,5 +182,5 @@ fn odometry_position(circle: &Circle, t_s: f64, scale: f64) -> (f64, f64) {
 
 /// Only the inputs of the given kinds.
 pub(super) fn only(inputs: &[Input], keep: impl Fn(&Input) -> bool) -> Vec<Input> {
-    inputs.iter().copied().filter(|i| keep(i)).collect()
+    inputs.iter().filter(|i| keep(i)).cloned().collect()
 }

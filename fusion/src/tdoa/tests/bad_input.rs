@@ -209,6 +209,7 @@ fn unsolvable_cycles_never_yield_a_nan_position() {
                 tx_id: i as u32,
                 tx_m: t,
                 pseudo_range_m: ((k * 31 + i * 17) % 23) as f64 * 0.7 - 3.0,
+                t_s: 0.0,
             })
             .collect();
         for mode in [Mode::ThreeD, Mode::TwoD { height_m: 0.5 }] {

@@ -18,6 +18,7 @@ pub(super) fn signals_at(tx: &[Vector3<f64>], p: Vector3<f64>, bias_m: f64) -> V
             tx_id: 10 + i as u32,
             tx_m: s,
             pseudo_range_m: (p - s).norm() + bias_m,
+            t_s: 0.0,
         })
         .collect()
 }

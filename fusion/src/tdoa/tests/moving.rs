@@ -50,6 +50,7 @@ fn moving_cycle(
                 tx_id: i as u32,
                 tx_m: *s,
                 pseudo_range_m: (at - s).norm() + 3.0 + noise_m * noise.sample(rng),
+                t_s: *t,
             }
         })
         .collect();

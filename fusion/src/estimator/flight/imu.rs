@@ -133,7 +133,12 @@ impl ImuFilter {
         if self.last.is_some() {
             self.propagate_to(s.t_s);
         }
-        if self.t_s < s.t_s {
+        // The IMU stream is the filter's clock: when it steps back by more
+        // than a gap (the receiver's clock was set back), the filter
+        // follows it. Otherwise it would stop integrating until the old
+        // time came round again while the vehicle kept moving; the watch
+        // sees the same jump in the range differences and re-places it.
+        if self.t_s < s.t_s || self.t_s - s.t_s > self.params.max_imu_gap_s {
             self.t_s = s.t_s;
         }
         if !self.levelled {

@@ -11,6 +11,8 @@
 mod cv;
 mod imu;
 mod imu_params;
+#[cfg(test)]
+mod imu_robustness_tests;
 mod shadow;
 #[cfg(test)]
 mod tests;

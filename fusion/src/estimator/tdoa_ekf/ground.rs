@@ -52,7 +52,8 @@ use nalgebra::Vector3;
 use super::ground_chain::{Arrival, Chain, Link};
 use super::ground_noise::GroundNoise;
 use super::ground_state::{
-    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH, X, Y,
+    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH,
+    TURN_SCALE, X, Y,
 };
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
@@ -306,6 +307,12 @@ impl TdoaEkf {
         self.state.map(|(x, _)| x[RANGE_SCALE])
     }
 
+    /// The estimated turn scale error of the heading source (its reported
+    /// turn is the true one times one plus it, plus the bias).
+    pub fn turn_scale(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[TURN_SCALE])
+    }
+
     /// The estimated distance scale error (travelled = measured times one
     /// plus it).
     pub fn distance_scale(&self) -> Option<f64> {
@@ -382,10 +389,7 @@ impl TdoaEkf {
         let n = &self.params.sensors;
         let omega = if dt > 0.0 { dtheta_rad / dt } else { 0.0 };
         let (var_dtheta, walk) = if from_gyro {
-            (
-                n.var_gyro_turn(dtheta_rad, turn_time_s),
-                n.gyro_bias_walk_deg_s_sqrt_s,
-            )
+            (n.var_gyro_turn(turn_time_s), n.gyro_bias_walk_deg_s_sqrt_s)
         } else {
             (
                 n.var_wheel_turn(dtheta_rad, distance_m),
@@ -471,6 +475,8 @@ impl TdoaEkf {
             let b = self.params.sensors.gyro_bias_sigma_deg_s.to_radians();
             p[(BIAS, BIAS)] += b * b;
             p[(TH, TH)] += self.params.reinit_heading_sigma_deg.to_radians().powi(2) / 4.0;
+            let s = turn_scale_sigma(&self.params);
+            p[(TURN_SCALE, TURN_SCALE)] += s * s;
         }
         self.adaptations = self.adaptations.saturating_add(1);
     }
@@ -902,7 +908,18 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
     d[OFFSET] = 1.0;
     d[RANGE_BIAS] = n.range_bias_sigma_m.powi(2);
     d[RANGE_SCALE] = n.range_scale_sigma.powi(2);
+    d[TURN_SCALE] = turn_scale_sigma(params).powi(2);
     Cov::from_diagonal(&d)
+}
+
+/// The data sheet's scale error of the heading source.
+fn turn_scale_sigma(params: &TdoaEkfParams) -> f64 {
+    let n = &params.sensors;
+    if params.use_gyro {
+        n.gyro_scale_error
+    } else {
+        n.wheel_heading_rad_per_rad
+    }
 }
 
 impl Core for TdoaEkf {

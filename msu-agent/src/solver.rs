@@ -1,11 +1,14 @@
 //! The MSU's fix solver: one cycle's arrivals -> assembled signals -> a raw
 //! fix (seed 000 eq. 1-3 with refinement and reflection rejection,
 //! [`tdoa::solve`]), its quality gate and the receiver-id heading (eq. 4-6).
+//! Each arrival is related to the receiver's position at its own arrival
+//! time, from the wheels' motion between arrivals ([`crate::motion`],
+//! [`tdoa::solve_moving`]); the fix is the position at the cycle's stamp.
 //! It knows nothing of the estimators: a position hint is passed in only to
 //! choose between two roots that fit equally, so every valid fix is the
 //! same whatever fuses it.
 
-use ickon_fusion::estimator::RangeDifferenceSample;
+use ickon_fusion::estimator::{Input, RangeDifferenceSample};
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
@@ -15,6 +18,7 @@ use nalgebra::{Vector2, Vector3};
 use crate::assembly::{Signal, assemble};
 use crate::core::{MsuConfig, MsuError};
 use crate::fusion_clock::FusionClock;
+use crate::motion::CycleMotion;
 
 /// The solver's own last fix serves as the root hint for this long.
 const OWN_HINT_MAX_AGE: Duration = Duration::from_millis(2_000);
@@ -36,6 +40,7 @@ pub struct FixSolver {
     config: MsuConfig,
     schedule: Option<Schedule>,
     last_fix: Option<(Time, Vector2<f64>)>,
+    motion: CycleMotion,
 }
 
 impl FixSolver {
@@ -45,7 +50,15 @@ impl FixSolver {
             config,
             schedule: None,
             last_fix: None,
+            motion: CycleMotion::new(),
         }
+    }
+
+    /// Takes the robot's odometry (encoder ticks or odometry poses, in
+    /// fusion time), which moves the receiver between the arrivals of a
+    /// cycle.
+    pub fn odometry(&mut self, input: &Input) {
+        self.motion.odometry(input);
     }
 
     /// The configuration.
@@ -107,7 +120,19 @@ impl FixSolver {
                 range_differences,
             })
         };
-        let mut sol = match tdoa::solve(&signals, &self.solver_config()) {
+        let reference_s = clock.to_fusion(cycle.stamp);
+        let arrival_times_s: Vec<f64> = cycle
+            .signals
+            .iter()
+            .map(|s| clock.to_fusion(s.t_arrival))
+            .collect();
+        // Without a trusted motion the receiver counts as still (zero
+        // displacements: exactly the static solve).
+        let displacements = self
+            .motion
+            .displacements(&arrival_times_s, reference_s)
+            .unwrap_or_else(|| vec![Vector3::zeros(); signals.len()]);
+        let mut sol = match tdoa::solve_moving(&signals, &displacements, &self.solver_config()) {
             Ok(sol) => sol,
             Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
             Err(_) => return no_fix(range_differences),
@@ -153,6 +178,11 @@ impl FixSolver {
         };
         if quality != FixQuality::Ambiguous {
             self.last_fix = Some((cycle.stamp, Vector2::new(x_m, y_m)));
+        }
+        if quality == FixQuality::Good {
+            // Only redundant fixes with every residual checked align the
+            // odometry: a wrong root would turn the motion the wrong way.
+            self.motion.fix(reference_s, [x_m, y_m], sigma_m);
         }
         Ok(SolvedCycle {
             fix: Some(Fix {

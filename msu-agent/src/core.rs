@@ -152,12 +152,14 @@ impl MsuCore {
     pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
         self.gate(odom.stamp)?;
         let geometry = self.solver.config().wheels;
-        self.host.feed(&Input::Encoders(EncoderSample {
+        let input = Input::Encoders(EncoderSample {
             t_s: self.clock.to_fusion(odom.stamp),
             left_ticks: odom.left_ticks,
             right_ticks: odom.right_ticks,
             geometry,
-        }))?;
+        });
+        self.solver.odometry(&input);
+        self.host.feed(&input)?;
         Ok(())
     }
 

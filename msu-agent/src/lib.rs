@@ -15,6 +15,7 @@ pub mod core;
 pub mod events;
 pub mod fusion_clock;
 pub mod host;
+pub mod motion;
 #[cfg(feature = "zenoh")]
 pub mod node;
 #[cfg(feature = "zenoh")]

@@ -1,11 +1,14 @@
 //! The MSU's fix solver: one cycle's arrivals -> assembled signals -> a raw
 //! fix (seed 000 eq. 1-3 with refinement and reflection rejection,
 //! [`tdoa::solve`]), its quality gate and the receiver-id heading (eq. 4-6).
+//! Each arrival is related to the receiver's position at its own arrival
+//! time, from the wheels' motion between arrivals ([`crate::motion`],
+//! [`tdoa::solve_moving`]); the fix is the position at the cycle's stamp.
 //! It knows nothing of the estimators: a position hint is passed in only to
 //! choose between two roots that fit equally, so every valid fix is the
 //! same whatever fuses it.
 
-use ickon_fusion::estimator::RangeDifferenceSample;
+use ickon_fusion::estimator::{Input, RangeDifferenceSample};
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
@@ -15,6 +18,7 @@ use nalgebra::{Vector2, Vector3};
 use crate::assembly::{Signal, assemble};
 use crate::core::{MsuConfig, MsuError};
 use crate::fusion_clock::FusionClock;
+use crate::motion::CycleMotion;
 
 /// The solver's own last fix serves as the root hint for this long.
 const OWN_HINT_MAX_AGE: Duration = Duration::from_millis(2_000);
@@ -37,6 +41,7 @@ pub struct FixSolver {
     config: MsuConfig,
     schedule: Option<Schedule>,
     last_fix: Option<(Time, Vector2<f64>)>,
+    motion: CycleMotion,
 }
 
 impl FixSolver {
@@ -46,7 +51,15 @@ impl FixSolver {
             config,
             schedule: None,
             last_fix: None,
+            motion: CycleMotion::new(),
         }
+    }
+
+    /// Takes the robot's odometry (encoder ticks or odometry poses, in
+    /// fusion time), which moves the receiver between the arrivals of a
+    /// cycle.
+    pub fn odometry(&mut self, input: &Input) {
+        self.motion.odometry(input);
     }
 
     /// The configuration.
@@ -109,7 +122,19 @@ impl FixSolver {
                 range_differences,
             })
         };
-        let mut sol = match tdoa::solve(&signals, &self.solver_config()) {
+        let reference_s = clock.to_fusion(cycle.stamp);
+        let arrival_times_s: Vec<f64> = cycle
+            .signals
+            .iter()
+            .map(|s| clock.to_fusion(s.t_arrival))
+            .collect();
+        // Without a trusted motion the receiver counts as still (zero
+        // displacements: exactly the static solve).
+        let displacements = self
+            .motion
+            .displacements(&arrival_times_s, reference_s)
+            .unwrap_or_else(|| vec![Vector3::zeros(); signals.len()]);
+        let mut sol = match tdoa::solve_moving(&signals, &displacements, &self.solver_config()) {
             Ok(sol) => sol,
             Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
             Err(_) => return no_fix(range_differences),
@@ -136,7 +161,7 @@ impl FixSolver {
         // The fix is stamped with the cycle's mean arrival time over every
         // arrival (exact in nanoseconds); its fusion time is that instant's
         // exact image, so the wire stamp and the estimators agree.
-        sol.t_s = clock.to_fusion(cycle.stamp);
+        sol.t_s = reference_s;
         // Seed 000 s3.1.3: heading from the first emitted signal used (eq. 4-6).
         sol.heading_rad = sol.used_tx_ids.first().and_then(|id| {
             let s = cycle.signals.iter().find(|s| s.tx_id == *id)?;
@@ -150,6 +175,12 @@ impl FixSolver {
         });
         if sol.quality != tdoa::Quality::Ambiguous {
             self.last_fix = Some((cycle.stamp, sol.position_m.xy()));
+        }
+        if sol.quality == tdoa::Quality::Good {
+            // Only redundant fixes with every residual checked align the
+            // odometry: a wrong root would turn the motion the wrong way.
+            self.motion
+                .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
         }
         let wire = wire_fix(
             &sol,

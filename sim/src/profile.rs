@@ -1,8 +1,11 @@
 //! Named noise profiles: every parameter of every sensor model in one serde
 //! struct per sensor, so a profile can be printed, stored and compared.
 //!
-//! - `ideal`: no noise at all; the sound is computed from the robot frozen at
-//!   the cycle's measurement instant, so fixes are exact.
+//! - `ideal`: no noise at all; the robot moves during the cycle as it does
+//!   everywhere else, and the MSU's solver relates each arrival to the
+//!   robot's position at its own time (from the wheels), so fixes are exact
+//!   once its odometry is aligned (the world can still freeze the robot
+//!   during a cycle: [`UltrasoundNoise::motion_during_cycle`]).
 //! - `paper`: calibrated against seed 000 (see [`NoiseProfile::paper`] for the
 //!   values and how they were chosen).
 //! - `harsh`: more reflections, blockage, slip and gyro drift.
@@ -146,12 +149,15 @@ impl NoiseProfile {
         }
     }
 
-    /// No noise anywhere; the robot is frozen during each cycle's sound.
+    /// No noise anywhere. The robot moves during each cycle's sound: a
+    /// frozen robot is data no moving robot produces, and a filter that
+    /// relates each arrival to its own time (`tdoa-ekf`, the MSU's motion
+    /// compensated solver) would see the freeze as a 6 cm error.
     pub fn ideal() -> Self {
         Self {
             name: "ideal".into(),
             ultrasound: UltrasoundNoise {
-                motion_during_cycle: false,
+                motion_during_cycle: true,
                 timing_jitter_us: 0.0,
                 quantisation_us: 0.0,
                 bearing_sigma_deg: 0.0,

@@ -163,6 +163,13 @@ fn tdoa_ekf(p: &TdoaEkfParams) -> Check {
     finite_positive("heading_chord_m", p.heading_chord_m)?;
     finite_positive("settled_sigma_m", p.settled_sigma_m)?;
     finite_positive("track_heading_sigma_deg", p.track_heading_sigma_deg)?;
+    if p.late.window == 0 {
+        return Err(("late.window", "must be at least 1"));
+    }
+    if !(p.late.blamed_share > 0.0 && p.late.blamed_share < 1.0) {
+        return Err(("late.blamed_share", "must be within (0, 1)"));
+    }
+    non_negative("late.hold_s", p.late.hold_s)?;
     history(p.history_s)
 }
 

@@ -100,7 +100,7 @@ const STRAIGHT_EPS_RAD: f64 = 1e-9;
 /// (the seed's `R + W/2`), and the new point `C + rho (sin theta', -cos theta')`
 /// (eq. 2-3). Straight motion uses eq. 5-6. Returns the new pose, the heading
 /// left unwrapped.
-pub(crate) fn arc_step(
+pub fn arc_step(
     x_m: f64,
     y_m: f64,
     theta_rad: f64,

@@ -60,7 +60,7 @@ pub mod tdoa_ekf;
 mod tests;
 
 pub use config_check::InvalidParameter;
-pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker};
+pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker, arc_step};
 pub use input::{
     EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample, RangeSample,
     WheelGeometry,

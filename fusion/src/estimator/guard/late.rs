@@ -95,29 +95,58 @@ impl LateArrivals {
     /// blames B, negative blames A).
     pub fn note(&mut self, m: &RangeDifferenceSample, innovation_m: Option<f64>) {
         let blamed_b = innovation_m.map(|v| v > 0.0);
-        let alpha = 1.0 / f64::from(self.params.window.max(1));
-        let params = self.params;
-        let aside_now = self
-            .anchors
-            .iter()
-            .filter(|a| a.aside_until_s.is_some_and(|u| m.t_s < u))
-            .count();
-        let mut newly = 0;
+        let mut aside = self.aside_at(m.t_s);
         for (at, is_b) in [(m.a_m, false), (m.b_m, true)] {
-            let a = self.anchor(at);
-            let blamed = blamed_b == Some(is_b);
-            a.share += alpha * (f64::from(u8::from(blamed)) - a.share);
-            a.seen = a.seen.saturating_add(1);
-            if a.aside_until_s.is_none()
-                && a.seen >= params.window
-                && a.share > params.blamed_share
-                && aside_now + newly < params.max_aside
-            {
-                a.aside_until_s = Some(m.t_s + params.hold_s);
-                newly += 1;
-            }
+            aside += self.blame(m.t_s, at, blamed_b == Some(is_b), aside);
         }
-        self.set_aside += newly as u64;
+    }
+
+    /// Whether the arrival from the anchor at `at_m` heard at `t_s` is set
+    /// aside: for filters that judge each arrival on its own (the ground
+    /// filter's chained pseudo-ranges) rather than a pair.
+    pub fn is_arrival_aside(&mut self, t_s: f64, at_m: [f64; 3]) -> bool {
+        self.is_aside(&RangeDifferenceSample {
+            t_s,
+            a_m: at_m,
+            b_m: at_m,
+            d_m: 0.0,
+            sigma_m: 1.0,
+        })
+    }
+
+    /// Notes the verdict on one arrival from `at_m` at `t_s`: `late` when
+    /// it was later than the state predicts beyond the gate.
+    pub fn note_arrival(&mut self, t_s: f64, at_m: [f64; 3], late: bool) {
+        let aside = self.aside_at(t_s);
+        self.blame(t_s, at_m, late, aside);
+    }
+
+    /// Anchors aside at `t_s`.
+    fn aside_at(&self, t_s: f64) -> usize {
+        self.anchors
+            .iter()
+            .filter(|a| a.aside_until_s.is_some_and(|u| t_s < u))
+            .count()
+    }
+
+    /// One verdict on the anchor at `at_m`, `aside` anchors being aside
+    /// already; returns 1 when it was set aside by it.
+    fn blame(&mut self, t_s: f64, at_m: [f64; 3], blamed: bool, aside: usize) -> usize {
+        let params = self.params;
+        let alpha = 1.0 / f64::from(params.window.max(1));
+        let a = self.anchor(at_m);
+        a.share += alpha * (f64::from(u8::from(blamed)) - a.share);
+        a.seen = a.seen.saturating_add(1);
+        if a.aside_until_s.is_none()
+            && a.seen >= params.window
+            && a.share > params.blamed_share
+            && aside < params.max_aside
+        {
+            a.aside_until_s = Some(t_s + params.hold_s);
+            self.set_aside += 1;
+            return 1;
+        }
+        0
     }
 
     /// Forgets every verdict (after a re-initialisation: the blame was
@@ -189,6 +218,33 @@ mod tests {
         assert!(late.is_aside(&m(t, 1.0, 2.0)));
         assert!(!late.is_aside(&m(t, 0.0, 1.0)));
         assert!(!late.is_aside(&m(t + 1.5, 1.0, 2.0)));
+    }
+
+    #[test]
+    fn an_arrival_late_most_of_the_time_is_set_aside_on_its_own() {
+        let params = LateParams {
+            window: 10,
+            hold_s: 3.0,
+            ..LateParams::default()
+        };
+        let mut late = LateArrivals::new(params);
+        let (blocked, clear) = ([1.0, 0.0, 2.5], [2.0, 0.0, 2.5]);
+        let mut t = 0.0;
+        for k in 0..12 {
+            t = 0.4 * f64::from(k);
+            assert!(!late.is_arrival_aside(t, clear));
+            late.note_arrival(t, clear, false);
+            if !late.is_arrival_aside(t, blocked) {
+                late.note_arrival(t, blocked, k % 4 != 0);
+            }
+        }
+        assert_eq!(late.times_set_aside(), 1);
+        assert!(late.is_arrival_aside(t + 0.4, blocked));
+        assert!(!late.is_arrival_aside(t + 0.4, clear));
+        assert!(
+            !late.is_arrival_aside(t + 3.5, blocked),
+            "back after the hold"
+        );
     }
 
     #[test]

@@ -52,12 +52,14 @@ use nalgebra::Vector3;
 use super::ground_chain::{Arrival, Chain, Link};
 use super::ground_noise::GroundNoise;
 use super::ground_state::{
-    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH, X, Y,
+    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH,
+    TURN_SCALE, X, Y,
 };
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
 use crate::angle;
 use crate::estimator::dead_reckoning::IncrementTracker;
+use crate::estimator::guard::{LateArrivals, LateParams};
 use crate::estimator::replay::Core;
 use crate::estimator::{InitialPose, Input, PoseEstimate, RangeDifferenceSample};
 use crate::tdoa;
@@ -134,6 +136,23 @@ pub struct TdoaEkfParams {
     pub track_heading_sigma_deg: f64,
     /// Seconds of input history kept for late inputs.
     pub history_s: f64,
+    /// When a transmitter whose arrivals keep coming late is set aside
+    /// (the watch's [`LateArrivals`], shared with the 3D filters).
+    pub late: LateParams,
+}
+
+/// [`LateParams`] for ultrasound: each transmitter is heard once per cycle
+/// (2-3 per second), not hundreds of times as a UWB anchor. Over half of
+/// its last 10 arrivals (about 4 s) late; aside for 3 s (the robot moves
+/// about a metre at 0.3 m/s, past the obstacle's shadow); at most 2 at once
+/// (a 2D fix needs 3 of the 6-8 usually heard).
+fn ultrasound_late_params() -> LateParams {
+    LateParams {
+        window: 10,
+        blamed_share: 0.5,
+        hold_s: 3.0,
+        max_aside: 2,
+    }
 }
 
 impl Default for TdoaEkfParams {
@@ -158,6 +177,7 @@ impl Default for TdoaEkfParams {
             settled_sigma_m: 0.1,
             track_heading_sigma_deg: 10.0,
             history_s: crate::estimator::registry::default_history_s(),
+            late: ultrasound_late_params(),
         }
     }
 }
@@ -211,6 +231,9 @@ pub struct TdoaEkf {
     candidate: Option<Candidate>,
     last_outcome: Option<Outcome>,
     reinits: Vec<Reinitialisation>,
+    late: LateArrivals,
+    /// Whether the last arrival gated was late (not early).
+    gated_late: bool,
 }
 
 /// A fix of one cycle waiting for the next cycle to confirm it.
@@ -266,6 +289,8 @@ impl TdoaEkf {
             candidate: None,
             last_outcome: None,
             reinits: Vec::new(),
+            late: LateArrivals::new(params.late),
+            gated_late: false,
         }
     }
 
@@ -304,6 +329,12 @@ impl TdoaEkf {
     /// the distance times one plus it, plus the bias).
     pub fn range_scale(&self) -> Option<f64> {
         self.state.map(|(x, _)| x[RANGE_SCALE])
+    }
+
+    /// The estimated turn scale error of the heading source (its reported
+    /// turn is the true one times one plus it, plus the bias).
+    pub fn turn_scale(&self) -> Option<f64> {
+        self.state.map(|(x, _)| x[TURN_SCALE])
     }
 
     /// The estimated distance scale error (travelled = measured times one
@@ -382,10 +413,7 @@ impl TdoaEkf {
         let n = &self.params.sensors;
         let omega = if dt > 0.0 { dtheta_rad / dt } else { 0.0 };
         let (var_dtheta, walk) = if from_gyro {
-            (
-                n.var_gyro_turn(dtheta_rad, turn_time_s),
-                n.gyro_bias_walk_deg_s_sqrt_s,
-            )
+            (n.var_gyro_turn(turn_time_s), n.gyro_bias_walk_deg_s_sqrt_s)
         } else {
             (
                 n.var_wheel_turn(dtheta_rad, distance_m),
@@ -471,6 +499,8 @@ impl TdoaEkf {
             let b = self.params.sensors.gyro_bias_sigma_deg_s.to_radians();
             p[(BIAS, BIAS)] += b * b;
             p[(TH, TH)] += self.params.reinit_heading_sigma_deg.to_radians().powi(2) / 4.0;
+            let s = turn_scale_sigma(&self.params);
+            p[(TURN_SCALE, TURN_SCALE)] += s * s;
         }
         self.adaptations = self.adaptations.saturating_add(1);
     }
@@ -492,6 +522,7 @@ impl TdoaEkf {
         }
         let normalised = nu / s.sqrt();
         let (gate, soft) = (self.params.gate_sigma, self.params.late_soft_sigma);
+        self.gated_late = normalised > gate;
         if normalised > gate {
             // Far later than predicted: a reflection. Not evidence of a lost
             // filter (a healthy one in a burst of reflections sees many).
@@ -567,23 +598,45 @@ impl TdoaEkf {
         let b = match link {
             Link::Started(a, b) => {
                 self.offset_ready = false;
-                if !self.offset_from(&a, sigma) {
+                // A transmitter set aside as late does not set the offset.
+                if !self.late.is_arrival_aside(a.t_s, a.tx_m) && !self.offset_from(&a, sigma) {
                     return Outcome::Rejected(Rejection::Numerical);
                 }
                 b
             }
-            Link::Continued(b) => {
-                if !self.offset_ready && !self.offset_from(&b, sigma) {
-                    return Outcome::Rejected(Rejection::Numerical);
-                }
-                b
-            }
+            Link::Continued(b) => b,
         };
+        if self.late.is_arrival_aside(b.t_s, b.tx_m) {
+            return Outcome::Rejected(Rejection::SetAside);
+        }
+        if !self.offset_ready {
+            // The first arrival of the chain not set aside: it carries no
+            // position by itself.
+            return if self.offset_from(&b, sigma) {
+                Outcome::Accepted {
+                    innovation_m: 0.0,
+                    normalised: 0.0,
+                }
+            } else {
+                Outcome::Rejected(Rejection::Numerical)
+            };
+        }
         // A |d| beyond the baseline (physical check) means one of the two
         // arrivals is a reflection: the chain keeps the difference (the
         // next one undoes it) and the arrival is judged against the
         // prediction like any other, where a late one fails.
-        self.arrival(&b, sigma)
+        let out = self.arrival(&b, sigma);
+        match out {
+            Outcome::Accepted { .. } => self.late.note_arrival(b.t_s, b.tx_m, false),
+            Outcome::Rejected(Rejection::Gate { normalised }) => {
+                // Gated late: blamed on this arrival. An early one (it
+                // re-set the offset instead) is no late arrival.
+                self.late
+                    .note_arrival(b.t_s, b.tx_m, normalised > 0.0 && self.gated_late);
+            }
+            _ => {}
+        }
+        out
     }
 
     /// While lost (or not started): re-initialises at a redundant,
@@ -699,8 +752,10 @@ impl TdoaEkf {
                 self.heard.clear();
             }
         }
-        // The state moved under the chain's offset: set it again.
+        // The state moved under the chain's offset: set it again; the
+        // blame was measured against a state now known to be wrong.
         self.offset_ready = false;
+        self.late.clear();
         self.lost = false;
         self.watch = RejectionWatch::default();
         let last = *self.chain.arrivals().last().unwrap_or(&Arrival {
@@ -903,7 +958,18 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
     d[OFFSET] = 1.0;
     d[RANGE_BIAS] = n.range_bias_sigma_m.powi(2);
     d[RANGE_SCALE] = n.range_scale_sigma.powi(2);
+    d[TURN_SCALE] = turn_scale_sigma(params).powi(2);
     Cov::from_diagonal(&d)
+}
+
+/// The data sheet's scale error of the heading source.
+fn turn_scale_sigma(params: &TdoaEkfParams) -> f64 {
+    let n = &params.sensors;
+    if params.use_gyro {
+        n.gyro_scale_error
+    } else {
+        n.wheel_heading_rad_per_rad
+    }
 }
 
 impl Core for TdoaEkf {

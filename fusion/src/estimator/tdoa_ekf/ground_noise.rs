@@ -19,7 +19,9 @@ pub struct GroundNoise {
     pub gyro_bias_sigma_deg_s: f64,
     /// Gyro bias random walk, deg/s per sqrt(s) (sheet: 0.01).
     pub gyro_bias_walk_deg_s_sqrt_s: f64,
-    /// Gyro scale factor error, a fraction of the turn (sheet: 0.005).
+    /// Gyro scale factor error, a fraction of the turn (sheet: 0.005): the
+    /// prior standard deviation of the filter's turn scale state (one
+    /// constant error, not noise per step).
     pub gyro_scale_error: f64,
     /// Slip of each wheel, a fraction of its travel (sheet: 0.01); the
     /// centre's distance averages two wheels, so its sigma is this over
@@ -31,7 +33,8 @@ pub struct GroundNoise {
     /// gyro runs: `sqrt(2) * slip / wheel base` (0.01 and 0.33 m: 0.043).
     pub wheel_heading_rad_per_m: f64,
     /// Heading change error of the wheels per radian turned (the
-    /// wheel-base error, sheet: 0.015).
+    /// wheel-base error, sheet: 0.015); also the prior standard deviation
+    /// of the turn scale state when the wheels give the heading.
     pub wheel_heading_rad_per_rad: f64,
     /// Random walk of the wheels' heading drift (the turn bias when no gyro
     /// runs), deg/s per sqrt(s).
@@ -78,11 +81,12 @@ impl GroundNoise {
         (s * d_m).powi(2)
     }
 
-    /// Variance of a gyro heading change `dtheta` integrated over `dt_s`.
-    pub(super) fn var_gyro_turn(&self, dtheta_rad: f64, dt_s: f64) -> f64 {
+    /// Variance of a gyro heading change integrated over `dt_s`: the angle
+    /// random walk only (the scale error is a state of the filter).
+    pub(super) fn var_gyro_turn(&self, dt_s: f64) -> f64 {
         let white = self.gyro_white_deg_s.to_radians();
         let arw2 = white * white / self.gyro_rate_hz.max(1e-9);
-        arw2 * dt_s.abs() + (self.gyro_scale_error * dtheta_rad).powi(2)
+        arw2 * dt_s.abs()
     }
 
     /// Variance of a wheel heading change `dtheta` over distance `d`.

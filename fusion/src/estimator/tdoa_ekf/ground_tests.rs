@@ -244,6 +244,9 @@ fn a_clean_corridor_run_stays_within_centimetres() {
     // The gyro bias (0.5 deg/s) is found.
     let b = f.turn_bias_rad_s().unwrap().to_degrees();
     assert!((b - 0.5).abs() < 0.1, "bias {b} deg/s");
+    // And its scale error (0.5 %) is learnt in the turns, not left at zero.
+    let scale = f.turn_scale().unwrap();
+    assert!((scale - 0.005).abs() < 0.0025, "turn scale {scale}");
 }
 
 #[test]

@@ -42,6 +42,11 @@ pub enum Rejection {
         /// `|innovation| / sqrt(S)`.
         normalised: f64,
     },
+    /// The transmitter is set aside for a while: most of its recent
+    /// arrivals came late (blocked, heard by a reflection;
+    /// [`crate::estimator::guard::LateArrivals`]).
+    #[error("the transmitter is set aside as late")]
+    SetAside,
     /// The filter is not initialised yet (ground variant without a start
     /// pose, before enough transmitters were heard).
     #[error("the filter is not initialised")]

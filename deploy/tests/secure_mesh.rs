@@ -35,13 +35,14 @@ fn site_file(dir: &Path, site: &str) -> PathBuf {
 }
 
 /// `ickon site secure` of `site` into `out`, the router on `endpoint`.
-fn secure(site: &Path, out: &Path, endpoint: &str) {
+fn secure(site: &Path, out: &Path, endpoint: &str, more: &[&str]) {
     let output = Command::new(ICKON)
         .args(["site", "secure"])
         .arg(site)
         .arg("--out")
         .arg(out)
         .args(["--listen", endpoint, "--connect", endpoint])
+        .args(more)
         .output()
         .expect("ickon site secure runs");
     assert!(
@@ -86,6 +87,24 @@ fn node(role: &str, site: &str, endpoint: &str, dir: &Path, user: &str) -> Comma
     cmd
 }
 
+/// `ickon router` with the secured configuration `config`, on `endpoint`.
+fn spawn_router(config: &Path, endpoint: &str, name: &str, log_dir: &Path) -> ChildGuard {
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["router", "--zenoh-config"])
+        .arg(config)
+        .args(["--listen", endpoint]);
+    let mut router = ChildGuard::spawn(name, cmd, log_dir).expect("router");
+    let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
+    poll_until(START_TIMEOUT, "the router to listen", || {
+        if let Some(status) = router.exit_status() {
+            panic!("{name} {status}:\n{}", router.log());
+        }
+        ickon_tests::port::accepts(port).then_some(())
+    })
+    .unwrap_or_else(|e| panic!("{e}\n{}", router.log()));
+    router
+}
+
 type Sub = zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>;
 
 /// Every payload `sub` received so far.
@@ -105,22 +124,9 @@ fn the_router_keeps_forgers_out_and_admin_needs_the_admin_identity() {
     let keys = Keys::new(&site).unwrap();
     let endpoint = ickon_tests::loopback_endpoint().expect("port");
     let dir = tmp.path().join("secure");
-    secure(&file, &dir, &endpoint);
+    secure(&file, &dir, &endpoint, &[]);
 
-    let mut router_cmd = Command::new(ICKON);
-    router_cmd
-        .args(["router", "--zenoh-config"])
-        .arg(dir.join("router.json5"))
-        .args(["--listen", &endpoint]);
-    let mut router = ChildGuard::spawn("router", router_cmd, tmp.path()).expect("router");
-    let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
-    poll_until(START_TIMEOUT, "the router to listen", || {
-        if let Some(status) = router.exit_status() {
-            panic!("router {status}:\n{}", router.log());
-        }
-        ickon_tests::port::accepts(port).then_some(())
-    })
-    .unwrap_or_else(|e| panic!("{e}\n{}", router.log()));
+    let _router = spawn_router(&dir.join("router.json5"), &endpoint, "router", tmp.path());
 
     let mut nodes = Vec::new();
     let mut central = node("central", &site, &endpoint, &dir, "central");
@@ -271,4 +277,93 @@ fn ickon_sim_secure_gives_fixes() {
     for cell in report["cells"].as_array().unwrap() {
         assert!(cell["cycles_fired"].as_u64().unwrap_or(0) > 0, "{cell}");
     }
+}
+
+#[test]
+fn two_secured_routers_carry_the_site_between_floors() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let site = format!("secure2-{}", std::process::id());
+    let file = site_file(tmp.path(), &site);
+    let keys = Keys::new(&site).unwrap();
+    let floor_1 = ickon_tests::loopback_endpoint().expect("port");
+    let floor_2 = ickon_tests::loopback_endpoint().expect("port");
+    let dir = tmp.path().join("secure");
+    // Router 2 links to router 1 (`--link` is `--connect` by default); the
+    // world stands in for the second floor's robots' sensors (`--sim`).
+    secure(&file, &dir, &floor_1, &["--routers", "2", "--sim"]);
+    let _router_1 = spawn_router(&dir.join("router.json5"), &floor_1, "router-1", tmp.path());
+    let _router_2 = spawn_router(
+        &dir.join("router-2.json5"),
+        &floor_2,
+        "router-2",
+        tmp.path(),
+    );
+
+    let mut nodes = Vec::new();
+    let mut central = node("central", &site, &floor_1, &dir, "central");
+    central.arg("--site").arg(&file);
+    nodes.push(ChildGuard::spawn("central", central, tmp.path()).expect("central"));
+    for cell in ["c1", "c2", "c3", "c4"] {
+        let mut cmd = node("cell", &site, &floor_1, &dir, &format!("cell-{cell}"));
+        cmd.args(["--cell", cell]);
+        nodes.push(ChildGuard::spawn(&format!("cell-{cell}"), cmd, tmp.path()).expect("cell"));
+    }
+    let mut world = node("world", &site, &floor_2, &dir, "world");
+    world.args(["--robots", "r1,r2", "--seed", "3"]);
+    nodes.push(ChildGuard::spawn("world", world, tmp.path()).expect("world"));
+    for robot in ["r1", "r2"] {
+        let mut cmd = node("msu", &site, &floor_2, &dir, &format!("robot-{robot}"));
+        cmd.args(["--robot", robot]);
+        nodes.push(ChildGuard::spawn(&format!("msu-{robot}"), cmd, tmp.path()).expect("msu"));
+    }
+
+    // The recorder on the first floor hears the second floor's fixes and
+    // poses: bursts crossed to the world, arrivals to the agents, and back.
+    let recorder = open_as(&client_file(&dir, "recorder"), &floor_1).expect("recorder");
+    let robots = recorder
+        .declare_subscriber(format!("{}/robot/**", keys.prefix()))
+        .with(FifoChannel::new(100_000))
+        .wait()
+        .unwrap();
+    let mut seen = std::collections::HashMap::<(String, RobotTopic), usize>::new();
+    poll_until(
+        START_TIMEOUT,
+        "fixes and poses through two secured routers",
+        || {
+            for n in nodes.iter_mut() {
+                if let Some(status) = n.exit_status() {
+                    panic!("{} {status}:\n{}", n.name(), n.log_tail(30));
+                }
+            }
+            while let Ok(Some(s)) = robots.try_recv() {
+                if let Ok(ickon_proto::keys::Key::Robot(id, topic)) =
+                    keys.parse(s.key_expr().as_str())
+                {
+                    *seen.entry((id, topic)).or_default() += 1;
+                }
+            }
+            ["r1", "r2"]
+                .iter()
+                .all(|r| {
+                    seen.get(&(r.to_string(), RobotTopic::Fix))
+                        .copied()
+                        .unwrap_or(0)
+                        >= 3
+                        && seen
+                            .get(&(r.to_string(), RobotTopic::Pose))
+                            .copied()
+                            .unwrap_or(0)
+                            >= 20
+                })
+                .then_some(())
+        },
+    )
+    .unwrap_or_else(|e| {
+        let logs: Vec<String> = nodes
+            .iter()
+            .map(|n| format!("--- {}:\n{}", n.name(), n.log_tail(10)))
+            .collect();
+        panic!("{e} (seen {seen:?})\n{}", logs.join("\n"))
+    });
+    let _ = recorder.close().wait();
 }

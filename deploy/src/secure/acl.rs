@@ -34,7 +34,22 @@ enum Verb {
     /// See which subscribers and queryables exist (not their data): lets a
     /// client's publisher and querier know where to send.
     SeeDeclarations,
+    /// Everything, both ways: a linked router's traffic.
+    Everything,
 }
+
+/// Every message kind of Zenoh's ACL.
+const ALL_MESSAGES: &[&str] = &[
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "reply",
+    "declare_queryable",
+    "liveliness_token",
+    "declare_liveliness_subscriber",
+    "liveliness_query",
+];
 
 impl Verb {
     /// The (flow, messages) pairs the verb allows, in Zenoh's names.
@@ -56,6 +71,7 @@ impl Verb {
                 ("egress", &["liveliness_token"]),
             ],
             Verb::SeeDeclarations => &[("egress", &["declare_subscriber", "declare_queryable"])],
+            Verb::Everything => &[("ingress", ALL_MESSAGES), ("egress", ALL_MESSAGES)],
         }
     }
 }
@@ -174,14 +190,25 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
             (Publish, vec![keys.sim_probe()]),
             (Watch, vec![keys.alive_all()]),
         ]),
+        // `**` does not match a chunk starting with `@`: name rmw_zenoh's.
+        Identity::Router => out.push((Everything, vec!["**".into(), "@ros2_lv/**".into()])),
     }
     out
 }
 
 /// The `access_control` block of the router's configuration: default deny,
 /// one subject per identity (matched by the user name it authenticated
-/// with), one rule per (identity, direction, message kinds).
-pub fn access_control(site: &Site, identities: &[Identity], ros2: Ros2Scope) -> Value {
+/// with), one rule per (identity, direction, message kinds). `router_zids`:
+/// the pinned ids of the site's linked routers. A link between two routers
+/// authenticates only the one that connects (by its user name `router`);
+/// the one that accepted is known to the other by its id alone, so the
+/// `router` policy names both.
+pub fn access_control(
+    site: &Site,
+    identities: &[Identity],
+    ros2: Ros2Scope,
+    router_zids: &[String],
+) -> Value {
     // The site was validated when loaded, so its name is a valid key chunk;
     // were it not, no key could be built and every rule would be empty.
     let Ok(keys) = Keys::new(&site.name) else {
@@ -220,7 +247,12 @@ pub fn access_control(site: &Site, identities: &[Identity], ros2: Ros2Scope) -> 
             rule_ids.push(id);
         }
         subjects.push(json!({ "id": user, "usernames": [user] }));
-        policies.push(json!({ "id": user, "rules": rule_ids, "subjects": [user] }));
+        let mut subject_ids = vec![user.clone()];
+        if *identity == Identity::Router && !router_zids.is_empty() {
+            subjects.push(json!({ "id": "router-ids", "zids": router_zids }));
+            subject_ids.push("router-ids".into());
+        }
+        policies.push(json!({ "id": user, "rules": rule_ids, "subjects": subject_ids }));
     }
     json!({
         "enabled": true,
@@ -262,7 +294,7 @@ mod tests {
     fn only_the_central_unit_publishes_central_keys() {
         let site = lab();
         let ids = Identity::all_of(&site, true);
-        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 });
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &[]);
         assert_eq!(acl["default_permission"], "deny");
         for id in &ids {
             let puts = allowed(&acl, &id.user(), "ingress", "put");
@@ -278,6 +310,7 @@ mod tests {
             &site,
             &[Identity::Robot("r1".into())],
             Ros2Scope { domain: 7 },
+            &[],
         );
         let puts = allowed(&acl, "robot-r1", "ingress", "put");
         assert_eq!(puts, ["7/r1/**", "7/tf/**", "ickon/lab/robot/r1/**"]);
@@ -301,6 +334,7 @@ mod tests {
             &site,
             &[Identity::Cell("c2".into())],
             Ros2Scope { domain: 0 },
+            &[],
         );
         assert_eq!(
             allowed(&acl, "cell-c2", "ingress", "put"),
@@ -316,7 +350,7 @@ mod tests {
     fn only_admin_and_central_may_query_admin_keys() {
         let site = lab();
         let ids = Identity::all_of(&site, true);
-        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 });
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &[]);
         for id in &ids {
             let q = allowed(&acl, &id.user(), "ingress", "query");
             let admin = q.iter().any(|k| k.ends_with("central/**"));
@@ -336,6 +370,7 @@ mod tests {
             &site,
             &Identity::all_of(&site, true),
             Ros2Scope { domain: 0 },
+            &[],
         );
         let rule_ids: Vec<&str> = acl["rules"]
             .as_array()

@@ -13,8 +13,18 @@ use serde_json::{Value, json};
 use super::SecureError;
 use super::identity::Identity;
 
-/// The router's configuration file in a secured directory.
+/// The router's configuration file in a secured directory (the first
+/// router's; the others' are `router-<k>.json5`).
 pub const ROUTER_FILE: &str = "router.json5";
+
+/// The configuration file of router `k` (from 1).
+pub fn router_file(k: usize) -> String {
+    if k <= 1 {
+        ROUTER_FILE.to_string()
+    } else {
+        format!("router-{k}.json5")
+    }
+}
 /// The user/password dictionary the router checks clients against.
 pub const USERS_FILE: &str = "users.txt";
 /// The directory of the client configurations, one per identity.
@@ -22,7 +32,7 @@ pub const CLIENTS_DIR: &str = "clients";
 
 /// A link lease of 3 s, as `deploy/zenoh/*.json5`: a hung host is noticed
 /// within a few cycles.
-fn link() -> Value {
+fn link_settings() -> Value {
     json!({ "tx": { "lease": 3000, "keep_alive": 4 } })
 }
 
@@ -44,25 +54,54 @@ pub fn client_config(user: &str, password: &str, connect: &[String]) -> Value {
         "connect": { "endpoints": connect, "timeout_ms": -1 },
         "scouting": { "multicast": { "enabled": false } },
         "transport": {
-            "link": link(),
+            "link": link_settings(),
             "auth": { "usrpwd": { "user": user, "password": password } },
         },
     })
 }
 
-/// The router's configuration: listening on `listen`, clients checked
-/// against the dictionary at `users`, the ACL `access_control`.
-pub fn router_config(listen: &[String], users: &Path, access_control: Value) -> Value {
+/// The router's configuration: its pinned id `zid`, listening on `listen`,
+/// clients checked against the dictionary at `users`, the ACL
+/// `access_control`; `link`: the routers it connects to and the credential
+/// it authenticates there with (user `router`).
+pub fn router_config(
+    zid: &str,
+    listen: &[String],
+    users: &Path,
+    access_control: Value,
+    link: Option<(&[String], &str)>,
+) -> Value {
+    let mut usrpwd = json!({ "dictionary_file": users.display().to_string() });
+    let mut connect = json!({ "endpoints": [] });
+    if let Some((endpoints, password)) = link {
+        usrpwd["user"] = json!("router");
+        usrpwd["password"] = json!(password);
+        connect = json!({ "endpoints": endpoints, "timeout_ms": -1 });
+    }
     json!({
+        "id": zid,
         "mode": "router",
         "listen": { "endpoints": listen },
+        "connect": connect,
         "scouting": { "multicast": { "enabled": false } },
         "transport": {
-            "link": link(),
-            "auth": { "usrpwd": { "dictionary_file": users.display().to_string() } },
+            "link": link_settings(),
+            "auth": { "usrpwd": usrpwd },
         },
         "access_control": access_control,
     })
+}
+
+/// A Zenoh id for a router (32 lowercase hex digits, the first not 0), from
+/// the operating system's random source: pinned in its configuration so
+/// that the other routers' ACL can name it.
+pub fn new_zid() -> Result<String, SecureError> {
+    let mut bytes = [0u8; 16];
+    rand::rngs::OsRng
+        .try_fill_bytes(&mut bytes)
+        .map_err(|e| SecureError::Random(e.to_string()))?;
+    bytes[0] |= 0x10;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
 /// Creates `dir` (and its parents) with mode 0700; an existing directory

@@ -21,6 +21,9 @@ pub enum Identity {
     Cell(String),
     /// A robot: its MSU agent and its drivers (`robot-<id>`).
     Robot(String),
+    /// Another floor's router linking to this one (`router`): it carries
+    /// every node's traffic of its floor, already filtered by its own ACL.
+    Router,
 }
 
 impl Identity {
@@ -34,6 +37,7 @@ impl Identity {
             Identity::Observer => "observer".into(),
             Identity::Cell(id) => format!("cell-{id}"),
             Identity::Robot(id) => format!("robot-{id}"),
+            Identity::Router => "router".into(),
         }
     }
 

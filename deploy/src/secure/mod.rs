@@ -111,6 +111,31 @@ pub struct SecureArgs {
     /// ROS domain id of the robots' rmw_zenoh keys (`ickon-msu --ros2`).
     #[arg(long, default_value_t = 0)]
     pub ros2_domain: u32,
+    /// Linked routers, one per floor: `router.json5` and `router-2.json5`
+    /// ... `router-N.json5`, the same ACL and users on each; routers 2 to N
+    /// connect to the first (at `--link`) as the user `router`.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub routers: u16,
+    /// Where routers 2 to N reach the first (repeatable); `--connect` when not given.
+    #[arg(long)]
+    pub link: Vec<String>,
+}
+
+/// How a secured site is laid out: its routers and where everyone connects.
+#[derive(Debug, Clone)]
+pub struct Layout {
+    /// Where each router listens.
+    pub listen: Vec<String>,
+    /// Where the clients reach their router.
+    pub connect: Vec<String>,
+    /// Where routers 2 to N reach the first.
+    pub link: Vec<String>,
+    /// How many linked routers.
+    pub routers: usize,
+    /// Whether to add the simulation's identities.
+    pub sim: bool,
+    /// The robots' ROS 2 keys.
+    pub ros2: acl::Ros2Scope,
 }
 
 /// What was written: where each file is.
@@ -121,9 +146,14 @@ pub struct SecuredDir {
 }
 
 impl SecuredDir {
-    /// The router's configuration.
+    /// The (first) router's configuration.
     pub fn router(&self) -> PathBuf {
         self.dir.join(ROUTER_FILE)
+    }
+
+    /// Router `k`'s configuration (from 1).
+    pub fn router_k(&self, k: usize) -> PathBuf {
+        self.dir.join(files::router_file(k))
     }
 
     /// The client configuration of `identity`.
@@ -160,26 +190,19 @@ impl SecuredDir {
 }
 
 /// Writes the secured files of `site` into the new directory `dir`.
-pub fn write_dir(
-    site: &Site,
-    dir: &Path,
-    listen: &[String],
-    connect: &[String],
-    sim: bool,
-    ros2: acl::Ros2Scope,
-) -> Result<SecuredDir, SecureError> {
+pub fn write_dir(site: &Site, dir: &Path, layout: &Layout) -> Result<SecuredDir, SecureError> {
     files::create_private_dir(dir)?;
     files::create_private_dir(&dir.join(CLIENTS_DIR))?;
     // The router reads the dictionary from wherever it is started: give it
     // the absolute path.
     let dir = std::fs::canonicalize(dir).map_err(|e| SecureError::io(dir, e))?;
-    let identities = Identity::all_of(site, sim);
+    let mut identities = Identity::all_of(site, layout.sim);
     let mut dictionary = String::new();
     for identity in &identities {
         let user = identity.user();
         let password = files::new_password()?;
         dictionary.push_str(&format!("{user}:{password}\n"));
-        let config = files::client_config(&user, &password, connect);
+        let config = files::client_config(&user, &password, &layout.connect);
         let header = format!(
             "Zenoh client configuration of {user} on site {:?} (`--zenoh-config`).\n\
              Written by `ickon site secure`: keep it secret (0600).",
@@ -190,20 +213,40 @@ pub fn write_dir(
             &files::with_header(&header, &config),
         )?;
     }
+    let routers = layout.routers.max(1);
+    let zids = (0..routers)
+        .map(|_| files::new_zid())
+        .collect::<Result<Vec<_>, _>>()?;
+    let router_password = files::new_password()?;
+    if routers > 1 {
+        identities.push(Identity::Router);
+        dictionary.push_str(&format!("router:{router_password}\n"));
+    }
     let users = dir.join(USERS_FILE);
     files::write_private(&users, &dictionary)?;
-    let acl = acl::access_control(site, &identities, ros2);
-    let header = format!(
-        "Zenoh router of site {:?} with access control, default deny\n\
-         (`ickon router --zenoh-config router.json5`, or `zenohd -c`).\n\
-         Written by `ickon site secure`; the user/password dictionary is {}.",
-        site.name,
-        users.display()
-    );
-    files::write_private(
-        &dir.join(ROUTER_FILE),
-        &files::with_header(&header, &files::router_config(listen, &users, acl)),
-    )?;
+    let linked = if routers > 1 { zids.as_slice() } else { &[] };
+    let acl = acl::access_control(site, &identities, layout.ros2, linked);
+    let link = if layout.link.is_empty() {
+        &layout.connect
+    } else {
+        &layout.link
+    };
+    for (k, zid) in (1..=routers).zip(&zids) {
+        let header = format!(
+            "Zenoh router {k} of {routers} of site {:?} with access control, default deny\n\
+             (`ickon router --zenoh-config {}`, or `zenohd -c`).\n\
+             Written by `ickon site secure`; the user/password dictionary is {}.",
+            site.name,
+            files::router_file(k),
+            users.display()
+        );
+        let to_first = (k > 1).then_some((link.as_slice(), router_password.as_str()));
+        let config = files::router_config(zid, &layout.listen, &users, acl.clone(), to_first);
+        files::write_private(
+            &dir.join(files::router_file(k)),
+            &files::with_header(&header, &config),
+        )?;
+    }
     Ok(SecuredDir { dir })
 }
 
@@ -216,23 +259,26 @@ pub fn run(args: SecureArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let ros2 = acl::Ros2Scope {
-        domain: args.ros2_domain,
+    let layout = Layout {
+        listen: args.listen,
+        connect: args.connect,
+        link: args.link,
+        routers: usize::from(args.routers),
+        sim: args.sim,
+        ros2: acl::Ros2Scope {
+            domain: args.ros2_domain,
+        },
     };
-    match write_dir(
-        &site,
-        &args.out,
-        &args.listen,
-        &args.connect,
-        args.sim,
-        ros2,
-    ) {
+    match write_dir(&site, &args.out, &layout) {
         Ok(dir) => {
             let n = Identity::all_of(&site, args.sim).len();
+            let routers: Vec<String> = (1..=layout.routers)
+                .map(|k| dir.router_k(k).display().to_string())
+                .collect();
             println!(
                 "site {:?} from {name}: router configuration {}, {n} credentials in {}",
                 site.name,
-                dir.router().display(),
+                routers.join(", "),
                 dir.dir.join(CLIENTS_DIR).display()
             );
             ExitCode::SUCCESS
@@ -253,21 +299,26 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let site = Site::load_or_default(None).unwrap().0;
         let dir = tmp.path().join("secure");
-        let written = write_dir(
-            &site,
-            &dir,
-            &["tcp/127.0.0.1:0".into()],
-            &["tcp/127.0.0.1:7447".into()],
-            true,
-            acl::Ros2Scope { domain: 0 },
-        )
-        .unwrap();
+        let layout = Layout {
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            link: vec![],
+            routers: 2,
+            sim: true,
+            ros2: acl::Ros2Scope { domain: 0 },
+        };
+        let written = write_dir(&site, &dir, &layout).unwrap();
         let ids = Identity::all_of(&site, true);
         SecuredDir::open(&written.dir, &ids).unwrap();
+        for k in [1, 2] {
+            let router = written.router_k(k);
+            let config = zenoh::Config::from_file(&router).unwrap();
+            check::router(&router, &config).unwrap();
+        }
         let users = check::dictionary_users(&written.dir.join(USERS_FILE)).unwrap();
-        assert_eq!(users.len(), ids.len());
+        assert_eq!(users.len(), ids.len() + 1, "and the linked routers' user");
         // A second run into the same directory is refused, nothing changed.
-        let again = write_dir(&site, &dir, &[], &[], true, acl::Ros2Scope { domain: 0 });
+        let again = write_dir(&site, &dir, &layout);
         assert!(matches!(again, Err(SecureError::NotEmpty(_))));
     }
 }

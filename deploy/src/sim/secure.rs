@@ -9,7 +9,7 @@ use std::process::{Command, ExitCode};
 use ickon_proto::site::Site;
 
 use crate::cli::EXIT_BAD_INPUT;
-use crate::secure::{Identity, SecuredDir, acl::Ros2Scope, write_dir};
+use crate::secure::{Identity, Layout, SecuredDir, acl::Ros2Scope, write_dir};
 
 use super::{Mesh, SimArgs};
 
@@ -93,14 +93,15 @@ fn generate(site: &Site) -> Result<SimSecurity, crate::secure::SecureError> {
             source: e,
         })?;
     let domain = ros2_domain();
-    let dir = write_dir(
-        site,
-        &temp.path().join("site"),
-        &["tcp/127.0.0.1:7447".into()],
-        &["tcp/127.0.0.1:7447".into()],
-        true,
-        Ros2Scope { domain },
-    )?;
+    let layout = Layout {
+        listen: vec!["tcp/127.0.0.1:7447".into()],
+        connect: vec!["tcp/127.0.0.1:7447".into()],
+        link: vec![],
+        routers: 1,
+        sim: true,
+        ros2: Ros2Scope { domain },
+    };
+    let dir = write_dir(site, &temp.path().join("site"), &layout)?;
     Ok(SimSecurity {
         dir,
         _temp: Some(temp),

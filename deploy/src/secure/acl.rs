@@ -199,10 +199,10 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
 /// The `access_control` block of the router's configuration: default deny,
 /// one subject per identity (matched by the user name it authenticated
 /// with), one rule per (identity, direction, message kinds). `router_zids`:
-/// the pinned ids of the site's linked routers. A link between two routers
-/// authenticates only the one that connects (by its user name `router`);
-/// the one that accepted is known to the other by its id alone, so the
-/// `router` policy names both.
+/// the pinned ids of routers this one connected to. A link between two
+/// routers authenticates only the one that connects (by its user name
+/// `router`); the one that accepted is known to the other by its id alone,
+/// so the `router` policy names both.
 pub fn access_control(
     site: &Site,
     identities: &[Identity],

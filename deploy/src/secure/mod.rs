@@ -224,8 +224,6 @@ pub fn write_dir(site: &Site, dir: &Path, layout: &Layout) -> Result<SecuredDir,
     }
     let users = dir.join(USERS_FILE);
     files::write_private(&users, &dictionary)?;
-    let linked = if routers > 1 { zids.as_slice() } else { &[] };
-    let acl = acl::access_control(site, &identities, layout.ros2, linked);
     let link = if layout.link.is_empty() {
         &layout.connect
     } else {
@@ -241,7 +239,11 @@ pub fn write_dir(site: &Site, dir: &Path, layout: &Layout) -> Result<SecuredDir,
             users.display()
         );
         let to_first = (k > 1).then_some((link.as_slice(), router_password.as_str()));
-        let config = files::router_config(zid, &layout.listen, &users, acl.clone(), to_first);
+        // The first router knows the others by the user they connect as;
+        // they know the first, which they connected to, only by its id.
+        let trusted_ids = if k > 1 { &zids[..1] } else { &[] };
+        let acl = acl::access_control(site, &identities, layout.ros2, trusted_ids);
+        let config = files::router_config(zid, &layout.listen, &users, acl, to_first);
         files::write_private(
             &dir.join(files::router_file(k)),
             &files::with_header(&header, &config),

@@ -292,7 +292,7 @@ fn two_secured_routers_carry_the_site_between_floors() {
     // world stands in for the second floor's robots' sensors (`--sim`).
     secure(&file, &dir, &floor_1, &["--routers", "2", "--sim"]);
     let _router_1 = spawn_router(&dir.join("router.json5"), &floor_1, "router-1", tmp.path());
-    let _router_2 = spawn_router(
+    let mut router_2 = spawn_router(
         &dir.join("router-2.json5"),
         &floor_2,
         "router-2",
@@ -325,11 +325,9 @@ fn two_secured_routers_carry_the_site_between_floors() {
         .with(FifoChannel::new(100_000))
         .wait()
         .unwrap();
-    let mut seen = std::collections::HashMap::<(String, RobotTopic), usize>::new();
-    poll_until(
-        START_TIMEOUT,
-        "fixes and poses through two secured routers",
-        || {
+    let flows = |nodes: &mut Vec<ChildGuard>, what: &str| {
+        let mut seen = std::collections::HashMap::<(String, RobotTopic), usize>::new();
+        poll_until(START_TIMEOUT, what, || {
             for n in nodes.iter_mut() {
                 if let Some(status) = n.exit_status() {
                     panic!("{} {status}:\n{}", n.name(), n.log_tail(30));
@@ -342,28 +340,38 @@ fn two_secured_routers_carry_the_site_between_floors() {
                     *seen.entry((id, topic)).or_default() += 1;
                 }
             }
+            let has = |r: &str, t: RobotTopic, n: usize| {
+                seen.get(&(r.to_string(), t)).copied().unwrap_or(0) >= n
+            };
             ["r1", "r2"]
                 .iter()
-                .all(|r| {
-                    seen.get(&(r.to_string(), RobotTopic::Fix))
-                        .copied()
-                        .unwrap_or(0)
-                        >= 3
-                        && seen
-                            .get(&(r.to_string(), RobotTopic::Pose))
-                            .copied()
-                            .unwrap_or(0)
-                            >= 20
-                })
+                .all(|r| has(r, RobotTopic::Fix, 3) && has(r, RobotTopic::Pose, 20))
                 .then_some(())
-        },
-    )
-    .unwrap_or_else(|e| {
-        let logs: Vec<String> = nodes
-            .iter()
-            .map(|n| format!("--- {}:\n{}", n.name(), n.log_tail(10)))
-            .collect();
-        panic!("{e} (seen {seen:?})\n{}", logs.join("\n"))
-    });
+        })
+        .unwrap_or_else(|e| {
+            let logs: Vec<String> = nodes
+                .iter()
+                .map(|n| format!("--- {}:\n{}", n.name(), n.log_tail(10)))
+                .collect();
+            panic!("{e} (seen {seen:?})\n{}", logs.join("\n"))
+        });
+    };
+    flows(&mut nodes, "fixes and poses through two secured routers");
+    let pids: Vec<u32> = nodes.iter().map(ChildGuard::pid).collect();
+
+    // The second floor's router dies and comes back: its clients
+    // authenticate again by themselves, nothing else restarts.
+    router_2.kill().expect("SIGKILL");
+    std::thread::sleep(Duration::from_millis(500));
+    while let Ok(Some(_)) = robots.try_recv() {}
+    let _router_2 = spawn_router(
+        &dir.join("router-2.json5"),
+        &floor_2,
+        "router-2b",
+        tmp.path(),
+    );
+    flows(&mut nodes, "fixes and poses after the router came back");
+    let after: Vec<u32> = nodes.iter().map(ChildGuard::pid).collect();
+    assert_eq!(pids, after, "no node was restarted");
     let _ = recorder.close().wait();
 }

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{admin, bench, eval, msu_cmd, node, record, replay, router, sim, site_cmd};
+use crate::{admin, bench, eval, msu_cmd, node, record, replay, router, secure, sim, site_cmd};
 
 /// Exit code for bad input: a broken site file, a malformed data file, bad flags.
 pub const EXIT_BAD_INPUT: u8 = 2;
@@ -84,6 +84,9 @@ pub enum SiteAction {
         #[arg(long = "site", conflicts_with = "file")]
         site: Option<PathBuf>,
     },
+    /// Write a secured site: the router's configuration with access control
+    /// (default deny) and one credential per node, all files 0600.
+    Secure(secure::SecureArgs),
 }
 
 /// Actions on MSU configuration files.
@@ -103,6 +106,9 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Site {
             action: SiteAction::Check { file, site },
         } => site_cmd::check(file.or(site).as_deref()),
+        Command::Site {
+            action: SiteAction::Secure(args),
+        } => secure::run(args),
         Command::Msu {
             action: MsuAction::Check { file },
         } => msu_cmd::check(&file),

@@ -13,6 +13,7 @@ mod node;
 mod record;
 mod replay;
 mod router;
+mod secure;
 mod sim;
 mod site_cmd;
 

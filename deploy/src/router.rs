@@ -41,7 +41,8 @@ pub fn router_config(args: &RouterArgs) -> Result<zenoh::Config, NodeError> {
 }
 
 /// Runs the router until Ctrl-C or SIGTERM (or the parent going away); exit
-/// code 2 for a bad configuration, 1 when Zenoh cannot start it.
+/// code 2 for a bad configuration (a bad access control list or user/password
+/// dictionary included), 1 when Zenoh cannot start it.
 pub fn run(args: RouterArgs) -> ExitCode {
     let config = match router_config(&args) {
         Ok(c) => c,
@@ -50,6 +51,14 @@ pub fn run(args: RouterArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
+    // A broken ACL or dictionary: say which file and field, before Zenoh
+    // refuses to start or, worse, starts and refuses every client.
+    if let Some(file) = &args.zenoh.zenoh_config {
+        if let Err(e) = crate::secure::check::router(file, &config) {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    }
     ickon_runtime::run_node(1, async move {
         let session = zenoh::open(config)
             .await

@@ -91,6 +91,9 @@ pub enum AdminCommand {
     },
 }
 
+/// The user name of the admin identity that `ickon site secure` writes.
+const ADMIN_USER: &str = "admin";
+
 /// A query to send: the command chunk of the key and its payload.
 struct Request {
     command: &'static str,
@@ -247,10 +250,30 @@ async fn ask<T: DeserializeOwned>(common: &Common, request: Request) -> Result<T
             timeout.as_secs_f64()
         )
     };
+    // Who this session authenticates as on a router with access control.
+    let user: Option<String> = config
+        .get_json("transport/auth/usrpwd/user")
+        .ok()
+        .and_then(|v| serde_json::from_str(&v).ok());
     let session = tokio::time::timeout_at(deadline, zenoh::open(config))
         .await
         .map_err(|_| no_answer())?
-        .map_err(|e| format!("{}: cannot connect: {e}", no_answer()))?;
+        .map_err(|e| {
+            let why = match &user {
+                None => "; a router with access control refuses a client without a user and password (give the admin credential: --zenoh-config DIR/clients/admin.json5 of `ickon site secure`)".to_string(),
+                Some(u) => format!("; the router may have refused the user {u:?} or its password"),
+            };
+            format!("{}: cannot connect: {e}{why}", no_answer())
+        })?;
+    // The central unit is live but no answer came: on a secured router that
+    // is the access control dropping the query of anyone but the admin.
+    let refused = || match user.as_deref() {
+        Some(u) if u != ADMIN_USER => format!(
+            "refused: the central unit of site {:?} is live but its admin queries are only for the admin identity, and this session authenticated as {u:?} (give the admin credential: --zenoh-config DIR/clients/admin.json5 of `ickon site secure`)",
+            common.site_name
+        ),
+        _ => no_answer(),
+    };
     let answer = async {
         let left = deadline.saturating_duration_since(Instant::now());
         if !wait_for_token(&session, &keys.alive_central(), left)
@@ -262,7 +285,7 @@ async fn ask<T: DeserializeOwned>(common: &Common, request: Request) -> Result<T
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
-                return Err(no_answer());
+                return Err(refused());
             }
             // An undecodable answer is logged by `query_once` and counts as none.
             let reply: Option<T> = query_once(&session, &key, request.payload.clone(), left)
@@ -273,7 +296,7 @@ async fn ask<T: DeserializeOwned>(common: &Common, request: Request) -> Result<T
                 None if request.idempotent => {
                     tokio::time::sleep(Duration::from_millis(50)).await;
                 }
-                None => return Err(no_answer()),
+                None => return Err(refused()),
             }
         }
     }

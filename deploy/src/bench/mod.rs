@@ -49,6 +49,10 @@ pub struct ScaleArgs {
     /// Print one JSON document (every size's full `ickon sim` report) instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Every size with access control on the router (`ickon sim --secure`,
+    /// a fresh set of credentials per size).
+    #[arg(long)]
+    pub secure: bool,
 }
 
 /// One size of the benchmark in the JSON document.
@@ -84,6 +88,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             http_token_file: None,
             record: None,
             ros2: false,
+            secure: args.secure.then_some(None),
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

@@ -83,8 +83,15 @@ pub fn sim_metadata(
 /// their first messages already reach it: in a peer mesh data goes only over
 /// direct links, and a link made later by gossip would miss them) and
 /// connected to the central unit.
-pub async fn open_session(central: &str, listen: &str) -> Result<zenoh::Session, String> {
-    let mut config = zenoh::Config::default();
+pub async fn open_session(
+    central: &str,
+    listen: &str,
+    credential: Option<&std::path::Path>,
+) -> Result<zenoh::Session, String> {
+    let mut config = match credential {
+        Some(f) => zenoh::Config::from_file(f).map_err(|e| format!("{}: {e}", f.display()))?,
+        None => zenoh::Config::default(),
+    };
     for (k, v) in [
         ("mode", "\"peer\"".to_string()),
         ("listen/endpoints", format!("[\"{listen}\"]")),

@@ -18,6 +18,7 @@ mod metrics;
 mod msu_file;
 mod observe;
 mod report;
+mod secure;
 mod supervisor;
 mod usage;
 
@@ -87,6 +88,12 @@ pub struct SimArgs {
     /// MSU cores as the agents did.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Access control on the router, default deny, and every node (the
+    /// launcher too) authenticated with its own credential: the files of
+    /// `ickon site secure --sim` in DIR, or with no DIR a fresh set in a
+    /// temporary directory removed at exit.
+    #[arg(long, value_name = "DIR", num_args = 0..=1)]
+    pub secure: Option<Option<PathBuf>>,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -113,6 +120,8 @@ pub struct SimReport {
     pub update_rate_hz: f64,
     /// How the nodes reached each other.
     pub mesh: Mesh,
+    /// Whether the router enforced access control (`--secure`).
+    pub secure: bool,
     /// The endpoint every node connected to: the router's (the central
     /// unit's with `--mesh peer`); it tells this run's processes apart.
     pub central_endpoint: String,
@@ -228,11 +237,24 @@ pub async fn measure(
         .map(|r| r.id.clone())
         .collect();
     let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
+    let security = match secure::SimSecurity::prepare(args, site, &robots) {
+        Ok(s) => s,
+        Err(code) => return Ok(Err(code)),
+    };
+    let credential = |cmd: &mut std::process::Command, who: &crate::secure::Identity| {
+        if let Some(s) = &security {
+            s.client(cmd, who);
+        }
+    };
     let mut sup = supervisor::Supervisor::new();
 
     let mut central_cmd = match args.mesh {
         Mesh::Router => {
-            sup.spawn("router", router_command(&hub)?)?;
+            let mut router = router_command(&hub)?;
+            if let Some(s) = &security {
+                s.router(&mut router);
+            }
+            sup.spawn("router", router)?;
             if let Err(e) = wait_for_listener(hub_port, &mut sup, STARTUP_TIMEOUT).await {
                 sup.stop_all(STOP_GRACE);
                 eprintln!("error: {e:#}");
@@ -242,17 +264,37 @@ pub async fn measure(
         }
         Mesh::Peer => node_command(args, site, "central", "", &hub)?,
     };
+    credential(&mut central_cmd, &crate::secure::Identity::Central);
     let web = launch::http_flags(args, &mut central_cmd)?;
     sup.spawn("central", central_cmd)?;
     let msus = msu_starts(args, site, profile, &robots)?;
-    let session = open_observer(&hub, args.mesh).await?;
+    let as_identity = |who: crate::secure::Identity| security.as_ref().map(|s| s.client_file(&who));
+    let session = match open_observer(
+        &hub,
+        args.mesh,
+        as_identity(crate::secure::Identity::Observer).as_deref(),
+    )
+    .await
+    {
+        Ok(s) => s,
+        Err(e) => {
+            sup.stop_all(STOP_GRACE);
+            return Err(e);
+        }
+    };
     // Recording starts before the first cell, so that it holds every burst.
     let recorder_endpoint = match args.record {
         Some(_) => Some(format!("tcp/127.0.0.1:{}", free_port()?)),
         None => None,
     };
     let recorder_session = match &recorder_endpoint {
-        Some(listen) => match crate::record::sim_hook::open_session(&hub, listen).await {
+        Some(listen) => match crate::record::sim_hook::open_session(
+            &hub,
+            listen,
+            as_identity(crate::secure::Identity::Recorder).as_deref(),
+        )
+        .await
+        {
             Ok(s) => Some(s),
             Err(e) => {
                 sup.stop_all(STOP_GRACE);
@@ -305,6 +347,7 @@ pub async fn measure(
         cmd.args(["--cell", &cell.id])
             .args(clock_flags(&mut clocks))
             .args(&to_recorder);
+        credential(&mut cmd, &crate::secure::Identity::Cell(cell.id.clone()));
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }
     let mut world = node_command(args, site, "world", &hub, "tcp/127.0.0.1:0")?;
@@ -317,6 +360,7 @@ pub async fn measure(
         &args.seed.to_string(),
     ]);
     world.args(&to_recorder);
+    credential(&mut world, &crate::secure::Identity::World);
     if args.ros2 {
         world.arg("--ros2");
     }
@@ -336,6 +380,7 @@ pub async fn measure(
         cmd.args(["--robot", &msu.robot, "--config"])
             .arg(msu_file.path())
             .args(&to_recorder);
+        credential(&mut cmd, &crate::secure::Identity::Robot(msu.robot.clone()));
         if args.ros2 {
             cmd.arg("--ros2");
         }
@@ -420,7 +465,22 @@ pub async fn measure(
     if let Some(addr) = web {
         eprintln!("ickon sim: live map at http://{addr}/");
     }
-    let outcome = observe(args, site, &keys, &session, &hub, &alive, &mut sup, quiet).await;
+    if let (Some(s), false) = (&security, quiet) {
+        eprintln!("ickon sim: {}", s.admin_hint());
+    }
+    let observer_credential = as_identity(crate::secure::Identity::Observer);
+    let outcome = observe(
+        args,
+        site,
+        &keys,
+        &session,
+        &hub,
+        &alive,
+        &mut sup,
+        quiet,
+        observer_credential.as_deref(),
+    )
+    .await;
     let _ = run_dir.remove(&site.name, run.pid);
     let mut used = sup.usage();
     if let Some(me) = usage::read(std::process::id()) {
@@ -453,6 +513,7 @@ pub async fn measure(
         duration_s: args.duration,
         update_rate_hz,
         mesh: args.mesh,
+        secure: security.is_some(),
         central_endpoint: hub.clone(),
         zenoh_hop_p50_us: metrics::percentile(&stats.hop_latencies_us, 50.0),
         zenoh_hop_p99_us: metrics::percentile(&stats.hop_latencies_us, 99.0),

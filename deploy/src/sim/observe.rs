@@ -14,9 +14,14 @@ use super::report::status_line;
 use super::{Mesh, SimArgs, supervisor};
 
 /// The launcher's own session: a client of the run's router, or a peer of
-/// the full mesh (`Mesh::Peer`), connected to `hub`.
-pub(super) async fn open_observer(hub: &str, mesh: Mesh) -> anyhow::Result<zenoh::Session> {
-    let mut config = zenoh::Config::default();
+/// the full mesh (`Mesh::Peer`), connected to `hub`; with `--secure`,
+/// authenticated by the credential in `credential` (a client configuration).
+pub(super) async fn open_observer(
+    hub: &str,
+    mesh: Mesh,
+    credential: Option<&std::path::Path>,
+) -> anyhow::Result<zenoh::Session> {
+    let mut config = super::secure::base_config(credential)?;
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
         c.insert_json5(k, v)
             .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
@@ -63,6 +68,7 @@ pub(super) async fn observe(
     alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     sup: &mut supervisor::Supervisor,
     quiet: bool,
+    credential: Option<&std::path::Path>,
 ) -> anyhow::Result<(RunStats, Option<String>)> {
     let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
     let bursts = session
@@ -92,7 +98,7 @@ pub(super) async fn observe(
 
     // The plain one-hop latency: a second session in this process subscribes
     // to probes the observer publishes; both share this process's clock.
-    let probe_session = open_observer(hub, args.mesh).await?;
+    let probe_session = open_observer(hub, args.mesh, credential).await?;
     let probe_sub = probe_session
         .declare_subscriber(keys.sim_probe())
         .await

@@ -1,0 +1,394 @@
+//! The routers' access control list, default deny: who may publish, read,
+//! ask and answer which keys. Pure: a site and its identities in, Zenoh's
+//! `access_control` block (JSON) out.
+//!
+//! Zenoh checks every message a client sends (ingress) and every message
+//! the router forwards to it (egress) against the rules of the subjects the
+//! client authenticated as; with `default_permission: "deny"` a message no
+//! rule allows is dropped. So each role below is written as verbs on keys,
+//! and each verb is the messages and directions it takes (DESIGN.md
+//! section 10): a reader needs its subscription declared (ingress) and the
+//! data forwarded to it (egress); a writer only its `put` (ingress).
+
+use ickon_proto::keys::Keys;
+use ickon_proto::site::Site;
+use serde_json::{Value, json};
+
+use super::Identity;
+
+/// What a role may do on a set of keys.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Verb {
+    /// Put samples.
+    Publish,
+    /// Declare a subscriber and receive the samples.
+    Subscribe,
+    /// Send queries and receive the replies.
+    Query,
+    /// Declare a queryable, receive queries, reply.
+    Serve,
+    /// Declare a liveliness token (presence).
+    Token,
+    /// Watch liveliness tokens (subscribe and ask).
+    Watch,
+    /// See which subscribers and queryables exist (not their data): lets a
+    /// client's publisher and querier know where to send.
+    SeeDeclarations,
+    /// Everything, both ways: a linked router's traffic.
+    Everything,
+}
+
+/// Every message kind of Zenoh's ACL.
+const ALL_MESSAGES: &[&str] = &[
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "reply",
+    "declare_queryable",
+    "liveliness_token",
+    "declare_liveliness_subscriber",
+    "liveliness_query",
+];
+
+impl Verb {
+    /// The (flow, messages) pairs the verb allows, in Zenoh's names.
+    fn grants(self) -> &'static [(&'static str, &'static [&'static str])] {
+        match self {
+            Verb::Publish => &[("ingress", &["put"])],
+            Verb::Subscribe => &[("ingress", &["declare_subscriber"]), ("egress", &["put"])],
+            Verb::Query => &[("ingress", &["query"]), ("egress", &["reply"])],
+            Verb::Serve => &[
+                ("ingress", &["declare_queryable", "reply"]),
+                ("egress", &["query"]),
+            ],
+            Verb::Token => &[("ingress", &["liveliness_token"])],
+            Verb::Watch => &[
+                (
+                    "ingress",
+                    &["declare_liveliness_subscriber", "liveliness_query"],
+                ),
+                ("egress", &["liveliness_token"]),
+            ],
+            Verb::SeeDeclarations => &[("egress", &["declare_subscriber", "declare_queryable"])],
+            Verb::Everything => &[("ingress", ALL_MESSAGES), ("egress", ALL_MESSAGES)],
+        }
+    }
+}
+
+/// Where the ROS 2 keys of `ickon-msu --ros2` (rmw_zenoh) live.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ros2Scope {
+    /// The ROS domain id: the first chunk of every rmw_zenoh key.
+    pub domain: u32,
+}
+
+/// Everything `identity` may do, as (verb, key expressions).
+fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, Vec<String>)> {
+    use Verb::*;
+    let p = keys.prefix();
+    let d = ros2.domain;
+    let mut out = vec![(SeeDeclarations, vec![format!("{p}/**")])];
+    match identity {
+        Identity::Central => out.extend([
+            (Publish, vec![format!("{p}/central/**")]),
+            (Serve, vec![format!("{p}/central/**")]),
+            (Query, vec![format!("{p}/central/**")]),
+            (Token, vec![keys.alive_central()]),
+            (Watch, vec![keys.alive_all()]),
+            (
+                Subscribe,
+                vec![
+                    keys.cell_status_all(),
+                    keys.cell_burst_all(),
+                    format!("{p}/robot/*/pose"),
+                    format!("{p}/robot/*/fix"),
+                    keys.sim_truth_all(),
+                ],
+            ),
+        ]),
+        Identity::Cell(id) => out.extend([
+            (Publish, vec![format!("{p}/cell/{id}/**")]),
+            (
+                Subscribe,
+                vec![keys.central_cycle(), keys.central_schedule()],
+            ),
+            (
+                Query,
+                vec![
+                    keys.central_site(),
+                    keys.central_schedule(),
+                    keys.central_clock(),
+                ],
+            ),
+            (Token, vec![format!("{p}/alive/cell/{id}")]),
+            (Watch, vec![keys.alive_central()]),
+        ]),
+        Identity::Robot(id) => out.extend([
+            (
+                Publish,
+                vec![
+                    format!("{p}/robot/{id}/**"),
+                    format!("{d}/{id}/**"),
+                    format!("{d}/tf/**"),
+                ],
+            ),
+            (
+                Subscribe,
+                vec![
+                    format!("{p}/robot/{id}/**"),
+                    keys.central_schedule(),
+                    format!("{d}/{id}/**"),
+                ],
+            ),
+            (Query, vec![keys.central_site(), keys.central_schedule()]),
+            (
+                Token,
+                vec![
+                    format!("{p}/alive/robot/{id}"),
+                    // rmw_zenoh's tokens: domain, zid, node id, entity id,
+                    // kind, enclave, then the namespace `/<id>` mangled.
+                    format!("@ros2_lv/{d}/*/*/*/*/*/%{id}/**"),
+                ],
+            ),
+            (Watch, vec![keys.alive_central()]),
+            (SeeDeclarations, vec![format!("{d}/**")]),
+        ]),
+        Identity::World => out.extend([
+            (
+                Publish,
+                vec![
+                    format!("{p}/robot/*/ultrasound"),
+                    format!("{p}/robot/*/odom"),
+                    format!("{p}/robot/*/imu"),
+                    format!("{p}/robot/*/range"),
+                    format!("{p}/sim/**"),
+                    format!("{d}/*/odom/**"),
+                    format!("{d}/*/imu/**"),
+                ],
+            ),
+            (
+                Subscribe,
+                vec![keys.central_schedule(), keys.cell_burst_all()],
+            ),
+            (Query, vec![keys.central_site(), keys.central_schedule()]),
+            (Token, vec![keys.alive_world(), format!("@ros2_lv/{d}/**")]),
+            (Watch, vec![keys.alive_central()]),
+            (SeeDeclarations, vec![format!("{d}/**")]),
+        ]),
+        Identity::Admin => out.extend([
+            (Query, vec![format!("{p}/central/**")]),
+            (Watch, vec![keys.alive_all()]),
+        ]),
+        Identity::Recorder => out.extend([
+            (Subscribe, vec![keys.everything()]),
+            (Query, vec![keys.central_site(), keys.central_schedule()]),
+            (Watch, vec![keys.alive_all()]),
+        ]),
+        Identity::Observer => out.extend([
+            (Subscribe, vec![keys.everything()]),
+            (Publish, vec![keys.sim_probe()]),
+            (Watch, vec![keys.alive_all()]),
+        ]),
+        // `**` does not match a chunk starting with `@`: name rmw_zenoh's.
+        Identity::Router => out.push((Everything, vec!["**".into(), "@ros2_lv/**".into()])),
+    }
+    out
+}
+
+/// The `access_control` block of the router's configuration: default deny,
+/// one subject per identity (matched by the user name it authenticated
+/// with), one rule per (identity, direction, message kinds). `router_zids`:
+/// the pinned ids of routers this one connected to. A link between two
+/// routers authenticates only the one that connects (by its user name
+/// `router`); the one that accepted is known to the other by its id alone,
+/// so the `router` policy names both.
+pub fn access_control(
+    site: &Site,
+    identities: &[Identity],
+    ros2: Ros2Scope,
+    router_zids: &[String],
+) -> Value {
+    // The site was validated when loaded, so its name is a valid key chunk;
+    // were it not, no key could be built and every rule would be empty.
+    let Ok(keys) = Keys::new(&site.name) else {
+        return json!({ "enabled": true, "default_permission": "deny" });
+    };
+    let mut rules = Vec::new();
+    let mut subjects = Vec::new();
+    let mut policies = Vec::new();
+    for identity in identities {
+        let user = identity.user();
+        let mut rule_ids = Vec::new();
+        // Merge the verbs' grants into one rule per (flow, message kinds).
+        let mut merged: Vec<(&str, &[&str], Vec<String>)> = Vec::new();
+        for (verb, key_exprs) in permissions(identity, &keys, ros2) {
+            for (flow, messages) in verb.grants() {
+                match merged
+                    .iter_mut()
+                    .find(|(f, m, _)| f == flow && *m == *messages)
+                {
+                    Some((_, _, k)) => k.extend(key_exprs.iter().cloned()),
+                    None => merged.push((flow, messages, key_exprs.clone())),
+                }
+            }
+        }
+        for (n, (flow, messages, mut key_exprs)) in merged.into_iter().enumerate() {
+            key_exprs.sort();
+            key_exprs.dedup();
+            let id = format!("{user}-{n}");
+            rules.push(json!({
+                "id": id,
+                "messages": messages,
+                "flows": [flow],
+                "permission": "allow",
+                "key_exprs": key_exprs,
+            }));
+            rule_ids.push(id);
+        }
+        subjects.push(json!({ "id": user, "usernames": [user] }));
+        let mut subject_ids = vec![user.clone()];
+        if *identity == Identity::Router && !router_zids.is_empty() {
+            subjects.push(json!({ "id": "router-ids", "zids": router_zids }));
+            subject_ids.push("router-ids".into());
+        }
+        policies.push(json!({ "id": user, "rules": rule_ids, "subjects": subject_ids }));
+    }
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lab() -> Site {
+        Site::load_or_default(None).unwrap().0
+    }
+
+    fn allowed(acl: &Value, user: &str, flow: &str, message: &str) -> Vec<String> {
+        let rules = acl["rules"].as_array().unwrap();
+        let mut out = Vec::new();
+        for rule in rules.iter().filter(|r| {
+            r["id"].as_str().unwrap().starts_with(&format!("{user}-"))
+                && r["flows"][0] == flow
+                && r["messages"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|m| m == message)
+        }) {
+            for k in rule["key_exprs"].as_array().unwrap() {
+                out.push(k.as_str().unwrap().to_string());
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn only_the_central_unit_publishes_central_keys() {
+        let site = lab();
+        let ids = Identity::all_of(&site, true);
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &[]);
+        assert_eq!(acl["default_permission"], "deny");
+        for id in &ids {
+            let puts = allowed(&acl, &id.user(), "ingress", "put");
+            let central = puts.iter().any(|k| k.contains("/central"));
+            assert_eq!(central, *id == Identity::Central, "{}: {puts:?}", id.user());
+        }
+    }
+
+    #[test]
+    fn a_robot_publishes_only_its_own_keys_and_reads_only_what_its_msu_needs() {
+        let site = lab();
+        let acl = access_control(
+            &site,
+            &[Identity::Robot("r1".into())],
+            Ros2Scope { domain: 7 },
+            &[],
+        );
+        let puts = allowed(&acl, "robot-r1", "ingress", "put");
+        assert_eq!(puts, ["7/r1/**", "7/tf/**", "ickon/lab/robot/r1/**"]);
+        let reads = allowed(&acl, "robot-r1", "egress", "put");
+        assert_eq!(
+            reads,
+            [
+                "7/r1/**",
+                "ickon/lab/central/schedule",
+                "ickon/lab/robot/r1/**"
+            ]
+        );
+        let queries = allowed(&acl, "robot-r1", "ingress", "query");
+        assert!(queries.iter().all(|k| !k.contains("admin")), "{queries:?}");
+    }
+
+    #[test]
+    fn a_cell_publishes_only_under_its_own_id() {
+        let site = lab();
+        let acl = access_control(
+            &site,
+            &[Identity::Cell("c2".into())],
+            Ros2Scope { domain: 0 },
+            &[],
+        );
+        assert_eq!(
+            allowed(&acl, "cell-c2", "ingress", "put"),
+            ["ickon/lab/cell/c2/**"]
+        );
+        assert_eq!(
+            allowed(&acl, "cell-c2", "ingress", "liveliness_token"),
+            ["ickon/lab/alive/cell/c2"]
+        );
+    }
+
+    #[test]
+    fn only_admin_and_central_may_query_admin_keys() {
+        let site = lab();
+        let ids = Identity::all_of(&site, true);
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &[]);
+        for id in &ids {
+            let q = allowed(&acl, &id.user(), "ingress", "query");
+            let admin = q.iter().any(|k| k.ends_with("central/**"));
+            assert_eq!(
+                admin,
+                matches!(id, Identity::Admin | Identity::Central),
+                "{}: {q:?}",
+                id.user()
+            );
+        }
+    }
+
+    #[test]
+    fn every_rule_is_named_in_a_policy_and_every_subject_has_one() {
+        let site = lab();
+        let acl = access_control(
+            &site,
+            &Identity::all_of(&site, true),
+            Ros2Scope { domain: 0 },
+            &[],
+        );
+        let rule_ids: Vec<&str> = acl["rules"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["id"].as_str().unwrap())
+            .collect();
+        let in_policies: Vec<&str> = acl["policies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|p| p["rules"].as_array().unwrap())
+            .map(|r| r.as_str().unwrap())
+            .collect();
+        assert_eq!(rule_ids, in_policies);
+        assert_eq!(
+            acl["subjects"].as_array().unwrap().len(),
+            acl["policies"].as_array().unwrap().len()
+        );
+    }
+}

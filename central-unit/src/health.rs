@@ -113,6 +113,7 @@ impl CellTracker {
             cycles_fired: self.cycles_fired,
             cycles_missed: self.cycles_missed,
             slots_skipped: status.map_or(0, |s| s.slots_skipped),
+            inputs_refused: status.map_or(0, |s| s.inputs_refused),
         }
     }
 }
@@ -176,6 +177,7 @@ mod tests {
             cycle,
             scheduled: Time(1_000_000_000),
             actual: Time(1_000_000_000 + error_ns),
+            epoch: 1,
         }
     }
 

@@ -5,11 +5,13 @@
 
 use std::future::Future;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::{AdminAck, CoverageRequest, ReloadRequest};
-use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest};
+use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -118,10 +120,13 @@ pub async fn run(
         .await
         .map_err(zerr)?;
     // Clock requests are answered in Zenoh's receive path, not in the loop
-    // below: t2 must not wait for the loop to get round to the query.
+    // below: t2 must not wait for the loop to get round to the query. The
+    // answer names the epoch, which the loop may change.
+    let epoch = Arc::new(AtomicU64::new(core.epoch()));
+    let clock_epoch = epoch.clone();
     let _clock_q = session
         .declare_queryable(keys.central_clock())
-        .callback(move |q| answer_clock(&q, &clock))
+        .callback(move |q| answer_clock(&q, &clock, clock_epoch.load(Ordering::Relaxed)))
         .await
         .map_err(zerr)?;
     let admin_q = session
@@ -160,6 +165,15 @@ pub async fn run(
         .map_err(zerr)?;
     let fix_sub = session
         .declare_subscriber(keys.robot_all(RobotTopic::Fix))
+        .await
+        .map_err(zerr)?;
+    // Its own keys, to notice what it did not send (its own puts come back too).
+    let cycle_sub = session
+        .declare_subscriber(keys.central_cycle())
+        .await
+        .map_err(zerr)?;
+    let schedule_sub = session
+        .declare_subscriber(keys.central_schedule())
         .await
         .map_err(zerr)?;
     // Declared last: whoever sees the token can query every queryable above.
@@ -223,8 +237,23 @@ pub async fn run(
                 Ok(Key::Robot(robot, _)) => Event::Fix { robot },
                 _ => continue,
             },
+            Ok(s) = cycle_sub.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
+                Ok(t) => Event::TriggerSeen(t),
+                Err(_) => {
+                    undecodable += 1;
+                    continue;
+                }
+            },
+            Ok(s) = schedule_sub.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
+                Ok(t) => Event::ScheduleSeen(t),
+                Err(_) => {
+                    undecodable += 1;
+                    continue;
+                }
+            },
         };
         let outputs = core.handle(clock.now(), event);
+        epoch.store(core.epoch(), Ordering::Relaxed);
         failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
     }
     if failed_puts + undecodable > 0 {
@@ -253,13 +282,13 @@ async fn publish(
 }
 
 /// Answers a clock request at once: t2 on arrival, t3 just before the reply.
-fn answer_clock(q: &Query, clock: &SimulatedClock) {
+fn answer_clock(q: &Query, clock: &SimulatedClock, epoch: u64) {
     let t2 = clock.now();
     let Some(Ok(req)) = q.payload().map(|p| decode::<ClockRequest>(&p.to_bytes())) else {
         tracing::warn!("clock query without a valid request");
         return;
     };
-    let sent = encode(&CentralCore::clock_reply(req.t1, t2, clock.now()))
+    let sent = encode(&CentralCore::clock_reply(epoch, req.t1, t2, clock.now()))
         .map_err(NodeError::from)
         .and_then(|bytes| {
             q.reply(q.key_expr().clone(), bytes)

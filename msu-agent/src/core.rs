@@ -59,6 +59,9 @@ pub enum MsuError {
     /// The estimator rejected the input.
     #[error(transparent)]
     Estimator(#[from] EstimatorError),
+    /// The schedule was refused (see [`ickon_proto::epoch`]).
+    #[error(transparent)]
+    Schedule(#[from] ickon_proto::epoch::ScheduleRefused),
     /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
     #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
     FromTheFuture {
@@ -96,9 +99,13 @@ impl MsuCore {
         }
     }
 
-    /// Installs the schedule the arrivals are matched against.
-    pub fn set_schedule(&mut self, schedule: Schedule) {
-        self.solver.set_schedule(schedule);
+    /// Takes the schedule the arrivals are matched against, if the rules
+    /// of [`ickon_proto::epoch`] allow it (an altered or backward one is
+    /// refused, and the one in force stays).
+    pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), MsuError> {
+        self.solver
+            .set_schedule(schedule)
+            .map_err(MsuError::Schedule)
     }
 
     /// The primary estimator's name.
@@ -273,7 +280,7 @@ mod tests {
             max_fix_sigma_m: 0.5,
         };
         let mut core = MsuCore::new(config, build_by_name(estimator).unwrap());
-        core.set_schedule(schedule());
+        core.set_schedule(schedule()).unwrap();
         core
     }
 
@@ -294,6 +301,7 @@ mod tests {
                 })
                 .collect(),
             active_cells: vec!["a".into()],
+            epoch: 1,
         }
     }
 
@@ -404,7 +412,7 @@ mod tests {
             config,
             names.iter().map(|n| build_by_name(n).unwrap()).collect(),
         );
-        core.set_schedule(schedule());
+        core.set_schedule(schedule()).unwrap();
         let fix = core
             .on_arrivals(&arrivals([3.1, 1.2, 0.5], &[]))
             .unwrap()
@@ -523,5 +531,29 @@ mod tests {
             c.on_arrivals(&arrivals([1.0, 1.0, 0.5], &[])),
             Err(MsuError::NoSchedule)
         );
+    }
+
+    #[test]
+    fn an_empty_schedule_under_the_current_version_is_refused_and_fixes_go_on() {
+        let mut c = core();
+        let empty = Schedule {
+            emissions: Vec::new(),
+            ..schedule()
+        };
+        let out = c.handle(crate::events::Event::Schedule(empty));
+        assert!(
+            matches!(
+                out.as_slice(),
+                [crate::events::Output::Refused {
+                    input: crate::events::InputKind::Schedule,
+                    error: MsuError::Schedule(_)
+                }]
+            ),
+            "{out:?}"
+        );
+        assert!(matches!(
+            c.on_arrivals(&arrivals([1.0, 1.0, 0.5], &[])),
+            Ok(Some(_))
+        ));
     }
 }

@@ -56,6 +56,7 @@ fn run_cycles(c: &mut CentralCore, n: usize) -> Vec<CycleTrigger> {
                     cycle: t.cycle,
                     scheduled: t.start,
                     actual: t.start,
+                    epoch: c.epoch(),
                 });
             }
         }
@@ -150,6 +151,7 @@ fn missed_cycles_are_counted_for_live_cells_that_did_not_fire() {
                 cycle,
                 scheduled: Time(1_000),
                 actual: Time(1_000 + 50_000),
+                epoch: c.epoch(),
             });
         }
     }
@@ -308,6 +310,7 @@ fn a_live_cell_that_stops_firing_is_down_after_two_missed_cycles() {
                     cycle: t.cycle,
                     scheduled: t.start,
                     actual: t.start,
+                    epoch: c.epoch(),
                 });
             }
         }

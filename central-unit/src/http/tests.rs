@@ -55,6 +55,7 @@ fn report(site: &Site) -> StatusReport {
                 cycles_fired: 11,
                 cycles_missed: 0,
                 slots_skipped: 0,
+                inputs_refused: 0,
             })
             .collect(),
         robots: vec![RobotHealth {
@@ -67,6 +68,8 @@ fn report(site: &Site) -> StatusReport {
             y_m: 2.0,
             theta_rad: 0.5,
         }],
+        epoch: 1,
+        foreign_control: 0,
     }
 }
 
@@ -292,6 +295,7 @@ fn forged_and_broken_messages_are_counted_not_kept() {
             cycle: u64::MAX,
             scheduled: Time(i64::MAX),
             actual: Time(i64::MIN),
+            epoch: u64::MAX,
         },
         Time(0),
     );

@@ -225,6 +225,7 @@ mod tests {
             cycles_fired: 11,
             cycles_missed: 0,
             slots_skipped: 0,
+            inputs_refused: 0,
         };
         StatusReport {
             site: "lab".into(),
@@ -244,6 +245,8 @@ mod tests {
                 y_m: 2.0,
                 theta_rad: 0.5,
             }],
+            epoch: 1,
+            foreign_control: 0,
         }
     }
 

@@ -188,6 +188,7 @@ mod tests {
             cycle: 1,
             start: Time::from_nanos(9),
             schedule_version: 1,
+            epoch: 1,
         })
         .unwrap();
         assert!(prepare(&p, &schedule_bytes).is_err());

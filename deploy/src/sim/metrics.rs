@@ -350,6 +350,7 @@ mod tests {
                 cycle,
                 scheduled: Time(1_000_000),
                 actual: Time(1_000_000 + err * 1_000),
+                epoch: 1,
             });
         }
         let s = c.summary("c1", &(0..5).collect());

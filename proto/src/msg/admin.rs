@@ -43,6 +43,9 @@ pub struct CellHealth {
     pub cycles_missed: u64,
     /// Slots the cell skipped because their trigger came too late (its own count).
     pub slots_skipped: u64,
+    /// Control messages the cell refused (its own count, see
+    /// [`CellStatus::inputs_refused`](crate::msg::control::CellStatus::inputs_refused)).
+    pub inputs_refused: u64,
 }
 
 /// Health of one robot as the central unit sees it.
@@ -88,6 +91,12 @@ pub struct StatusReport {
     pub cells: Vec<CellHealth>,
     /// Every robot seen.
     pub robots: Vec<RobotHealth>,
+    /// The answering central unit's epoch (its start or term, master time, ns).
+    pub epoch: u64,
+    /// Control messages on the central unit's keys that it did not send
+    /// (a schedule or trigger of its epoch it never made, or of another
+    /// central unit), since it started.
+    pub foreign_control: u64,
 }
 
 /// Optional query payload of `coverage`.

@@ -254,7 +254,7 @@ impl CentralCore {
                 Vec::new()
             }
             Event::Pose { robot, pose } => {
-                self.on_pose(&robot, pose);
+                self.on_pose(&robot, pose, now);
                 Vec::new()
             }
             Event::Fix { robot } => {
@@ -442,10 +442,10 @@ impl CentralCore {
         self.unknown_robot_messages
     }
 
-    /// A robot published a pose.
-    pub fn on_pose(&mut self, id: &str, pose: RobotPose) {
+    /// A robot published a pose, received at `now`.
+    pub fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
         if let Some(r) = self.robot_mut(id) {
-            r.on_pose(pose);
+            r.on_pose(pose, now);
         }
     }
 

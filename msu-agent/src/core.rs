@@ -10,7 +10,10 @@ use ickon_fusion::estimator::{
 };
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::{Schedule, TransmitterEntry};
-use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
+use ickon_proto::msg::robot::{
+    Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
+};
+use ickon_proto::time::{Duration, Time};
 use nalgebra::Matrix2;
 
 use crate::assembly::AssemblyError;
@@ -70,6 +73,17 @@ pub enum MsuError {
     },
 }
 
+/// An input stream silent for longer than this (by the stamps of the
+/// others) makes the pose stale: a few cycles of the slowest site (1.6
+/// cycles/s) without a fix, or dozens of odometry periods.
+pub const STALE_AFTER: Duration = Duration::from_millis(3_000);
+
+/// How fast the position uncertainty of a stale pose grows beyond what the
+/// estimator says, m/s: the estimator's own growth assumes its models hold,
+/// and a robot without fixes for seconds is exactly when they may not
+/// (slip, a wrong wheel scale). About a tenth of the robot's top speed.
+pub const STALE_GROWTH_M_PER_S: f64 = 0.05;
+
 /// The per-robot MSU state machine.
 pub struct MsuCore {
     solver: FixSolver,
@@ -78,6 +92,11 @@ pub struct MsuCore {
     time_gate: TimeGate,
     /// Wire time to fusion time and back, exactly.
     clock: FusionClock,
+    /// Stamp of the newest valid fix, of the newest odometry sample, and
+    /// of the first input taken (MSU clock).
+    last_fix: Option<Time>,
+    last_odometry: Option<Time>,
+    first_input: Option<Time>,
 }
 
 impl MsuCore {
@@ -96,6 +115,9 @@ impl MsuCore {
             fix_seq: 0,
             time_gate: TimeGate::default(),
             clock: FusionClock::default(),
+            last_fix: None,
+            last_odometry: None,
+            first_input: None,
         }
     }
 
@@ -124,10 +146,31 @@ impl MsuCore {
     }
 
     /// Lets `stamp` through the time gate, or says why not.
-    fn gate(&mut self, stamp: ickon_proto::time::Time) -> Result<(), MsuError> {
+    fn gate(&mut self, stamp: Time) -> Result<(), MsuError> {
         match self.time_gate.check(stamp.as_secs_f64()) {
-            Verdict::Accept => Ok(()),
+            Verdict::Accept => {
+                self.first_input.get_or_insert(stamp);
+                Ok(())
+            }
             Verdict::FromTheFuture { ahead_s } => Err(MsuError::FromTheFuture { ahead_s }),
+        }
+    }
+
+    /// Whether a pose at `stamp` is tracked, and if not which input
+    /// stalled and for how long beyond [`STALE_AFTER`].
+    pub fn staleness(&self, stamp: Time) -> (PoseStatus, Duration) {
+        let silent = |last: Option<Time>| {
+            let since = last
+                .or(self.first_input)
+                .map_or(Duration::ZERO, |t| stamp.since(t));
+            (since > STALE_AFTER).then(|| since - STALE_AFTER)
+        };
+        if let Some(over) = silent(self.last_fix) {
+            (PoseStatus::NoFixes, over)
+        } else if let Some(over) = silent(self.last_odometry) {
+            (PoseStatus::NoOdometry, over)
+        } else {
+            (PoseStatus::Tracking, Duration::ZERO)
         }
     }
 
@@ -151,6 +194,7 @@ impl MsuCore {
             return Ok(None);
         };
         self.fix_seq = msg.seq;
+        self.last_fix = Some(self.last_fix.map_or(fix.stamp, |t| t.max(fix.stamp)));
         let c = &fix.covariance;
         let sample = FixSample {
             t_s: self.clock.to_fusion(fix.stamp),
@@ -168,6 +212,7 @@ impl MsuCore {
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
     pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
         self.gate(odom.stamp)?;
+        self.last_odometry = Some(self.last_odometry.map_or(odom.stamp, |t| t.max(odom.stamp)));
         let geometry = self.solver.config().wheels;
         self.host.feed(&Input::Encoders(EncoderSample {
             t_s: self.clock.to_fusion(odom.stamp),
@@ -207,12 +252,21 @@ impl MsuCore {
         self.pose_of(0)
     }
 
-    /// Estimator `i`'s fused pose, once it is initialised.
+    /// Estimator `i`'s fused pose, once it is initialised. A stale pose
+    /// says why ([`PoseStatus`]); without fixes its position variance grows
+    /// by `(STALE_GROWTH_M_PER_S * t)^2`, `t` the time beyond [`STALE_AFTER`].
     pub fn pose_of(&self, i: usize) -> Option<RobotPose> {
         let p = self.host.pose(i)?;
-        let c = p.covariance;
+        let mut c = p.covariance;
+        let stamp = self.clock.to_wire(p.t_s);
+        let (status, over) = self.staleness(stamp);
+        if status == PoseStatus::NoFixes {
+            let grown = (STALE_GROWTH_M_PER_S * over.as_secs_f64()).powi(2);
+            c[(0, 0)] += grown;
+            c[(1, 1)] += grown;
+        }
         Some(RobotPose {
-            stamp: self.clock.to_wire(p.t_s),
+            stamp,
             x_m: p.x_m,
             y_m: p.y_m,
             theta_rad: p.theta_rad,
@@ -229,9 +283,13 @@ impl MsuCore {
             ],
             estimator: self.host.name(i).unwrap_or("none").to_owned(),
             fix_seq: self.fix_seq,
+            status,
         })
     }
 }
+
+#[cfg(test)]
+mod stale_tests;
 
 #[cfg(test)]
 mod tests {

@@ -67,6 +67,7 @@ fn report(site: &Site) -> StatusReport {
             x_m: 1.0,
             y_m: 2.0,
             theta_rad: 0.5,
+            stale: String::new(),
         }],
         epoch: 1,
         foreign_control: 0,
@@ -243,6 +244,7 @@ fn pose(x_m: f64, stamp_ns: i64) -> RobotPose {
         covariance: [0.0; 9],
         estimator: "tdoa-ekf".into(),
         fix_seq: 0,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
     }
 }
 

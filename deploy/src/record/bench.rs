@@ -240,6 +240,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                     covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
                     estimator: "tdoa-ekf".into(),
                     fix_seq: seq,
+                    status: ickon_proto::msg::robot::PoseStatus::Tracking,
                 };
                 put(recorder, &k[2], &pose, now)?;
                 let truth = Truth {
@@ -308,6 +309,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                     covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
                     estimator: "tdoa-ekf".into(),
                     fix_seq: seq,
+                    status: ickon_proto::msg::robot::PoseStatus::Tracking,
                 };
                 put(recorder, &k[2], &pose, now)?;
             }

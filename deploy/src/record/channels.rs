@@ -162,6 +162,7 @@ mod tests {
             covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-3],
             estimator: "tdoa-ekf".into(),
             fix_seq: 3,
+            status: ickon_proto::msg::robot::PoseStatus::Tracking,
         };
         let stored = prepare(&p, &encode(&pose).unwrap()).unwrap();
         assert_eq!(stored.event_time, Some(pose.stamp));

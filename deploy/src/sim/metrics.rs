@@ -287,6 +287,7 @@ mod tests {
             covariance: [0.0; 9],
             estimator: "test".into(),
             fix_seq,
+            status: ickon_proto::msg::robot::PoseStatus::Tracking,
         }
     }
 

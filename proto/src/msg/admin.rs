@@ -69,6 +69,10 @@ pub struct RobotHealth {
     pub y_m: f64,
     /// Last pose, radians.
     pub theta_rad: f64,
+    /// Why the robot is stale, in plain words (no pose for a while, or its
+    /// MSU says an input stalled); empty when it is not.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub stale: String,
 }
 
 /// Answer to `status`, `cells`, `robots` and `sync`.

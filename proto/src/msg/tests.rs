@@ -161,6 +161,7 @@ fn robot_messages_round_trip() {
         covariance: [0.0; 9],
         estimator: "ickon-akf".into(),
         fix_seq: 5,
+        status: crate::msg::robot::PoseStatus::Tracking,
     });
     round_trip(Truth {
         stamp: Time(6),
@@ -226,6 +227,7 @@ fn admin_messages_round_trip() {
             x_m: 1.0,
             y_m: 1.0,
             theta_rad: 0.0,
+            stale: String::new(),
         }],
         epoch: 42,
         foreign_control: 1,
@@ -387,6 +389,7 @@ fn ros_pose_with_covariance_has_the_ros2_layout() {
         covariance: [0.01, 0.0, 0.0, 0.0, 0.02, 0.0, 0.0, 0.0, 0.03],
         estimator: "ickon-akf".into(),
         fix_seq: 0,
+        status: crate::msg::robot::PoseStatus::Tracking,
     };
     let ros = PoseWithCovarianceStamped::from_robot_pose(&pose, "map");
     let bytes = encode(&ros).unwrap();

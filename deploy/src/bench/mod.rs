@@ -84,6 +84,8 @@ pub fn run(command: BenchCommand) -> ExitCode {
             http_token_file: None,
             record: None,
             ros2: false,
+            restart: false,
+            faults: None,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

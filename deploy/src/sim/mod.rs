@@ -13,6 +13,7 @@
 //! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
 //! status line, and a summary at the end.
 
+pub mod faults;
 mod launch;
 mod metrics;
 mod msu_file;
@@ -87,6 +88,14 @@ pub struct SimArgs {
     /// MSU cores as the agents did.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Start a node again when it dies, as systemd would, instead of
+    /// stopping the run.
+    #[arg(long)]
+    pub restart: bool,
+    /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,kill:msu/r1@25s`
+    /// (times from the moment every node is live; see `deploy/src/sim/faults.rs`).
+    #[arg(long, value_name = "PLAN")]
+    pub faults: Option<String>,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -130,6 +139,10 @@ pub struct SimReport {
     /// The recording of `--record`: file, messages per topic, rates.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recorded: Option<crate::record::RecordReport>,
+    /// Faults injected (`--faults`) and when, seconds from the start.
+    pub faults_done: Vec<(String, f64)>,
+    /// Nodes restarted after they died (`--restart`).
+    pub restarts: Vec<String>,
 }
 
 /// Runs `ickon sim` and returns the exit code.
@@ -201,6 +214,43 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
         eprintln!("error: --duration must be between 0 and 86400 seconds");
         return Err(ExitCode::from(EXIT_BAD_INPUT));
+    }
+    if let Some(plan) = &args.faults {
+        match faults::parse_plan(plan) {
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Err(ExitCode::from(EXIT_BAD_INPUT));
+            }
+            Ok(plan) => {
+                if let Some(f) = plan
+                    .iter()
+                    .find(|f| matches!(f.action, faults::FaultAction::ClockStep(_)))
+                {
+                    eprintln!(
+                        "error: --faults: {:?}: clock steps cannot be injected into a running node yet",
+                        f.text
+                    );
+                    return Err(ExitCode::from(EXIT_BAD_INPUT));
+                }
+                let nodes: Vec<String> = std::iter::once("central".to_string())
+                    .chain(["world".to_string(), "router".to_string()])
+                    .chain(site.cells.iter().map(|c| format!("cell {}", c.id)))
+                    .chain(
+                        site.robots
+                            .iter()
+                            .take(args.robots)
+                            .map(|r| format!("msu {}", r.id)),
+                    )
+                    .collect();
+                if let Some(f) = plan.iter().find(|f| !nodes.contains(&f.node)) {
+                    eprintln!(
+                        "error: --faults: {:?}: this run has no node {}",
+                        f.text, f.node
+                    );
+                    return Err(ExitCode::from(EXIT_BAD_INPUT));
+                }
+            }
+        }
     }
     Ok((site, profile))
 }
@@ -482,6 +532,8 @@ pub async fn measure(
         cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
         processes: usage::by_kind(&used),
         recorded: recorded.as_ref().and_then(|r| r.as_ref().ok()).cloned(),
+        faults_done: stats.faults_done.clone(),
+        restarts: stats.restarts.clone(),
     };
     let failure = match (failure, recorded) {
         (None, Some(Err(e))) => Some(e),

@@ -194,16 +194,19 @@ pub(super) async fn observe(
                 }
                 probes_sent.retain(|_, t| t.elapsed() < Duration::from_secs(5));
             }
-            _ = fault_tick.tick(), if !plan.is_empty() || !resume.is_empty() => {
+            _ = fault_tick.tick(), if args.restart || !plan.is_empty() || !resume.is_empty() => {
                 inject_due(&mut plan, &mut resume, sup, args.restart, started, &mut stats);
-            }
-            _ = status_tick.tick() => {
+                // A dead node is started again within a tick, as systemd would at once.
                 if args.restart {
                     for dead in sup.restart_dead() {
                         tracing::info!("{} {}: restarted", dead.name, dead.status);
                         stats.restarts.push(dead.name);
                     }
-                } else if let Some(dead) = sup.first_dead() {
+                }
+            }
+            _ = status_tick.tick() => {
+                // With --restart a dead node is started again on the fault tick.
+                if let Some(dead) = sup.first_dead().filter(|_| !args.restart) {
                     break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
                 }
                 if !quiet {

@@ -148,6 +148,13 @@ impl CellCounters {
     }
 }
 
+/// Whether a count going from `before` to `after` passed a power of two:
+/// skipped slots are logged at the 1st, 2nd, 4th, 8th, ... so that a loaded
+/// machine costs a few lines, not one per slot (the status carries the count).
+fn crosses_power_of_two(before: u64, after: u64) -> bool {
+    after > before && (before == 0 || before.ilog2() != after.ilog2())
+}
+
 /// Consecutive exchanges that disagree with the estimate in the same way
 /// before the cell takes it as a clock step: one stray answer (a rogue
 /// replier, a reply delayed in a queue) is dropped instead of throwing away
@@ -482,15 +489,17 @@ impl CellCore {
             .plan(&trigger, self.sync.estimate().as_ref(), now)
         {
             Ok(plan) => {
-                if plan.skipped > 0 {
+                let before = self.counters.slots_skipped;
+                self.counters.slots_skipped += plan.skipped;
+                if plan.skipped > 0 && crosses_power_of_two(before, self.counters.slots_skipped) {
                     tracing::warn!(
-                        "cell {}: cycle {}: {} slots skipped (trigger too late)",
+                        "cell {}: cycle {}: {} slots skipped (trigger too late); {} skipped so far",
                         self.cell_id,
                         trigger.cycle,
-                        plan.skipped
+                        plan.skipped,
+                        self.counters.slots_skipped
                     );
                 }
-                self.counters.slots_skipped += plan.skipped;
                 for b in plan.bursts {
                     self.pending
                         .push(Reverse((b.master, b.tx_id, b.cycle, b.local, b.epoch)));
@@ -565,11 +574,14 @@ impl CellCore {
                     out.push(Output::Fire(b));
                 }
                 None => {
-                    tracing::warn!(
-                        "cell {}: cycle {cycle}: tx {tx_id} skipped (woken too late to program it)",
-                        self.cell_id
-                    );
                     self.counters.slots_skipped += 1;
+                    if self.counters.slots_skipped.is_power_of_two() {
+                        tracing::warn!(
+                            "cell {}: cycle {cycle}: tx {tx_id} skipped (woken too late to program it); {} skipped so far",
+                            self.cell_id,
+                            self.counters.slots_skipped
+                        );
+                    }
                 }
             }
         }

@@ -272,3 +272,16 @@ fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
     );
     assert_eq!(core.counters().cycles_fired, 0);
 }
+
+#[test]
+fn skipped_slots_are_logged_at_powers_of_two_only() {
+    let logged: Vec<u64> = (0..40u64)
+        .filter(|&n| crosses_power_of_two(n, n + 1))
+        .map(|n| n + 1)
+        .collect();
+    assert_eq!(logged, vec![1, 2, 4, 8, 16, 32]);
+    // A plan that skips several at once logs when it passes one.
+    assert!(crosses_power_of_two(5, 9));
+    assert!(!crosses_power_of_two(9, 12));
+    assert!(!crosses_power_of_two(3, 3));
+}

@@ -124,6 +124,8 @@ pub struct StatusJson {
     pub epoch: u64,
     /// Control messages on its keys it did not send, since it started.
     pub foreign_control: u64,
+    /// Whether the answering central unit is the active one (`false`: a standby).
+    pub active: bool,
     /// Last cycle triggered.
     pub cycle: u64,
     /// Whether cycle triggers are paused.
@@ -147,6 +149,7 @@ impl StatusJson {
             site: s.site.clone(),
             epoch: s.epoch,
             foreign_control: s.foreign_control,
+            active: s.active,
             cycle: s.cycle,
             paused: s.paused,
             schedule_version: s.schedule_version,

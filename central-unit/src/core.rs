@@ -107,6 +107,8 @@ pub enum Event {
     ScheduleSeen(Schedule),
     /// A trigger was published on `central/cycle` (its own included).
     TriggerSeen(CycleTrigger),
+    /// The active central unit's liveliness token went (a standby takes over).
+    ActiveGone,
 }
 
 /// What the node must publish.
@@ -137,6 +139,8 @@ pub struct CentralCore {
     /// The triggers sent last, to tell them from foreign ones when they come back.
     sent_triggers: VecDeque<CycleTrigger>,
     next_reannounce: Time,
+    /// `Some` while this central unit is a hot standby (see [`standby`]).
+    pub(crate) standby: Option<standby::Follower>,
 }
 
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
@@ -177,6 +181,7 @@ impl CentralCore {
             foreign_control: 0,
             sent_triggers: VecDeque::new(),
             next_reannounce: now + config.schedule_reannounce,
+            standby: None,
         })
     }
 
@@ -205,6 +210,11 @@ impl CentralCore {
         }
     }
 
+    /// Whether it is the active central unit (not a standby).
+    pub fn is_active(&self) -> bool {
+        self.standby.is_none()
+    }
+
     /// The newest schedule (possibly not yet in force).
     pub fn latest_schedule(&self) -> &Schedule {
         self.schedules.last().expect("a schedule always exists")
@@ -226,9 +236,13 @@ impl CentralCore {
 
     /// When the node should call [`tick`](Self::tick) next: the next
     /// trigger time (the schedule is re-announced with the first trigger
-    /// after its period, so it needs no wake-up of its own).
+    /// after its period, so it needs no wake-up of its own); for a standby,
+    /// when the active one's lease runs out.
     pub fn next_wake(&self) -> Time {
-        self.next_trigger_at()
+        match &self.standby {
+            Some(f) => f.lease_end(),
+            None => self.next_trigger_at(),
+        }
     }
 
     /// When the next trigger goes out.
@@ -261,21 +275,54 @@ impl CentralCore {
                 self.on_fix(&robot, now);
                 Vec::new()
             }
-            Event::ScheduleSeen(schedule) => self.on_schedule_seen(schedule, now),
+            Event::ScheduleSeen(schedule) if self.standby.is_some() => {
+                self.follow_schedule(schedule);
+                Vec::new()
+            }
+            Event::TriggerSeen(trigger) if self.standby.is_some() => {
+                self.follow_trigger(trigger);
+                Vec::new()
+            }
+            Event::ScheduleSeen(schedule) => {
+                if schedule.epoch > self.epoch {
+                    self.step_down(&schedule);
+                    return Vec::new();
+                }
+                self.on_schedule_seen(schedule, now)
+            }
             Event::TriggerSeen(trigger) => {
+                if trigger.epoch > self.epoch {
+                    self.step_down_for(trigger);
+                    return Vec::new();
+                }
                 self.on_trigger_seen(&trigger);
                 Vec::new()
             }
+            Event::ActiveGone if self.standby.is_some() => self.take_over(now),
+            Event::ActiveGone => Vec::new(),
         };
+        if self.standby.is_some() {
+            // A standby keeps its books (cells, robots) but publishes
+            // nothing, not even the schedules its membership view makes.
+            return if self.lease_expired(now) {
+                self.take_over(now)
+            } else {
+                Vec::new()
+            };
+        }
         if now >= self.next_wake() {
             out.extend(self.tick(now));
         }
         out
     }
 
-    /// Emits every trigger due at `now` (one per cycle, never two for one cycle).
+    /// Emits every trigger due at `now` (one per cycle, never two for one
+    /// cycle); a standby emits nothing.
     pub fn tick(&mut self, now: Time) -> Vec<Output> {
         let mut out = Vec::new();
+        if self.standby.is_some() {
+            return out;
+        }
         while now >= self.next_trigger_at() {
             let cycle = self.next_cycle;
             let schedule = self.schedule_for(cycle).clone();
@@ -509,7 +556,7 @@ impl CentralCore {
 
     /// Starts a new epoch at `now`: cycles count from 0 again and the
     /// schedule in force is re-issued as version 1, from the next cycle.
-    fn new_epoch(&mut self, now: Time) -> Vec<Output> {
+    pub(crate) fn new_epoch(&mut self, now: Time) -> Vec<Output> {
         self.epoch = epoch_of(now, Some(self.epoch));
         let current = self.schedule_for(self.next_cycle).clone();
         let schedule = Schedule {
@@ -561,6 +608,7 @@ impl CentralCore {
                 .collect(),
             epoch: self.epoch,
             foreign_control: self.foreign_control,
+            active: self.standby.is_none(),
         }
     }
 
@@ -670,6 +718,8 @@ impl CentralCore {
         )
     }
 }
+
+pub mod standby;
 
 #[cfg(test)]
 mod forged_tests;

@@ -71,6 +71,7 @@ fn report(site: &Site) -> StatusReport {
         }],
         epoch: 1,
         foreign_control: 0,
+        active: true,
     }
 }
 

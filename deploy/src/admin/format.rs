@@ -34,8 +34,9 @@ fn header(out: &mut String, s: &StatusReport) {
     );
     let _ = writeln!(
         out,
-        "central unit epoch {}{}",
+        "central unit epoch {} ({}){}",
         s.epoch,
+        if s.active { "active" } else { "standby" },
         if s.foreign_control > 0 {
             format!(", {} control messages it did not send", s.foreign_control)
         } else {
@@ -265,6 +266,7 @@ mod tests {
             }],
             epoch: 1,
             foreign_control: 0,
+            active: true,
         }
     }
 

@@ -85,6 +85,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             record: None,
             ros2: false,
             restart: false,
+            standby: false,
             faults: None,
         })
         .collect();

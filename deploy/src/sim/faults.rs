@@ -9,7 +9,8 @@
 //! - `clockstep:NODE@20s+5ms`: step its clock by 5 ms (accepted by the
 //!   parser; not carried out yet, `ickon sim` says so and exits 2).
 //!
-//! `NODE` is `central`, `world`, `router`, `cell/<id>` or `msu/<id>`;
+//! `NODE` is `central` (the first central unit), `central/standby` (the
+//! second, with `--standby`), `world`, `router`, `cell/<id>` or `msu/<id>`;
 //! times take `s` or `ms` (`@2500ms`), a clock step `ms` or `us` and may be
 //! negative. Every problem is reported with the item it is in.
 
@@ -118,6 +119,7 @@ fn parse_item(item: &str) -> Result<Fault, FaultPlanError> {
 fn node_name(node: &str) -> Option<String> {
     match node {
         "central" | "world" | "router" => Some(node.to_string()),
+        "central/standby" => Some("central standby".to_string()),
         _ => {
             let (kind, id) = node.split_once('/')?;
             let ok = matches!(kind, "cell" | "msu") && ickon_proto::keys::validate_id(id).is_ok();

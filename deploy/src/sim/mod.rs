@@ -92,6 +92,10 @@ pub struct SimArgs {
     /// stopping the run.
     #[arg(long)]
     pub restart: bool,
+    /// Run a second central unit as a hot standby (`ickon-central --standby`)
+    /// that takes over when the first goes.
+    #[arg(long)]
+    pub standby: bool,
     /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,kill:msu/r1@25s`
     /// (times from the moment every node is live; see `deploy/src/sim/faults.rs`).
     #[arg(long, value_name = "PLAN")]
@@ -233,6 +237,7 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
                     return Err(ExitCode::from(EXIT_BAD_INPUT));
                 }
                 let nodes: Vec<String> = std::iter::once("central".to_string())
+                    .chain(args.standby.then(|| "central standby".to_string()))
                     .chain(["world".to_string(), "router".to_string()])
                     .chain(site.cells.iter().map(|c| format!("cell {}", c.id)))
                     .chain(
@@ -294,6 +299,15 @@ pub async fn measure(
     };
     let web = launch::http_flags(args, &mut central_cmd)?;
     sup.spawn("central", central_cmd)?;
+    if args.standby {
+        // A second central unit that follows the first and takes over.
+        let mut standby = match args.mesh {
+            Mesh::Router => node_command(args, site, "central", &hub, "")?,
+            Mesh::Peer => node_command(args, site, "central", "", &hub)?,
+        };
+        standby.arg("--standby");
+        sup.spawn("central standby", standby)?;
+    }
     let msus = msu_starts(args, site, profile, &robots)?;
     let session = open_observer(&hub, args.mesh).await?;
     // Recording starts before the first cell, so that it holds every burst.

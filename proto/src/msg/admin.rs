@@ -101,6 +101,9 @@ pub struct StatusReport {
     /// (a schedule or trigger of its epoch it never made, or of another
     /// central unit), since it started.
     pub foreign_control: u64,
+    /// Whether the answering central unit is the active one (`false`: a
+    /// hot standby).
+    pub active: bool,
 }
 
 /// Optional query payload of `coverage`.

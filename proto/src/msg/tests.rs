@@ -231,6 +231,7 @@ fn admin_messages_round_trip() {
         }],
         epoch: 42,
         foreign_control: 1,
+        active: true,
     });
     round_trip(sample_coverage());
     round_trip(CoverageRequest { resolution_m: 0.5 });

@@ -10,9 +10,14 @@
 //! Bursts are planned when a trigger arrives and programmed into the
 //! transmitter [`PROGRAM_AHEAD`] before they fire, with the clock estimate
 //! of that moment ([`crate::timer`]). When the central unit goes away the
-//! cell keeps its schedules and waits for triggers; when it comes back the
-//! cell synchronises afresh and takes the schedule from the new central
-//! unit, which numbers its versions anew.
+//! cell keeps its schedules and waits for triggers. A restarted central
+//! unit is recognised by its epoch at its first trigger or schedule
+//! ([`crate::trigger_gate`], [`ickon_proto::epoch`]): the cell takes its
+//! cycle 0 at once, asks for its schedule, and keeps its clock estimate (a
+//! master clock that changed shows as a clock step at the next exchange).
+//! Clock answers of any other central unit than the one whose triggers it
+//! follows are refused, and so is a single exchange that disagrees with the
+//! estimate: only [`CONFIRMING_EXCHANGES`] agreeing ones make a clock step.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -22,6 +27,7 @@ use ickon_proto::time::{Duration, Time};
 
 use crate::sync::{ClockSample, SyncConfig, SyncSlave};
 use crate::timer::{BurstTimer, PROGRAM_AHEAD, PlannedBurst};
+use crate::trigger_gate::{TriggerGate, TriggerRefused};
 
 /// Timing of the cell's own activities.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,9 +116,14 @@ pub struct CellCounters {
     pub clock_exchanges: u64,
     /// Clock steps detected (an exchange far outside what the estimate allows).
     pub clock_steps: u64,
-    /// Triggers refused because they start too far from now (forged, or
-    /// from a central unit whose clock jumped).
+    /// Triggers refused: too far from now, of a replaced central unit,
+    /// repeated, or off the cycle count (see [`crate::trigger_gate`]).
     pub triggers_refused: u64,
+    /// Schedules refused (altered, backwards, of an old epoch, invalid).
+    pub schedules_refused: u64,
+    /// Clock answers refused: from another central unit than the one
+    /// followed, or far off the estimate without others agreeing.
+    pub clock_answers_refused: u64,
 }
 
 impl CellCounters {
@@ -126,23 +137,38 @@ impl CellCounters {
             clock_exchanges: self.clock_exchanges + later.clock_exchanges,
             clock_steps: self.clock_steps + later.clock_steps,
             triggers_refused: self.triggers_refused + later.triggers_refused,
+            schedules_refused: self.schedules_refused + later.schedules_refused,
+            clock_answers_refused: self.clock_answers_refused + later.clock_answers_refused,
         }
     }
+
+    /// Every control message refused.
+    pub fn refused(&self) -> u64 {
+        self.triggers_refused + self.schedules_refused + self.clock_answers_refused
+    }
 }
+
+/// Whether a count going from `before` to `after` passed a power of two:
+/// skipped slots are logged at the 1st, 2nd, 4th, 8th, ... so that a loaded
+/// machine costs a few lines, not one per slot (the status carries the count).
+fn crosses_power_of_two(before: u64, after: u64) -> bool {
+    after > before && (before == 0 || before.ilog2() != after.ilog2())
+}
+
+/// Consecutive exchanges that disagree with the estimate in the same way
+/// before the cell takes it as a clock step: one stray answer (a rogue
+/// replier, a reply delayed in a queue) is dropped instead of throwing away
+/// the synchronisation.
+pub const CONFIRMING_EXCHANGES: u32 = 3;
 
 /// An exchange whose offset differs from the estimate by more than half its
 /// own delay, four sigmas of the estimate and this much is a clock step, not
 /// noise: the cell synchronises afresh instead of firing on a stale line.
 const STEP_TOLERANCE: Duration = Duration::from_micros(100);
 
-/// A trigger is planned only if its cycle starts within this long of now:
-/// the central unit sends it a few tens of milliseconds ahead, so anything
-/// further is forged or broken, and planning it would hold bursts (and
-/// memory) for a cycle that never comes.
-const TRIGGER_HORIZON: Duration = Duration::from_millis(10_000);
-
-/// A planned burst waiting to be programmed, ordered by its master time.
-type PendingBurst = Reverse<(Time, u32, u64, Time)>;
+/// A planned burst waiting to be programmed, ordered by its master time:
+/// (master, tx, cycle, local, epoch).
+type PendingBurst = Reverse<(Time, u32, u64, Time, u64)>;
 
 /// The cell controller's state.
 #[derive(Debug, Clone)]
@@ -152,6 +178,10 @@ pub struct CellCore {
     sync: SyncSlave,
     timer: BurstTimer,
     pending: BinaryHeap<PendingBurst>,
+    gate: TriggerGate,
+    /// Exchanges in a row that disagreed with the estimate, and the offset
+    /// the last one gave (ns).
+    step_candidates: (u32, f64),
     /// A trigger that named a schedule this cell does not have yet.
     waiting: Option<CycleTrigger>,
     exchanges_since_reset: u32,
@@ -176,6 +206,8 @@ impl CellCore {
             sync: SyncSlave::new(config.sync),
             timer: BurstTimer::new(cell_id, config.program_margin),
             pending: BinaryHeap::new(),
+            gate: TriggerGate::new(),
+            step_candidates: (0, 0.0),
             waiting: None,
             exchanges_since_reset: 0,
             next_sync: now,
@@ -198,6 +230,11 @@ impl CellCore {
     /// What the cell has done so far.
     pub fn counters(&self) -> CellCounters {
         self.counters
+    }
+
+    /// The epoch of the central unit followed, once one was seen.
+    pub fn epoch(&self) -> Option<u64> {
+        self.gate.epoch()
     }
 
     /// The synchronisation filter (for status and tests).
@@ -253,10 +290,9 @@ impl CellCore {
             Event::Trigger(t) => self.on_trigger(t, now),
             Event::Schedule(s) => {
                 self.schedule_in_flight = false;
-                self.next_schedule_query = None;
-                self.timer.add_schedule(s);
+                self.on_schedule(s, now);
                 if let Some(t) = self.waiting.take() {
-                    self.on_trigger(t, now);
+                    self.plan_trigger(t, now);
                 }
             }
             Event::ScheduleUnanswered => {
@@ -269,16 +305,26 @@ impl CellCore {
                 self.clock_in_flight = false;
                 self.counters.clock_exchanges += 1;
                 match sample {
+                    Some(s) if self.gate.epoch().is_some_and(|e| e != s.epoch) => {
+                        self.counters.clock_answers_refused += 1;
+                        tracing::debug!(
+                            "cell {}: clock answer of epoch {} refused",
+                            self.cell_id,
+                            s.epoch
+                        );
+                    }
                     Some(s) => {
-                        self.detect_step(&s);
-                        if !self.sync.add(s) {
+                        if self.detect_step(&s) && !self.sync.add(s) {
                             tracing::debug!("cell {}: clock exchange discarded", self.cell_id);
                         }
                     }
                     None => tracing::debug!("cell {}: no clock reply", self.cell_id),
                 }
                 self.exchanges_since_reset = self.exchanges_since_reset.saturating_add(1);
-                let period = if self.exchanges_since_reset < self.config.fast_sync_count {
+                // A suspected step is confirmed or cleared at the fast pace.
+                let period = if self.exchanges_since_reset < self.config.fast_sync_count
+                    || self.step_candidates.0 > 0
+                {
                     self.config.fast_sync
                 } else {
                     self.config.slow_sync
@@ -296,15 +342,17 @@ impl CellCore {
             }
             Event::CentralAlive(true) => {
                 if self.central_lost {
+                    // The clock estimate stays: the same master clock needs
+                    // nothing new, another one shows as a clock step at the
+                    // exchange made at once. Its schedule comes with its
+                    // epoch, which replaces the old ones.
                     tracing::info!(
-                        "cell {}: central unit back; synchronising afresh",
+                        "cell {}: central unit back; checking the clock",
                         self.cell_id
                     );
                     self.central_lost = false;
-                    self.sync = SyncSlave::new(self.config.sync);
                     self.exchanges_since_reset = 0;
                     self.next_sync = now;
-                    self.timer.forget_schedules();
                     self.next_schedule_query = Some(now);
                 }
             }
@@ -313,47 +361,121 @@ impl CellCore {
         out
     }
 
-    /// Starts the synchronisation afresh when `s` shows that the clock
-    /// stepped: no offset the estimate allows is within the exchange's reach.
-    fn detect_step(&mut self, s: &ClockSample) {
+    /// Whether `s` may be added to the synchronisation. An exchange that
+    /// no offset the estimate allows can explain is held back, and no burst
+    /// is programmed until the next exchanges (at the fast pace) clear or
+    /// confirm it; when [`CONFIRMING_EXCHANGES`] in a row agree with each
+    /// other the clock stepped, and the synchronisation starts afresh from
+    /// the last.
+    fn detect_step(&mut self, s: &ClockSample) -> bool {
         let Some(est) = self.sync.estimate() else {
-            return;
+            return true;
         };
         if s.delay_ns() < 0.0 {
-            return;
+            return true;
         }
         let mid = s.local_mid();
         let predicted_ns = est.to_master(mid).since(mid).as_nanos() as f64;
         let slack_ns = s.delay_ns() / 2.0 + 4.0 * est.sigma_ns + STEP_TOLERANCE.as_nanos() as f64;
         let off_by_ns = s.offset_ns() - predicted_ns;
-        if off_by_ns.abs() > slack_ns {
-            tracing::warn!(
-                "cell {}: clock stepped by about {:.0} us; synchronising afresh",
+        if off_by_ns.abs() <= slack_ns {
+            self.step_candidates = (0, 0.0);
+            return true;
+        }
+        let (n, last_off_ns) = self.step_candidates;
+        let agrees = n > 0 && (off_by_ns - last_off_ns).abs() <= slack_ns;
+        self.step_candidates = (if agrees { n + 1 } else { 1 }, off_by_ns);
+        if self.step_candidates.0 < CONFIRMING_EXCHANGES {
+            self.counters.clock_answers_refused += 1;
+            return false;
+        }
+        tracing::warn!(
+            "cell {}: clock stepped by about {:.0} us; synchronising afresh",
+            self.cell_id,
+            off_by_ns * 1e-3
+        );
+        self.step_candidates = (0, 0.0);
+        self.counters.clock_steps += 1;
+        self.sync = SyncSlave::new(self.config.sync);
+        self.exchanges_since_reset = 0;
+        self.faults = vec![format!("clock step of {:.0} us", off_by_ns * 1e-3)];
+        true
+    }
+
+    /// Takes a schedule if the rules of [`ickon_proto::epoch`] allow it, and
+    /// follows its epoch if that is newer.
+    fn on_schedule(&mut self, s: Schedule, now: Time) {
+        let before = self.gate.epoch();
+        // An epoch is a central unit's start: one in the future is forged.
+        let future = self.sync.estimate().is_some_and(|e| {
+            ickon_proto::epoch::epoch_start(s.epoch).since(e.to_master(now))
+                > crate::trigger_gate::TRIGGER_HORIZON
+        });
+        if future || !self.gate.note_epoch(s.epoch) {
+            self.counters.schedules_refused += 1;
+            tracing::debug!(
+                "cell {}: schedule of replaced or future epoch {} refused",
                 self.cell_id,
-                off_by_ns * 1e-3
+                s.epoch
             );
-            self.counters.clock_steps += 1;
-            self.sync = SyncSlave::new(self.config.sync);
-            self.exchanges_since_reset = 0;
-            self.faults = vec![format!("clock step of {:.0} us", off_by_ns * 1e-3)];
+            return;
+        }
+        if before.is_some_and(|e| e < s.epoch) {
+            self.drop_older_epochs(s.epoch);
+        }
+        match self.timer.add_schedule(s) {
+            Ok(_) => self.next_schedule_query = None,
+            Err(e) => {
+                self.counters.schedules_refused += 1;
+                tracing::debug!("cell {}: {e}", self.cell_id);
+            }
         }
     }
 
-    /// Plans a trigger, or keeps it until its schedule arrives.
+    /// Takes a trigger through the gate, then plans it.
     fn on_trigger(&mut self, trigger: CycleTrigger, now: Time) {
-        if let Some(est) = self.sync.estimate() {
-            let ahead = trigger.start.since(est.to_master(now));
-            if ahead.as_nanos().unsigned_abs() > TRIGGER_HORIZON.as_nanos().unsigned_abs() {
+        match self.admit(&trigger, now) {
+            Err(e) => {
                 self.counters.triggers_refused += 1;
-                tracing::debug!(
-                    "cell {}: trigger for cycle {} starts {ahead} from now: refused",
-                    self.cell_id,
-                    trigger.cycle
-                );
-                return;
+                tracing::debug!("cell {}: trigger refused: {e}", self.cell_id);
+            }
+            Ok(new_epoch) => {
+                if new_epoch {
+                    self.drop_older_epochs(trigger.epoch);
+                }
+                self.plan_trigger(trigger, now);
             }
         }
-        if !self.timer.has_schedule(trigger.schedule_version) {
+    }
+
+    /// A newer central unit took over: bursts planned for the replaced
+    /// one's cycles would fire into the new one's.
+    fn drop_older_epochs(&mut self, epoch: u64) {
+        tracing::info!(
+            "cell {}: following central unit epoch {epoch}",
+            self.cell_id
+        );
+        self.pending.retain(|Reverse(p)| p.4 >= epoch);
+        if self.waiting.is_some_and(|t| t.epoch < epoch) {
+            self.waiting = None;
+        }
+    }
+
+    /// The gate's verdict on `trigger` at local time `now`.
+    fn admit(&mut self, trigger: &CycleTrigger, now: Time) -> Result<bool, TriggerRefused> {
+        let master_now = self.sync.estimate().map(|e| e.to_master(now));
+        let period = self
+            .timer
+            .cycle_period(trigger.epoch, trigger.schedule_version);
+        self.gate.admit(trigger, master_now, period)
+    }
+
+    /// Plans an admitted trigger, or keeps it until its schedule arrives.
+    fn plan_trigger(&mut self, trigger: CycleTrigger, now: Time) {
+        if !self
+            .timer
+            .has_schedule(trigger.epoch, trigger.schedule_version)
+        {
             // A cell that started late (or missed a put) asks for the schedule;
             // the trigger is planned when it comes, its past slots skipped.
             self.waiting = Some(trigger);
@@ -367,18 +489,20 @@ impl CellCore {
             .plan(&trigger, self.sync.estimate().as_ref(), now)
         {
             Ok(plan) => {
-                if plan.skipped > 0 {
+                let before = self.counters.slots_skipped;
+                self.counters.slots_skipped += plan.skipped;
+                if plan.skipped > 0 && crosses_power_of_two(before, self.counters.slots_skipped) {
                     tracing::warn!(
-                        "cell {}: cycle {}: {} slots skipped (trigger too late)",
+                        "cell {}: cycle {}: {} slots skipped (trigger too late); {} skipped so far",
                         self.cell_id,
                         trigger.cycle,
-                        plan.skipped
+                        plan.skipped,
+                        self.counters.slots_skipped
                     );
                 }
-                self.counters.slots_skipped += plan.skipped;
                 for b in plan.bursts {
                     self.pending
-                        .push(Reverse((b.master, b.tx_id, b.cycle, b.local)));
+                        .push(Reverse((b.master, b.tx_id, b.cycle, b.local, b.epoch)));
                 }
                 self.faults.clear();
             }
@@ -418,14 +542,25 @@ impl CellCore {
         let Some(estimate) = self.sync.estimate() else {
             return;
         };
-        while let Some(&Reverse((master, tx_id, cycle, planned))) = self.pending.peek() {
+        while let Some(&Reverse((master, tx_id, cycle, planned, epoch))) = self.pending.peek() {
             if estimate.to_local(master) - PROGRAM_AHEAD > now {
                 break;
             }
             self.pending.pop();
+            if self.step_candidates.0 > 0 {
+                // The clock may have stepped: a burst at a wrong time is
+                // heard by every robot as a wrong time difference; none is better.
+                tracing::debug!(
+                    "cell {}: cycle {cycle}: tx {tx_id} skipped (clock step suspected)",
+                    self.cell_id
+                );
+                self.counters.slots_skipped += 1;
+                continue;
+            }
             let burst = PlannedBurst {
                 tx_id,
                 cycle,
+                epoch,
                 master,
                 local: planned,
             };
@@ -439,11 +574,14 @@ impl CellCore {
                     out.push(Output::Fire(b));
                 }
                 None => {
-                    tracing::warn!(
-                        "cell {}: cycle {cycle}: tx {tx_id} skipped (woken too late to program it)",
-                        self.cell_id
-                    );
                     self.counters.slots_skipped += 1;
+                    if self.counters.slots_skipped.is_power_of_two() {
+                        tracing::warn!(
+                            "cell {}: cycle {cycle}: tx {tx_id} skipped (woken too late to program it); {} skipped so far",
+                            self.cell_id,
+                            self.counters.slots_skipped
+                        );
+                    }
                 }
             }
         }
@@ -463,9 +601,12 @@ impl CellCore {
             cycles_fired: self.counters.cycles_fired,
             slots_skipped: self.counters.slots_skipped,
             faults: self.faults.clone(),
+            inputs_refused: self.counters.refused(),
         }
     }
 }
 
+#[cfg(test)]
+mod forged_tests;
 #[cfg(test)]
 mod tests;

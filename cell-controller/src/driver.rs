@@ -57,6 +57,7 @@ where
             cycle: b.cycle,
             scheduled: b.master,
             actual: (self.true_time)(b.local),
+            epoch: b.epoch,
         })
     }
 }

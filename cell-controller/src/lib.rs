@@ -3,7 +3,7 @@
 //! The cell controller of ICKON (seed 000 section 3.1.1, "CCU"): it keeps its
 //! clock synchronised with the central unit ([`sync`]) and fires its
 //! transmitters at `cycle start + offset` on the master time base
-//! ([`timer`]). [`core`] is the whole controller as a sans-IO state
+//! ([`timer`]), taking only the triggers [`trigger_gate`] admits. [`core`] is the whole controller as a sans-IO state
 //! machine; the Zenoh node (feature `zenoh`) and the virtual-time engine
 //! drive it, and [`driver`] reaches the transmitters.
 
@@ -15,6 +15,7 @@ mod fixtures;
 pub mod node;
 pub mod sync;
 pub mod timer;
+pub mod trigger_gate;
 
 pub use crate::core::{CellConfig, CellCore, CellCounters, Event, Output};
 pub use driver::{DriverError, SimulatedDriver, TransmitterDriver};

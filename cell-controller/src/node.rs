@@ -80,16 +80,27 @@ fn driver(kind: DriverKind, cell: &str, clock: SimulatedClock) -> Box<dyn Transm
 /// One four-timestamp exchange with the master; `None` if it did not answer.
 /// `t4` is read in Zenoh's receive path (see [`query_stamped`]); `t1` is the
 /// middle of the time Zenoh took to send the request.
+/// With `epoch` (the central unit followed), only its answer is taken, so
+/// a rogue or standby answer that comes first does not hide it.
 async fn exchange(
     session: Session,
     key: String,
     cell: String,
     clock: SimulatedClock,
+    epoch: Option<u64>,
 ) -> Result<Option<ClockSample>, NodeError> {
     let t1 = clock.now();
     let request = encode(&ClockRequest { cell_id: cell, t1 })?;
-    let reply: Option<Stamped<ClockReply>> =
-        query_stamped(&session, &key, request, CLOCK_TIMEOUT, move || clock.now()).await?;
+    let wanted = move |r: &ClockReply| r.t1 == t1 && epoch.is_none_or(|e| r.epoch == e);
+    let reply: Option<Stamped<ClockReply>> = query_stamped(
+        &session,
+        &key,
+        request,
+        CLOCK_TIMEOUT,
+        move || clock.now(),
+        wanted,
+    )
+    .await?;
     // The request left some time between the call and Zenoh having queued
     // it; that takes a few hundred microseconds on a busy machine, which
     // counted whole would make the outward leg look longer than it is.
@@ -98,6 +109,7 @@ async fn exchange(
         t2: r.value.t2,
         t3: r.value.t3,
         t4: r.received,
+        epoch: r.value.epoch,
     }))
 }
 
@@ -215,7 +227,9 @@ pub async fn run(
                         failures.puts += 1;
                     }
                 }
-                Output::RequestClock => spawn_exchange(session, &keys, cell, clock, &replies_tx),
+                Output::RequestClock => {
+                    spawn_exchange(session, &keys, cell, clock, core.epoch(), &replies_tx);
+                }
                 Output::RequestSchedule => {
                     let (session, key, tx) =
                         (session.clone(), keys.central_schedule(), replies_tx.clone());
@@ -245,6 +259,7 @@ fn spawn_exchange(
     keys: &Keys,
     cell: &str,
     clock: SimulatedClock,
+    epoch: Option<u64>,
     replies: &mpsc::UnboundedSender<Event>,
 ) {
     let (session, key, cell, tx) = (
@@ -254,7 +269,7 @@ fn spawn_exchange(
         replies.clone(),
     );
     tokio::spawn(async move {
-        let sample = match exchange(session, key, cell.clone(), clock).await {
+        let sample = match exchange(session, key, cell.clone(), clock, epoch).await {
             Ok(s) => s,
             Err(e) => {
                 tracing::debug!("cell {cell}: clock exchange failed: {e}");

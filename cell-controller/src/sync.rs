@@ -36,6 +36,8 @@ pub struct ClockSample {
     pub t3: Time,
     /// Reply received, local clock.
     pub t4: Time,
+    /// The epoch of the central unit that answered.
+    pub epoch: u64,
 }
 
 impl ClockSample {
@@ -288,6 +290,7 @@ mod tests {
             t2: Time::from_nanos(m2 as i64),
             t3: Time::from_nanos(m3 as i64),
             t4: Time::from_nanos(local(m4) as i64),
+            epoch: 0,
         }
     }
 

@@ -9,8 +9,7 @@
 //! drift of 100 ppm costs 40 us over the 0.4 s a plan can be ahead, 2 us
 //! over 20 ms.
 
-use std::collections::BTreeMap;
-
+use ickon_proto::epoch::{ScheduleBook, ScheduleOffer, ScheduleRefused};
 use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::time::{Duration, Time};
 
@@ -23,6 +22,8 @@ pub struct PlannedBurst {
     pub tx_id: u32,
     /// Cycle number.
     pub cycle: u64,
+    /// The epoch of the trigger (with `cycle`, names the cycle).
+    pub epoch: u64,
     /// When to fire, on the master time base.
     pub master: Time,
     /// When to fire, on the local clock.
@@ -41,7 +42,7 @@ pub struct Plan {
 /// Why a trigger cannot be planned.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum TimerError {
-    /// The trigger names a schedule version this cell does not have.
+    /// The trigger names a schedule version (of its epoch) this cell does not have.
     #[error("schedule version {0} is unknown to this cell")]
     UnknownSchedule(u32),
     /// The clock is not synchronised yet.
@@ -53,7 +54,7 @@ pub enum TimerError {
 #[derive(Debug, Clone)]
 pub struct BurstTimer {
     cell_id: String,
-    schedules: BTreeMap<u32, Schedule>,
+    schedules: ScheduleBook,
     /// A burst must be planned at least this long before it fires.
     pub margin: Duration,
 }
@@ -61,36 +62,42 @@ pub struct BurstTimer {
 /// How long before its time a burst is programmed into the transmitter.
 pub const PROGRAM_AHEAD: Duration = Duration::from_millis(20);
 
-/// Schedules older than the newest by more than this many versions are dropped.
-const KEPT_VERSIONS: u32 = 8;
-
 impl BurstTimer {
     /// A timer for `cell_id`.
     pub fn new(cell_id: &str, margin: Duration) -> Self {
         Self {
             cell_id: cell_id.to_string(),
-            schedules: BTreeMap::new(),
+            schedules: ScheduleBook::new(),
             margin,
         }
     }
 
-    /// Remembers a schedule.
-    pub fn add_schedule(&mut self, schedule: Schedule) {
-        let newest = schedule.version;
-        self.schedules.insert(schedule.version, schedule);
-        self.schedules
-            .retain(|v, _| *v + KEPT_VERSIONS > newest || *v == newest);
+    /// Remembers a schedule if the rules of [`ickon_proto::epoch`] allow it
+    /// (a newer epoch replaces every schedule of the old one).
+    pub fn add_schedule(&mut self, schedule: Schedule) -> Result<ScheduleOffer, ScheduleRefused> {
+        self.schedules.offer(schedule)
     }
 
-    /// Forgets every schedule (a restarted central unit numbers its
-    /// versions afresh, so an old version number may now mean another schedule).
+    /// Forgets every schedule, keeping the epoch followed.
     pub fn forget_schedules(&mut self) {
         self.schedules.clear();
     }
 
-    /// Whether a schedule version is known.
-    pub fn has_schedule(&self, version: u32) -> bool {
-        self.schedules.contains_key(&version)
+    /// Whether schedule `version` of `epoch` is known.
+    pub fn has_schedule(&self, epoch: u64, version: u32) -> bool {
+        self.schedules.get_in(epoch, version).is_some()
+    }
+
+    /// The epoch of the schedules held.
+    pub fn epoch(&self) -> Option<u64> {
+        self.schedules.epoch()
+    }
+
+    /// The cycle period of schedule `version` of `epoch`, if held.
+    pub fn cycle_period(&self, epoch: u64, version: u32) -> Option<Duration> {
+        self.schedules
+            .get_in(epoch, version)
+            .map(|s| s.cycle_period)
     }
 
     /// The bursts this cell fires for `trigger`, given the local time now.
@@ -102,7 +109,7 @@ impl BurstTimer {
     ) -> Result<Plan, TimerError> {
         let schedule = self
             .schedules
-            .get(&trigger.schedule_version)
+            .get_in(trigger.epoch, trigger.schedule_version)
             .ok_or(TimerError::UnknownSchedule(trigger.schedule_version))?;
         let sync = sync.ok_or(TimerError::NotSynchronised)?;
         let mut plan = Plan::default();
@@ -119,6 +126,7 @@ impl BurstTimer {
                 plan.bursts.push(PlannedBurst {
                     tx_id: e.tx_id,
                     cycle: trigger.cycle,
+                    epoch: trigger.epoch,
                     master,
                     local,
                 });
@@ -168,13 +176,14 @@ mod tests {
             cycle: 3,
             start: Time::from_nanos(1_000_000_000),
             schedule_version: 4,
+            epoch: crate::fixtures::EPOCH,
         }
     }
 
     #[test]
     fn bursts_are_planned_on_the_local_clock() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
-        t.add_schedule(schedule());
+        t.add_schedule(schedule()).unwrap();
         let trigger = trigger();
         // master = local + 40 ms.
         let plan = t.plan(&trigger, Some(&sync(40)), Time(0)).unwrap();
@@ -188,7 +197,7 @@ mod tests {
     #[test]
     fn slots_whose_time_has_passed_are_skipped_not_fired_late() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
-        t.add_schedule(schedule());
+        t.add_schedule(schedule()).unwrap();
         let trigger = trigger();
         let plan = t
             .plan(&trigger, Some(&sync(0)), Time::from_nanos(1_010_000_000))
@@ -201,7 +210,7 @@ mod tests {
     #[test]
     fn programming_uses_the_newest_estimate_and_never_fires_late() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
-        t.add_schedule(schedule());
+        t.add_schedule(schedule()).unwrap();
         let trigger = trigger();
         let plan = t.plan(&trigger, Some(&sync(40)), Time(0)).unwrap();
         // The estimate moved by 100 us since the plan: the burst follows it.
@@ -223,17 +232,18 @@ mod tests {
             cycle: 0,
             start: Time(0),
             schedule_version: 4,
+            epoch: crate::fixtures::EPOCH,
         };
         assert_eq!(
             t.plan(&trigger, Some(&sync(0)), Time(0)),
             Err(TimerError::UnknownSchedule(4))
         );
-        t.add_schedule(schedule());
+        t.add_schedule(schedule()).unwrap();
         assert_eq!(
             t.plan(&trigger, None, Time(0)),
             Err(TimerError::NotSynchronised)
         );
         t.forget_schedules();
-        assert!(!t.has_schedule(4));
+        assert!(!t.has_schedule(crate::fixtures::EPOCH, 4));
     }
 }

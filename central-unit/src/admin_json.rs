@@ -39,6 +39,8 @@ pub struct CellJson {
     pub cycles_missed: u64,
     /// Slots it skipped (its own count).
     pub slots_skipped: u64,
+    /// Control messages it refused (its own count).
+    pub inputs_refused: u64,
 }
 
 impl From<&CellHealth> for CellJson {
@@ -58,6 +60,7 @@ impl From<&CellHealth> for CellJson {
             last_cycle_fired: c.last_cycle_fired,
             cycles_missed: c.cycles_missed,
             slots_skipped: c.slots_skipped,
+            inputs_refused: c.inputs_refused,
         }
     }
 }
@@ -78,8 +81,11 @@ pub struct PoseJson {
 pub struct RobotJson {
     /// Robot id.
     pub id: String,
-    /// `up` or `down`.
+    /// `up`, `stale` (live, but its poses stopped or its MSU says an input
+    /// stalled) or `down`.
     pub state: &'static str,
+    /// Why it is stale, when it is.
+    pub stale: Option<String>,
     /// Fixes per second over the last few seconds.
     pub fixes_per_s: f64,
     /// Estimator named in its last pose.
@@ -92,7 +98,12 @@ impl From<&RobotHealth> for RobotJson {
     fn from(r: &RobotHealth) -> Self {
         Self {
             id: r.id.clone(),
-            state: if r.up { "up" } else { "down" },
+            state: match (r.up, r.stale.is_empty()) {
+                (false, _) => "down",
+                (true, true) => "up",
+                (true, false) => "stale",
+            },
+            stale: (!r.stale.is_empty()).then(|| r.stale.clone()),
             fixes_per_s: r.fixes_per_s,
             estimator: (!r.estimator.is_empty()).then(|| r.estimator.clone()),
             pose: r.pose_valid.then_some(PoseJson {
@@ -109,6 +120,12 @@ impl From<&RobotHealth> for RobotJson {
 pub struct StatusJson {
     /// Site name.
     pub site: String,
+    /// The answering central unit's epoch (its start, master time, ns).
+    pub epoch: u64,
+    /// Control messages on its keys it did not send, since it started.
+    pub foreign_control: u64,
+    /// Whether the answering central unit is the active one (`false`: a standby).
+    pub active: bool,
     /// Last cycle triggered.
     pub cycle: u64,
     /// Whether cycle triggers are paused.
@@ -130,6 +147,9 @@ impl StatusJson {
     pub fn new(s: &StatusReport, cells: bool, robots: bool) -> Self {
         Self {
             site: s.site.clone(),
+            epoch: s.epoch,
+            foreign_control: s.foreign_control,
+            active: s.active,
             cycle: s.cycle,
             paused: s.paused,
             schedule_version: s.schedule_version,

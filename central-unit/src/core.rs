@@ -16,9 +16,20 @@
 //! hung cell keeps its token until the link lease expires; it stays in the
 //! schedule, so that it is up again as soon as it fires); the cycle at which that last
 //! changed is kept, so that the admin sees when a cell went down or came back.
+//!
+//! Epochs ([`ickon_proto::epoch`]): every trigger and schedule carries the
+//! central unit's epoch, its start on the master time base, so that a
+//! restarted central unit is recognised at its first message. The central
+//! unit hears its own keys too: a schedule or trigger it did not send is
+//! counted ([`CentralCore::foreign_control`]) and answered: the schedule is
+//! re-announced at once, under a higher version if the foreign one claimed
+//! a newer one (every receiver refuses a known version with other content,
+//! so only that can displace it). The newest schedule is also re-announced
+//! every [`CentralConfig::schedule_reannounce`], so a lost one heals.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
+use ickon_proto::epoch::epoch_of;
 use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::msg::robot::RobotPose;
@@ -39,6 +50,9 @@ pub struct CentralConfig {
     /// A new schedule is published at least this long before the trigger of
     /// the first cycle that uses it.
     pub schedule_announce: Duration,
+    /// The newest schedule is published again this often, so that a
+    /// receiver that missed it (or was handed a forged one) heals.
+    pub schedule_reannounce: Duration,
 }
 
 impl Default for CentralConfig {
@@ -47,6 +61,7 @@ impl Default for CentralConfig {
             trigger_lead: Duration::from_millis(60),
             start_delay: Duration::from_millis(500),
             schedule_announce: Duration::from_millis(100),
+            schedule_reannounce: Duration::from_millis(1_000),
         }
     }
 }
@@ -88,6 +103,12 @@ pub enum Event {
         /// The robot.
         robot: String,
     },
+    /// A schedule was published on `central/schedule` (its own included).
+    ScheduleSeen(Schedule),
+    /// A trigger was published on `central/cycle` (its own included).
+    TriggerSeen(CycleTrigger),
+    /// The active central unit's liveliness token went (a standby takes over).
+    ActiveGone,
 }
 
 /// What the node must publish.
@@ -113,7 +134,17 @@ pub struct CentralCore {
     robots: BTreeMap<String, RobotTracker>,
     unknown_robot_messages: u64,
     any_cell_seen: bool,
+    epoch: u64,
+    foreign_control: u64,
+    /// The triggers sent last, to tell them from foreign ones when they come back.
+    sent_triggers: VecDeque<CycleTrigger>,
+    next_reannounce: Time,
+    /// `Some` while this central unit is a hot standby (see [`standby`]).
+    pub(crate) standby: Option<standby::Follower>,
 }
+
+/// Own triggers remembered to recognise them on the way back (a few cycles' worth).
+const SENT_TRIGGERS_KEPT: usize = 16;
 
 impl CentralCore {
     /// A central unit serving `site` (whose file text is `site_toml`), starting at `now`.
@@ -123,8 +154,12 @@ impl CentralCore {
         config: CentralConfig,
         now: Time,
     ) -> Result<Self, ScheduleError> {
+        let epoch = epoch_of(now, None);
         let all: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
-        let schedule = compute_schedule(&site, &all, 1, 0)?;
+        let schedule = Schedule {
+            epoch,
+            ..compute_schedule(&site, &all, 1, 0)?
+        };
         let cells = all
             .iter()
             .map(|id| (id.clone(), CellTracker::default()))
@@ -142,7 +177,23 @@ impl CentralCore {
             robots: BTreeMap::new(),
             unknown_robot_messages: 0,
             any_cell_seen: false,
+            epoch,
+            foreign_control: 0,
+            sent_triggers: VecDeque::new(),
+            next_reannounce: now + config.schedule_reannounce,
+            standby: None,
         })
+    }
+
+    /// This central unit's epoch (see [`ickon_proto::epoch`]).
+    pub fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    /// Schedules and triggers heard on the central unit's keys that it did
+    /// not send.
+    pub fn foreign_control(&self) -> u64 {
+        self.foreign_control
     }
 
     /// The site being served.
@@ -157,6 +208,11 @@ impl CentralCore {
             version: self.site_version,
             site_toml: self.site_toml.clone(),
         }
+    }
+
+    /// Whether it is the active central unit (not a standby).
+    pub fn is_active(&self) -> bool {
+        self.standby.is_none()
     }
 
     /// The newest schedule (possibly not yet in force).
@@ -178,8 +234,19 @@ impl CentralCore {
         self.next_cycle.saturating_sub(1)
     }
 
-    /// When the node should call [`tick`](Self::tick) next: the next trigger time.
+    /// When the node should call [`tick`](Self::tick) next: the next
+    /// trigger time (the schedule is re-announced with the first trigger
+    /// after its period, so it needs no wake-up of its own); for a standby,
+    /// when the active one's lease runs out.
     pub fn next_wake(&self) -> Time {
+        match &self.standby {
+            Some(f) => f.lease_end(),
+            None => self.next_trigger_at(),
+        }
+    }
+
+    /// When the next trigger goes out.
+    fn next_trigger_at(&self) -> Time {
         self.next_start - self.config.trigger_lead
     }
 
@@ -201,36 +268,84 @@ impl CentralCore {
                 Vec::new()
             }
             Event::Pose { robot, pose } => {
-                self.on_pose(&robot, pose);
+                self.on_pose(&robot, pose, now);
                 Vec::new()
             }
             Event::Fix { robot } => {
                 self.on_fix(&robot, now);
                 Vec::new()
             }
+            Event::ScheduleSeen(schedule) if self.standby.is_some() => {
+                self.follow_schedule(schedule);
+                Vec::new()
+            }
+            Event::TriggerSeen(trigger) if self.standby.is_some() => {
+                self.follow_trigger(trigger);
+                Vec::new()
+            }
+            Event::ScheduleSeen(schedule) => {
+                if schedule.epoch > self.epoch {
+                    self.step_down(&schedule);
+                    return Vec::new();
+                }
+                self.on_schedule_seen(schedule, now)
+            }
+            Event::TriggerSeen(trigger) => {
+                if trigger.epoch > self.epoch {
+                    self.step_down_for(trigger);
+                    return Vec::new();
+                }
+                self.on_trigger_seen(&trigger);
+                Vec::new()
+            }
+            Event::ActiveGone if self.standby.is_some() => self.take_over(now),
+            Event::ActiveGone => Vec::new(),
         };
+        if self.standby.is_some() {
+            // A standby keeps its books (cells, robots) but publishes
+            // nothing, not even the schedules its membership view makes.
+            return if self.lease_expired(now) {
+                self.take_over(now)
+            } else {
+                Vec::new()
+            };
+        }
         if now >= self.next_wake() {
             out.extend(self.tick(now));
         }
         out
     }
 
-    /// Emits every trigger due at `now` (one per cycle, never two for one cycle).
+    /// Emits every trigger due at `now` (one per cycle, never two for one
+    /// cycle); a standby emits nothing.
     pub fn tick(&mut self, now: Time) -> Vec<Output> {
         let mut out = Vec::new();
-        while now >= self.next_wake() {
+        if self.standby.is_some() {
+            return out;
+        }
+        while now >= self.next_trigger_at() {
             let cycle = self.next_cycle;
             let schedule = self.schedule_for(cycle).clone();
             if !self.paused {
-                out.push(Output::Trigger(CycleTrigger {
+                let trigger = CycleTrigger {
                     cycle,
                     start: self.next_start,
                     schedule_version: schedule.version,
-                }));
+                    epoch: self.epoch,
+                };
+                if self.sent_triggers.len() == SENT_TRIGGERS_KEPT {
+                    self.sent_triggers.pop_front();
+                }
+                self.sent_triggers.push_back(trigger);
+                out.push(Output::Trigger(trigger));
                 self.count_missed(cycle);
             }
             self.next_cycle += 1;
             self.next_start = self.next_start + schedule.cycle_period;
+        }
+        if now >= self.next_reannounce && !out.is_empty() {
+            self.next_reannounce = now + self.config.schedule_reannounce;
+            out.push(Output::Schedule(self.latest_schedule().clone()));
         }
         out.extend(self.reconcile_membership(now));
         self.update_states();
@@ -255,7 +370,7 @@ impl CentralCore {
     fn first_announceable_cycle(&self, now: Time) -> u64 {
         let period = self.schedule_for(self.next_cycle).cycle_period;
         let mut cycle = self.next_cycle;
-        let mut trigger_at = self.next_wake();
+        let mut trigger_at = self.next_trigger_at();
         // A positive period is guaranteed by the scheduler; the bound keeps a
         // degenerate one from looping.
         for _ in 0..1_000 {
@@ -285,7 +400,10 @@ impl CentralCore {
         }
         let version = self.latest_schedule().version + 1;
         let effective = self.first_announceable_cycle(now);
-        let schedule = compute_schedule(&self.site, &live, version, effective).ok()?;
+        let schedule = Schedule {
+            epoch: self.epoch,
+            ..compute_schedule(&self.site, &live, version, effective).ok()?
+        };
         tracing::info!(
             "schedule v{version} from cycle {effective}: cells {}",
             live.join(", ")
@@ -337,7 +455,11 @@ impl CentralCore {
     }
 
     /// A burst report, its `actual` emission time on the master time base.
+    /// Bursts of another epoch answer another central unit's triggers.
     pub fn on_burst(&mut self, burst: &Burst) {
+        if burst.epoch != self.epoch {
+            return;
+        }
         if let Some(c) = self.cells.get_mut(&burst.cell_id) {
             c.on_burst(burst);
         }
@@ -367,10 +489,10 @@ impl CentralCore {
         self.unknown_robot_messages
     }
 
-    /// A robot published a pose.
-    pub fn on_pose(&mut self, id: &str, pose: RobotPose) {
+    /// A robot published a pose, received at `now`.
+    pub fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
         if let Some(r) = self.robot_mut(id) {
-            r.on_pose(pose);
+            r.on_pose(pose, now);
         }
     }
 
@@ -381,9 +503,91 @@ impl CentralCore {
         }
     }
 
-    /// The reply to a clock request that arrived at `t2` and leaves at `t3`.
-    pub fn clock_reply(t1: Time, t2: Time, t3: Time) -> ClockReply {
-        ClockReply { t1, t2, t3 }
+    /// The reply of the central unit of `epoch` to a clock request that
+    /// arrived at `t2` and leaves at `t3`.
+    pub fn clock_reply(epoch: u64, t1: Time, t2: Time, t3: Time) -> ClockReply {
+        ClockReply { t1, t2, t3, epoch }
+    }
+
+    /// A schedule heard on `central/schedule`: nothing if it is one of its
+    /// own; otherwise counted, and the own schedule re-announced at once,
+    /// under a version above the foreign one's when that claimed a newer
+    /// version (receivers take only a newer version over it).
+    fn on_schedule_seen(&mut self, seen: Schedule, now: Time) -> Vec<Output> {
+        if seen.epoch == self.epoch && self.schedules.contains(&seen) {
+            return Vec::new();
+        }
+        let latest = self.latest_schedule().clone();
+        if seen.epoch == self.epoch && seen.version < latest.version {
+            // One of its own, dropped since (or a forged old version, which
+            // every receiver refuses as going backwards).
+            if !self.schedules.iter().any(|s| s.version == seen.version) {
+                return Vec::new();
+            }
+        }
+        self.foreign_control += 1;
+        if self.foreign_control.is_power_of_two() {
+            tracing::warn!(
+                "a schedule v{} of epoch {} that this central unit (epoch {}) did not send; {} so far",
+                seen.version,
+                seen.epoch,
+                self.epoch,
+                self.foreign_control
+            );
+        }
+        self.next_reannounce = now + self.config.schedule_reannounce;
+        if seen.epoch != self.epoch || seen.version <= latest.version {
+            return vec![Output::Schedule(latest)];
+        }
+        let Some(version) = seen.version.checked_add(1) else {
+            // No version above it: only a new epoch displaces it.
+            return self.new_epoch(now);
+        };
+        let effective = self.first_announceable_cycle(now);
+        let healed = Schedule {
+            version,
+            effective_cycle: effective,
+            ..latest
+        };
+        tracing::info!("schedule re-issued as v{version} from cycle {effective}");
+        self.push_schedule(healed.clone());
+        vec![Output::Schedule(healed)]
+    }
+
+    /// Starts a new epoch at `now`: cycles count from 0 again and the
+    /// schedule in force is re-issued as version 1, from the next cycle.
+    pub(crate) fn new_epoch(&mut self, now: Time) -> Vec<Output> {
+        self.epoch = epoch_of(now, Some(self.epoch));
+        let current = self.schedule_for(self.next_cycle).clone();
+        let schedule = Schedule {
+            version: 1,
+            effective_cycle: 0,
+            epoch: self.epoch,
+            ..current
+        };
+        self.schedules = vec![schedule.clone()];
+        self.next_cycle = 0;
+        self.sent_triggers.clear();
+        tracing::info!("new epoch {}", self.epoch);
+        vec![Output::Schedule(schedule)]
+    }
+
+    /// A trigger heard on `central/cycle`: counted if it is not one of its own.
+    fn on_trigger_seen(&mut self, seen: &CycleTrigger) {
+        if self.sent_triggers.contains(seen) {
+            return;
+        }
+        self.foreign_control += 1;
+        // Logged at 1, 2, 4, 8, ... so that a flood costs a few lines.
+        if self.foreign_control.is_power_of_two() {
+            tracing::warn!(
+                "a trigger for cycle {} of epoch {} that this central unit (epoch {}) did not send; {} so far",
+                seen.cycle,
+                seen.epoch,
+                self.epoch,
+                self.foreign_control
+            );
+        }
     }
 
     /// The answer to `status`, `cells`, `robots` and `sync`.
@@ -402,6 +606,9 @@ impl CentralCore {
                 .iter()
                 .map(|(id, r)| r.health(id, now))
                 .collect(),
+            epoch: self.epoch,
+            foreign_control: self.foreign_control,
+            active: self.standby.is_none(),
         }
     }
 
@@ -483,7 +690,10 @@ impl CentralCore {
         let version = self.latest_schedule().version + 1;
         let effective = self.first_announceable_cycle(now);
         let schedule = match compute_schedule(&site, &active, version, effective) {
-            Ok(s) => s,
+            Ok(s) => Schedule {
+                epoch: self.epoch,
+                ..s
+            },
             Err(e) => return refuse(vec![e.to_string()]),
         };
         for c in &site.cells {
@@ -509,5 +719,9 @@ impl CentralCore {
     }
 }
 
+pub mod standby;
+
+#[cfg(test)]
+mod forged_tests;
 #[cfg(test)]
 mod tests;

@@ -13,7 +13,7 @@ use std::collections::{BTreeSet, VecDeque};
 
 use ickon_proto::msg::admin::{CellHealth, RobotHealth};
 use ickon_proto::msg::control::{Burst, CellStatus};
-use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::msg::robot::{PoseStatus, RobotPose};
 use ickon_proto::time::{Duration, Time};
 
 /// Fired cycles remembered per cell, to count missed ones.
@@ -26,6 +26,10 @@ pub const MISSED_IN_A_ROW_FOR_DOWN: u32 = 2;
 pub const RESIDUAL_WINDOW: usize = 64;
 /// Fixes per second are counted over this window.
 pub const FIX_RATE_WINDOW: Duration = Duration::from_millis(2_000);
+/// A robot whose last pose came longer ago than this is stale: its MSU
+/// publishes at the odometry rate (tens of hertz), so one second of silence
+/// is a stopped or hung MSU (or a broken link), not a slow one.
+pub const POSE_STALE_AFTER: Duration = Duration::from_millis(1_000);
 
 /// One cell.
 #[derive(Debug, Default, Clone)]
@@ -113,6 +117,7 @@ impl CellTracker {
             cycles_fired: self.cycles_fired,
             cycles_missed: self.cycles_missed,
             slots_skipped: status.map_or(0, |s| s.slots_skipped),
+            inputs_refused: status.map_or(0, |s| s.inputs_refused),
         }
     }
 }
@@ -123,13 +128,37 @@ pub struct RobotTracker {
     /// Whether its liveliness token is present.
     pub alive: bool,
     pose: Option<RobotPose>,
+    /// When the last pose arrived (central unit's clock).
+    pose_at: Option<Time>,
     fix_times: VecDeque<Time>,
 }
 
 impl RobotTracker {
-    /// A pose it published.
-    pub fn on_pose(&mut self, pose: RobotPose) {
+    /// A pose it published, received at `now`.
+    pub fn on_pose(&mut self, pose: RobotPose, now: Time) {
         self.pose = Some(pose);
+        self.pose_at = Some(now);
+    }
+
+    /// Why the robot is stale at `now`, if it is: a live robot (token
+    /// present) whose poses stopped, or whose MSU says an input stalled.
+    pub fn stale(&self, now: Time) -> Option<String> {
+        if !self.alive && self.pose_at.is_none() {
+            return None;
+        }
+        if let Some(at) = self.pose_at {
+            let silent = now.since(at);
+            if silent > POSE_STALE_AFTER {
+                return Some(format!("no pose for {:.1} s", silent.as_secs_f64()));
+            }
+        } else {
+            return Some("no pose yet".into());
+        }
+        match self.pose.as_ref().map(|p| p.status) {
+            Some(PoseStatus::NoFixes) => Some("MSU: no fixes".into()),
+            Some(PoseStatus::NoOdometry) => Some("MSU: no odometry".into()),
+            _ => None,
+        }
     }
 
     /// A fix it published, received at `now`.
@@ -161,6 +190,7 @@ impl RobotTracker {
             x_m: pose.map_or(0.0, |p| p.x_m),
             y_m: pose.map_or(0.0, |p| p.y_m),
             theta_rad: pose.map_or(0.0, |p| p.theta_rad),
+            stale: self.stale(now).unwrap_or_default(),
         }
     }
 }
@@ -176,6 +206,7 @@ mod tests {
             cycle,
             scheduled: Time(1_000_000_000),
             actual: Time(1_000_000_000 + error_ns),
+            epoch: 1,
         }
     }
 

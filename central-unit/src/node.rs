@@ -5,11 +5,13 @@
 
 use std::future::Future;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::{AdminAck, CoverageRequest, ReloadRequest};
-use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest};
+use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -32,6 +34,11 @@ pub struct CentralArgs {
     /// The web map's flags.
     #[command(flatten)]
     pub http: crate::http::HttpArgs,
+    /// Start as a hot standby: follow the active central unit and take
+    /// over when its liveliness token goes or its triggers stop for two
+    /// cycles (see `ickon_central::core::standby`).
+    #[arg(long)]
+    pub standby: bool,
 }
 
 /// Runs the central unit as a process: loads the site, opens the session,
@@ -61,6 +68,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             text,
             args.node.clock(),
             web.as_ref(),
+            args.standby,
             args.node.shutdown(),
         )
         .await;
@@ -86,18 +94,28 @@ async fn reply<T: serde::Serialize>(query: &Query, value: &T) {
 
 /// Serves `site` until `shutdown` completes. `clock` is the master time base
 /// (the system clock, with an injected offset and drift in a simulation);
-/// `web`, when given, is handed the status several times a second.
+/// `web`, when given, is handed the status several times a second. With
+/// `standby` it follows the active central unit until it takes over: until
+/// then it answers no clock or schedule query and holds no `alive/central`
+/// token, so that no cell follows it by mistake.
+#[allow(clippy::too_many_arguments)]
 pub async fn run(
     session: &Session,
     site: Site,
     site_toml: String,
     clock: SimulatedClock,
     web: Option<&crate::http::WebMap>,
+    standby: bool,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&site.name)?;
-    let mut core = CentralCore::new(site, site_toml, CentralConfig::default(), clock.now())
+    let make = if standby {
+        CentralCore::standby
+    } else {
+        CentralCore::new
+    };
+    let mut core = make(site, site_toml, CentralConfig::default(), clock.now())
         .map_err(|e| NodeError::Setup(e.to_string()))?;
     let s = core.latest_schedule();
     tracing::info!(
@@ -118,10 +136,18 @@ pub async fn run(
         .await
         .map_err(zerr)?;
     // Clock requests are answered in Zenoh's receive path, not in the loop
-    // below: t2 must not wait for the loop to get round to the query.
+    // below: t2 must not wait for the loop to get round to the query. The
+    // answer names the epoch, which the loop may change.
+    // 0: a standby, which does not answer.
+    let epoch = Arc::new(AtomicU64::new(if core.is_active() {
+        core.epoch()
+    } else {
+        0
+    }));
+    let clock_epoch = epoch.clone();
     let _clock_q = session
         .declare_queryable(keys.central_clock())
-        .callback(move |q| answer_clock(&q, &clock))
+        .callback(move |q| answer_clock(&q, &clock, clock_epoch.load(Ordering::Relaxed)))
         .await
         .map_err(zerr)?;
     let admin_q = session
@@ -162,12 +188,29 @@ pub async fn run(
         .declare_subscriber(keys.robot_all(RobotTopic::Fix))
         .await
         .map_err(zerr)?;
-    // Declared last: whoever sees the token can query every queryable above.
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_central())
+    // Its own keys, to notice what it did not send (its own puts come back too).
+    let cycle_sub = session
+        .declare_subscriber(keys.central_cycle())
         .await
         .map_err(zerr)?;
+    let schedule_sub = session
+        .declare_subscriber(keys.central_schedule())
+        .await
+        .map_err(zerr)?;
+    // Declared last: whoever sees the token can query every queryable
+    // above. A standby declares it when it takes over.
+    let mut token = if core.is_active() {
+        Some(
+            session
+                .liveliness()
+                .declare_token(keys.alive_central())
+                .await
+                .map_err(zerr)?,
+        )
+    } else {
+        tracing::info!("standing by: following the active central unit");
+        None
+    };
 
     let (mut failed_puts, mut undecodable) = (0u64, 0u64);
     let mut web_ticks = tokio::time::interval(crate::http::feed::SNAPSHOT_PERIOD);
@@ -181,7 +224,12 @@ pub async fn run(
                 continue;
             }
             Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
-            Ok(q) = schedule_q.recv_async() => { reply(&q, core.latest_schedule()).await; continue; }
+            Ok(q) = schedule_q.recv_async() => {
+                if core.is_active() {
+                    reply(&q, core.latest_schedule()).await;
+                }
+                continue;
+            }
             Ok(q) = admin_q.recv_async() => {
                 let outputs = answer_admin(&keys, &mut core, &q, clock.now()).await;
                 failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
@@ -192,6 +240,7 @@ pub async fn run(
                 match keys.parse(s.key_expr().as_str()) {
                     Ok(Key::AliveCell(id)) => Event::CellAlive { id, up },
                     Ok(Key::AliveRobot(id)) => Event::RobotAlive { id, up },
+                    Ok(Key::AliveCentral) if !up && !core.is_active() => Event::ActiveGone,
                     _ => continue,
                 }
             }
@@ -223,8 +272,37 @@ pub async fn run(
                 Ok(Key::Robot(robot, _)) => Event::Fix { robot },
                 _ => continue,
             },
+            Ok(s) = cycle_sub.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
+                Ok(t) => Event::TriggerSeen(t),
+                Err(_) => {
+                    undecodable += 1;
+                    continue;
+                }
+            },
+            Ok(s) = schedule_sub.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
+                Ok(t) => Event::ScheduleSeen(t),
+                Err(_) => {
+                    undecodable += 1;
+                    continue;
+                }
+            },
         };
         let outputs = core.handle(clock.now(), event);
+        epoch.store(
+            if core.is_active() { core.epoch() } else { 0 },
+            Ordering::Relaxed,
+        );
+        if core.is_active() != token.is_some() {
+            token = if core.is_active() {
+                session
+                    .liveliness()
+                    .declare_token(keys.alive_central())
+                    .await
+                    .ok()
+            } else {
+                None
+            };
+        }
         failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
     }
     if failed_puts + undecodable > 0 {
@@ -252,14 +330,18 @@ async fn publish(
     failed
 }
 
-/// Answers a clock request at once: t2 on arrival, t3 just before the reply.
-fn answer_clock(q: &Query, clock: &SimulatedClock) {
+/// Answers a clock request at once: t2 on arrival, t3 just before the
+/// reply; not at all with epoch 0 (a standby).
+fn answer_clock(q: &Query, clock: &SimulatedClock, epoch: u64) {
+    if epoch == 0 {
+        return;
+    }
     let t2 = clock.now();
     let Some(Ok(req)) = q.payload().map(|p| decode::<ClockRequest>(&p.to_bytes())) else {
         tracing::warn!("clock query without a valid request");
         return;
     };
-    let sent = encode(&CentralCore::clock_reply(req.t1, t2, clock.now()))
+    let sent = encode(&CentralCore::clock_reply(epoch, req.t1, t2, clock.now()))
         .map_err(NodeError::from)
         .and_then(|bytes| {
             q.reply(q.key_expr().clone(), bytes)

@@ -124,7 +124,8 @@ pub fn colour_cells(site: &Site, cells: &[&Cell]) -> Vec<usize> {
     colour
 }
 
-/// The schedule of `site` with `active_cells` taking part (site order is kept).
+/// The schedule of `site` with `active_cells` taking part (site order is
+/// kept), with epoch 0: the central unit stamps its own.
 pub fn compute_schedule(
     site: &Site,
     active_cells: &[String],
@@ -171,6 +172,8 @@ pub fn compute_schedule(
         slot_length: slot,
         emissions,
         active_cells: cells.iter().map(|c| c.id.clone()).collect(),
+        // The central unit stamps its own epoch on what it publishes.
+        epoch: 0,
     })
 }
 

@@ -740,3 +740,105 @@ fn cells_survive_a_central_unit_restart_and_fire_again_in_sync() {
         back_after.as_secs_f64()
     );
 }
+
+/// Issue 14's forged control messages, published by a client of the mesh:
+/// an empty schedule under the current version and epoch, a trigger with
+/// cycle 2^62 at a plausible time, and a rogue clock queryable answering
+/// 300 ms off for another epoch. Each is refused (the cells keep firing
+/// every transmitter on time), counted and reported (`ickon admin status`).
+#[test]
+fn forged_control_messages_are_refused_counted_and_the_cells_fire_on() {
+    use ickon_proto::msg::control::{ClockReply, ClockRequest};
+    let mut mesh = Mesh::start("forged");
+    let cells = ["c1", "c4"];
+    for id in cells {
+        mesh.spawn_cell(id);
+    }
+    let first = mesh.rec.wait_for(START_TIMEOUT, "both cells to fire", |r| {
+        let a = r.cycles_fired_by("c1");
+        r.cycles_fired_by("c4").into_iter().find(|k| a.contains(k))
+    });
+    let (last, _) = mesh
+        .rec
+        .wait_for(WAIT, "a trigger after the first burst", |r| {
+            r.triggers
+                .values()
+                .next_back()
+                .filter(|(t, _)| t.cycle > first)
+                .copied()
+        });
+    let schedule = mesh.rec.schedule(&mesh.observer, last.schedule_version);
+    let session = mesh.observer.session();
+    let keys = Keys::new(&mesh.site).unwrap();
+    // A rogue clock answering every exchange, for an epoch that is not the
+    // central unit's.
+    let rogue_epoch = last.epoch - 1;
+    let _rogue = session
+        .declare_queryable(keys.central_clock())
+        .callback(move |q| {
+            let Some(Ok(req)) = q
+                .payload()
+                .map(|p| ickon_proto::decode::<ClockRequest>(&p.to_bytes()))
+            else {
+                return;
+            };
+            let off = ickon_proto::time::Duration::from_millis(300);
+            let reply = ClockReply {
+                t1: req.t1,
+                t2: req.t1 + off,
+                t3: req.t1 + off,
+                epoch: rogue_epoch,
+            };
+            let _ = q
+                .reply(q.key_expr().clone(), ickon_proto::encode(&reply).unwrap())
+                .wait();
+        })
+        .wait()
+        .expect("rogue queryable");
+    let empty = Schedule {
+        emissions: Vec::new(),
+        ..schedule.clone()
+    };
+    session
+        .put(
+            keys.central_schedule(),
+            ickon_proto::encode(&empty).unwrap(),
+        )
+        .wait()
+        .unwrap();
+    let forged = CycleTrigger {
+        cycle: 1 << 62,
+        start: last.start + schedule.cycle_period * 3,
+        ..last
+    };
+    session
+        .put(keys.central_cycle(), ickon_proto::encode(&forged).unwrap())
+        .wait()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1_500));
+    mesh.rec.drain();
+    mesh.rec.triggers.retain(|&k, _| k < 1 << 60);
+    mesh.rec.schedules.clear();
+    let window = (last.cycle + 6)..=(last.cycle + 14);
+    let end = *window.end();
+    mesh.rec
+        .wait_for(WAIT, "the window after the forgeries", |r| {
+            r.last_cycle().filter(|&c| c >= end + 2)
+        });
+    mesh.rec.triggers.retain(|&k, _| k < 1 << 60);
+    let worst = mesh.rec.check_cycles(&mesh.observer, &cells, window);
+    mesh.assert_running(&[]);
+    let status = mesh.admin_json("status");
+    assert!(
+        status["foreign_control"].as_u64().unwrap_or(0) >= 2,
+        "the central unit counts the schedule and the trigger: {status}"
+    );
+    for id in cells {
+        let c = cell_json(&status, id);
+        assert!(
+            c["inputs_refused"].as_u64().unwrap_or(0) >= 2,
+            "{id} refused the schedule and the trigger: {status}"
+        );
+    }
+    eprintln!("forged messages: cells fired on, residual max {worst:.1?} us; {status}");
+}

@@ -41,6 +41,7 @@ fn pose() -> RobotPose {
         covariance: [4e-4, 1e-5, 0.0, 1e-5, 9e-4, 0.0, 0.0, 0.0, 2e-3],
         estimator: "tdoa-ekf".into(),
         fix_seq: 7,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
     }
 }
 

@@ -131,6 +131,7 @@ mod tests {
                 },
             ],
             active_cells: vec!["a".into()],
+            epoch: 1,
         }
     }
 

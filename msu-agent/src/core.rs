@@ -9,7 +9,10 @@ use ickon_fusion::estimator::{
 };
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::{Schedule, TransmitterEntry};
-use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
+use ickon_proto::msg::robot::{
+    Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
+};
+use ickon_proto::time::{Duration, Time};
 
 use crate::assembly::AssemblyError;
 use crate::fusion_clock::FusionClock;
@@ -57,6 +60,9 @@ pub enum MsuError {
     /// The estimator rejected the input.
     #[error(transparent)]
     Estimator(#[from] EstimatorError),
+    /// The schedule was refused (see [`ickon_proto::epoch`]).
+    #[error(transparent)]
+    Schedule(#[from] ickon_proto::epoch::ScheduleRefused),
     /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
     #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
     FromTheFuture {
@@ -64,6 +70,17 @@ pub enum MsuError {
         ahead_s: f64,
     },
 }
+
+/// An input stream silent for longer than this (by the stamps of the
+/// others) makes the pose stale: a few cycles of the slowest site (1.6
+/// cycles/s) without a fix, or dozens of odometry periods.
+pub const STALE_AFTER: Duration = Duration::from_millis(3_000);
+
+/// How fast the position uncertainty of a stale pose grows beyond what the
+/// estimator says, m/s: the estimator's own growth assumes its models hold,
+/// and a robot without fixes for seconds is exactly when they may not
+/// (slip, a wrong wheel scale). About a tenth of the robot's top speed.
+pub const STALE_GROWTH_M_PER_S: f64 = 0.05;
 
 /// The per-robot MSU state machine.
 pub struct MsuCore {
@@ -73,6 +90,11 @@ pub struct MsuCore {
     time_gate: TimeGate,
     /// Wire time to fusion time and back, exactly.
     clock: FusionClock,
+    /// Stamp of the newest valid fix, of the newest odometry sample, and
+    /// of the first input taken (MSU clock).
+    last_fix: Option<Time>,
+    last_odometry: Option<Time>,
+    first_input: Option<Time>,
 }
 
 impl MsuCore {
@@ -91,12 +113,19 @@ impl MsuCore {
             fix_seq: 0,
             time_gate: TimeGate::default(),
             clock: FusionClock::default(),
+            last_fix: None,
+            last_odometry: None,
+            first_input: None,
         }
     }
 
-    /// Installs the schedule the arrivals are matched against.
-    pub fn set_schedule(&mut self, schedule: Schedule) {
-        self.solver.set_schedule(schedule);
+    /// Takes the schedule the arrivals are matched against, if the rules
+    /// of [`ickon_proto::epoch`] allow it (an altered or backward one is
+    /// refused, and the one in force stays).
+    pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), MsuError> {
+        self.solver
+            .set_schedule(schedule)
+            .map_err(MsuError::Schedule)
     }
 
     /// The primary estimator's name.
@@ -115,10 +144,31 @@ impl MsuCore {
     }
 
     /// Lets `stamp` through the time gate, or says why not.
-    fn gate(&mut self, stamp: ickon_proto::time::Time) -> Result<(), MsuError> {
+    fn gate(&mut self, stamp: Time) -> Result<(), MsuError> {
         match self.time_gate.check(stamp.as_secs_f64()) {
-            Verdict::Accept => Ok(()),
+            Verdict::Accept => {
+                self.first_input.get_or_insert(stamp);
+                Ok(())
+            }
             Verdict::FromTheFuture { ahead_s } => Err(MsuError::FromTheFuture { ahead_s }),
+        }
+    }
+
+    /// Whether a pose at `stamp` is tracked, and if not which input
+    /// stalled and for how long beyond [`STALE_AFTER`].
+    pub fn staleness(&self, stamp: Time) -> (PoseStatus, Duration) {
+        let silent = |last: Option<Time>| {
+            let since = last
+                .or(self.first_input)
+                .map_or(Duration::ZERO, |t| stamp.since(t));
+            (since > STALE_AFTER).then(|| since - STALE_AFTER)
+        };
+        if let Some(over) = silent(self.last_fix) {
+            (PoseStatus::NoFixes, over)
+        } else if let Some(over) = silent(self.last_odometry) {
+            (PoseStatus::NoOdometry, over)
+        } else {
+            (PoseStatus::Tracking, Duration::ZERO)
         }
     }
 
@@ -142,6 +192,7 @@ impl MsuCore {
             return Ok(None);
         };
         self.fix_seq = msg.seq;
+        self.last_fix = Some(self.last_fix.map_or(wire.stamp, |t| t.max(wire.stamp)));
         if let Err(e) = self.host.feed(&Input::Fix(fix)) {
             tracing::debug!("fix of cycle {} not fused: {e}", msg.seq);
         }
@@ -151,6 +202,7 @@ impl MsuCore {
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
     pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
         self.gate(odom.stamp)?;
+        self.last_odometry = Some(self.last_odometry.map_or(odom.stamp, |t| t.max(odom.stamp)));
         let geometry = self.solver.config().wheels;
         let input = Input::Encoders(EncoderSample {
             t_s: self.clock.to_fusion(odom.stamp),
@@ -192,12 +244,21 @@ impl MsuCore {
         self.pose_of(0)
     }
 
-    /// Estimator `i`'s fused pose, once it is initialised.
+    /// Estimator `i`'s fused pose, once it is initialised. A stale pose
+    /// says why ([`PoseStatus`]); without fixes its position variance grows
+    /// by `(STALE_GROWTH_M_PER_S * t)^2`, `t` the time beyond [`STALE_AFTER`].
     pub fn pose_of(&self, i: usize) -> Option<RobotPose> {
         let p = self.host.pose(i)?;
-        let c = p.covariance;
+        let mut c = p.covariance;
+        let stamp = self.clock.to_wire(p.t_s);
+        let (status, over) = self.staleness(stamp);
+        if status == PoseStatus::NoFixes {
+            let grown = (STALE_GROWTH_M_PER_S * over.as_secs_f64()).powi(2);
+            c[(0, 0)] += grown;
+            c[(1, 1)] += grown;
+        }
         Some(RobotPose {
-            stamp: self.clock.to_wire(p.t_s),
+            stamp,
             x_m: p.x_m,
             y_m: p.y_m,
             theta_rad: p.theta_rad,
@@ -214,9 +275,13 @@ impl MsuCore {
             ],
             estimator: self.host.name(i).unwrap_or("none").to_owned(),
             fix_seq: self.fix_seq,
+            status,
         })
     }
 }
+
+#[cfg(test)]
+mod stale_tests;
 
 #[cfg(test)]
 mod tests {
@@ -265,7 +330,7 @@ mod tests {
             max_fix_sigma_m: 0.5,
         };
         let mut core = MsuCore::new(config, build_by_name(estimator).unwrap());
-        core.set_schedule(schedule());
+        core.set_schedule(schedule()).unwrap();
         core
     }
 
@@ -286,6 +351,7 @@ mod tests {
                 })
                 .collect(),
             active_cells: vec!["a".into()],
+            epoch: 1,
         }
     }
 
@@ -396,7 +462,7 @@ mod tests {
             config,
             names.iter().map(|n| build_by_name(n).unwrap()).collect(),
         );
-        core.set_schedule(schedule());
+        core.set_schedule(schedule()).unwrap();
         let fix = core
             .on_arrivals(&arrivals([3.1, 1.2, 0.5], &[]))
             .unwrap()
@@ -515,5 +581,29 @@ mod tests {
             c.on_arrivals(&arrivals([1.0, 1.0, 0.5], &[])),
             Err(MsuError::NoSchedule)
         );
+    }
+
+    #[test]
+    fn an_empty_schedule_under_the_current_version_is_refused_and_fixes_go_on() {
+        let mut c = core();
+        let empty = Schedule {
+            emissions: Vec::new(),
+            ..schedule()
+        };
+        let out = c.handle(crate::events::Event::Schedule(empty));
+        assert!(
+            matches!(
+                out.as_slice(),
+                [crate::events::Output::Refused {
+                    input: crate::events::InputKind::Schedule,
+                    error: MsuError::Schedule(_)
+                }]
+            ),
+            "{out:?}"
+        );
+        assert!(matches!(
+            c.on_arrivals(&arrivals([1.0, 1.0, 0.5], &[])),
+            Ok(Some(_))
+        ));
     }
 }

@@ -38,6 +38,8 @@ pub enum InputKind {
     Imu,
     /// An obstacle-ranges sample.
     Range,
+    /// A schedule.
+    Schedule,
 }
 
 /// What the core asks its adapter to do.
@@ -62,7 +64,11 @@ impl MsuCore {
         let mut out = Vec::new();
         let refused = |input, error| Output::Refused { input, error };
         match event {
-            Event::Schedule(s) => self.set_schedule(s),
+            Event::Schedule(s) => {
+                if let Err(e) = self.set_schedule(s) {
+                    out.push(refused(InputKind::Schedule, e));
+                }
+            }
             Event::Arrivals(msg) => match self.on_arrivals(&msg) {
                 Ok(Some(fix)) => {
                     out.push(Output::Fix(fix));

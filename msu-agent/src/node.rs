@@ -144,7 +144,9 @@ pub async fn run(
         schedule.version,
         core.estimator_name()
     );
-    core.set_schedule(schedule);
+    if let Err(e) = core.set_schedule(schedule) {
+        tracing::warn!("robot {robot}: the central unit's schedule refused: {e}");
+    }
 
     let sub = |topic| keys.robot(robot, topic);
     // Every input goes through one queue in the order it arrives, so that

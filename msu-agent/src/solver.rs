@@ -10,6 +10,7 @@
 
 use ickon_fusion::estimator::{Input, RangeDifferenceSample};
 use ickon_fusion::tdoa;
+use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
 use ickon_proto::time::{Duration, Time};
@@ -39,7 +40,7 @@ pub struct SolvedCycle {
 #[derive(Debug, Clone)]
 pub struct FixSolver {
     config: MsuConfig,
-    schedule: Option<Schedule>,
+    schedules: ScheduleBook,
     last_fix: Option<(Time, Vector2<f64>)>,
     motion: CycleMotion,
 }
@@ -49,7 +50,7 @@ impl FixSolver {
     pub fn new(config: MsuConfig) -> Self {
         Self {
             config,
-            schedule: None,
+            schedules: ScheduleBook::new(),
             last_fix: None,
             motion: CycleMotion::new(),
         }
@@ -67,14 +68,15 @@ impl FixSolver {
         &self.config
     }
 
-    /// Installs the schedule the arrivals are matched against.
-    pub fn set_schedule(&mut self, schedule: Schedule) {
-        self.schedule = Some(schedule);
+    /// Takes the schedule the arrivals are matched against (the newest
+    /// the rules of [`ickon_proto::epoch`] allow; a refused one changes nothing).
+    pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), ScheduleRefused> {
+        self.schedules.offer(schedule).map(|_| ())
     }
 
-    /// Forgets the schedule (tests; a site that changed).
+    /// Forgets the schedules (tests; a site that changed).
     pub fn clear_schedule(&mut self) {
-        self.schedule = None;
+        self.schedules.clear();
     }
 
     /// The solver set-up: 2D with the MSU height known, the timing noise as
@@ -102,7 +104,7 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
-        let schedule = self.schedule.as_ref().ok_or(MsuError::NoSchedule)?;
+        let schedule = self.schedules.latest().ok_or(MsuError::NoSchedule)?;
         let c = self.config.speed_of_sound_m_s;
         let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
         let range_differences = self.range_differences(&cycle.signals, clock);

@@ -10,12 +10,14 @@
 //! - [`msg`]: the messages, grouped by who sends them.
 //! - [`ros`]: ROS 2 over Zenoh (rmw_zenoh and the DDS bridge): keys,
 //!   liveliness tokens and the sample attachment.
+//! - [`epoch`]: central unit epochs and the rules for taking a schedule.
 //! - [`site`]: the site model in TOML, its validation and the built-in default site.
 //!
 //! Conventions: SI units inside (metres, seconds, radians); field names carry
 //! their unit where it is not SI or not obvious (`drift_ppb`, `offset_ns`).
 
 pub mod codec;
+pub mod epoch;
 pub mod file_issue;
 pub mod keys;
 pub mod msg;

@@ -300,6 +300,7 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             slot_length: Duration::from_millis(40),
             emissions: vec![emission(1, "c1"), emission(2, "cell-22")],
             active_cells: vec!["c1".into(), "cell-22".into(), "x".into()],
+            epoch: 1_764_000_000_000_000_000,
         },
         &mut checked,
     );
@@ -309,6 +310,7 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             cycle: 77,
             start: t,
             schedule_version: 2,
+            epoch: 99,
         },
         &mut checked,
     );
@@ -320,6 +322,7 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             cycle: 77,
             scheduled: t,
             actual: Time::from_nanos(t.as_nanos() + 12_345),
+            epoch: 99,
         },
         &mut checked,
     );
@@ -336,6 +339,7 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             cycles_fired: 70,
             slots_skipped: 1,
             faults: vec!["central unit silent".into()],
+            inputs_refused: 4,
         },
         &mut checked,
     );

@@ -90,16 +90,20 @@ pub struct Stamped<T> {
     pub received: ickon_proto::time::Time,
 }
 
-/// One query whose answer is stamped with `stamp()` the moment Zenoh hands
-/// it over (in its receive path, before any task wakes up), or `None` when
-/// nobody answered in time. Clock exchanges need this: every microsecond a
-/// reply waits for a busy task to run would count as network asymmetry.
+/// One query whose first answer that `wanted` accepts is stamped with
+/// `stamp()` the moment Zenoh hands it over (in its receive path, before
+/// any task wakes up), or `None` when no such answer came in time. Clock
+/// exchanges need this: every microsecond a reply waits for a busy task to
+/// run would count as network asymmetry. Every queryable is asked and each
+/// answer handed over as it comes (no consolidation), so that an unwanted
+/// answer (another central unit's) neither hides nor delays the wanted one.
 pub async fn query_stamped<T: DeserializeOwned>(
     session: &Session,
     key: &str,
     payload: Vec<u8>,
     timeout: Duration,
     stamp: impl Fn() -> ickon_proto::time::Time + Clone + Send + Sync + 'static,
+    wanted: impl Fn(&T) -> bool,
 ) -> Result<Option<Stamped<T>>, NodeError> {
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
     let on_reply = stamp.clone();
@@ -107,6 +111,8 @@ pub async fn query_stamped<T: DeserializeOwned>(
         .get(key)
         .payload(payload)
         .timeout(timeout)
+        .target(zenoh::query::QueryTarget::All)
+        .consolidation(zenoh::query::ConsolidationMode::None)
         // Unbatched and first in line: queueing adds delay to one leg only.
         .express(true)
         .priority(zenoh::qos::Priority::RealTime)
@@ -124,13 +130,14 @@ pub async fn query_stamped<T: DeserializeOwned>(
     while let Ok(Some((reply, received))) = tokio::time::timeout_at(end, rx.recv()).await {
         if let Ok(sample) = reply.result() {
             match ickon_proto::decode::<T>(&sample.payload().to_bytes()) {
-                Ok(value) => {
+                Ok(value) if wanted(&value) => {
                     return Ok(Some(Stamped {
                         value,
                         sent,
                         received,
                     }));
                 }
+                Ok(_) => tracing::debug!("unwanted reply on {key} skipped"),
                 Err(e) => tracing::warn!("undecodable reply on {key}: {e}"),
             }
         }

@@ -494,6 +494,7 @@ impl ControlPlane {
                         cycle: b.cycle,
                         scheduled: b.master,
                         actual,
+                        epoch: b.epoch,
                     };
                     self.fired.push(fired);
                     let d = self.net_delay(self.cells[i].asymmetry_ns, 1.0);
@@ -527,6 +528,7 @@ impl ControlPlane {
             t2,
             t3: t2,
             t4: self.cells[i].local(arrive_ns),
+            epoch: self.central.epoch(),
         };
         let reply = if back + out > REQUEST_TIMEOUT {
             None

@@ -67,6 +67,9 @@ pub enum RunError {
     /// The site cannot be scheduled.
     #[error(transparent)]
     Schedule(#[from] ickon_central::ScheduleError),
+    /// The MSU refused the control plane's schedule.
+    #[error(transparent)]
+    Msu(#[from] ickon_msu::MsuError),
 }
 
 /// The truth and every estimate when the robot passed one reference point.
@@ -260,7 +263,7 @@ pub fn run(
     }
     let n_est = estimators.len();
     let mut core = MsuCore::with_estimators(msu.clone(), estimators);
-    core.set_schedule(schedule.clone());
+    core.set_schedule(schedule.clone())?;
     let route_len = world.robot.route_length_m();
     let n_refs = route.reference_points.len().max(1);
     let total_refs = n_refs * config.tours as usize;
@@ -372,7 +375,8 @@ pub fn run(
                     continue;
                 }
                 let msg = world.arrivals_from_emissions(&fired);
-                core.set_schedule(control.schedule_for(k).clone());
+                // The control plane's own schedules: never refused.
+                let _ = core.set_schedule(control.schedule_for(k).clone());
                 if let Ok(Some(fix)) = core.on_arrivals(&msg) {
                     let t_true = world.msu_clock.true_s(fix.stamp.as_secs_f64());
                     let used_tx_m = fix

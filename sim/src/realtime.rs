@@ -10,9 +10,18 @@
 //! [`RealtimeWorld::handle`] takes `now` and one [`WorldEvent`] and returns
 //! the outputs. Inside, times are true seconds since the first event (the
 //! world's epoch); the adapter owns the clock.
+//!
+//! A cycle is named by the central unit's epoch and its number: a
+//! restarted central unit's cycle 0 is a new cycle, and a burst with an
+//! absurd cycle number (2^62) only makes a cycle of its own. Nothing waits
+//! for a cycle number: a cycle is delivered once its sound is over, and
+//! only the last [`DELIVERED_KEPT`] delivered ones are remembered, to drop
+//! their stragglers. Schedules are taken under the rules of
+//! [`ickon_proto::epoch`].
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
+use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
 use ickon_proto::msg::control::{Burst, Schedule};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
@@ -69,6 +78,13 @@ pub enum WorldEvent {
 /// or corrupt report): it is ignored instead of holding a cycle open.
 const MAX_BURST_SKEW_S: f64 = 10.0;
 
+/// Delivered cycles remembered, to drop bursts that come after their cycle
+/// was delivered (a few seconds' worth of cycles).
+pub const DELIVERED_KEPT: usize = 64;
+
+/// A cycle: (epoch of the central unit, cycle number).
+type CycleKey = (u64, u64);
+
 #[derive(Debug, Default)]
 struct PendingCycle {
     emissions: Vec<(u32, f64)>,
@@ -86,8 +102,9 @@ pub struct RealtimeWorld {
     next_odom_s: f64,
     next_ranges_s: f64,
     next_truth_s: f64,
-    pending: BTreeMap<u64, PendingCycle>,
-    last_delivered: Option<u64>,
+    pending: BTreeMap<CycleKey, PendingCycle>,
+    delivered: VecDeque<CycleKey>,
+    schedules: ScheduleBook,
     emissions_per_cycle: Option<usize>,
     period_s: f64,
     max_flight_s: f64,
@@ -135,7 +152,8 @@ impl RealtimeWorld {
             next_ranges_s: 1.0 / RANGES_HZ,
             next_truth_s: 0.0,
             pending: BTreeMap::new(),
-            last_delivered: None,
+            delivered: VecDeque::new(),
+            schedules: ScheduleBook::new(),
             emissions_per_cycle: None,
             period_s: 1.0,
             max_flight_s,
@@ -151,12 +169,16 @@ impl RealtimeWorld {
         let seconds = |t: Time| t.since(epoch).as_secs_f64();
         let mut out = Vec::new();
         match event {
-            WorldEvent::Schedule(s) => self.set_schedule(&s),
+            WorldEvent::Schedule(s) => {
+                if let Err(e) = self.set_schedule(s) {
+                    tracing::debug!("world: {e}");
+                }
+            }
             WorldEvent::Burst(b) => {
                 if (seconds(b.actual) - seconds(now)).abs() > MAX_BURST_SKEW_S {
                     self.bursts_ignored += 1;
                 } else {
-                    self.on_burst(b.cycle, b.tx_id, seconds(b.actual));
+                    self.on_burst((b.epoch, b.cycle), b.tx_id, seconds(b.actual));
                 }
             }
             WorldEvent::Tick => self.advance(seconds(now), &mut out),
@@ -181,18 +203,29 @@ impl RealtimeWorld {
 
     /// The schedule in force: how many bursts make a complete cycle, and how
     /// long to wait for a cycle whose bursts do not all come (a dead cell).
-    pub fn set_schedule(&mut self, schedule: &Schedule) {
-        self.emissions_per_cycle = Some(schedule.emissions.len());
-        self.period_s = schedule.cycle_period.as_secs_f64().max(1e-3);
+    /// A schedule the rules refuse (an altered version, an old epoch) changes nothing.
+    pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), ScheduleRefused> {
+        self.schedules.offer(schedule)?;
+        if let Some(s) = self.schedules.latest() {
+            self.emissions_per_cycle = Some(s.emissions.len());
+            self.period_s = s.cycle_period.as_secs_f64().max(1e-3);
+        }
+        Ok(())
     }
 
-    /// Records that transmitter `tx_id` fired in `cycle` at true time `t_emit_s`.
-    /// Bursts of cycles already delivered, and non-finite times, are ignored.
-    pub fn on_burst(&mut self, cycle: u64, tx_id: u32, t_emit_s: f64) {
+    /// Schedules refused so far.
+    pub fn schedules_refused(&self) -> u64 {
+        self.schedules.refused()
+    }
+
+    /// Records that transmitter `tx_id` fired in `cycle` (epoch, number) at
+    /// true time `t_emit_s`. Bursts of cycles just delivered, and
+    /// non-finite times, are ignored.
+    pub fn on_burst(&mut self, cycle: CycleKey, tx_id: u32, t_emit_s: f64) {
         if !t_emit_s.is_finite() {
             return;
         }
-        if self.last_delivered.is_some_and(|d| cycle <= d) {
+        if self.delivered.contains(&cycle) {
             return;
         }
         let p = self.pending.entry(cycle).or_insert_with(|| PendingCycle {
@@ -258,7 +291,7 @@ impl RealtimeWorld {
     /// beyond its first burst (bursts of a dead cell never come).
     fn deliver_due(&mut self, out: &mut Vec<WorldOutput>) {
         let now = self.t_s;
-        let due: Vec<u64> = self
+        let due: Vec<CycleKey> = self
             .pending
             .iter()
             .filter(|(_, p)| {
@@ -273,7 +306,10 @@ impl RealtimeWorld {
             .collect();
         for k in due {
             if let Some(p) = self.pending.remove(&k) {
-                self.last_delivered = Some(self.last_delivered.map_or(k, |d| d.max(k)));
+                if self.delivered.len() == DELIVERED_KEPT {
+                    self.delivered.pop_front();
+                }
+                self.delivered.push_back(k);
                 for (i, w) in self.worlds.iter_mut().enumerate() {
                     out.push(WorldOutput::Arrivals(
                         i,
@@ -291,14 +327,98 @@ mod tests {
     use ickon_proto::msg::control::Emission;
     use ickon_proto::time::Duration;
 
+    /// The epoch of the tests' central unit.
+    const E: u64 = 1_000;
+
     fn setup(profile: &str) -> (Site, RealtimeWorld, Schedule) {
         let site = Site::default_site();
         let profile = NoiseProfile::by_name(profile).unwrap();
         let ids = vec!["r3".to_string(), "r4".to_string()];
         let world = RealtimeWorld::new(&site, &ids, &profile, 7).unwrap();
         let cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
-        let schedule = ickon_central::compute_schedule(&site, &cells, 1, 0).unwrap();
+        let schedule = Schedule {
+            epoch: E,
+            ..ickon_central::compute_schedule(&site, &cells, 1, 0).unwrap()
+        };
         (site, world, schedule)
+    }
+
+    /// Every burst of one cycle `key` starting at `start_s`, then time up
+    /// to the end of its sound: the number of arrival messages delivered.
+    fn run_cycle(
+        world: &mut RealtimeWorld,
+        schedule: &Schedule,
+        key: CycleKey,
+        start_s: f64,
+    ) -> usize {
+        for e in &schedule.emissions {
+            world.on_burst(key, e.tx_id, start_s + e.offset.as_secs_f64());
+        }
+        let mut out = Vec::new();
+        world.advance(
+            start_s + schedule.cycle_period.as_secs_f64() + 0.1,
+            &mut out,
+        );
+        count(&out)[4]
+    }
+
+    #[test]
+    fn a_burst_with_cycle_2_pow_62_does_not_stop_the_real_cycles() {
+        let (_, mut world, schedule) = setup("ideal");
+        world.set_schedule(schedule.clone()).unwrap();
+        let period = schedule.cycle_period.as_secs_f64();
+        assert_eq!(run_cycle(&mut world, &schedule, (E, 7), 3.0), 2);
+        world.on_burst((E, 1 << 62), 31, 3.0 + period);
+        assert_eq!(
+            run_cycle(&mut world, &schedule, (E, 8), 3.0 + 2.0 * period),
+            2 + 2
+        );
+        assert_eq!(
+            run_cycle(&mut world, &schedule, (E, 9), 3.0 + 4.0 * period),
+            2
+        );
+    }
+
+    #[test]
+    fn a_restarted_central_units_cycle_0_is_heard_at_once() {
+        let (_, mut world, schedule) = setup("ideal");
+        world.set_schedule(schedule.clone()).unwrap();
+        let period = schedule.cycle_period.as_secs_f64();
+        assert_eq!(run_cycle(&mut world, &schedule, (E, 80), 3.0), 2);
+        let restarted = Schedule {
+            epoch: E + 1,
+            ..schedule.clone()
+        };
+        world.set_schedule(restarted.clone()).unwrap();
+        assert_eq!(
+            run_cycle(&mut world, &restarted, (E + 1, 0), 3.0 + 2.0 * period),
+            2
+        );
+    }
+
+    #[test]
+    fn an_empty_schedule_under_the_current_version_is_refused() {
+        let (_, mut world, schedule) = setup("ideal");
+        world.set_schedule(schedule.clone()).unwrap();
+        let empty = Schedule {
+            emissions: Vec::new(),
+            ..schedule.clone()
+        };
+        assert!(world.set_schedule(empty).is_err());
+        assert_eq!(world.schedules_refused(), 1);
+        // The cycle is still complete with the real schedule's bursts: no
+        // waiting a period for bursts that do not exist.
+        for e in &schedule.emissions {
+            world.on_burst((E, 1), e.tx_id, 3.0 + e.offset.as_secs_f64());
+        }
+        let mut out = Vec::new();
+        let last = schedule
+            .emissions
+            .iter()
+            .map(|e| e.offset.as_secs_f64())
+            .fold(0.0, f64::max);
+        world.advance(3.0 + last + 0.1, &mut out);
+        assert_eq!(count(&out)[4], 2);
     }
 
     fn count(out: &[WorldOutput]) -> [usize; 5] {
@@ -333,10 +453,10 @@ mod tests {
     #[test]
     fn a_complete_cycle_is_delivered_once_its_sound_has_arrived() {
         let (site, mut world, schedule) = setup("ideal");
-        world.set_schedule(&schedule);
+        world.set_schedule(schedule.clone()).unwrap();
         let start = 3.0;
         for e in &schedule.emissions {
-            world.on_burst(1, e.tx_id, start + e.offset.as_secs_f64());
+            world.on_burst((E, 1), e.tx_id, start + e.offset.as_secs_f64());
         }
         let mut out = Vec::new();
         let last = schedule
@@ -362,7 +482,7 @@ mod tests {
         }
         assert!(site.transmitter(31).is_some());
         // Bursts of a delivered cycle are ignored.
-        world.on_burst(1, 31, start);
+        world.on_burst((E, 1), 31, start);
         world.advance(start + 2.0, &mut out);
         assert_eq!(count(&out)[4], 2);
     }
@@ -385,6 +505,7 @@ mod tests {
             cycle: 1,
             scheduled: actual,
             actual,
+            epoch: E,
         };
         // A forged report of cycle 1 an hour ahead: ignored, counted.
         let forged = world.handle(at(3.0), WorldEvent::Burst(burst(31, at(3_603.0))));
@@ -411,8 +532,8 @@ mod tests {
             offset: Duration::ZERO,
             slot: 0,
         });
-        world.set_schedule(&schedule);
-        world.on_burst(5, 31, 3.0);
+        world.set_schedule(schedule.clone()).unwrap();
+        world.on_burst((E, 5), 31, 3.0);
         let mut out = Vec::new();
         world.advance(3.2, &mut out);
         assert_eq!(count(&out)[4], 0, "still waiting for the missing bursts");

@@ -1,12 +1,12 @@
 use super::*;
 
-const MS: i64 = 1_000_000;
+pub(super) const MS: i64 = 1_000_000;
 
-use crate::fixtures::schedule;
+use crate::fixtures::{EPOCH, schedule};
 
 /// A cell whose clock reads master + `offset_ms`, driven until it has
 /// synchronised; returns the core and the local time reached.
-fn synced_cell(offset_ms: i64) -> (CellCore, Time) {
+pub(super) fn synced_cell(offset_ms: i64) -> (CellCore, Time) {
     let mut now = Time::from_nanos(offset_ms * MS);
     let mut core = CellCore::new("c1", CellConfig::default(), now);
     let mut outputs = core.handle(now, Event::Tick);
@@ -22,6 +22,7 @@ fn synced_cell(offset_ms: i64) -> (CellCore, Time) {
                 t2: master,
                 t3: master,
                 t4: t1 + Duration::from_micros(200),
+                epoch: EPOCH,
             };
             now = now + Duration::from_micros(200);
             outputs = core.handle(now, Event::ClockExchange(Some(sample)));
@@ -39,7 +40,11 @@ fn synced_cell(offset_ms: i64) -> (CellCore, Time) {
 }
 
 /// Ticks the core through `until` (local), collecting what it fires.
-fn run_until(core: &mut CellCore, mut now: Time, until: Time) -> (Vec<PlannedBurst>, Time) {
+pub(super) fn run_until(
+    core: &mut CellCore,
+    mut now: Time,
+    until: Time,
+) -> (Vec<PlannedBurst>, Time) {
     let mut fired = Vec::new();
     while core.next_wake() <= until {
         now = core.next_wake().max(now);
@@ -88,6 +93,7 @@ fn bursts_are_programmed_ahead_on_the_local_clock_and_counted() {
             cycle: 3,
             start,
             schedule_version: 4,
+            epoch: EPOCH,
         }),
     );
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(400));
@@ -112,6 +118,7 @@ fn a_trigger_for_an_unknown_schedule_waits_for_it_and_skips_only_past_slots() {
             cycle: 9,
             start,
             schedule_version: 7,
+            epoch: EPOCH,
         }),
     );
     assert!(out.contains(&Output::RequestSchedule), "{out:?}");
@@ -145,6 +152,7 @@ fn without_a_clock_estimate_a_trigger_is_a_fault_not_a_burst() {
             cycle: 0,
             start: Time::from_nanos(500 * MS),
             schedule_version: 1,
+            epoch: EPOCH,
         }),
     );
     assert_eq!(core.counters().triggers_unplanned, 1);
@@ -156,14 +164,15 @@ fn without_a_clock_estimate_a_trigger_is_a_fault_not_a_burst() {
 }
 
 #[test]
-fn a_returning_central_unit_restarts_synchronisation_and_the_schedule() {
+fn a_returning_central_unit_is_asked_for_its_schedule_and_the_clock_checked() {
     let (mut core, now) = synced_cell(0);
     core.handle(now, Event::Schedule(schedule(2)));
     core.handle(now, Event::CentralAlive(false));
     // Gone: nothing is forgotten.
     assert!(core.sync().estimate().is_some());
     let out = core.handle(now, Event::CentralAlive(true));
-    assert!(core.sync().estimate().is_none());
+    // The estimate stays (a changed master clock shows as a step).
+    assert!(core.sync().estimate().is_some());
     assert!(out.contains(&Output::RequestSchedule), "{out:?}");
     // A second `true` (liveliness history) changes nothing.
     let again = core.handle(now, Event::CentralAlive(true));
@@ -209,6 +218,7 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
                 cycle: (1 << 62) + k,
                 start: now + Duration::from_millis(3_600_000),
                 schedule_version: 4,
+                epoch: EPOCH,
             }),
         );
     }
@@ -223,6 +233,7 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
             cycle: 5,
             start,
             schedule_version: 4,
+            epoch: EPOCH,
         }),
     );
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(300));
@@ -238,6 +249,7 @@ fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
         cycle: 3,
         start,
         schedule_version: 4,
+        epoch: EPOCH,
     };
     core.handle(now, Event::Trigger(trigger));
     let out = core.handle(now, Event::Shutdown);
@@ -259,4 +271,17 @@ fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
         "never woken again"
     );
     assert_eq!(core.counters().cycles_fired, 0);
+}
+
+#[test]
+fn skipped_slots_are_logged_at_powers_of_two_only() {
+    let logged: Vec<u64> = (0..40u64)
+        .filter(|&n| crosses_power_of_two(n, n + 1))
+        .map(|n| n + 1)
+        .collect();
+    assert_eq!(logged, vec![1, 2, 4, 8, 16, 32]);
+    // A plan that skips several at once logs when it passes one.
+    assert!(crosses_power_of_two(5, 9));
+    assert!(!crosses_power_of_two(9, 12));
+    assert!(!crosses_power_of_two(3, 3));
 }

@@ -56,6 +56,7 @@ fn run_cycles(c: &mut CentralCore, n: usize) -> Vec<CycleTrigger> {
                     cycle: t.cycle,
                     scheduled: t.start,
                     actual: t.start,
+                    epoch: c.epoch(),
                 });
             }
         }
@@ -150,6 +151,7 @@ fn missed_cycles_are_counted_for_live_cells_that_did_not_fire() {
                 cycle,
                 scheduled: Time(1_000),
                 actual: Time(1_000 + 50_000),
+                epoch: c.epoch(),
             });
         }
     }
@@ -225,13 +227,46 @@ fn robots_are_reported_with_their_last_pose() {
             covariance: [0.0; 9],
             estimator: "ickon-akf".into(),
             fix_seq: 3,
+            status: ickon_proto::msg::robot::PoseStatus::Tracking,
         },
+        Time(0),
     );
     c.on_fix("r1", Time(0));
     let r = &c.status(Time(0)).robots[0];
     assert!(r.up && r.pose_valid);
     assert_eq!((r.x_m, r.estimator.as_str()), (1.5, "ickon-akf"));
     assert!(r.fixes_per_s > 0.0);
+    assert_eq!(r.stale, "");
+}
+
+#[test]
+fn a_live_robot_whose_poses_stop_is_stale_and_its_msus_word_is_shown() {
+    let mut c = core();
+    c.robot_alive("r1", true);
+    assert_eq!(c.status(Time(0)).robots[0].stale, "no pose yet");
+    let pose = |status| RobotPose {
+        stamp: Time(0),
+        x_m: 1.5,
+        y_m: 2.0,
+        theta_rad: 0.1,
+        covariance: [0.0; 9],
+        estimator: "tdoa-ekf".into(),
+        fix_seq: 3,
+        status,
+    };
+    c.on_pose(
+        "r1",
+        pose(ickon_proto::msg::robot::PoseStatus::Tracking),
+        Time(0),
+    );
+    let later = Time(0) + crate::health::POSE_STALE_AFTER + Duration::from_millis(500);
+    assert_eq!(c.status(later).robots[0].stale, "no pose for 1.5 s");
+    c.on_pose(
+        "r1",
+        pose(ickon_proto::msg::robot::PoseStatus::NoFixes),
+        later,
+    );
+    assert_eq!(c.status(later).robots[0].stale, "MSU: no fixes");
 }
 
 #[test]
@@ -308,6 +343,7 @@ fn a_live_cell_that_stops_firing_is_down_after_two_missed_cycles() {
                     cycle: t.cycle,
                     scheduled: t.start,
                     actual: t.start,
+                    epoch: c.epoch(),
                 });
             }
         }

@@ -55,6 +55,7 @@ fn report(site: &Site) -> StatusReport {
                 cycles_fired: 11,
                 cycles_missed: 0,
                 slots_skipped: 0,
+                inputs_refused: 0,
             })
             .collect(),
         robots: vec![RobotHealth {
@@ -66,7 +67,11 @@ fn report(site: &Site) -> StatusReport {
             x_m: 1.0,
             y_m: 2.0,
             theta_rad: 0.5,
+            stale: String::new(),
         }],
+        epoch: 1,
+        foreign_control: 0,
+        active: true,
     }
 }
 
@@ -240,6 +245,7 @@ fn pose(x_m: f64, stamp_ns: i64) -> RobotPose {
         covariance: [0.0; 9],
         estimator: "tdoa-ekf".into(),
         fix_seq: 0,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
     }
 }
 
@@ -292,6 +298,7 @@ fn forged_and_broken_messages_are_counted_not_kept() {
             cycle: u64::MAX,
             scheduled: Time(i64::MAX),
             actual: Time(i64::MIN),
+            epoch: u64::MAX,
         },
         Time(0),
     );

@@ -32,6 +32,17 @@ fn header(out: &mut String, s: &StatusReport) {
         s.schedule_version,
         s.update_rate_hz
     );
+    let _ = writeln!(
+        out,
+        "central unit epoch {} ({}){}",
+        s.epoch,
+        if s.active { "active" } else { "standby" },
+        if s.foreign_control > 0 {
+            format!(", {} control messages it did not send", s.foreign_control)
+        } else {
+            String::new()
+        }
+    );
 }
 
 fn cell_table(out: &mut String, s: &StatusReport) {
@@ -80,7 +91,11 @@ fn robot_table(out: &mut String, s: &StatusReport) {
             out,
             "{:<8} {:<5} {:>7.1} {:<12} {:>8} {:>8} {:>9}",
             r.id,
-            if r.up { "up" } else { "down" },
+            match (r.up, r.stale.is_empty()) {
+                (false, _) => "down",
+                (true, true) => "up",
+                (true, false) => "stale",
+            },
             r.fixes_per_s,
             if r.estimator.is_empty() {
                 "-"
@@ -91,6 +106,9 @@ fn robot_table(out: &mut String, s: &StatusReport) {
             y,
             th
         );
+        if !r.stale.is_empty() {
+            let _ = writeln!(out, "         stale: {}", r.stale);
+        }
     }
 }
 
@@ -225,6 +243,7 @@ mod tests {
             cycles_fired: 11,
             cycles_missed: 0,
             slots_skipped: 0,
+            inputs_refused: 0,
         };
         StatusReport {
             site: "lab".into(),
@@ -243,7 +262,11 @@ mod tests {
                 x_m: 1.0,
                 y_m: 2.0,
                 theta_rad: 0.5,
+                stale: String::new(),
             }],
+            epoch: 1,
+            foreign_control: 0,
+            active: true,
         }
     }
 

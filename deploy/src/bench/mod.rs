@@ -89,6 +89,9 @@ pub fn run(command: BenchCommand) -> ExitCode {
             record: None,
             ros2: false,
             secure: args.secure.then_some(None),
+            restart: false,
+            standby: false,
+            faults: None,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

@@ -152,6 +152,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                 cycle,
                 start: now,
                 schedule_version: 1,
+                epoch: 1,
             };
             put(recorder, &keys.central_cycle(), &trigger, now)?;
             for (c, cell) in cells.iter().enumerate() {
@@ -164,6 +165,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                         actual: Time::from_nanos(
                             now_ns + i64::from(tx) * 40_000_000 + rng.random_range(-30_000..30_000),
                         ),
+                        epoch: 1,
                     };
                     put(
                         recorder,
@@ -187,6 +189,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                     cycles_fired: cycle,
                     slots_skipped: 0,
                     faults: Vec::new(),
+                    inputs_refused: 0,
                 };
                 put(
                     recorder,
@@ -237,6 +240,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                     covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
                     estimator: "tdoa-ekf".into(),
                     fix_seq: seq,
+                    status: ickon_proto::msg::robot::PoseStatus::Tracking,
                 };
                 put(recorder, &k[2], &pose, now)?;
                 let truth = Truth {
@@ -305,6 +309,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                     covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
                     estimator: "tdoa-ekf".into(),
                     fix_seq: seq,
+                    status: ickon_proto::msg::robot::PoseStatus::Tracking,
                 };
                 put(recorder, &k[2], &pose, now)?;
             }

@@ -162,6 +162,7 @@ mod tests {
             covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-3],
             estimator: "tdoa-ekf".into(),
             fix_seq: 3,
+            status: ickon_proto::msg::robot::PoseStatus::Tracking,
         };
         let stored = prepare(&p, &encode(&pose).unwrap()).unwrap();
         assert_eq!(stored.event_time, Some(pose.stamp));
@@ -188,6 +189,7 @@ mod tests {
             cycle: 1,
             start: Time::from_nanos(9),
             schedule_version: 1,
+            epoch: 1,
         })
         .unwrap();
         assert!(prepare(&p, &schedule_bytes).is_err());

@@ -176,12 +176,13 @@ pub fn run(
         .map(|(_, i)| i)
         .find(|i| matches!(i, Input::Schedule(_)))
     {
-        core.set_schedule((**s).clone());
+        // A schedule refused here was refused by the live agent too (same rules).
+        let _ = core.set_schedule((**s).clone());
     }
     for (t, input) in inputs.iter().skip(from) {
         let pose_now = match input {
             Input::Schedule(s) => {
-                core.set_schedule((**s).clone());
+                let _ = core.set_schedule((**s).clone());
                 false
             }
             Input::Arrivals(m) => matches!(core.on_arrivals(m), Ok(Some(_))),

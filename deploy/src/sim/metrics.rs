@@ -49,6 +49,8 @@ pub struct RobotStats {
     /// Error of the newest scored pose, metres.
     pub current_error_m: Option<f64>,
     fix_times: VecDeque<Instant>,
+    last_fix_at: Option<Instant>,
+    longest_fix_gap_s: Option<f64>,
 }
 
 impl RobotStats {
@@ -72,6 +74,11 @@ impl RobotStats {
     /// Records a fix received at `at`.
     pub fn on_fix(&mut self, at: Instant) {
         self.fixes += 1;
+        if let Some(last) = self.last_fix_at {
+            let gap = at.duration_since(last).as_secs_f64();
+            self.longest_fix_gap_s = Some(self.longest_fix_gap_s.map_or(gap, |g| g.max(gap)));
+        }
+        self.last_fix_at = Some(at);
         self.fix_times.push_back(at);
         while self
             .fix_times
@@ -151,14 +158,19 @@ impl RobotStats {
             p95_mm: percentile(&self.errors_m, 95.0).map(|m| m * 1e3),
             latency_p50_us: percentile(&self.latencies_us, 50.0),
             latency_p99_us: percentile(&self.latencies_us, 99.0),
+            longest_fix_gap_s: self.longest_fix_gap_s,
         }
     }
 }
 
+/// A cycle: the central unit's epoch and the cycle number in it (a
+/// restarted central unit counts from 0 again).
+pub type CycleKey = (u64, u64);
+
 /// What each cell fired.
 #[derive(Debug, Default)]
 pub struct CellStats {
-    cycles: BTreeSet<u64>,
+    cycles: BTreeSet<CycleKey>,
     bursts: u64,
     sync_errors_us: Vec<f64>,
 }
@@ -167,7 +179,7 @@ impl CellStats {
     /// Records a burst report.
     pub fn on_burst(&mut self, burst: &Burst) {
         self.bursts += 1;
-        self.cycles.insert(burst.cycle);
+        self.cycles.insert((burst.epoch, burst.cycle));
         let err_ns = burst.actual.as_nanos() - burst.scheduled.as_nanos();
         self.sync_errors_us.push(err_ns.unsigned_abs() as f64 / 1e3);
     }
@@ -179,10 +191,11 @@ impl CellStats {
 
     /// The summary of this cell; `completed`: the cycles triggered and
     /// over while the run was watched.
-    pub fn summary(&self, id: &str, completed: &BTreeSet<u64>) -> CellSummary {
+    pub fn summary(&self, id: &str, completed: &BTreeSet<CycleKey>) -> CellSummary {
         let fired = completed.intersection(&self.cycles).count();
         CellSummary {
             id: id.to_string(),
+            cycles_missed: (completed.len() - fired) as u64,
             fired_share: (!completed.is_empty()).then(|| fired as f64 / completed.len() as f64),
             cycles_fired: self.cycles_fired(),
             bursts: self.bursts,
@@ -219,6 +232,8 @@ pub struct RobotSummary {
     pub latency_p50_us: Option<f64>,
     /// 99th percentile of that latency, us.
     pub latency_p99_us: Option<f64>,
+    /// Longest time between two fixes received, seconds.
+    pub longest_fix_gap_s: Option<f64>,
 }
 
 /// One cell in the run summary.
@@ -228,6 +243,8 @@ pub struct CellSummary {
     pub id: String,
     /// Cycles in which it fired.
     pub cycles_fired: u64,
+    /// Cycles triggered (and over) while the run was watched in which it did not fire.
+    pub cycles_missed: u64,
     /// Share of the cycles triggered (and over) while the run was watched
     /// in which it fired.
     pub fired_share: Option<f64>,
@@ -251,13 +268,17 @@ pub struct RunStats {
     /// Messages that could not be decoded, per key.
     pub bad_messages: HashMap<String, u64>,
     /// Cycles the central unit triggered while the run was watched.
-    pub cycles_triggered: BTreeSet<u64>,
+    pub cycles_triggered: BTreeSet<CycleKey>,
+    /// Nodes restarted after they died (`--restart`), by name.
+    pub restarts: Vec<String>,
+    /// Faults injected (`--faults`), as planned and when they were done, seconds.
+    pub faults_done: Vec<(String, f64)>,
 }
 
 /// Triggered cycles whose bursts and arrivals had time to be seen: all but
 /// the newest two (a trigger goes out ahead of its cycle, which may end
 /// after the run stops watching).
-pub fn completed_cycles(triggered: &BTreeSet<u64>) -> BTreeSet<u64> {
+pub fn completed_cycles(triggered: &BTreeSet<CycleKey>) -> BTreeSet<CycleKey> {
     let keep = triggered.len().saturating_sub(2);
     triggered.iter().copied().take(keep).collect()
 }
@@ -287,6 +308,7 @@ mod tests {
             covariance: [0.0; 9],
             estimator: "test".into(),
             fix_seq,
+            status: ickon_proto::msg::robot::PoseStatus::Tracking,
         }
     }
 
@@ -350,11 +372,13 @@ mod tests {
                 cycle,
                 scheduled: Time(1_000_000),
                 actual: Time(1_000_000 + err * 1_000),
+                epoch: 1,
             });
         }
-        let s = c.summary("c1", &(0..5).collect());
+        let s = c.summary("c1", &(0..5).map(|k| (1, k)).collect());
         assert_eq!(s.fired_share, Some(0.4));
         assert_eq!(s.cycles_fired, 2);
+        assert_eq!(s.cycles_missed, 3);
         assert_eq!(s.bursts, 3);
         assert_eq!(s.sync_error_max_us, Some(50.0));
     }

@@ -13,6 +13,7 @@
 //! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
 //! status line, and a summary at the end.
 
+pub mod faults;
 mod launch;
 mod metrics;
 mod msu_file;
@@ -94,6 +95,18 @@ pub struct SimArgs {
     /// temporary directory removed at exit.
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub secure: Option<Option<PathBuf>>,
+    /// Start a node again when it dies, as systemd would, instead of
+    /// stopping the run.
+    #[arg(long)]
+    pub restart: bool,
+    /// Run a second central unit as a hot standby (`ickon-central --standby`)
+    /// that takes over when the first goes.
+    #[arg(long)]
+    pub standby: bool,
+    /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,kill:msu/r1@25s`
+    /// (times from the moment every node is live; see `deploy/src/sim/faults.rs`).
+    #[arg(long, value_name = "PLAN")]
+    pub faults: Option<String>,
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -139,6 +152,10 @@ pub struct SimReport {
     /// The recording of `--record`: file, messages per topic, rates.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recorded: Option<crate::record::RecordReport>,
+    /// Faults injected (`--faults`) and when, seconds from the start.
+    pub faults_done: Vec<(String, f64)>,
+    /// Nodes restarted after they died (`--restart`).
+    pub restarts: Vec<String>,
 }
 
 /// Runs `ickon sim` and returns the exit code.
@@ -211,6 +228,44 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
         eprintln!("error: --duration must be between 0 and 86400 seconds");
         return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
+    if let Some(plan) = &args.faults {
+        match faults::parse_plan(plan) {
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Err(ExitCode::from(EXIT_BAD_INPUT));
+            }
+            Ok(plan) => {
+                if let Some(f) = plan
+                    .iter()
+                    .find(|f| matches!(f.action, faults::FaultAction::ClockStep(_)))
+                {
+                    eprintln!(
+                        "error: --faults: {:?}: clock steps cannot be injected into a running node yet",
+                        f.text
+                    );
+                    return Err(ExitCode::from(EXIT_BAD_INPUT));
+                }
+                let nodes: Vec<String> = std::iter::once("central".to_string())
+                    .chain(args.standby.then(|| "central standby".to_string()))
+                    .chain(["world".to_string(), "router".to_string()])
+                    .chain(site.cells.iter().map(|c| format!("cell {}", c.id)))
+                    .chain(
+                        site.robots
+                            .iter()
+                            .take(args.robots)
+                            .map(|r| format!("msu {}", r.id)),
+                    )
+                    .collect();
+                if let Some(f) = plan.iter().find(|f| !nodes.contains(&f.node)) {
+                    eprintln!(
+                        "error: --faults: {:?}: this run has no node {}",
+                        f.text, f.node
+                    );
+                    return Err(ExitCode::from(EXIT_BAD_INPUT));
+                }
+            }
+        }
+    }
     Ok((site, profile))
 }
 
@@ -267,6 +322,16 @@ pub async fn measure(
     credential(&mut central_cmd, &crate::secure::Identity::Central);
     let web = launch::http_flags(args, &mut central_cmd)?;
     sup.spawn("central", central_cmd)?;
+    if args.standby {
+        // A second central unit that follows the first and takes over.
+        let mut standby = match args.mesh {
+            Mesh::Router => node_command(args, site, "central", &hub, "")?,
+            Mesh::Peer => node_command(args, site, "central", "", &hub)?,
+        };
+        standby.arg("--standby");
+        credential(&mut standby, &crate::secure::Identity::Central);
+        sup.spawn("central standby", standby)?;
+    }
     let msus = msu_starts(args, site, profile, &robots)?;
     let as_identity = |who: crate::secure::Identity| security.as_ref().map(|s| s.client_file(&who));
     let session = match open_observer(
@@ -543,6 +608,8 @@ pub async fn measure(
         cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
         processes: usage::by_kind(&used),
         recorded: recorded.as_ref().and_then(|r| r.as_ref().ok()).cloned(),
+        faults_done: stats.faults_done.clone(),
+        restarts: stats.restarts.clone(),
     };
     let failure = match (failure, recorded) {
         (None, Some(Err(e))) => Some(e),

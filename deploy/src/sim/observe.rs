@@ -120,6 +120,16 @@ pub(super) async fn observe(
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
     let mut probe_tick = tokio::time::interval(Duration::from_millis(100));
     let mut last_burst: std::collections::HashMap<String, Instant> = Default::default();
+    // Faults of `--faults`, in time order, and the SIGCONTs they owe.
+    let mut plan: std::collections::VecDeque<super::faults::Fault> = args
+        .faults
+        .as_deref()
+        .map(super::faults::parse_plan)
+        .transpose()?
+        .unwrap_or_default()
+        .into();
+    let mut resume: Vec<(Instant, String)> = Vec::new();
+    let mut fault_tick = tokio::time::interval(Duration::from_millis(20));
     let failure = loop {
         tokio::select! {
             _ = tokio::time::sleep_until(end) => break None,
@@ -165,7 +175,7 @@ pub(super) async fn observe(
             Ok(s) = triggers.recv_async() => {
                 let key = s.key_expr().as_str().to_string();
                 if let Some(t) = decode_or_count::<CycleTrigger>(&mut stats, &key, &s.payload().to_bytes()) {
-                    stats.cycles_triggered.insert(t.cycle);
+                    stats.cycles_triggered.insert((t.epoch, t.cycle));
                 }
             }
             Ok(s) = truth.recv_async() => {
@@ -190,8 +200,19 @@ pub(super) async fn observe(
                 }
                 probes_sent.retain(|_, t| t.elapsed() < Duration::from_secs(5));
             }
+            _ = fault_tick.tick(), if args.restart || !plan.is_empty() || !resume.is_empty() => {
+                inject_due(&mut plan, &mut resume, sup, args.restart, started, &mut stats);
+                // A dead node is started again within a tick, as systemd would at once.
+                if args.restart {
+                    for dead in sup.restart_dead() {
+                        tracing::info!("{} {}: restarted", dead.name, dead.status);
+                        stats.restarts.push(dead.name);
+                    }
+                }
+            }
             _ = status_tick.tick() => {
-                if let Some(dead) = sup.first_dead() {
+                // With --restart a dead node is started again on the fault tick.
+                if let Some(dead) = sup.first_dead().filter(|_| !args.restart) {
                     break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
                 }
                 if !quiet {
@@ -209,6 +230,56 @@ pub(super) async fn observe(
     if !quiet {
         eprintln!();
     }
+    // Undeclared before the sessions close, so that nothing arrives for a
+    // subscriber a closing session no longer knows.
+    for s in [bursts, arrivals, fixes, poses, truth, triggers, probe_sub] {
+        let _ = s.undeclare().await;
+    }
+    let _ = probe_pub.undeclare().await;
     let _ = probe_session.close().await;
     Ok((stats, failure))
+}
+
+/// Carries out every planned fault whose time has come (times from
+/// `started`), and resumes the nodes whose stop is over.
+fn inject_due(
+    plan: &mut std::collections::VecDeque<super::faults::Fault>,
+    resume: &mut Vec<(Instant, String)>,
+    sup: &mut supervisor::Supervisor,
+    restart: bool,
+    started: Instant,
+    stats: &mut RunStats,
+) {
+    use super::faults::FaultAction;
+    use nix::sys::signal::Signal;
+    let now = Instant::now();
+    resume.retain(|(at, name)| {
+        if now < *at {
+            return true;
+        }
+        sup.signal(name, Signal::SIGCONT);
+        false
+    });
+    while plan.front().is_some_and(|f| now >= started + f.at) {
+        let Some(f) = plan.pop_front() else { break };
+        let done = match f.action {
+            FaultAction::Kill => sup.kill_planned(&f.node, restart),
+            FaultAction::Stop(d) => {
+                let stopped = sup.signal(&f.node, Signal::SIGSTOP);
+                if stopped {
+                    resume.push((now + d, f.node.clone()));
+                }
+                stopped
+            }
+            // Refused by the argument check: not carried out.
+            FaultAction::ClockStep(_) => false,
+        };
+        if done {
+            stats
+                .faults_done
+                .push((f.text.clone(), now.duration_since(started).as_secs_f64()));
+        } else {
+            tracing::warn!("fault {} not carried out: no such node running", f.text);
+        }
+    }
 }

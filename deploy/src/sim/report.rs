@@ -45,13 +45,21 @@ pub(super) fn render_report(r: &SimReport) -> String {
     );
     let _ = writeln!(
         out,
-        "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12}",
-        "robot", "fixes", "poses", "mean mm", "rmse mm", "p95 mm", "lat p50 us", "lat p99 us"
+        "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
+        "robot",
+        "fixes",
+        "poses",
+        "mean mm",
+        "rmse mm",
+        "p95 mm",
+        "lat p50 us",
+        "lat p99 us",
+        "max fix gap s"
     );
     for x in &r.robots {
         let _ = writeln!(
             out,
-            "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12}",
+            "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
             x.id,
             x.fixes,
             x.poses,
@@ -59,7 +67,9 @@ pub(super) fn render_report(r: &SimReport) -> String {
             mm(x.rmse_mm),
             mm(x.p95_mm),
             us(x.latency_p50_us),
-            us(x.latency_p99_us)
+            us(x.latency_p99_us),
+            x.longest_fix_gap_s
+                .map_or("-".to_string(), |g| format!("{g:.2}"))
         );
     }
     let _ = writeln!(
@@ -70,15 +80,16 @@ pub(super) fn render_report(r: &SimReport) -> String {
     );
     let _ = writeln!(
         out,
-        "{:<6} {:>12} {:>8} {:>16} {:>16}",
-        "cell", "cycles fired", "bursts", "sync err p99 us", "sync err max us"
+        "{:<6} {:>12} {:>7} {:>8} {:>16} {:>16}",
+        "cell", "cycles fired", "missed", "bursts", "sync err p99 us", "sync err max us"
     );
     for c in &r.cells {
         let _ = writeln!(
             out,
-            "{:<6} {:>12} {:>8} {:>16} {:>16}",
+            "{:<6} {:>12} {:>7} {:>8} {:>16} {:>16}",
             c.id,
             c.cycles_fired,
+            c.cycles_missed,
             c.bursts,
             us(c.sync_error_us),
             us(c.sync_error_max_us)
@@ -86,6 +97,12 @@ pub(super) fn render_report(r: &SimReport) -> String {
     }
     if r.bad_messages > 0 {
         let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);
+    }
+    for (fault, at_s) in &r.faults_done {
+        let _ = writeln!(out, "fault {fault} injected at {at_s:.1} s");
+    }
+    if !r.restarts.is_empty() {
+        let _ = writeln!(out, "restarted: {}", r.restarts.join(", "));
     }
     out
 }

@@ -234,6 +234,7 @@ fn robot_pose(x: f64, y: f64, theta: f64) -> RobotPose {
         covariance: [0.0; 9],
         estimator: "tdoa-ekf".into(),
         fix_seq: 3,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
     }
 }
 

@@ -43,6 +43,9 @@ pub struct CellHealth {
     pub cycles_missed: u64,
     /// Slots the cell skipped because their trigger came too late (its own count).
     pub slots_skipped: u64,
+    /// Control messages the cell refused (its own count, see
+    /// [`CellStatus::inputs_refused`](crate::msg::control::CellStatus::inputs_refused)).
+    pub inputs_refused: u64,
 }
 
 /// Health of one robot as the central unit sees it.
@@ -66,6 +69,10 @@ pub struct RobotHealth {
     pub y_m: f64,
     /// Last pose, radians.
     pub theta_rad: f64,
+    /// Why the robot is stale, in plain words (no pose for a while, or its
+    /// MSU says an input stalled); empty when it is not.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub stale: String,
 }
 
 /// Answer to `status`, `cells`, `robots` and `sync`.
@@ -88,6 +95,15 @@ pub struct StatusReport {
     pub cells: Vec<CellHealth>,
     /// Every robot seen.
     pub robots: Vec<RobotHealth>,
+    /// The answering central unit's epoch (its start or term, master time, ns).
+    pub epoch: u64,
+    /// Control messages on the central unit's keys that it did not send
+    /// (a schedule or trigger of its epoch it never made, or of another
+    /// central unit), since it started.
+    pub foreign_control: u64,
+    /// Whether the answering central unit is the active one (`false`: a
+    /// hot standby).
+    pub active: bool,
 }
 
 /// Optional query payload of `coverage`.

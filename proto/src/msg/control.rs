@@ -64,6 +64,9 @@ pub struct Schedule {
     /// Cells that take part in this schedule (cells marked down are left out).
     #[serde(deserialize_with = "crate::wire_string::deserialize_vec")]
     pub active_cells: Vec<String>,
+    /// The epoch of the central unit that made it (see [`CycleTrigger::epoch`]):
+    /// versions count within an epoch, so `(epoch, version)` names a schedule.
+    pub epoch: u64,
 }
 
 /// `central/cycle`: the trigger of one cycle.
@@ -75,6 +78,12 @@ pub struct CycleTrigger {
     pub start: Time,
     /// The schedule version this cycle uses.
     pub schedule_version: u32,
+    /// The epoch of the central unit that sent it: its start (or the start
+    /// of its term as the active one) on the master time base, nanoseconds.
+    /// Epochs only grow, so a restarted or newly active central unit is
+    /// recognised at its first message, and cycle numbers count from 0
+    /// within each epoch.
+    pub epoch: u64,
 }
 
 /// Query payload on `central/clock`: the first timestamp of an NTP-style exchange.
@@ -96,6 +105,9 @@ pub struct ClockReply {
     pub t2: Time,
     /// t3: when the reply left, on the master clock.
     pub t3: Time,
+    /// The epoch of the answering central unit: a cell keeps only the
+    /// answers of the central unit whose triggers it follows.
+    pub epoch: u64,
 }
 
 /// `cell/<id>/burst`: one transmitter fired.
@@ -113,6 +125,8 @@ pub struct Burst {
     /// When it really fired on the true time base (known only to a simulation;
     /// hardware drivers report their best estimate on the master time base).
     pub actual: Time,
+    /// The epoch of the trigger it answers: `(epoch, cycle)` names a cycle.
+    pub epoch: u64,
 }
 
 /// `cell/<id>/status`: a cell controller's health and sync estimate.
@@ -140,4 +154,8 @@ pub struct CellStatus {
     /// Current faults in plain words (empty when healthy).
     #[serde(deserialize_with = "crate::wire_string::deserialize_vec")]
     pub faults: Vec<String>,
+    /// Control messages refused since start (triggers of an old epoch or
+    /// off the cycle count, altered or backward schedules, clock answers
+    /// of another central unit).
+    pub inputs_refused: u64,
 }

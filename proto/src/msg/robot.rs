@@ -117,6 +117,19 @@ pub struct Fix {
     pub quality: FixQuality,
 }
 
+/// Whether a pose is tracked by the inputs it needs, and if not, which one stalled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum PoseStatus {
+    /// Fixes and odometry are coming.
+    #[default]
+    Tracking,
+    /// No fix absorbed for a while: the pose is dead reckoning, its
+    /// covariance grows with the time since the last fix.
+    NoFixes,
+    /// No odometry for a while: the pose moves only with the fixes.
+    NoOdometry,
+}
+
 /// `robot/<id>/pose`: the fused pose.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RobotPose {
@@ -135,6 +148,9 @@ pub struct RobotPose {
     pub estimator: String,
     /// `arrivals_seq` of the newest fix the pose has absorbed (0: none yet).
     pub fix_seq: u64,
+    /// Whether its inputs are coming (the MSU's own judgement, by the
+    /// stamps of its inputs).
+    pub status: PoseStatus,
 }
 
 /// `sim/truth/<id>`: ground truth, simulation only.

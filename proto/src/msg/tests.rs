@@ -48,6 +48,7 @@ fn sample_schedule() -> Schedule {
             },
         ],
         active_cells: vec!["c1".into(), "c2".into()],
+        epoch: 1_700_000_000_000_000_000,
     }
 }
 
@@ -63,6 +64,7 @@ fn control_messages_round_trip() {
         cycle: 7,
         start: Time(123_456_789),
         schedule_version: 2,
+        epoch: 42,
     });
     round_trip(ClockRequest {
         cell_id: "c3".into(),
@@ -72,6 +74,7 @@ fn control_messages_round_trip() {
         t1: Time(1),
         t2: Time(2),
         t3: Time(3),
+        epoch: 42,
     });
     round_trip(Burst {
         cell_id: "c1".into(),
@@ -79,6 +82,7 @@ fn control_messages_round_trip() {
         cycle: 9,
         scheduled: Time(1_000),
         actual: Time(1_004),
+        epoch: 42,
     });
     round_trip(CellStatus {
         cell_id: "c4".into(),
@@ -91,6 +95,7 @@ fn control_messages_round_trip() {
         cycles_fired: 40,
         slots_skipped: 1,
         faults: vec!["late trigger".into()],
+        inputs_refused: 3,
     });
 }
 
@@ -156,6 +161,7 @@ fn robot_messages_round_trip() {
         covariance: [0.0; 9],
         estimator: "ickon-akf".into(),
         fix_seq: 5,
+        status: crate::msg::robot::PoseStatus::Tracking,
     });
     round_trip(Truth {
         stamp: Time(6),
@@ -183,6 +189,7 @@ fn sample_cell_health() -> CellHealth {
         cycles_fired: 10,
         cycles_missed: 0,
         slots_skipped: 1,
+        inputs_refused: 0,
     }
 }
 
@@ -220,7 +227,11 @@ fn admin_messages_round_trip() {
             x_m: 1.0,
             y_m: 1.0,
             theta_rad: 0.0,
+            stale: String::new(),
         }],
+        epoch: 42,
+        foreign_control: 1,
+        active: true,
     });
     round_trip(sample_coverage());
     round_trip(CoverageRequest { resolution_m: 0.5 });
@@ -279,8 +290,9 @@ fn cell_health_matches_hand_written_cdr() {
     for v in [41_000i64, 17_000] {
         expected.extend_from_slice(&v.to_le_bytes()); // residual max, rms (48..64)
     }
-    for v in [10u64, 10, 0, 1] {
-        expected.extend_from_slice(&v.to_le_bytes()); // last fired, fired, missed, skipped
+    for v in [10u64, 10, 0, 1, 0] {
+        // last fired, fired, missed, skipped, refused
+        expected.extend_from_slice(&v.to_le_bytes());
     }
     assert_eq!(encode(&sample_cell_health()).unwrap(), expected);
     assert_eq!(
@@ -295,6 +307,7 @@ fn cycle_trigger_matches_hand_written_cdr() {
         cycle: 0x0102_0304_0506_0708,
         start: Time(-2),
         schedule_version: 0xAABB_CCDD,
+        epoch: 0x1122_3344_5566_7788,
     };
     #[rustfmt::skip]
     let expected: Vec<u8> = vec![
@@ -302,6 +315,8 @@ fn cycle_trigger_matches_hand_written_cdr() {
         0x08, 0x07, 0x06, 0x05, 0x04, 0x03, 0x02, 0x01, // u64 cycle at offset 0
         0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, // i64 start = -2
         0xDD, 0xCC, 0xBB, 0xAA,                         // u32 schedule_version
+        0x00, 0x00, 0x00, 0x00,                         // pad 20 -> 24 for the u64
+        0x88, 0x77, 0x66, 0x55, 0x44, 0x33, 0x22, 0x11, // u64 epoch
     ];
     assert_eq!(encode(&msg).unwrap(), expected);
     assert_eq!(decode::<CycleTrigger>(&expected).unwrap(), msg);
@@ -315,6 +330,7 @@ fn burst_matches_hand_written_cdr() {
         cycle: 9,
         scheduled: Time(1_000),
         actual: Time(1_004),
+        epoch: 7,
     };
     let mut expected = vec![0x00, 0x01, 0x00, 0x00]; // header; offsets count from here
     expected.extend_from_slice(&3u32.to_le_bytes()); // string length, NUL included (0)
@@ -325,6 +341,7 @@ fn burst_matches_hand_written_cdr() {
     expected.extend_from_slice(&9u64.to_le_bytes()); // cycle (16)
     expected.extend_from_slice(&1_000i64.to_le_bytes()); // scheduled (24)
     expected.extend_from_slice(&1_004i64.to_le_bytes()); // actual (32)
+    expected.extend_from_slice(&7u64.to_le_bytes()); // epoch (40)
     assert_eq!(encode(&msg).unwrap(), expected);
     assert_eq!(decode::<Burst>(&expected).unwrap(), msg);
 }
@@ -373,6 +390,7 @@ fn ros_pose_with_covariance_has_the_ros2_layout() {
         covariance: [0.01, 0.0, 0.0, 0.0, 0.02, 0.0, 0.0, 0.0, 0.03],
         estimator: "ickon-akf".into(),
         fix_seq: 0,
+        status: crate::msg::robot::PoseStatus::Tracking,
     };
     let ros = PoseWithCovarianceStamped::from_robot_pose(&pose, "map");
     let bytes = encode(&ros).unwrap();
@@ -478,9 +496,12 @@ fn big_endian_payloads_decode_too() {
     be.extend_from_slice(&7u64.to_be_bytes());
     be.extend_from_slice(&5i64.to_be_bytes());
     be.extend_from_slice(&1u32.to_be_bytes());
+    be.extend_from_slice(&[0; 4]);
+    be.extend_from_slice(&9u64.to_be_bytes());
     let t: CycleTrigger = decode(&be).unwrap();
     assert_eq!(t.cycle, 7);
     assert_eq!(t.start, Time(5));
+    assert_eq!(t.epoch, 9);
 }
 
 mod random {

@@ -1,0 +1,142 @@
+//! Control messages on the central unit's own keys that it did not send
+//! (issue 14): each counted, reported, and answered so that they heal.
+
+use super::*;
+
+fn core() -> CentralCore {
+    let site = Site::default_site();
+    CentralCore::new(site, String::new(), CentralConfig::default(), Time(5_000)).unwrap()
+}
+
+fn schedules(out: &[Output]) -> Vec<Schedule> {
+    out.iter()
+        .filter_map(|o| match o {
+            Output::Schedule(s) => Some(s.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn everything_published_carries_the_epoch_of_the_start() {
+    let mut c = core();
+    assert_eq!(c.epoch(), 5_000);
+    assert_eq!(c.latest_schedule().epoch, 5_000);
+    let now = c.next_wake();
+    let out = c.tick(now);
+    assert!(out.iter().all(|o| match o {
+        Output::Trigger(t) => t.epoch == 5_000,
+        Output::Schedule(s) => s.epoch == 5_000,
+    }));
+    assert_eq!(
+        CentralCore::clock_reply(c.epoch(), Time(1), Time(2), Time(3)).epoch,
+        5_000
+    );
+    assert_eq!(c.status(now).epoch, 5_000);
+}
+
+#[test]
+fn its_own_schedule_and_triggers_coming_back_are_not_foreign() {
+    let mut c = core();
+    let now = c.next_wake();
+    let out = c.tick(now);
+    for o in out {
+        let back = match o {
+            Output::Trigger(t) => Event::TriggerSeen(t),
+            Output::Schedule(s) => Event::ScheduleSeen(s),
+        };
+        c.handle(now, back);
+    }
+    c.handle(now, Event::ScheduleSeen(c.latest_schedule().clone()));
+    assert_eq!(c.foreign_control(), 0);
+}
+
+#[test]
+fn an_empty_schedule_under_the_current_version_is_counted_and_answered_at_once() {
+    let mut c = core();
+    let mine = c.latest_schedule().clone();
+    let forged = Schedule {
+        emissions: Vec::new(),
+        ..mine.clone()
+    };
+    let out = c.handle(Time(6_000), Event::ScheduleSeen(forged));
+    assert_eq!(schedules(&out), vec![mine], "its own again");
+    assert_eq!(c.foreign_control(), 1);
+    assert_eq!(c.status(Time(6_000)).foreign_control, 1, "reported");
+}
+
+#[test]
+fn a_forged_newer_version_is_displaced_by_a_higher_one_with_the_real_content() {
+    let mut c = core();
+    let mine = c.latest_schedule().clone();
+    let forged = Schedule {
+        version: 40,
+        emissions: Vec::new(),
+        ..mine.clone()
+    };
+    let out = c.handle(Time(6_000), Event::ScheduleSeen(forged));
+    let healed = schedules(&out);
+    assert_eq!(healed.len(), 1);
+    assert_eq!(healed[0].version, 41);
+    assert_eq!(healed[0].emissions, mine.emissions);
+    assert_eq!(c.latest_schedule().version, 41);
+    // The last version there is: a new epoch instead.
+    let forged = Schedule {
+        version: u32::MAX,
+        ..mine
+    };
+    let out = c.handle(Time(7_000), Event::ScheduleSeen(forged));
+    let fresh = schedules(&out);
+    assert!(fresh[0].epoch > 5_000 && fresh[0].version == 1, "{fresh:?}");
+}
+
+#[test]
+fn a_trigger_it_did_not_send_is_counted() {
+    let mut c = core();
+    let forged = CycleTrigger {
+        cycle: 1 << 62,
+        start: Time(600_000_000),
+        schedule_version: 1,
+        epoch: c.epoch(),
+    };
+    c.handle(Time(6_000), Event::TriggerSeen(forged));
+    assert_eq!(c.foreign_control(), 1);
+}
+
+#[test]
+fn the_schedule_is_re_announced_every_period() {
+    let mut c = core();
+    let period = CentralConfig::default().schedule_reannounce;
+    let mut announced = Vec::new();
+    let mut now = Time(5_000);
+    let end = now + period * 5;
+    while now < end {
+        now = c.next_wake();
+        for s in schedules(&c.tick(now)) {
+            announced.push(now);
+            assert_eq!(s, *c.latest_schedule());
+        }
+    }
+    assert!((4..=5).contains(&announced.len()), "{announced:?}");
+}
+
+#[test]
+fn bursts_of_another_epoch_are_not_counted_as_fired() {
+    let mut c = core();
+    c.cell_alive("c1", true, Time(0));
+    c.on_burst(&Burst {
+        cell_id: "c1".into(),
+        tx_id: 11,
+        cycle: 0,
+        scheduled: Time(0),
+        actual: Time(0),
+        epoch: 1,
+    });
+    let h = c
+        .status(Time(0))
+        .cells
+        .into_iter()
+        .find(|h| h.id == "c1")
+        .unwrap();
+    assert_eq!(h.cycles_fired, 0);
+}

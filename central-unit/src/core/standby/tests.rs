@@ -1,0 +1,130 @@
+use super::*;
+use crate::core::Event;
+use ickon_proto::site::Site;
+
+fn active(now: Time) -> CentralCore {
+    CentralCore::new(
+        Site::default_site(),
+        String::new(),
+        CentralConfig::default(),
+        now,
+    )
+    .unwrap()
+}
+
+fn standby(now: Time) -> CentralCore {
+    CentralCore::standby(
+        Site::default_site(),
+        String::new(),
+        CentralConfig::default(),
+        now,
+    )
+    .unwrap()
+}
+
+fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
+    out.iter()
+        .filter_map(|o| match o {
+            Output::Trigger(t) => Some(*t),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Runs the active core for `cycles` triggers, handing everything it
+/// publishes to the standby; returns the last trigger.
+fn run_both(a: &mut CentralCore, s: &mut CentralCore, cycles: usize) -> CycleTrigger {
+    let mut last = None;
+    let mut n = 0;
+    while n < cycles {
+        let now = a.next_wake();
+        for o in a.tick(now) {
+            let ev = match o {
+                Output::Trigger(t) => {
+                    last = Some(t);
+                    n += 1;
+                    Event::TriggerSeen(t)
+                }
+                Output::Schedule(sc) => Event::ScheduleSeen(sc),
+            };
+            assert!(s.handle(now, ev).is_empty(), "a standby publishes nothing");
+        }
+    }
+    last.unwrap()
+}
+
+#[test]
+fn a_standby_follows_and_takes_over_within_one_cycle_in_a_newer_epoch() {
+    let mut a = active(Time(1_000));
+    let mut s = standby(Time(2_000));
+    s.handle(
+        Time(2_000),
+        Event::ScheduleSeen(a.latest_schedule().clone()),
+    );
+    let last = run_both(&mut a, &mut s, 10);
+    assert!(!s.is_active() && a.is_active());
+    assert_eq!(s.followed_epoch(), Some(a.epoch()));
+    assert!(!s.status(last.start).active);
+    // The active one dies right after its last trigger.
+    let now = last.start;
+    let out = s.handle(now, Event::ActiveGone);
+    assert!(s.is_active());
+    assert!(s.epoch() > a.epoch(), "fenced: a newer epoch");
+    assert!(
+        matches!(out.as_slice(), [Output::Schedule(sc)] if sc.version == 1 && sc.epoch == s.epoch())
+    );
+    // Its cycle 0 starts one period after the last followed cycle: no cycle lost.
+    let t0 = triggers(&s.tick(s.next_wake()));
+    let period = a.latest_schedule().cycle_period;
+    assert_eq!(t0.len(), 1);
+    assert_eq!((t0[0].cycle, t0[0].start), (0, last.start + period));
+}
+
+#[test]
+fn a_hung_active_is_replaced_after_its_lease_and_steps_down_when_it_wakes() {
+    let mut a = active(Time(1_000));
+    let mut s = standby(Time(2_000));
+    let last = run_both(&mut a, &mut s, 5);
+    // No trigger comes any more (SIGSTOP): the lease runs out.
+    let lease = s.next_wake();
+    let period = a.latest_schedule().cycle_period;
+    assert_eq!(lease, last.start + period * LEASE_CYCLES);
+    assert!(
+        s.handle(lease - Duration::from_millis(1), Event::Tick)
+            .is_empty()
+    );
+    let out = s.handle(lease, Event::Tick);
+    assert!(s.is_active(), "{out:?}");
+    // The old one wakes and hears the new epoch: it stands by.
+    let t = triggers(&s.tick(s.next_wake()))[0];
+    a.handle(t.start, Event::TriggerSeen(t));
+    assert!(!a.is_active());
+    assert!(
+        triggers(&a.tick(a.next_wake())).is_empty(),
+        "no second active"
+    );
+}
+
+#[test]
+fn a_standby_alone_becomes_active_after_its_first_lease() {
+    let mut s = standby(Time(0));
+    assert!(s.handle(Time(1), Event::Tick).is_empty());
+    let out = s.handle(Time(0) + FIRST_LEASE, Event::Tick);
+    assert!(s.is_active());
+    assert_eq!(out.len(), 1);
+}
+
+#[test]
+fn a_standby_publishes_nothing_when_cells_come_and_go() {
+    let mut s = standby(Time(0));
+    for id in ["c1", "c2"] {
+        let out = s.handle(
+            Time(1),
+            Event::CellAlive {
+                id: id.into(),
+                up: true,
+            },
+        );
+        assert!(out.is_empty(), "{out:?}");
+    }
+}

@@ -25,5 +25,6 @@ pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod schedule;
+pub mod spacing;
 
 pub use schedule::{ScheduleError, compute_schedule, update_rate_hz};

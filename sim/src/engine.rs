@@ -127,6 +127,8 @@ pub struct RunOutput {
     pub timing_sigma_s: f64,
     /// Each cell's synchronisation, from its own core's bursts.
     pub cells: Vec<CellSyncReport>,
+    /// What collisions and reverberation did to the robot's detections.
+    pub collisions: crate::collision::CollisionCounts,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -280,6 +282,7 @@ pub fn run(
         virtual_s: 0.0,
         timing_sigma_s: msu.timing_sigma_s,
         cells: Vec::new(),
+        collisions: Default::default(),
     };
     // The true emission times of each cycle's bursts, until it is delivered.
     let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
@@ -409,6 +412,7 @@ pub fn run(
         }
     }
     out.cells = control.sync_reports();
+    out.collisions = world.collision_counts();
     progress(1.0);
     Ok(out)
 }

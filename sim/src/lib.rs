@@ -6,10 +6,12 @@
 //! - [`profile`]: named noise profiles (`ideal`, `paper`, `harsh`).
 //! - [`robot`]: a differential drive following a route by pure pursuit.
 //! - [`acoustic`]: sound flight, line of sight, reflections, receiver choice.
+//! - [`collision`]: bursts on one carrier channel colliding, reverberation tails masking.
 //! - [`sensors`]: gyro, encoders, obstacle rangers.
 //! - [`clock`]: device clocks with offset and drift.
 //! - [`world`]: one robot's world, producing the messages its MSU receives.
 //! - [`engine`]: the discrete-event loop, one MSU core per estimator.
+//! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
 //! - [`score`]: the seeds' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
 //!
@@ -18,6 +20,7 @@
 
 pub mod acoustic;
 pub mod clock;
+pub mod collision;
 pub mod control;
 pub mod engine;
 #[cfg(feature = "zenoh")]
@@ -28,6 +31,7 @@ pub mod rng;
 pub mod robot;
 #[cfg(feature = "zenoh")]
 pub mod ros2_sensors;
+pub mod schedule_audit;
 pub mod score;
 pub mod sensors;
 pub mod world;

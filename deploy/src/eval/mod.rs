@@ -119,6 +119,13 @@ pub fn run(args: EvalArgs) -> ExitCode {
                 "route": o.config.route,
                 "cells": o.cells,
             })).collect::<Vec<_>>(),
+            "channel": outputs.iter().map(|o| serde_json::json!({
+                "route": o.config.route,
+                "cycles_per_s": ickon_central::update_rate_hz(&o.schedule),
+                "fixes_per_s": if o.virtual_s > 0.0 { o.fixes.len() as f64 / o.virtual_s } else { 0.0 },
+                "collisions": o.collisions,
+                "collision_loss_share": o.collisions.lost_share(),
+            })).collect::<Vec<_>>(),
         });
         println!("{doc}");
     } else {

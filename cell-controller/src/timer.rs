@@ -106,8 +106,9 @@ impl BurstTimer {
             .ok_or(TimerError::UnknownSchedule(trigger.schedule_version))?;
         let sync = sync.ok_or(TimerError::NotSynchronised)?;
         let mut plan = Plan::default();
-        for e in schedule
-            .emissions
+        // The trigger may name only some transmitters, at offsets of its own.
+        for e in trigger
+            .emissions(schedule)
             .iter()
             .filter(|e| e.cell_id == self.cell_id)
         {
@@ -168,6 +169,8 @@ mod tests {
             cycle: 3,
             start: Time::from_nanos(1_000_000_000),
             schedule_version: 4,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }
     }
 
@@ -223,6 +226,8 @@ mod tests {
             cycle: 0,
             start: Time(0),
             schedule_version: 4,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         };
         assert_eq!(
             t.plan(&trigger, Some(&sync(0)), Time(0)),

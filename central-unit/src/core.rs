@@ -26,10 +26,24 @@ use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
 use crate::health::{CellTracker, RobotTracker};
-use crate::schedule::{ScheduleError, compute_schedule};
+use crate::occupancy::{FiringConfig, RobotView, firing_plan};
+use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
+use crate::spacing::SpacingTable;
+use ickon_proto::msg::control::Firing;
+
+/// Which schedule the central unit computes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum SchedulePolicy {
+    /// Each transmitter as early as the geometry lets it ([`compute_schedule`]).
+    #[default]
+    Tight,
+    /// The schedule from before issue 20, to measure against
+    /// ([`crate::schedule::compute_uniform_schedule`]).
+    Uniform,
+}
 
 /// Tuning of the central unit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CentralConfig {
     /// How long before a cycle starts its trigger goes out (covers the network
     /// and lets the cells program their timers).
@@ -39,6 +53,10 @@ pub struct CentralConfig {
     /// A new schedule is published at least this long before the trigger of
     /// the first cycle that uses it.
     pub schedule_announce: Duration,
+    /// Which schedule to compute.
+    pub schedule: SchedulePolicy,
+    /// Which transmitters fire each cycle.
+    pub firing: FiringConfig,
 }
 
 impl Default for CentralConfig {
@@ -47,6 +65,8 @@ impl Default for CentralConfig {
             trigger_lead: Duration::from_millis(60),
             start_delay: Duration::from_millis(500),
             schedule_announce: Duration::from_millis(100),
+            schedule: SchedulePolicy::default(),
+            firing: FiringConfig::default(),
         }
     }
 }
@@ -113,6 +133,10 @@ pub struct CentralCore {
     robots: BTreeMap<String, RobotTracker>,
     unknown_robot_messages: u64,
     any_cell_seen: bool,
+    /// The spacings of the transmitters of the cells of the schedule last
+    /// triggered, for packing occupancy-aware cycles (built when first needed).
+    table: Option<SpacingTable>,
+    last_trigger: Option<CycleTrigger>,
 }
 
 impl CentralCore {
@@ -124,7 +148,7 @@ impl CentralCore {
         now: Time,
     ) -> Result<Self, ScheduleError> {
         let all: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
-        let schedule = compute_schedule(&site, &all, 1, 0)?;
+        let schedule = make_schedule(config.schedule, &site, &all, 1, 0)?;
         let cells = all
             .iter()
             .map(|id| (id.clone(), CellTracker::default()))
@@ -142,6 +166,8 @@ impl CentralCore {
             robots: BTreeMap::new(),
             unknown_robot_messages: 0,
             any_cell_seen: false,
+            table: None,
+            last_trigger: None,
         })
     }
 
@@ -201,7 +227,7 @@ impl CentralCore {
                 Vec::new()
             }
             Event::Pose { robot, pose } => {
-                self.on_pose(&robot, pose);
+                self.on_pose(&robot, pose, now);
                 Vec::new()
             }
             Event::Fix { robot } => {
@@ -221,20 +247,116 @@ impl CentralCore {
         while now >= self.next_wake() {
             let cycle = self.next_cycle;
             let schedule = self.schedule_for(cycle).clone();
+            let (firing, period) = self.plan_cycle(&schedule, now);
+            let trigger = CycleTrigger {
+                cycle,
+                start: self.next_start,
+                schedule_version: schedule.version,
+                firing,
+                cycle_period: period,
+            };
             if !self.paused {
-                out.push(Output::Trigger(CycleTrigger {
-                    cycle,
-                    start: self.next_start,
-                    schedule_version: schedule.version,
-                }));
+                out.push(Output::Trigger(trigger.clone()));
                 self.count_missed(cycle);
             }
+            self.last_trigger = Some(trigger);
             self.next_cycle += 1;
-            self.next_start = self.next_start + schedule.cycle_period;
+            self.next_start = self.next_start + period;
         }
         out.extend(self.reconcile_membership(now));
         self.update_states();
         out
+    }
+
+    /// The transmitters that fire in the next cycle under `schedule` and
+    /// the cycle's length: every emission of the schedule, or with
+    /// occupancy-aware firing those robots can hear, packed anew.
+    fn plan_cycle(&mut self, schedule: &Schedule, now: Time) -> (Vec<Firing>, Duration) {
+        let all = || {
+            schedule
+                .emissions
+                .iter()
+                .map(|e| Firing {
+                    tx_id: e.tx_id,
+                    offset: e.offset,
+                })
+                .collect()
+        };
+        if !self.config.firing.occupancy {
+            return (all(), schedule.cycle_period);
+        }
+        if self
+            .table
+            .as_ref()
+            .is_none_or(|t| !same_cells(t, &schedule.active_cells))
+        {
+            self.table = Some(SpacingTable::new(&self.site, &schedule.active_cells));
+        }
+        let Some(table) = self.table.as_ref() else {
+            return (all(), schedule.cycle_period);
+        };
+        let views: Vec<RobotView> = self
+            .robots
+            .values()
+            .filter_map(|r| match r.last_pose() {
+                Some((pose, at)) => Some(RobotView::Seen(pose, at)),
+                None => r.alive.then_some(RobotView::New),
+            })
+            .collect();
+        let guess = self
+            .last_trigger
+            .as_ref()
+            .map_or(schedule.cycle_period, |t| t.period(schedule));
+        let (offsets, period, need) =
+            match firing_plan(table, &views, &self.config.firing, now, guess) {
+                Some((p, need)) => (p.offsets, p.period, Some(need)),
+                None => (
+                    schedule
+                        .emissions
+                        .iter()
+                        .filter_map(|e| Some((table.index_of(e.tx_id)?, e.offset)))
+                        .collect(),
+                    schedule.cycle_period,
+                    None,
+                ),
+            };
+        let spacing = |j: usize, i: usize| match &need {
+            Some(n) => n.get(j).and_then(|r| r.get(i)).copied().flatten(),
+            None => table.need(j, i),
+        };
+        // The previous cycle fired other transmitters at other offsets:
+        // delay this one until every burst keeps its spacing from those.
+        let mut delay = Duration::ZERO;
+        if let Some(prev) = &self.last_trigger {
+            let prev_period = prev.period(schedule);
+            for f in &prev.firing {
+                let Some(j) = table.index_of(f.tx_id) else {
+                    continue;
+                };
+                for &(i, offset) in &offsets {
+                    if let Some(n) = spacing(j, i) {
+                        let earliest = f.offset + n;
+                        let at = prev_period + offset + delay;
+                        if earliest > at {
+                            delay = delay + (earliest - at);
+                        }
+                    }
+                }
+            }
+        }
+        let firing = offsets
+            .iter()
+            .map(|&(i, offset)| Firing {
+                tx_id: table.tx_ids[i],
+                offset: offset + delay,
+            })
+            .collect();
+        (firing, period + delay)
+    }
+
+    /// The trigger of the last cycle (sent or, while paused, not).
+    pub fn last_trigger(&self) -> Option<&CycleTrigger> {
+        self.last_trigger.as_ref()
     }
 
     /// Counts, for the cycle two before `cycle` (its bursts have had time to
@@ -285,7 +407,8 @@ impl CentralCore {
         }
         let version = self.latest_schedule().version + 1;
         let effective = self.first_announceable_cycle(now);
-        let schedule = compute_schedule(&self.site, &live, version, effective).ok()?;
+        let schedule =
+            make_schedule(self.config.schedule, &self.site, &live, version, effective).ok()?;
         tracing::info!(
             "schedule v{version} from cycle {effective}: cells {}",
             live.join(", ")
@@ -368,9 +491,9 @@ impl CentralCore {
     }
 
     /// A robot published a pose.
-    pub fn on_pose(&mut self, id: &str, pose: RobotPose) {
+    pub fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
         if let Some(r) = self.robot_mut(id) {
-            r.on_pose(pose);
+            r.on_pose(pose, now);
         }
     }
 
@@ -482,7 +605,8 @@ impl CentralCore {
         };
         let version = self.latest_schedule().version + 1;
         let effective = self.first_announceable_cycle(now);
-        let schedule = match compute_schedule(&site, &active, version, effective) {
+        let schedule = match make_schedule(self.config.schedule, &site, &active, version, effective)
+        {
             Ok(s) => s,
             Err(e) => return refuse(vec![e.to_string()]),
         };
@@ -493,6 +617,7 @@ impl CentralCore {
         self.robots
             .retain(|id, _| site.robots.iter().any(|r| &r.id == id));
         self.site = site;
+        self.table = None;
         self.site_toml = toml_text.to_string();
         self.site_version += 1;
         self.push_schedule(schedule.clone());
@@ -507,6 +632,26 @@ impl CentralCore {
             Some(Output::Schedule(schedule)),
         )
     }
+}
+
+/// The schedule of `policy`.
+fn make_schedule(
+    policy: SchedulePolicy,
+    site: &Site,
+    cells: &[String],
+    version: u32,
+    effective_cycle: u64,
+) -> Result<Schedule, ScheduleError> {
+    match policy {
+        SchedulePolicy::Tight => compute_schedule(site, cells, version, effective_cycle),
+        SchedulePolicy::Uniform => compute_uniform_schedule(site, cells, version, effective_cycle),
+    }
+}
+
+/// Whether `table` holds the transmitters of exactly `cells`.
+fn same_cells(table: &SpacingTable, cells: &[String]) -> bool {
+    let have: std::collections::BTreeSet<&String> = table.cells.iter().collect();
+    have.len() == cells.len() && have.iter().all(|c| cells.contains(c))
 }
 
 #[cfg(test)]

@@ -123,13 +123,21 @@ pub struct RobotTracker {
     /// Whether its liveliness token is present.
     pub alive: bool,
     pose: Option<RobotPose>,
+    /// When the last pose was received, master time.
+    pose_received: Option<Time>,
     fix_times: VecDeque<Time>,
 }
 
 impl RobotTracker {
-    /// A pose it published.
-    pub fn on_pose(&mut self, pose: RobotPose) {
+    /// A pose it published, received at `now`.
+    pub fn on_pose(&mut self, pose: RobotPose, now: Time) {
         self.pose = Some(pose);
+        self.pose_received = Some(now);
+    }
+
+    /// The last pose and when it was received.
+    pub fn last_pose(&self) -> Option<(&RobotPose, Time)> {
+        Some((self.pose.as_ref()?, self.pose_received?))
     }
 
     /// A fix it published, received at `now`.

@@ -24,6 +24,7 @@ pub mod health;
 pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
+pub mod occupancy;
 pub mod schedule;
 pub mod spacing;
 

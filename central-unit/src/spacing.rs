@@ -25,6 +25,11 @@ use ickon_proto::time::Duration;
 
 use crate::schedule::{AUDIBLE_RANGE_M, GRID_M, sample_points};
 
+/// Spacings needed between every pair of transmitters: `need[i][j]` is the
+/// least time from `i`'s emission to `j`'s when `j` fires after `i`;
+/// `None` when they do not conflict.
+pub type NeedMatrix = Vec<Vec<Option<Duration>>>;
+
 /// The spacings between the transmitters of some cells.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpacingTable {
@@ -32,9 +37,16 @@ pub struct SpacingTable {
     pub tx_ids: Vec<u32>,
     /// The cell of each.
     pub cells: Vec<String>,
-    /// `need[i][j]`: least time from `i`'s emission to `j`'s when `j` fires
-    /// after `i`; `None` when they do not conflict.
-    need: Vec<Vec<Option<Duration>>>,
+    /// The spacings over the whole floor.
+    need: NeedMatrix,
+    /// The floor sample points (MSU height is the site's).
+    points: Vec<[f64; 2]>,
+    /// At each point, the transmitters audible there and their distance, metres.
+    heard: Vec<Vec<(usize, f64)>>,
+    channels: Vec<u8>,
+    positions: Vec<[f64; 3]>,
+    fixed: Duration,
+    speed_m_s: f64,
 }
 
 /// Where each transmitter of a set fires in a cycle, and the cycle period.
@@ -54,48 +66,92 @@ impl SpacingTable {
             .iter()
             .filter(|t| cells.contains(&t.cell))
             .collect();
-        let n = txs.len();
-        let c = site.speed_of_sound_m_s;
         let h = site.msu.height_m;
-        // Largest d_i - d_j over points hearing both, metres.
-        let mut ahead = vec![vec![f64::NEG_INFINITY; n]; n];
-        let mut audible: Vec<(usize, f64)> = Vec::with_capacity(n);
+        let mut points = Vec::new();
+        let mut heard = Vec::new();
         for cell in &site.cells {
             for p in sample_points(cell, GRID_M) {
                 let at = [p[0], p[1], h];
-                audible.clear();
-                for (k, t) in txs.iter().enumerate() {
-                    let d = distance3(t.position_m, at);
-                    if d <= AUDIBLE_RANGE_M && site.line_of_sight(t.position_m, at) {
-                        audible.push((k, d));
-                    }
-                }
-                for &(i, di) in &audible {
-                    for &(j, dj) in &audible {
-                        if txs[i].channel == txs[j].channel {
-                            ahead[i][j] = ahead[i][j].max(di - dj);
-                        }
+                let here: Vec<(usize, f64)> = txs
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, t)| {
+                        let d = distance3(t.position_m, at);
+                        (d <= AUDIBLE_RANGE_M && site.line_of_sight(t.position_m, at))
+                            .then_some((k, d))
+                    })
+                    .collect();
+                points.push(p);
+                heard.push(here);
+            }
+        }
+        let mut table = Self {
+            tx_ids: txs.iter().map(|t| t.id).collect(),
+            cells: txs.iter().map(|t| t.cell.clone()).collect(),
+            need: Vec::new(),
+            points,
+            heard,
+            channels: txs.iter().map(|t| t.channel).collect(),
+            positions: txs.iter().map(|t| t.position_m).collect(),
+            fixed: Duration::from_secs_f64(
+                site.burst_length_s + site.decoder_window_s + site.guard_time_s,
+            ),
+            speed_m_s: site.speed_of_sound_m_s,
+        };
+        table.need = table.needs_over(0..table.points.len());
+        table
+    }
+
+    /// The spacings needed where only the sample points `points` (indices)
+    /// matter: bursts that never meet at any of them do not conflict.
+    pub fn needs_over(&self, points: impl Iterator<Item = usize>) -> NeedMatrix {
+        let n = self.tx_ids.len();
+        // Largest d_i - d_j over points hearing both, metres.
+        let mut ahead = vec![vec![f64::NEG_INFINITY; n]; n];
+        for p in points {
+            let Some(here) = self.heard.get(p) else {
+                continue;
+            };
+            for &(i, di) in here {
+                for &(j, dj) in here {
+                    if self.channels[i] == self.channels[j] {
+                        ahead[i][j] = ahead[i][j].max(di - dj);
                     }
                 }
             }
         }
-        let fixed_s = site.burst_length_s + site.decoder_window_s + site.guard_time_s;
-        let need = (0..n)
+        (0..n)
             .map(|i| {
                 (0..n)
                     .map(|j| {
                         let m = if i == j { 0.0 } else { ahead[i][j] };
-                        (m.is_finite() || i == j)
-                            .then(|| Duration::from_secs_f64(m.max(0.0) / c + fixed_s))
+                        (m.is_finite() || i == j).then(|| {
+                            self.fixed + Duration::from_secs_f64(m.max(0.0) / self.speed_m_s)
+                        })
                     })
                     .collect()
             })
-            .collect();
-        Self {
-            tx_ids: txs.iter().map(|t| t.id).collect(),
-            cells: txs.iter().map(|t| t.cell.clone()).collect(),
-            need,
-        }
+            .collect()
+    }
+
+    /// The sample points within `radius_m` of `centre` (indices).
+    pub fn points_within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
+        (0..self.points.len())
+            .filter(|&k| {
+                let p = self.points[k];
+                (p[0] - centre[0]).hypot(p[1] - centre[1]) <= radius_m
+            })
+            .collect()
+    }
+
+    /// The transmitters audible at sample point `point` and their distance, metres.
+    pub fn heard_at(&self, point: usize) -> &[(usize, f64)] {
+        self.heard.get(point).map_or(&[], Vec::as_slice)
+    }
+
+    /// Position of transmitter `i`, metres.
+    pub fn position(&self, i: usize) -> [f64; 3] {
+        self.positions.get(i).copied().unwrap_or([f64::NAN; 3])
     }
 
     /// Index of transmitter `tx_id`.
@@ -105,11 +161,23 @@ impl SpacingTable {
 
     /// Least time from `i`'s emission to `j`'s when `j` comes after, if they conflict.
     pub fn need(&self, i: usize, j: usize) -> Option<Duration> {
-        self.need.get(i).and_then(|r| r.get(j)).copied().flatten()
+        need_of(&self.need, i, j)
     }
 
     /// Packs the transmitters `set` (indices; duplicates and unknown ones ignored).
     pub fn pack(&self, set: &[usize]) -> Packing {
+        self.pack_with(set, &self.need, &|_| 0.0)
+    }
+
+    /// Packs `set` under the spacings `need`; among equally constrained
+    /// transmitters, those with the smaller `order` key go first.
+    pub fn pack_with(
+        &self,
+        set: &[usize],
+        need: &NeedMatrix,
+        order: &dyn Fn(usize) -> f64,
+    ) -> Packing {
+        let need = |i: usize, j: usize| need_of(need, i, j);
         let mut set: Vec<usize> = set
             .iter()
             .copied()
@@ -119,17 +187,20 @@ impl SpacingTable {
         set.dedup();
         let degree = |i: usize| {
             set.iter()
-                .filter(|&&j| j != i && self.need(i, j).is_some())
+                .filter(|&&j| j != i && need(i, j).is_some())
                 .count()
         };
-        let mut order = set.clone();
-        order.sort_by_key(|&i| (std::cmp::Reverse(degree(i)), i));
+        let mut ranked: Vec<(std::cmp::Reverse<usize>, f64, usize)> = set
+            .iter()
+            .map(|&i| (std::cmp::Reverse(degree(i)), order(i), i))
+            .collect();
+        ranked.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
         let mut placed: Vec<(usize, Duration)> = Vec::with_capacity(set.len());
-        for &i in &order {
+        for &(_, _, i) in &ranked {
             let fits = |t: Duration| {
                 placed
                     .iter()
-                    .all(|&(j, tj)| match (self.need(j, i), self.need(i, j)) {
+                    .all(|&(j, tj)| match (need(j, i), need(i, j)) {
                         (Some(after), Some(before)) => t >= tj + after || t + before <= tj,
                         _ => true,
                     })
@@ -138,7 +209,7 @@ impl SpacingTable {
                 .chain(
                     placed
                         .iter()
-                        .filter_map(|&(j, tj)| self.need(j, i).map(|n| tj + n)),
+                        .filter_map(|&(j, tj)| need(j, i).map(|n| tj + n)),
                 )
                 .collect();
             candidates.sort();
@@ -150,13 +221,13 @@ impl SpacingTable {
         }
         let mut period = Duration::ZERO;
         for &(i, ti) in &placed {
-            if let Some(own) = self.need(i, i) {
+            if let Some(own) = need(i, i) {
                 period = period.max(ti + own);
             }
             for &(j, tj) in &placed {
                 // j fires no earlier than i: i of the next cycle must follow j.
                 if i != j && tj >= ti {
-                    if let Some(n) = self.need(j, i) {
+                    if let Some(n) = need(j, i) {
                         period = period.max(tj - ti + n);
                     }
                 }
@@ -173,6 +244,10 @@ impl SpacingTable {
     pub fn pack_all(&self) -> Packing {
         self.pack(&(0..self.tx_ids.len()).collect::<Vec<_>>())
     }
+}
+
+fn need_of(need: &NeedMatrix, i: usize, j: usize) -> Option<Duration> {
+    need.get(i).and_then(|r| r.get(j)).copied().flatten()
 }
 
 fn distance3(a: [f64; 3], b: [f64; 3]) -> f64 {

@@ -180,14 +180,15 @@ impl Recorder {
     ) -> BTreeMap<String, f64> {
         let mut worst: BTreeMap<String, f64> = BTreeMap::new();
         for cycle in cycles {
-            let (trigger, _) = *self
+            let (trigger, _) = self
                 .triggers
                 .get(&cycle)
+                .cloned()
                 .unwrap_or_else(|| panic!("no trigger seen for cycle {cycle}"));
             let schedule = self.schedule(observer, trigger.schedule_version);
             for &cell in cells {
-                let expected: BTreeMap<u32, _> = schedule
-                    .emissions
+                let expected: BTreeMap<u32, _> = trigger
+                    .emissions(&schedule)
                     .iter()
                     .filter(|e| e.cell_id == cell)
                     .map(|e| (e.tx_id, trigger.start + e.offset))

@@ -82,11 +82,18 @@ pub enum Fate {
     },
 }
 
-/// What the collisions did over a run, counted per detected burst.
+/// What the collisions did over a run, counted per detected burst whose
+/// direct path reached the MSU. Detections of blocked transmitters (only
+/// a reflection came through: a rack or wall between, so the schedule may
+/// fire them together with the transmitters in sight) are counted apart.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct CollisionCounts {
     /// Bursts the detector picked up before collisions were considered.
     pub detected: u64,
+    /// Detections of blocked transmitters, heard only by a reflection.
+    pub blocked_detected: u64,
+    /// Of those, how many collisions and masking took.
+    pub blocked_lost: u64,
     /// Of those, how many overlapped another burst on their channel.
     pub collided: u64,
     /// Of the collided ones, how many still gave a detection (earlier onset, stronger id).
@@ -113,6 +120,8 @@ impl CollisionCounts {
     /// Both counts added.
     pub fn add(&mut self, other: &CollisionCounts) {
         self.detected += other.detected;
+        self.blocked_detected += other.blocked_detected;
+        self.blocked_lost += other.blocked_lost;
         self.collided += other.collided;
         self.misdecoded += other.misdecoded;
         self.masked += other.masked;
@@ -183,8 +192,17 @@ pub fn resolve(
 ) -> Vec<Heard> {
     let mut out: Vec<Heard> = Vec::with_capacity(detections.len());
     for d in detections {
-        counts.detected += 1;
         let h = d.heard;
+        if d.own.is_none() {
+            counts.blocked_detected += 1;
+            let level = level_db(model, h.path_m) - model.reflection_loss_db;
+            match fate(model, timing, d.channel, h.t_true_s, level, None, sounds) {
+                Fate::Clear => out.push(h),
+                _ => counts.blocked_lost += 1,
+            }
+            continue;
+        }
+        counts.detected += 1;
         let loss = if h.reflected {
             model.reflection_loss_db
         } else {

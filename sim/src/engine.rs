@@ -67,6 +67,14 @@ pub enum RunError {
     /// The site cannot be scheduled.
     #[error(transparent)]
     Schedule(#[from] ickon_central::ScheduleError),
+    /// More robots asked for than the site has (or none).
+    #[error("{asked} robots asked for: the site has {site} (give 1 to {site})")]
+    FleetSize {
+        /// How many were asked for.
+        asked: usize,
+        /// How many the site has.
+        site: usize,
+    },
 }
 
 /// The truth and every estimate when the robot passed one reference point.
@@ -286,6 +294,8 @@ pub fn run(
     };
     // The true emission times of each cycle's bursts, until it is delivered.
     let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
+    // Each cycle's trigger (which transmitters fire when), until delivered.
+    let mut triggers: BTreeMap<u64, ickon_proto::msg::control::CycleTrigger> = BTreeMap::new();
     let mut q = Queue::default();
     let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
     q.push(PHYSICS_DT_S, Event::Physics);
@@ -300,14 +310,14 @@ pub fn run(
         control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
         for trigger in control.take_triggers() {
             // Every burst of the cycle has been heard by then.
-            let period_s = control
-                .schedule_for(trigger.cycle)
-                .cycle_period
+            let period_s = trigger
+                .period(control.schedule_for(trigger.cycle))
                 .as_secs_f64();
             q.push(
                 trigger.start.as_secs_f64() + period_s + max_flight_s,
                 Event::Deliver(trigger.cycle),
             );
+            triggers.insert(trigger.cycle, trigger);
         }
         for b in control.take_fired() {
             emissions
@@ -371,11 +381,16 @@ pub fn run(
                 let fired = std::mem::replace(&mut emissions, later)
                     .remove(&k)
                     .unwrap_or_default();
+                let later = triggers.split_off(&(k + 1));
+                let trigger = std::mem::replace(&mut triggers, later).remove(&k);
                 if fired.is_empty() {
                     continue;
                 }
                 let msg = world.arrivals_from_emissions(&fired);
-                core.set_schedule(control.schedule_for(k).clone());
+                let schedule = control.schedule_for(k);
+                core.set_schedule(
+                    trigger.map_or_else(|| schedule.clone(), |t| t.schedule_of_cycle(schedule)),
+                );
                 if let Ok(Some(fix)) = core.on_arrivals(&msg) {
                     let t_true = world.msu_clock.true_s(fix.stamp.as_secs_f64());
                     let used_tx_m = fix

@@ -11,6 +11,7 @@
 //! - [`clock`]: device clocks with offset and drift.
 //! - [`world`]: one robot's world, producing the messages its MSU receives.
 //! - [`engine`]: the discrete-event loop, one MSU core per estimator.
+//! - [`fleet`]: the first N robots of a site at once, their poses fed to the central unit.
 //! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
 //! - [`score`]: the seeds' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
@@ -23,6 +24,7 @@ pub mod clock;
 pub mod collision;
 pub mod control;
 pub mod engine;
+pub mod fleet;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod profile;

@@ -65,14 +65,27 @@ pub struct World {
 impl World {
     /// The world of one robot on `route`, its random streams derived from `seed`.
     pub fn new(site: &Site, route: &Route, profile: &NoiseProfile, seed: u64) -> Self {
+        Self::for_robot(site, route, profile, seed, &route.name)
+    }
+
+    /// The world of one robot of a fleet: its own random streams are
+    /// labelled `label` (its id), so robots sharing a route draw
+    /// independent numbers; the site-wide errors (survey) stay shared.
+    pub fn for_robot(
+        site: &Site,
+        route: &Route,
+        profile: &NoiseProfile,
+        seed: u64,
+        label: &str,
+    ) -> Self {
         let drive = DriveSpec::default();
         let robot = Robot::new(
             drive,
             profile.encoders,
             route,
-            rng::stream(seed, &format!("robot/{}/slip", route.name)),
+            rng::stream(seed, &format!("robot/{label}/slip")),
         );
-        let mut clock_rng = rng::stream(seed, &format!("robot/{}/clock", route.name));
+        let mut clock_rng = rng::stream(seed, &format!("robot/{label}/clock"));
         let msu_clock = DeviceClock {
             offset_s: rng::normal(&mut clock_rng, profile.clocks.msu_offset_sigma_ms) * 1e-3,
             drift: rng::normal(&mut clock_rng, profile.clocks.msu_drift_sigma_ppm) * 1e-6,
@@ -99,16 +112,16 @@ impl World {
             history: VecDeque::new(),
             gyro: Gyro::new(
                 profile.gyro,
-                rng::stream(seed, &format!("robot/{}/gyro", route.name)),
+                rng::stream(seed, &format!("robot/{label}/gyro")),
             ),
             last_gyro_theta: s.theta_rad,
             msu_clock,
-            acoustic_rng: rng::stream(seed, &format!("robot/{}/ultrasound", route.name)),
-            collision_rng: rng::stream(seed, &format!("robot/{}/collisions", route.name)),
+            acoustic_rng: rng::stream(seed, &format!("robot/{label}/ultrasound")),
+            collision_rng: rng::stream(seed, &format!("robot/{label}/collisions")),
             timing: BurstTiming::of(site),
             recent_sounds: Vec::new(),
             collisions: CollisionCounts::default(),
-            ranger_rng: rng::stream(seed, &format!("robot/{}/rangers", route.name)),
+            ranger_rng: rng::stream(seed, &format!("robot/{label}/rangers")),
             c_true_m_s,
             odom: [s.x_m, s.y_m, s.theta_rad],
             last_ticks: (0, 0),

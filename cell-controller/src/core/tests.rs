@@ -88,6 +88,8 @@ fn bursts_are_programmed_ahead_on_the_local_clock_and_counted() {
             cycle: 3,
             start,
             schedule_version: 4,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(400));
@@ -112,6 +114,8 @@ fn a_trigger_for_an_unknown_schedule_waits_for_it_and_skips_only_past_slots() {
             cycle: 9,
             start,
             schedule_version: 7,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     assert!(out.contains(&Output::RequestSchedule), "{out:?}");
@@ -145,6 +149,8 @@ fn without_a_clock_estimate_a_trigger_is_a_fault_not_a_burst() {
             cycle: 0,
             start: Time::from_nanos(500 * MS),
             schedule_version: 1,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     assert_eq!(core.counters().triggers_unplanned, 1);
@@ -209,6 +215,8 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
                 cycle: (1 << 62) + k,
                 start: now + Duration::from_millis(3_600_000),
                 schedule_version: 4,
+                firing: Vec::new(),
+                cycle_period: ickon_proto::time::Duration::ZERO,
             }),
         );
     }
@@ -223,6 +231,8 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
             cycle: 5,
             start,
             schedule_version: 4,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(300));
@@ -238,8 +248,10 @@ fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
         cycle: 3,
         start,
         schedule_version: 4,
+        firing: Vec::new(),
+        cycle_period: ickon_proto::time::Duration::ZERO,
     };
-    core.handle(now, Event::Trigger(trigger));
+    core.handle(now, Event::Trigger(trigger.clone()));
     let out = core.handle(now, Event::Shutdown);
     match out.as_slice() {
         [Output::Status(s)] => assert_eq!(s.faults, ["stopping: 2 planned bursts dropped"]),

@@ -18,7 +18,7 @@ fn all_alive() -> CentralCore {
 fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
     out.iter()
         .filter_map(|o| match o {
-            Output::Trigger(t) => Some(*t),
+            Output::Trigger(t) => Some(t.clone()),
             _ => None,
         })
         .collect()
@@ -226,6 +226,7 @@ fn robots_are_reported_with_their_last_pose() {
             estimator: "ickon-akf".into(),
             fix_seq: 3,
         },
+        Time(0),
     );
     c.on_fix("r1", Time(0));
     let r = &c.status(Time(0)).robots[0];

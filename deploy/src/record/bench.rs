@@ -152,6 +152,8 @@ fn feed<W: std::io::Write + std::io::Seek>(
                 cycle,
                 start: now,
                 schedule_version: 1,
+                firing: Vec::new(),
+                cycle_period: ickon_proto::time::Duration::ZERO,
             };
             put(recorder, &keys.central_cycle(), &trigger, now)?;
             for (c, cell) in cells.iter().enumerate() {

@@ -188,6 +188,8 @@ mod tests {
             cycle: 1,
             start: Time::from_nanos(9),
             schedule_version: 1,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         })
         .unwrap();
         assert!(prepare(&p, &schedule_bytes).is_err());

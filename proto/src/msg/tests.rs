@@ -63,6 +63,8 @@ fn control_messages_round_trip() {
         cycle: 7,
         start: Time(123_456_789),
         schedule_version: 2,
+        firing: Vec::new(),
+        cycle_period: crate::time::Duration::ZERO,
     });
     round_trip(ClockRequest {
         cell_id: "c3".into(),
@@ -295,6 +297,11 @@ fn cycle_trigger_matches_hand_written_cdr() {
         cycle: 0x0102_0304_0506_0708,
         start: Time(-2),
         schedule_version: 0xAABB_CCDD,
+        firing: vec![crate::msg::control::Firing {
+            tx_id: 5,
+            offset: crate::time::Duration::from_nanos(3),
+        }],
+        cycle_period: crate::time::Duration::from_nanos(7),
     };
     #[rustfmt::skip]
     let expected: Vec<u8> = vec![
@@ -302,6 +309,11 @@ fn cycle_trigger_matches_hand_written_cdr() {
         0x08, 0x07, 0x06, 0x05, 0x04, 0x03, 0x02, 0x01, // u64 cycle at offset 0
         0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, // i64 start = -2
         0xDD, 0xCC, 0xBB, 0xAA,                         // u32 schedule_version
+        0x01, 0x00, 0x00, 0x00,                         // u32 length of firing at 20
+        0x05, 0x00, 0x00, 0x00,                         // firing[0].tx_id at 24
+        0x00, 0x00, 0x00, 0x00,                         // padding to 8
+        0x03, 0, 0, 0, 0, 0, 0, 0,                      // firing[0].offset at 32
+        0x07, 0, 0, 0, 0, 0, 0, 0,                      // i64 cycle_period at 40
     ];
     assert_eq!(encode(&msg).unwrap(), expected);
     assert_eq!(decode::<CycleTrigger>(&expected).unwrap(), msg);

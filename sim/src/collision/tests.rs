@@ -106,7 +106,9 @@ fn collisions_are_lost_or_misdecoded_as_the_stronger_at_the_earlier_onset() {
             detected: 2,
             collided: 2,
             misdecoded: 0,
-            masked: 0
+            masked: 0,
+            blocked_detected: 0,
+            blocked_lost: 0,
         }
     );
     assert_eq!(counts.lost(), 2);

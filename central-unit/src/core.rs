@@ -354,6 +354,17 @@ impl CentralCore {
         (firing, period + delay)
     }
 
+    /// What the admin sees as the schedule: the newest schedule, or, once
+    /// a cycle of it has been triggered, that cycle's firing set at its
+    /// offsets and its length (the rate the site runs at now).
+    pub fn current_firing(&self) -> Schedule {
+        let latest = self.latest_schedule();
+        match &self.last_trigger {
+            Some(t) if t.schedule_version == latest.version => t.schedule_of_cycle(latest),
+            _ => latest.clone(),
+        }
+    }
+
     /// The trigger of the last cycle (sent or, while paused, not).
     pub fn last_trigger(&self) -> Option<&CycleTrigger> {
         self.last_trigger.as_ref()

@@ -42,6 +42,9 @@ pub struct RunConfig {
     pub seed: u64,
     /// Estimator names, all hosted by one MSU core (one solve per cycle).
     pub estimators: Vec<String>,
+    /// The central unit's tuning (which schedule; every transmitter fires
+    /// unless it says otherwise).
+    pub central: ickon_central::core::CentralConfig,
 }
 
 /// Why a run could not start.
@@ -251,7 +254,8 @@ pub fn run(
                 .collect::<Vec<_>>()
                 .join(", "),
         })?;
-    let mut control = ControlPlane::new(site, &config.profile.clocks, config.seed)?;
+    let mut control =
+        ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
     let schedule = control.central().latest_schedule().clone();
     let mut world = World::new(site, route, &config.profile, config.seed);
     let s0 = world.robot.state;

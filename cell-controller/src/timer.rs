@@ -189,6 +189,33 @@ mod tests {
     }
 
     #[test]
+    fn a_trigger_naming_its_firings_fires_only_those_at_its_offsets() {
+        use ickon_proto::msg::control::Firing;
+        let mut t = BurstTimer::new("c1", Duration::from_millis(1));
+        t.add_schedule(schedule());
+        let mut trigger = trigger();
+        trigger.firing = vec![
+            Firing {
+                tx_id: 12,
+                offset: Duration::from_millis(7),
+            },
+            // Another cell's, and one no schedule knows: not this cell's to fire.
+            Firing {
+                tx_id: 21,
+                offset: Duration::ZERO,
+            },
+            Firing {
+                tx_id: 99,
+                offset: Duration::ZERO,
+            },
+        ];
+        let plan = t.plan(&trigger, Some(&sync(0)), Time(0)).unwrap();
+        assert_eq!(plan.bursts.len(), 1);
+        assert_eq!(plan.bursts[0].tx_id, 12);
+        assert_eq!(plan.bursts[0].master, Time::from_nanos(1_007_000_000));
+    }
+
+    #[test]
     fn slots_whose_time_has_passed_are_skipped_not_fired_late() {
         let mut t = BurstTimer::new("c1", Duration::from_millis(1));
         t.add_schedule(schedule());

@@ -294,6 +294,14 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
     };
     check("Emission", &emission(5, "c12"), &mut checked);
     check(
+        "Firing",
+        &Firing {
+            tx_id: 31,
+            offset: Duration::from_millis(12),
+        },
+        &mut checked,
+    );
+    check(
         "Schedule",
         &Schedule {
             version: 2,

@@ -490,9 +490,12 @@ fn big_endian_payloads_decode_too() {
     be.extend_from_slice(&7u64.to_be_bytes());
     be.extend_from_slice(&5i64.to_be_bytes());
     be.extend_from_slice(&1u32.to_be_bytes());
+    be.extend_from_slice(&0u32.to_be_bytes()); // no firings named
+    be.extend_from_slice(&9i64.to_be_bytes()); // cycle_period
     let t: CycleTrigger = decode(&be).unwrap();
     assert_eq!(t.cycle, 7);
     assert_eq!(t.start, Time(5));
+    assert_eq!(t.cycle_period, crate::time::Duration::from_nanos(9));
 }
 
 mod random {

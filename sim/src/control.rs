@@ -379,7 +379,10 @@ impl ControlPlane {
         let Some(core) = &self.cells[i].core else {
             return;
         };
-        let t = self.cells[i].true_ns(core.next_wake()).max(self.now_ns);
+        // Strictly after now: the cell has just done what was due at now,
+        // and a wake-up rounded back to now (local and true clocks differ
+        // by a fraction of a nanosecond) would wake it at now for ever.
+        let t = self.cells[i].true_ns(core.next_wake()).max(self.now_ns + 1);
         if self.cells[i].wake_ns != Some(t) {
             self.cells[i].wake_ns = Some(t);
             self.push_at(t, Pending::CellWake(i));

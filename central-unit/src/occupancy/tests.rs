@@ -37,7 +37,8 @@ fn a_tracked_robot_fires_only_what_it_can_hear_and_the_cycle_is_short() {
     let p = pose(20.0, 1.5, 0.05);
     let (packing, _) = firing_plan(&t, &[RobotView::Seen(&p, NOW)], &on(), NOW, CYCLE).unwrap();
     let n = packing.offsets.len();
-    assert!((5..20).contains(&n), "{n} transmitters fire");
+    // Four or more: enough for a 2D fix with the height known, and a redundant one.
+    assert!((4..20).contains(&n), "{n} transmitters fire");
     let at = [20.0, 1.5, site.msu.height_m];
     for &(i, _) in &packing.offsets {
         let tx = t.position(i);

@@ -456,7 +456,7 @@ impl CellCore {
             self.cell_id
         );
         self.pending.retain(|Reverse(p)| p.4 >= epoch);
-        if self.waiting.is_some_and(|t| t.epoch < epoch) {
+        if self.waiting.as_ref().is_some_and(|t| t.epoch < epoch) {
             self.waiting = None;
         }
     }

@@ -113,8 +113,9 @@ impl BurstTimer {
             .ok_or(TimerError::UnknownSchedule(trigger.schedule_version))?;
         let sync = sync.ok_or(TimerError::NotSynchronised)?;
         let mut plan = Plan::default();
-        for e in schedule
-            .emissions
+        // The trigger may name only some transmitters, at offsets of its own.
+        for e in trigger
+            .emissions(schedule)
             .iter()
             .filter(|e| e.cell_id == self.cell_id)
         {
@@ -177,6 +178,8 @@ mod tests {
             start: Time::from_nanos(1_000_000_000),
             schedule_version: 4,
             epoch: crate::fixtures::EPOCH,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }
     }
 
@@ -192,6 +195,33 @@ mod tests {
         assert_eq!(ids, vec![11, 12]);
         assert_eq!(plan.bursts[0].local, Time::from_nanos(960_000_000));
         assert_eq!(plan.bursts[1].master, Time::from_nanos(1_025_000_000));
+    }
+
+    #[test]
+    fn a_trigger_naming_its_firings_fires_only_those_at_its_offsets() {
+        use ickon_proto::msg::control::Firing;
+        let mut t = BurstTimer::new("c1", Duration::from_millis(1));
+        t.add_schedule(schedule()).unwrap();
+        let mut trigger = trigger();
+        trigger.firing = vec![
+            Firing {
+                tx_id: 12,
+                offset: Duration::from_millis(7),
+            },
+            // Another cell's, and one no schedule knows: not this cell's to fire.
+            Firing {
+                tx_id: 21,
+                offset: Duration::ZERO,
+            },
+            Firing {
+                tx_id: 99,
+                offset: Duration::ZERO,
+            },
+        ];
+        let plan = t.plan(&trigger, Some(&sync(0)), Time(0)).unwrap();
+        assert_eq!(plan.bursts.len(), 1);
+        assert_eq!(plan.bursts[0].tx_id, 12);
+        assert_eq!(plan.bursts[0].master, Time::from_nanos(1_007_000_000));
     }
 
     #[test]
@@ -233,6 +263,8 @@ mod tests {
             start: Time(0),
             schedule_version: 4,
             epoch: crate::fixtures::EPOCH,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         };
         assert_eq!(
             t.plan(&trigger, Some(&sync(0)), Time(0)),

@@ -74,9 +74,16 @@ pub struct TriggerGate {
 }
 
 /// Whether `later` is where the count from `earlier` puts it, for a cycle
-/// period of `period`: `Err(expected)` if not. The tolerance (one cycle,
-/// and an eighth of the gap) covers a period change between the two.
+/// period of `period` (or the length `earlier` gave its own cycle, when it
+/// named one: occupancy firing shortens cycles; `later`'s own claim is not
+/// trusted): `Err(expected)` if not. The tolerance (one cycle, and an
+/// eighth of the gap) covers a period change between the two.
 fn on_the_count(earlier: &CycleTrigger, later: &CycleTrigger, period: Duration) -> Result<(), u64> {
+    let period = if earlier.cycle_period > Duration::ZERO {
+        earlier.cycle_period
+    } else {
+        period
+    };
     let gap_ns = later.start.since(earlier.start).as_nanos() as f64;
     let cycles = (gap_ns / period.as_nanos().max(1) as f64).round();
     let expected_f = earlier.cycle as f64 + cycles;
@@ -153,11 +160,11 @@ impl TriggerGate {
         }
         if self.epoch != Some(trigger.epoch) {
             self.note_epoch(trigger.epoch);
-            self.last = Some(*trigger);
+            self.last = Some(trigger.clone());
             return Ok(true);
         }
-        let Some(last) = self.last else {
-            self.last = Some(*trigger);
+        let Some(last) = self.last.clone() else {
+            self.last = Some(trigger.clone());
             return Ok(false);
         };
         if trigger.cycle <= last.cycle && trigger.start <= last.start {
@@ -167,18 +174,18 @@ impl TriggerGate {
             });
         }
         let Some(period) = period else {
-            self.last = Some(*trigger);
+            self.last = Some(trigger.clone());
             return Ok(false);
         };
         match on_the_count(&last, trigger, period) {
             Ok(()) => {
-                self.last = Some(*trigger);
+                self.last = Some(trigger.clone());
                 self.suspect = None;
                 Ok(false)
             }
             Err(expected) => {
-                let agreeing = match self.suspect {
-                    Some((s, n)) if on_the_count(&s, trigger, period).is_ok() => n + 1,
+                let agreeing = match &self.suspect {
+                    Some((s, n)) if on_the_count(s, trigger, period).is_ok() => n + 1,
                     _ => 1,
                 };
                 if agreeing >= CONFIRMING_TRIGGERS {
@@ -186,11 +193,11 @@ impl TriggerGate {
                         "{agreeing} triggers agree on cycle {}: the count follows them",
                         trigger.cycle
                     );
-                    self.last = Some(*trigger);
+                    self.last = Some(trigger.clone());
                     self.suspect = None;
                     return Ok(false);
                 }
-                self.suspect = Some((*trigger, agreeing));
+                self.suspect = Some((trigger.clone(), agreeing));
                 Err(TriggerRefused::OffTheCount {
                     cycle: trigger.cycle,
                     expected,

@@ -37,10 +37,24 @@ use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
 use crate::health::{CellTracker, RobotTracker};
-use crate::schedule::{ScheduleError, compute_schedule};
+use crate::occupancy::{FiringConfig, RobotView, firing_plan};
+use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
+use crate::spacing::SpacingTable;
+use ickon_proto::msg::control::Firing;
+
+/// Which schedule the central unit computes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum SchedulePolicy {
+    /// Each transmitter as early as the geometry lets it ([`compute_schedule`]).
+    #[default]
+    Tight,
+    /// The schedule from before issue 20, to measure against
+    /// ([`crate::schedule::compute_uniform_schedule`]).
+    Uniform,
+}
 
 /// Tuning of the central unit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CentralConfig {
     /// How long before a cycle starts its trigger goes out (covers the network
     /// and lets the cells program their timers).
@@ -53,6 +67,10 @@ pub struct CentralConfig {
     /// The newest schedule is published again this often, so that a
     /// receiver that missed it (or was handed a forged one) heals.
     pub schedule_reannounce: Duration,
+    /// Which schedule to compute.
+    pub schedule: SchedulePolicy,
+    /// Which transmitters fire each cycle.
+    pub firing: FiringConfig,
 }
 
 impl Default for CentralConfig {
@@ -62,6 +80,8 @@ impl Default for CentralConfig {
             start_delay: Duration::from_millis(500),
             schedule_announce: Duration::from_millis(100),
             schedule_reannounce: Duration::from_millis(1_000),
+            schedule: SchedulePolicy::default(),
+            firing: FiringConfig::default(),
         }
     }
 }
@@ -141,6 +161,10 @@ pub struct CentralCore {
     next_reannounce: Time,
     /// `Some` while this central unit is a hot standby (see [`standby`]).
     pub(crate) standby: Option<standby::Follower>,
+    /// The spacings of the transmitters of the cells of the schedule last
+    /// triggered, for packing occupancy-aware cycles (built when first needed).
+    table: Option<SpacingTable>,
+    last_trigger: Option<CycleTrigger>,
 }
 
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
@@ -158,7 +182,7 @@ impl CentralCore {
         let all: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
         let schedule = Schedule {
             epoch,
-            ..compute_schedule(&site, &all, 1, 0)?
+            ..make_schedule(config.schedule, &site, &all, 1, 0)?
         };
         let cells = all
             .iter()
@@ -182,6 +206,8 @@ impl CentralCore {
             sent_triggers: VecDeque::new(),
             next_reannounce: now + config.schedule_reannounce,
             standby: None,
+            table: None,
+            last_trigger: None,
         })
     }
 
@@ -326,22 +352,26 @@ impl CentralCore {
         while now >= self.next_trigger_at() {
             let cycle = self.next_cycle;
             let schedule = self.schedule_for(cycle).clone();
+            let (firing, period) = self.plan_cycle(&schedule, now);
+            let trigger = CycleTrigger {
+                cycle,
+                start: self.next_start,
+                schedule_version: schedule.version,
+                epoch: self.epoch,
+                firing,
+                cycle_period: period,
+            };
             if !self.paused {
-                let trigger = CycleTrigger {
-                    cycle,
-                    start: self.next_start,
-                    schedule_version: schedule.version,
-                    epoch: self.epoch,
-                };
                 if self.sent_triggers.len() == SENT_TRIGGERS_KEPT {
                     self.sent_triggers.pop_front();
                 }
-                self.sent_triggers.push_back(trigger);
-                out.push(Output::Trigger(trigger));
+                self.sent_triggers.push_back(trigger.clone());
+                out.push(Output::Trigger(trigger.clone()));
                 self.count_missed(cycle);
             }
+            self.last_trigger = Some(trigger);
             self.next_cycle += 1;
-            self.next_start = self.next_start + schedule.cycle_period;
+            self.next_start = self.next_start + period;
         }
         if now >= self.next_reannounce && !out.is_empty() {
             self.next_reannounce = now + self.config.schedule_reannounce;
@@ -350,6 +380,108 @@ impl CentralCore {
         out.extend(self.reconcile_membership(now));
         self.update_states();
         out
+    }
+
+    /// The transmitters that fire in the next cycle under `schedule` and
+    /// the cycle's length: every emission of the schedule, or with
+    /// occupancy-aware firing those robots can hear, packed anew.
+    fn plan_cycle(&mut self, schedule: &Schedule, now: Time) -> (Vec<Firing>, Duration) {
+        let all = || {
+            schedule
+                .emissions
+                .iter()
+                .map(|e| Firing {
+                    tx_id: e.tx_id,
+                    offset: e.offset,
+                })
+                .collect()
+        };
+        if !self.config.firing.occupancy {
+            return (all(), schedule.cycle_period);
+        }
+        if self
+            .table
+            .as_ref()
+            .is_none_or(|t| !same_cells(t, &schedule.active_cells))
+        {
+            self.table = Some(SpacingTable::new(&self.site, &schedule.active_cells));
+        }
+        let Some(table) = self.table.as_ref() else {
+            return (all(), schedule.cycle_period);
+        };
+        let views: Vec<RobotView> = self
+            .robots
+            .values()
+            .filter_map(|r| match r.last_pose() {
+                Some((pose, at)) => Some(RobotView::Seen(pose, at)),
+                None => r.alive.then_some(RobotView::New),
+            })
+            .collect();
+        let guess = self
+            .last_trigger
+            .as_ref()
+            .map_or(schedule.cycle_period, |t| t.period(schedule));
+        let (offsets, period, need) =
+            match firing_plan(table, &views, &self.config.firing, now, guess) {
+                Some((p, need)) => (p.offsets, p.period, Some(need)),
+                None => (
+                    schedule
+                        .emissions
+                        .iter()
+                        .filter_map(|e| Some((table.index_of(e.tx_id)?, e.offset)))
+                        .collect(),
+                    schedule.cycle_period,
+                    None,
+                ),
+            };
+        let spacing = |j: usize, i: usize| match &need {
+            Some(n) => n.get(j).and_then(|r| r.get(i)).copied().flatten(),
+            None => table.need(j, i),
+        };
+        // The previous cycle fired other transmitters at other offsets:
+        // delay this one until every burst keeps its spacing from those.
+        let mut delay = Duration::ZERO;
+        if let Some(prev) = &self.last_trigger {
+            let prev_period = prev.period(schedule);
+            for f in &prev.firing {
+                let Some(j) = table.index_of(f.tx_id) else {
+                    continue;
+                };
+                for &(i, offset) in &offsets {
+                    if let Some(n) = spacing(j, i) {
+                        let earliest = f.offset + n;
+                        let at = prev_period + offset + delay;
+                        if earliest > at {
+                            delay = delay + (earliest - at);
+                        }
+                    }
+                }
+            }
+        }
+        let firing = offsets
+            .iter()
+            .map(|&(i, offset)| Firing {
+                tx_id: table.tx_ids[i],
+                offset: offset + delay,
+            })
+            .collect();
+        (firing, period + delay)
+    }
+
+    /// What the admin sees as the schedule: the newest schedule, or, once
+    /// a cycle of it has been triggered, that cycle's firing set at its
+    /// offsets and its length (the rate the site runs at now).
+    pub fn current_firing(&self) -> Schedule {
+        let latest = self.latest_schedule();
+        match &self.last_trigger {
+            Some(t) if t.schedule_version == latest.version => t.schedule_of_cycle(latest),
+            _ => latest.clone(),
+        }
+    }
+
+    /// The trigger of the last cycle (sent or, while paused, not).
+    pub fn last_trigger(&self) -> Option<&CycleTrigger> {
+        self.last_trigger.as_ref()
     }
 
     /// Counts, for the cycle two before `cycle` (its bursts have had time to
@@ -402,7 +534,7 @@ impl CentralCore {
         let effective = self.first_announceable_cycle(now);
         let schedule = Schedule {
             epoch: self.epoch,
-            ..compute_schedule(&self.site, &live, version, effective).ok()?
+            ..make_schedule(self.config.schedule, &self.site, &live, version, effective).ok()?
         };
         tracing::info!(
             "schedule v{version} from cycle {effective}: cells {}",
@@ -689,7 +821,8 @@ impl CentralCore {
         };
         let version = self.latest_schedule().version + 1;
         let effective = self.first_announceable_cycle(now);
-        let schedule = match compute_schedule(&site, &active, version, effective) {
+        let schedule = match make_schedule(self.config.schedule, &site, &active, version, effective)
+        {
             Ok(s) => Schedule {
                 epoch: self.epoch,
                 ..s
@@ -703,6 +836,7 @@ impl CentralCore {
         self.robots
             .retain(|id, _| site.robots.iter().any(|r| &r.id == id));
         self.site = site;
+        self.table = None;
         self.site_toml = toml_text.to_string();
         self.site_version += 1;
         self.push_schedule(schedule.clone());
@@ -723,5 +857,25 @@ pub mod standby;
 
 #[cfg(test)]
 mod forged_tests;
+/// The schedule of `policy`.
+fn make_schedule(
+    policy: SchedulePolicy,
+    site: &Site,
+    cells: &[String],
+    version: u32,
+    effective_cycle: u64,
+) -> Result<Schedule, ScheduleError> {
+    match policy {
+        SchedulePolicy::Tight => compute_schedule(site, cells, version, effective_cycle),
+        SchedulePolicy::Uniform => compute_uniform_schedule(site, cells, version, effective_cycle),
+    }
+}
+
+/// Whether `table` holds the transmitters of exactly `cells`.
+fn same_cells(table: &SpacingTable, cells: &[String]) -> bool {
+    let have: std::collections::BTreeSet<&String> = table.cells.iter().collect();
+    have.len() == cells.len() && have.iter().all(|c| cells.contains(c))
+}
+
 #[cfg(test)]
 mod tests;

@@ -161,6 +161,11 @@ impl RobotTracker {
         }
     }
 
+    /// The last pose and when it was received.
+    pub fn last_pose(&self) -> Option<(&RobotPose, Time)> {
+        Some((self.pose.as_ref()?, self.pose_at?))
+    }
+
     /// A fix it published, received at `now`.
     pub fn on_fix(&mut self, now: Time) {
         self.fix_times.push_back(now);

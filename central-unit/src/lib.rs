@@ -24,6 +24,8 @@ pub mod health;
 pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
+pub mod occupancy;
 pub mod schedule;
+pub mod spacing;
 
 pub use schedule::{ScheduleError, compute_schedule, update_rate_hz};

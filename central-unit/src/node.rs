@@ -362,7 +362,7 @@ async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time)
     let mut outputs = Vec::new();
     match command.as_str() {
         "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
-        "schedule" => reply(q, core.latest_schedule()).await,
+        "schedule" => reply(q, &core.current_firing()).await,
         "coverage" => {
             // No payload (or an unreadable one): the default grid.
             let resolution_m = q

@@ -1,6 +1,13 @@
 //! The emission schedule of a site (DESIGN section 5), a pure function of the
 //! site model and the cells taking part.
 //!
+//! [`compute_schedule`], the one the central unit runs, places every
+//! transmitter as early as the geometry and the carrier channels let it
+//! ([`crate::spacing`]: the largest arrival-time difference where two
+//! bursts are both audible, plus burst length, decoder window and the
+//! reverberation guard). [`compute_uniform_schedule`] is the schedule from
+//! before, kept to measure against:
+//!
 //! - **Slot**: the longest audible flight in a cell (from the farthest point
 //!   of the cell polygon, at MSU height, to its farthest transmitter) divided
 //!   by the speed of sound, plus the site's reverberation guard. The longest
@@ -20,6 +27,8 @@ use ickon_proto::msg::control::{Emission, Schedule};
 use ickon_proto::site::{Cell, Site};
 use ickon_proto::time::Duration;
 
+use crate::spacing::{Packing, SpacingTable};
+
 /// Range beyond which a 40 kHz burst is taken as inaudible, metres.
 pub const AUDIBLE_RANGE_M: f64 = 12.0;
 /// Spacing of the points a cell is sampled at for the interference test, metres.
@@ -37,7 +46,7 @@ pub enum ScheduleError {
 }
 
 /// Sample points of a cell polygon at MSU height: its vertices and a grid inside.
-fn sample_points(cell: &Cell) -> Vec<[f64; 2]> {
+pub(crate) fn sample_points(cell: &Cell, grid_m: f64) -> Vec<[f64; 2]> {
     let mut pts: Vec<[f64; 2]> = cell.polygon.clone();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in &cell.polygon {
@@ -46,11 +55,11 @@ fn sample_points(cell: &Cell) -> Vec<[f64; 2]> {
             hi[k] = hi[k].max(p[k]);
         }
     }
-    let nx = ((hi[0] - lo[0]) / GRID_M).ceil() as usize;
-    let ny = ((hi[1] - lo[1]) / GRID_M).ceil() as usize;
+    let nx = ((hi[0] - lo[0]) / grid_m).ceil() as usize;
+    let ny = ((hi[1] - lo[1]) / grid_m).ceil() as usize;
     for i in 0..=nx {
         for j in 0..=ny {
-            let p = [lo[0] + i as f64 * GRID_M, lo[1] + j as f64 * GRID_M];
+            let p = [lo[0] + i as f64 * grid_m, lo[1] + j as f64 * grid_m];
             if cell.contains(p) {
                 pts.push(p);
             }
@@ -67,7 +76,7 @@ fn distance3(a: [f64; 3], b: [f64; 3]) -> f64 {
 pub fn cells_interfere(site: &Site, a: &Cell, b: &Cell) -> bool {
     let h = site.msu.height_m;
     let audible = |from: &Cell, to: &Cell| {
-        let points = sample_points(to);
+        let points = sample_points(to, GRID_M);
         site.transmitters_of(&from.id).any(|tx| {
             points.iter().any(|p| {
                 let q = [p[0], p[1], h];
@@ -125,8 +134,95 @@ pub fn colour_cells(site: &Site, cells: &[&Cell]) -> Vec<usize> {
 }
 
 /// The schedule of `site` with `active_cells` taking part (site order is
-/// kept), with epoch 0: the central unit stamps its own.
+/// kept), with epoch 0 (the central unit stamps its own), each transmitter
+/// as early as the geometry lets it fire ([`crate::spacing`]): issue 20's
+/// tight schedule, the one the central unit runs.
 pub fn compute_schedule(
+    site: &Site,
+    active_cells: &[String],
+    version: u32,
+    effective_cycle: u64,
+) -> Result<Schedule, ScheduleError> {
+    let cells = active(site, active_cells)?;
+    let table = SpacingTable::new(site, &cells);
+    Ok(schedule_from_packing(
+        &table,
+        &table.pack_all(),
+        version,
+        effective_cycle,
+        cells,
+    ))
+}
+
+/// The cells of `site` named in `active_cells`, site order, all known.
+fn active(site: &Site, active_cells: &[String]) -> Result<Vec<String>, ScheduleError> {
+    if let Some(unknown) = active_cells.iter().find(|id| site.cell(id).is_none()) {
+        return Err(ScheduleError::UnknownCell(unknown.clone()));
+    }
+    let cells: Vec<String> = site
+        .cells
+        .iter()
+        .filter(|c| active_cells.contains(&c.id))
+        .map(|c| c.id.clone())
+        .collect();
+    if cells.is_empty() {
+        return Err(ScheduleError::NoActiveCells);
+    }
+    Ok(cells)
+}
+
+/// A schedule firing the packed transmitters of `table`: `slot` numbers the
+/// distinct offsets in order, `slot_length` is the longest spacing used.
+pub fn schedule_from_packing(
+    table: &SpacingTable,
+    packing: &Packing,
+    version: u32,
+    effective_cycle: u64,
+    active_cells: Vec<String>,
+) -> Schedule {
+    let mut emissions = Vec::with_capacity(packing.offsets.len());
+    let mut slot = 0u32;
+    let mut last = None;
+    let mut longest = Duration::ZERO;
+    for &(i, offset) in &packing.offsets {
+        if last.is_some_and(|l| l != offset) {
+            slot += 1;
+        }
+        last = Some(offset);
+        if let Some(n) = table.need(i, i) {
+            longest = longest.max(n);
+        }
+        emissions.push(Emission {
+            tx_id: table.tx_ids[i],
+            cell_id: table.cells[i].clone(),
+            offset,
+            slot,
+        });
+    }
+    for &(i, _) in &packing.offsets {
+        for &(j, _) in &packing.offsets {
+            if let Some(n) = table.need(i, j) {
+                longest = longest.max(n);
+            }
+        }
+    }
+    Schedule {
+        version,
+        effective_cycle,
+        epoch: 0,
+        cycle_period: packing.period,
+        slot_length: longest,
+        emissions,
+        active_cells,
+    }
+}
+
+/// The schedule as it was before issue 20, kept to measure against: cells
+/// coloured apart when one hears the other, one slot of the longest flight
+/// of any cell for every emission, every transmitter of a colour in turn.
+/// It lets bursts collide at points that hear two cells of one colour
+/// (`ickon_sim::schedule_audit` finds them).
+pub fn compute_uniform_schedule(
     site: &Site,
     active_cells: &[String],
     version: u32,
@@ -194,7 +290,7 @@ mod tests {
     #[test]
     fn default_site_reuses_slots_between_distant_cells() {
         let site = Site::default_site();
-        let s = compute_schedule(&site, &all_cells(&site), 1, 0).unwrap();
+        let s = compute_uniform_schedule(&site, &all_cells(&site), 1, 0).unwrap();
         assert_eq!(s.emissions.len(), 16);
         let slot = s.slot_length.as_secs_f64();
         // Corridor cell c1 cannot hear the room: c1 and c3/c4 can share a colour.
@@ -209,7 +305,7 @@ mod tests {
     #[test]
     fn interfering_cells_never_overlap() {
         let site = Site::default_site();
-        let s = compute_schedule(&site, &all_cells(&site), 1, 0).unwrap();
+        let s = compute_uniform_schedule(&site, &all_cells(&site), 1, 0).unwrap();
         let slot = s.slot_length;
         for a in &s.emissions {
             for b in &s.emissions {
@@ -254,7 +350,7 @@ mod tests {
     #[test]
     fn slot_covers_the_longest_flight_plus_guard() {
         let site = Site::default_site();
-        let s = compute_schedule(&site, &all_cells(&site), 1, 0).unwrap();
+        let s = compute_uniform_schedule(&site, &all_cells(&site), 1, 0).unwrap();
         // Corridor cell 8 x 2.5 m: corner to far transmitter about 7.6 m, 22 ms.
         let slot_s = s.slot_length.as_secs_f64();
         assert!(

@@ -180,14 +180,15 @@ impl Recorder {
     ) -> BTreeMap<String, f64> {
         let mut worst: BTreeMap<String, f64> = BTreeMap::new();
         for cycle in cycles {
-            let (trigger, _) = *self
+            let (trigger, _) = self
                 .triggers
                 .get(&cycle)
+                .cloned()
                 .unwrap_or_else(|| panic!("no trigger seen for cycle {cycle}"));
             let schedule = self.schedule(observer, trigger.schedule_version);
             for &cell in cells {
-                let expected: BTreeMap<u32, _> = schedule
-                    .emissions
+                let expected: BTreeMap<u32, _> = trigger
+                    .emissions(&schedule)
                     .iter()
                     .filter(|e| e.cell_id == cell)
                     .map(|e| (e.tx_id, trigger.start + e.offset))
@@ -765,7 +766,7 @@ fn forged_control_messages_are_refused_counted_and_the_cells_fire_on() {
                 .values()
                 .next_back()
                 .filter(|(t, _)| t.cycle > first)
-                .copied()
+                .cloned()
         });
     let schedule = mesh.rec.schedule(&mesh.observer, last.schedule_version);
     let session = mesh.observer.session();

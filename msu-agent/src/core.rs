@@ -8,7 +8,7 @@ use ickon_fusion::estimator::{
     EncoderSample, Estimator, EstimatorError, GyroSample, Input, RangeSample, WheelGeometry,
 };
 use ickon_fusion::tdoa;
-use ickon_proto::msg::control::{Schedule, TransmitterEntry};
+use ickon_proto::msg::control::{CycleTrigger, Schedule, TransmitterEntry};
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
 };
@@ -126,6 +126,12 @@ impl MsuCore {
         self.solver
             .set_schedule(schedule)
             .map_err(MsuError::Schedule)
+    }
+
+    /// The trigger of the next cycle to solve (which transmitters fire, and
+    /// when), or `None` for every emission of the schedule.
+    pub fn set_cycle_trigger(&mut self, trigger: Option<CycleTrigger>) {
+        self.solver.set_cycle_trigger(trigger);
     }
 
     /// The primary estimator's name.

@@ -11,7 +11,7 @@
 use ickon_fusion::estimator::{Input, RangeDifferenceSample};
 use ickon_fusion::tdoa;
 use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
-use ickon_proto::msg::control::Schedule;
+use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
 use ickon_proto::time::{Duration, Time};
 use nalgebra::{Vector2, Vector3};
@@ -41,6 +41,9 @@ pub struct SolvedCycle {
 pub struct FixSolver {
     config: MsuConfig,
     schedules: ScheduleBook,
+    /// The trigger of the cycle about to be solved, when the central unit
+    /// names which transmitters fire (occupancy firing, issue 20).
+    cycle_trigger: Option<CycleTrigger>,
     last_fix: Option<(Time, Vector2<f64>)>,
     motion: CycleMotion,
 }
@@ -51,6 +54,7 @@ impl FixSolver {
         Self {
             config,
             schedules: ScheduleBook::new(),
+            cycle_trigger: None,
             last_fix: None,
             motion: CycleMotion::new(),
         }
@@ -72,6 +76,14 @@ impl FixSolver {
     /// the rules of [`ickon_proto::epoch`] allow; a refused one changes nothing).
     pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), ScheduleRefused> {
         self.schedules.offer(schedule).map(|_| ())
+    }
+
+    /// The trigger of the next cycle to solve: its firings and period
+    /// replace the schedule's emissions for that cycle (the schedule
+    /// itself, under the rules of [`ickon_proto::epoch`], stays as
+    /// published). `None`: every emission of the schedule fires.
+    pub fn set_cycle_trigger(&mut self, trigger: Option<CycleTrigger>) {
+        self.cycle_trigger = trigger;
     }
 
     /// Forgets the schedules (tests; a site that changed).
@@ -104,7 +116,16 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
-        let schedule = self.schedules.latest().ok_or(MsuError::NoSchedule)?;
+        let published = match &self.cycle_trigger {
+            Some(t) => self.schedules.get(t.schedule_version),
+            None => self.schedules.latest(),
+        }
+        .ok_or(MsuError::NoSchedule)?;
+        let of_cycle = self
+            .cycle_trigger
+            .as_ref()
+            .map(|t| t.schedule_of_cycle(published));
+        let schedule = of_cycle.as_ref().unwrap_or(published);
         let c = self.config.speed_of_sound_m_s;
         let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
         let range_differences = self.range_differences(&cycle.signals, clock);

@@ -6,7 +6,9 @@
 
 use std::collections::BTreeSet;
 
-use ickon_proto::msg::control::{Burst, CellStatus, CycleTrigger, Emission, Schedule, SiteInfo};
+use ickon_proto::msg::control::{
+    Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo,
+};
 use ickon_proto::msg::robot::{
     Arrival, Fix, FixQuality, Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
 };
@@ -292,6 +294,14 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
     };
     check("Emission", &emission(5, "c12"), &mut checked);
     check(
+        "Firing",
+        &Firing {
+            tx_id: 31,
+            offset: Duration::from_millis(12),
+        },
+        &mut checked,
+    );
+    check(
         "Schedule",
         &Schedule {
             version: 2,
@@ -311,6 +321,17 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             start: t,
             schedule_version: 2,
             epoch: 99,
+            firing: vec![
+                Firing {
+                    tx_id: 11,
+                    offset: Duration::from_millis(3),
+                },
+                Firing {
+                    tx_id: 42,
+                    offset: Duration::ZERO,
+                },
+            ],
+            cycle_period: Duration::from_millis(95),
         },
         &mut checked,
     );

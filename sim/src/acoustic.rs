@@ -18,6 +18,9 @@ pub struct Heard {
     pub t_true_s: f64,
     /// Whether the sound came by a reflection.
     pub reflected: bool,
+    /// Length of the path the detected sound took, metres (longer than the
+    /// direct path for a reflection).
+    pub path_m: f64,
 }
 
 /// Straight-line flight time from `tx` to the MSU, with the MSU moving:
@@ -53,6 +56,42 @@ pub fn nearest_receiver(receiver_angles_rad: &[f64], bearing_rad: f64) -> u8 {
     best.1
 }
 
+/// The straight path of one burst to the MSU: how long it flies and where
+/// the MSU is when it arrives. Deterministic: no draw is made.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Path {
+    /// Flight time of the direct sound, seconds.
+    pub tau_s: f64,
+    /// MSU position at arrival, metres.
+    pub msu_m: [f64; 3],
+    /// Robot heading at arrival, radians.
+    pub heading_rad: f64,
+    /// Length of the direct path, metres.
+    pub direct_m: f64,
+    /// Whether no wall or column blocks the direct path.
+    pub in_sight: bool,
+}
+
+/// The direct path of a burst of `tx` emitted at true time `t_emit_s`.
+pub fn propagate(
+    site: &Site,
+    c_true_m_s: f64,
+    tx: &Transmitter,
+    t_emit_s: f64,
+    pose_at: &impl Fn(f64) -> ([f64; 3], f64),
+) -> Path {
+    let msu_at = |t: f64| pose_at(t).0;
+    let tau = flight_time_s(tx.position_m, t_emit_s, c_true_m_s, &msu_at);
+    let (p, heading) = pose_at(t_emit_s + tau);
+    Path {
+        tau_s: tau,
+        msu_m: p,
+        heading_rad: heading,
+        direct_m: tau * c_true_m_s,
+        in_sight: site.line_of_sight(tx.position_m, p),
+    }
+}
+
 /// What the MSU hears of one burst of `tx` emitted at true time `t_emit_s`;
 /// `pose_at(t)` gives the MSU's `(x, y, z)` and the robot heading at true time `t`.
 pub fn hear(
@@ -64,15 +103,28 @@ pub fn hear(
     pose_at: &impl Fn(f64) -> ([f64; 3], f64),
     rng: &mut ChaCha8Rng,
 ) -> Option<Heard> {
-    let msu_at = |t: f64| pose_at(t).0;
-    let tau = flight_time_s(tx.position_m, t_emit_s, c_true_m_s, &msu_at);
-    let (p, heading) = pose_at(t_emit_s + tau);
-    let direct_m = tau * c_true_m_s;
+    let path = propagate(site, c_true_m_s, tx, t_emit_s, pose_at);
+    detect(site, noise, c_true_m_s, tx, t_emit_s, &path, rng)
+}
+
+/// Whether and how the MSU's detector picks up a burst that took `path`
+/// (drops, reflections, jitter, receiver choice, id errors), before any
+/// other burst is taken into account ([`crate::collision`] does that).
+pub fn detect(
+    site: &Site,
+    noise: &UltrasoundNoise,
+    c_true_m_s: f64,
+    tx: &Transmitter,
+    t_emit_s: f64,
+    path: &Path,
+    rng: &mut ChaCha8Rng,
+) -> Option<Heard> {
+    let (tau, p, heading) = (path.tau_s, path.msu_m, path.heading_rad);
+    let direct_m = path.direct_m;
     if direct_m > noise.max_range_m {
         return None;
     }
-    let in_sight = site.line_of_sight(tx.position_m, p);
-    let reflected = if in_sight {
+    let reflected = if path.in_sight {
         if rng::chance(rng, noise.drop_probability) {
             return None;
         }
@@ -113,6 +165,7 @@ pub fn hear(
         receiver_id,
         t_true_s,
         reflected,
+        path_m: direct_m + extra_m,
     })
 }
 

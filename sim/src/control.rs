@@ -80,6 +80,8 @@ enum Pending {
     ScheduleQuery(usize, u32),
     ToCentralBurst(Burst),
     ToCentralStatus(ickon_proto::msg::control::CellStatus),
+    /// A robot's message (pose, liveliness) reaching the central unit.
+    ToCentral(CentralEvent),
 }
 
 /// An entry of the queue, ordered by (time, sequence).
@@ -172,12 +174,18 @@ impl ControlPlane {
         clocks: &ClockNoise,
         seed: u64,
     ) -> Result<Self, ickon_central::ScheduleError> {
-        let central = CentralCore::new(
-            site.clone(),
-            String::new(),
-            CentralConfig::default(),
-            Time(0),
-        )?;
+        Self::with_config(site, clocks, seed, CentralConfig::default())
+    }
+
+    /// As [`new`](Self::new), the central unit tuned by `config` (which
+    /// schedule, which transmitters fire).
+    pub fn with_config(
+        site: &Site,
+        clocks: &ClockNoise,
+        seed: u64,
+        config: CentralConfig,
+    ) -> Result<Self, ickon_central::ScheduleError> {
+        let central = CentralCore::new(site.clone(), String::new(), config, Time(0))?;
         let cells = site
             .cells
             .iter()
@@ -371,7 +379,10 @@ impl ControlPlane {
         let Some(core) = &self.cells[i].core else {
             return;
         };
-        let t = self.cells[i].true_ns(core.next_wake()).max(self.now_ns);
+        // Strictly after now: the cell has just done what was due at now,
+        // and a wake-up rounded back to now (local and true clocks differ
+        // by a fraction of a nanosecond) would wake it at now for ever.
+        let t = self.cells[i].true_ns(core.next_wake()).max(self.now_ns + 1);
         if self.cells[i].wake_ns != Some(t) {
             self.cells[i].wake_ns = Some(t);
             self.push_at(t, Pending::CellWake(i));
@@ -435,6 +446,11 @@ impl ControlPlane {
                     .handle(Time::from_nanos(t_ns), CentralEvent::Burst(b));
                 self.publish_central(out);
             }
+            Pending::ToCentral(event) => {
+                let out = self.central.handle(Time::from_nanos(t_ns), event);
+                self.publish_central(out);
+                self.schedule_central_wake();
+            }
             Pending::ToCentralStatus(s) => {
                 let out = self
                     .central
@@ -449,7 +465,7 @@ impl ControlPlane {
         for o in out {
             let event = match o {
                 CentralOutput::Trigger(t) => {
-                    self.triggers.push(t);
+                    self.triggers.push(t.clone());
                     CellEvent::Trigger(t)
                 }
                 CentralOutput::Schedule(s) => CellEvent::Schedule(s),
@@ -540,6 +556,13 @@ impl ControlPlane {
             arrive_ns,
             Pending::ToCell(i, inc, CellEvent::ClockExchange(reply)),
         );
+    }
+
+    /// A robot's message to the central unit (a pose, its liveliness),
+    /// sent now; it arrives after the network's delay.
+    pub fn send_to_central(&mut self, event: CentralEvent) {
+        let d = self.net_delay(0.0, 0.0);
+        self.push(d, Pending::ToCentral(event));
     }
 
     /// The schedule the central unit has in force for `cycle`.

@@ -42,6 +42,9 @@ pub struct RunConfig {
     pub seed: u64,
     /// Estimator names, all hosted by one MSU core (one solve per cycle).
     pub estimators: Vec<String>,
+    /// The central unit's tuning (which schedule; every transmitter fires
+    /// unless it says otherwise).
+    pub central: ickon_central::core::CentralConfig,
 }
 
 /// Why a run could not start.
@@ -70,6 +73,14 @@ pub enum RunError {
     /// The MSU refused the control plane's schedule.
     #[error(transparent)]
     Msu(#[from] ickon_msu::MsuError),
+    /// More robots asked for than the site has (or none).
+    #[error("{asked} robots asked for: the site has {site} (give 1 to {site})")]
+    FleetSize {
+        /// How many were asked for.
+        asked: usize,
+        /// How many the site has.
+        site: usize,
+    },
 }
 
 /// The truth and every estimate when the robot passed one reference point.
@@ -130,6 +141,8 @@ pub struct RunOutput {
     pub timing_sigma_s: f64,
     /// Each cell's synchronisation, from its own core's bursts.
     pub cells: Vec<CellSyncReport>,
+    /// What collisions and reverberation did to the robot's detections.
+    pub collisions: crate::collision::CollisionCounts,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -244,7 +257,8 @@ pub fn run(
                 .collect::<Vec<_>>()
                 .join(", "),
         })?;
-    let mut control = ControlPlane::new(site, &config.profile.clocks, config.seed)?;
+    let mut control =
+        ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
     let schedule = control.central().latest_schedule().clone();
     let mut world = World::new(site, route, &config.profile, config.seed);
     let s0 = world.robot.state;
@@ -283,9 +297,12 @@ pub fn run(
         virtual_s: 0.0,
         timing_sigma_s: msu.timing_sigma_s,
         cells: Vec::new(),
+        collisions: Default::default(),
     };
     // The true emission times of each cycle's bursts, until it is delivered.
     let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
+    // Each cycle's trigger (which transmitters fire when), until delivered.
+    let mut triggers: BTreeMap<u64, ickon_proto::msg::control::CycleTrigger> = BTreeMap::new();
     let mut q = Queue::default();
     let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
     q.push(PHYSICS_DT_S, Event::Physics);
@@ -300,14 +317,14 @@ pub fn run(
         control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
         for trigger in control.take_triggers() {
             // Every burst of the cycle has been heard by then.
-            let period_s = control
-                .schedule_for(trigger.cycle)
-                .cycle_period
+            let period_s = trigger
+                .period(control.schedule_for(trigger.cycle))
                 .as_secs_f64();
             q.push(
                 trigger.start.as_secs_f64() + period_s + max_flight_s,
                 Event::Deliver(trigger.cycle),
             );
+            triggers.insert(trigger.cycle, trigger);
         }
         for b in control.take_fired() {
             emissions
@@ -371,12 +388,15 @@ pub fn run(
                 let fired = std::mem::replace(&mut emissions, later)
                     .remove(&k)
                     .unwrap_or_default();
+                let later = triggers.split_off(&(k + 1));
+                let trigger = std::mem::replace(&mut triggers, later).remove(&k);
                 if fired.is_empty() {
                     continue;
                 }
                 let msg = world.arrivals_from_emissions(&fired);
                 // The control plane's own schedules: never refused.
                 let _ = core.set_schedule(control.schedule_for(k).clone());
+                core.set_cycle_trigger(trigger);
                 if let Ok(Some(fix)) = core.on_arrivals(&msg) {
                     let t_true = world.msu_clock.true_s(fix.stamp.as_secs_f64());
                     let used_tx_m = fix
@@ -413,6 +433,7 @@ pub fn run(
         }
     }
     out.cells = control.sync_reports();
+    out.collisions = world.collision_counts();
     progress(1.0);
     Ok(out)
 }

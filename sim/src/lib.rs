@@ -6,10 +6,13 @@
 //! - [`profile`]: named noise profiles (`ideal`, `paper`, `harsh`).
 //! - [`robot`]: a differential drive following a route by pure pursuit.
 //! - [`acoustic`]: sound flight, line of sight, reflections, receiver choice.
+//! - [`collision`]: bursts on one carrier channel colliding, reverberation tails masking.
 //! - [`sensors`]: gyro, encoders, obstacle rangers.
 //! - [`clock`]: device clocks with offset and drift.
 //! - [`world`]: one robot's world, producing the messages its MSU receives.
 //! - [`engine`]: the discrete-event loop, one MSU core per estimator.
+//! - [`fleet`]: the first N robots of a site at once, their poses fed to the central unit.
+//! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
 //! - [`score`]: the seeds' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
 //!
@@ -18,8 +21,10 @@
 
 pub mod acoustic;
 pub mod clock;
+pub mod collision;
 pub mod control;
 pub mod engine;
+pub mod fleet;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod profile;
@@ -28,6 +33,7 @@ pub mod rng;
 pub mod robot;
 #[cfg(feature = "zenoh")]
 pub mod ros2_sensors;
+pub mod schedule_audit;
 pub mod score;
 pub mod sensors;
 pub mod world;

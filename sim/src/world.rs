@@ -10,12 +10,17 @@ use ickon_proto::site::{Route, Site, speed_of_sound_at};
 use ickon_proto::time::Time;
 use rand_chacha::ChaCha8Rng;
 
-use crate::acoustic::{self, Heard};
+use crate::acoustic;
 use crate::clock::DeviceClock;
+use crate::collision::{self, BurstTiming, CollisionCounts, Detection, Sound};
 use crate::profile::NoiseProfile;
 use crate::rng;
 use crate::robot::{DriveSpec, Robot};
 use crate::sensors::{self, Gyro, RangerMount};
+
+/// How long a burst's sound is remembered for collisions with later bursts,
+/// seconds: after it, every profile's tail is far under any burst.
+const SOUND_MEMORY_S: f64 = 0.25;
 
 /// A true pose at a true time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,6 +49,12 @@ pub struct World {
     /// The MSU's (and robot computer's) clock.
     pub msu_clock: DeviceClock,
     acoustic_rng: ChaCha8Rng,
+    collision_rng: ChaCha8Rng,
+    timing: BurstTiming,
+    /// Sounds of the last cycles that may still collide with or mask the
+    /// next cycle's bursts (pruned after [`SOUND_MEMORY_S`]).
+    recent_sounds: Vec<Sound>,
+    collisions: CollisionCounts,
     ranger_rng: ChaCha8Rng,
     c_true_m_s: f64,
     odom: [f64; 3],
@@ -54,14 +65,27 @@ pub struct World {
 impl World {
     /// The world of one robot on `route`, its random streams derived from `seed`.
     pub fn new(site: &Site, route: &Route, profile: &NoiseProfile, seed: u64) -> Self {
+        Self::for_robot(site, route, profile, seed, &route.name)
+    }
+
+    /// The world of one robot of a fleet: its own random streams are
+    /// labelled `label` (its id), so robots sharing a route draw
+    /// independent numbers; the site-wide errors (survey) stay shared.
+    pub fn for_robot(
+        site: &Site,
+        route: &Route,
+        profile: &NoiseProfile,
+        seed: u64,
+        label: &str,
+    ) -> Self {
         let drive = DriveSpec::default();
         let robot = Robot::new(
             drive,
             profile.encoders,
             route,
-            rng::stream(seed, &format!("robot/{}/slip", route.name)),
+            rng::stream(seed, &format!("robot/{label}/slip")),
         );
-        let mut clock_rng = rng::stream(seed, &format!("robot/{}/clock", route.name));
+        let mut clock_rng = rng::stream(seed, &format!("robot/{label}/clock"));
         let msu_clock = DeviceClock {
             offset_s: rng::normal(&mut clock_rng, profile.clocks.msu_offset_sigma_ms) * 1e-3,
             drift: rng::normal(&mut clock_rng, profile.clocks.msu_drift_sigma_ppm) * 1e-6,
@@ -88,12 +112,16 @@ impl World {
             history: VecDeque::new(),
             gyro: Gyro::new(
                 profile.gyro,
-                rng::stream(seed, &format!("robot/{}/gyro", route.name)),
+                rng::stream(seed, &format!("robot/{label}/gyro")),
             ),
             last_gyro_theta: s.theta_rad,
             msu_clock,
-            acoustic_rng: rng::stream(seed, &format!("robot/{}/ultrasound", route.name)),
-            ranger_rng: rng::stream(seed, &format!("robot/{}/rangers", route.name)),
+            acoustic_rng: rng::stream(seed, &format!("robot/{label}/ultrasound")),
+            collision_rng: rng::stream(seed, &format!("robot/{label}/collisions")),
+            timing: BurstTiming::of(site),
+            recent_sounds: Vec::new(),
+            collisions: CollisionCounts::default(),
+            ranger_rng: rng::stream(seed, &format!("robot/{label}/rangers")),
             c_true_m_s,
             odom: [s.x_m, s.y_m, s.theta_rad],
             last_ticks: (0, 0),
@@ -101,6 +129,11 @@ impl World {
         };
         w.record(0.0);
         w
+    }
+
+    /// What collisions and reverberation did to this robot's detections so far.
+    pub fn collision_counts(&self) -> CollisionCounts {
+        self.collisions
     }
 
     /// The current true pose.
@@ -230,7 +263,7 @@ impl World {
     /// `t_guess_s` starts the search for the mean arrival time when the robot
     /// is frozen during the cycle.
     fn hear_cycle(&mut self, emissions: &[(usize, f64)], t_guess_s: f64) -> UltrasoundArrivals {
-        let heard = if self.profile.ultrasound.motion_during_cycle {
+        let (detections, sounds) = if self.profile.ultrasound.motion_during_cycle {
             let mut rng = self.acoustic_rng.clone();
             let heard = self.hear_all(emissions, None, &mut rng);
             self.acoustic_rng = rng;
@@ -241,9 +274,9 @@ impl World {
             let mut t_ref = t_guess_s;
             for _ in 0..4 {
                 let mut trial = self.acoustic_rng.clone();
-                let h = self.hear_all(emissions, Some(t_ref), &mut trial);
+                let (h, _) = self.hear_all(emissions, Some(t_ref), &mut trial);
                 if !h.is_empty() {
-                    t_ref = h.iter().map(|a| a.t_true_s).sum::<f64>() / h.len() as f64;
+                    t_ref = h.iter().map(|a| a.heard.t_true_s).sum::<f64>() / h.len() as f64;
                 }
             }
             let mut rng = self.acoustic_rng.clone();
@@ -251,6 +284,7 @@ impl World {
             self.acoustic_rng = rng;
             heard
         };
+        let heard = self.collide(detections, sounds);
         let q_s = self.profile.ultrasound.quantisation_us * 1e-6;
         let mut arrivals: Vec<Arrival> = heard
             .iter()
@@ -274,32 +308,76 @@ impl World {
         }
     }
 
+    /// This cycle's detections among this cycle's and the recent cycles' sounds.
+    fn collide(
+        &mut self,
+        mut detections: Vec<Detection>,
+        sounds: Vec<Sound>,
+    ) -> Vec<acoustic::Heard> {
+        let mut all = std::mem::take(&mut self.recent_sounds);
+        let base = all.len();
+        for d in &mut detections {
+            d.own = d.own.map(|i| i + base);
+        }
+        all.extend(sounds);
+        let heard = collision::resolve(
+            &self.profile.ultrasound.collisions,
+            &self.timing,
+            &detections,
+            &all,
+            &mut self.collision_rng,
+            &mut self.collisions,
+        );
+        let latest = all
+            .iter()
+            .map(|s| s.onset_s)
+            .fold(f64::NEG_INFINITY, f64::max);
+        all.retain(|s| s.onset_s > latest - SOUND_MEMORY_S);
+        self.recent_sounds = all;
+        heard
+    }
+
+    /// What the detector picks up of each emission, and the sound each
+    /// leaves at the MSU (direct, in line of sight, within range).
     fn hear_all(
         &self,
         emissions: &[(usize, f64)],
         frozen_at: Option<f64>,
         rng: &mut ChaCha8Rng,
-    ) -> Vec<Heard> {
+    ) -> (Vec<Detection>, Vec<Sound>) {
         let h = self.site.msu.height_m;
         let frozen = frozen_at.map(|t| self.truth_at(t));
         let pose_at = |t: f64| {
             let s = frozen.unwrap_or_else(|| self.truth_at(t));
             ([s.x_m, s.y_m, h], s.theta_rad)
         };
-        emissions
-            .iter()
-            .filter_map(|&(tx, t_emit)| {
-                let tx = &self.site.transmitters[tx];
-                acoustic::hear(
-                    &self.site,
-                    &self.profile.ultrasound,
-                    self.c_true_m_s,
-                    tx,
-                    t_emit,
-                    &pose_at,
-                    rng,
-                )
-            })
-            .collect()
+        let noise = &self.profile.ultrasound;
+        let mut detections = Vec::with_capacity(emissions.len());
+        let mut sounds = Vec::with_capacity(emissions.len());
+        for &(tx, t_emit) in emissions {
+            let tx = &self.site.transmitters[tx];
+            let path = acoustic::propagate(&self.site, self.c_true_m_s, tx, t_emit, &pose_at);
+            let own = if path.in_sight && path.direct_m <= noise.max_range_m {
+                sounds.push(Sound {
+                    tx_id: tx.id,
+                    channel: tx.channel,
+                    onset_s: t_emit + path.tau_s,
+                    level_db: collision::level_db(&noise.collisions, path.direct_m),
+                });
+                Some(sounds.len() - 1)
+            } else {
+                None
+            };
+            let heard =
+                acoustic::detect(&self.site, noise, self.c_true_m_s, tx, t_emit, &path, rng);
+            if let Some(heard) = heard {
+                detections.push(Detection {
+                    heard,
+                    channel: tx.channel,
+                    own,
+                });
+            }
+        }
+        (detections, sounds)
     }
 }

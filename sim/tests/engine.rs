@@ -10,6 +10,7 @@ fn config(route: &str, profile: &str, seed: u64, estimators: &[&str]) -> RunConf
         profile: NoiseProfile::by_name(profile).unwrap(),
         seed,
         estimators: estimators.iter().map(|s| s.to_string()).collect(),
+        central: Default::default(),
     }
 }
 

@@ -11,6 +11,8 @@ fn trigger(epoch: u64, cycle: u64, start: Time) -> CycleTrigger {
         start,
         schedule_version: 4,
         epoch,
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
     }
 }
 
@@ -116,6 +118,8 @@ fn a_restarted_central_units_cycle_0_fires_at_once_and_the_old_one_is_fenced() {
         start: new_start,
         schedule_version: 1,
         epoch,
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
     };
     core.handle(now, Event::Trigger(t0));
     let (fired, now) = run_until(&mut core, now, new_start + Duration::from_millis(60));

@@ -94,6 +94,8 @@ fn bursts_are_programmed_ahead_on_the_local_clock_and_counted() {
             start,
             schedule_version: 4,
             epoch: EPOCH,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(400));
@@ -119,6 +121,8 @@ fn a_trigger_for_an_unknown_schedule_waits_for_it_and_skips_only_past_slots() {
             start,
             schedule_version: 7,
             epoch: EPOCH,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     assert!(out.contains(&Output::RequestSchedule), "{out:?}");
@@ -153,6 +157,8 @@ fn without_a_clock_estimate_a_trigger_is_a_fault_not_a_burst() {
             start: Time::from_nanos(500 * MS),
             schedule_version: 1,
             epoch: EPOCH,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     assert_eq!(core.counters().triggers_unplanned, 1);
@@ -219,6 +225,8 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
                 start: now + Duration::from_millis(3_600_000),
                 schedule_version: 4,
                 epoch: EPOCH,
+                firing: Vec::new(),
+                cycle_period: ickon_proto::time::Duration::ZERO,
             }),
         );
     }
@@ -234,6 +242,8 @@ fn a_trigger_far_from_now_is_refused_and_holds_nothing() {
             start,
             schedule_version: 4,
             epoch: EPOCH,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         }),
     );
     let (fired, _) = run_until(&mut core, now, now + Duration::from_millis(300));
@@ -250,8 +260,10 @@ fn a_stopping_cell_drops_its_planned_bursts_says_so_and_then_does_nothing() {
         start,
         schedule_version: 4,
         epoch: EPOCH,
+        firing: Vec::new(),
+        cycle_period: ickon_proto::time::Duration::ZERO,
     };
-    core.handle(now, Event::Trigger(trigger));
+    core.handle(now, Event::Trigger(trigger.clone()));
     let out = core.handle(now, Event::Shutdown);
     match out.as_slice() {
         [Output::Status(s)] => assert_eq!(s.faults, ["stopping: 2 planned bursts dropped"]),

@@ -9,6 +9,8 @@ fn trigger(epoch: u64, cycle: u64, start_ms: i64) -> CycleTrigger {
         start: Time::from_nanos(start_ms * 1_000_000),
         schedule_version: 1,
         epoch,
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
     }
 }
 

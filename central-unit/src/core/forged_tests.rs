@@ -98,6 +98,8 @@ fn a_trigger_it_did_not_send_is_counted() {
         start: Time(600_000_000),
         schedule_version: 1,
         epoch: c.epoch(),
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
     };
     c.handle(Time(6_000), Event::TriggerSeen(forged));
     assert_eq!(c.foreign_control(), 1);

@@ -78,15 +78,20 @@ impl CentralCore {
         let Some(f) = &mut self.standby else {
             return;
         };
-        if f.last_trigger.is_some_and(|t| trigger.epoch < t.epoch) {
+        if f.last_trigger
+            .as_ref()
+            .is_some_and(|t| trigger.epoch < t.epoch)
+        {
             return;
         }
         let period = f
             .schedules
             .get_in(trigger.epoch, trigger.schedule_version)
             .map_or(own_period, |s| s.cycle_period);
-        f.last_trigger = Some(trigger);
+        // The lease counts whole periods of the schedule, never the shorter
+        // cycles of occupancy firing: a late takeover, never a false one.
         f.lease_end = trigger.start + period * LEASE_CYCLES;
+        f.last_trigger = Some(trigger);
     }
 
     pub(super) fn lease_expired(&self, now: Time) -> bool {
@@ -99,11 +104,16 @@ impl CentralCore {
         let Some(f) = self.standby.take() else {
             return Vec::new();
         };
-        let followed = f.last_trigger.map(|t| t.epoch).max(f.schedules.epoch());
+        let followed = f
+            .last_trigger
+            .as_ref()
+            .map(|t| t.epoch)
+            .max(f.schedules.epoch());
         let after = followed.map_or(self.epoch, |e| e.max(self.epoch));
         self.epoch = epoch_of(now, Some(after));
         let base = f
             .last_trigger
+            .as_ref()
             .and_then(|t| f.schedules.get_in(t.epoch, t.schedule_version))
             .or(f.schedules.latest())
             .cloned()
@@ -116,8 +126,8 @@ impl CentralCore {
         };
         // The first cycle whose trigger can still go out in time, on the
         // followed rhythm (or a start delay from now if nothing was followed).
-        let mut start = match f.last_trigger {
-            Some(t) => t.start + schedule.cycle_period,
+        let mut start = match &f.last_trigger {
+            Some(t) => t.start + t.period(&schedule),
             None => now + self.config.start_delay,
         };
         for _ in 0..100_000 {

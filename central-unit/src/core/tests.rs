@@ -18,7 +18,7 @@ fn all_alive() -> CentralCore {
 fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
     out.iter()
         .filter_map(|o| match o {
-            Output::Trigger(t) => Some(*t),
+            Output::Trigger(t) => Some(t.clone()),
             _ => None,
         })
         .collect()
@@ -359,4 +359,55 @@ fn a_live_cell_that_stops_firing_is_down_after_two_missed_cycles() {
     // It fires again: up as soon as a fired cycle is checked.
     run_cycles(&mut c, 3);
     assert!(health(&c, "c2").up);
+}
+
+#[test]
+fn with_occupancy_the_triggers_name_only_what_a_tracked_robot_hears() {
+    use crate::occupancy::FiringConfig;
+    use ickon_proto::msg::robot::RobotPose;
+    let (site, _) = Site::builtin("warehouse").unwrap();
+    let config = CentralConfig {
+        firing: FiringConfig {
+            occupancy: true,
+            ..FiringConfig::default()
+        },
+        ..CentralConfig::default()
+    };
+    let mut c = CentralCore::new(site.clone(), String::new(), config, Time(0)).unwrap();
+    let all = c.latest_schedule().emissions.len();
+    let robot = site.robots[0].id.clone();
+    c.handle(
+        Time(0),
+        Event::RobotAlive {
+            id: robot.clone(),
+            up: true,
+        },
+    );
+    // New robot, no pose: the whole schedule fires, named one by one.
+    let first = triggers(&c.handle(Time::from_secs_f64(1.0), Event::Tick));
+    assert!(!first.is_empty());
+    assert!(first.iter().all(|t| t.firing.len() == all));
+    let start = site.robots[0].start;
+    let pose = RobotPose {
+        stamp: Time(0),
+        x_m: start[0],
+        y_m: start[1],
+        theta_rad: start[2],
+        covariance: [0.0025, 0.0, 0.0, 0.0, 0.0025, 0.0, 0.0, 0.0, 0.01],
+        estimator: "tdoa-ekf".into(),
+        fix_seq: 1,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
+    };
+    let now = Time::from_secs_f64(1.0);
+    c.handle(now, Event::Pose { robot, pose });
+    let later = triggers(&c.handle(Time::from_secs_f64(2.0), Event::Tick));
+    let last = later.last().unwrap();
+    assert!(
+        last.firing.len() < all / 2,
+        "{} of {all}",
+        last.firing.len()
+    );
+    assert!(last.period(c.latest_schedule()) < c.latest_schedule().cycle_period);
+    // The admin sees that cycle's firing set and rate.
+    assert_eq!(c.current_firing().emissions.len(), last.firing.len());
 }

@@ -6,6 +6,7 @@
 //! same measurements. Tables go to stdout (or one JSON document with
 //! `--json`), the progress bar to stderr.
 
+mod fleet;
 mod plot;
 pub(crate) mod table;
 
@@ -49,6 +50,23 @@ pub struct EvalArgs {
     /// Write PNG plots into this directory.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Run the first N robots of the site at once for `--duration` seconds
+    /// instead of one robot per route, and report each robot's fix rate.
+    #[arg(long)]
+    pub robots: Option<usize>,
+    /// Virtual seconds of a `--robots` run.
+    #[arg(long, default_value_t = 60.0)]
+    pub duration: f64,
+    /// The central unit's schedule: `tight` (from the geometry) or `uniform` (before issue 20).
+    #[arg(long, default_value = "tight")]
+    pub schedule: String,
+    /// Which transmitters fire in a `--robots` run: `occupancy` (where the robots are) or `all`.
+    #[arg(long, default_value = "occupancy")]
+    pub firing: String,
+    /// With `--firing occupancy`: a transmitter fires when it is this close
+    /// to a robot's uncertainty region, metres.
+    #[arg(long, default_value_t = ickon_central::occupancy::FiringConfig::default().fire_range_m)]
+    pub fire_range_m: f64,
 }
 
 /// Runs `ickon eval` and returns the exit code.
@@ -67,6 +85,16 @@ pub fn run(args: EvalArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
+    if !["tight", "uniform"].contains(&args.schedule.as_str()) {
+        eprintln!(
+            "error: unknown schedule `{}` (known: tight, uniform)",
+            args.schedule
+        );
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    if let Some(robots) = args.robots {
+        return fleet::run(&site, profile, robots, &args);
+    }
     let estimators: Vec<String> = match args.estimator.as_str() {
         "all" => estimator::names().iter().map(|s| s.to_string()).collect(),
         name if estimator::names().contains(&name) => vec![name.to_owned()],
@@ -119,6 +147,13 @@ pub fn run(args: EvalArgs) -> ExitCode {
                 "route": o.config.route,
                 "cells": o.cells,
             })).collect::<Vec<_>>(),
+            "channel": outputs.iter().map(|o| serde_json::json!({
+                "route": o.config.route,
+                "cycles_per_s": ickon_central::update_rate_hz(&o.schedule),
+                "fixes_per_s": if o.virtual_s > 0.0 { o.fixes.len() as f64 / o.virtual_s } else { 0.0 },
+                "collisions": o.collisions,
+                "collision_loss_share": o.collisions.lost_share(),
+            })).collect::<Vec<_>>(),
         });
         println!("{doc}");
     } else {
@@ -166,6 +201,11 @@ fn simulate(
     // With --json and stderr not a terminal, nobody watches: stay hidden.
     let may_show = !args.json || std::io::stderr().is_terminal();
     let started = Instant::now();
+    let policy = if args.schedule == "uniform" {
+        ickon_central::core::SchedulePolicy::Uniform
+    } else {
+        ickon_central::core::SchedulePolicy::Tight
+    };
     let results: Vec<_> = std::thread::scope(|scope| {
         let handles: Vec<_> = routes
             .iter()
@@ -177,6 +217,10 @@ fn simulate(
                     profile: profile.clone(),
                     seed: args.seed,
                     estimators: estimators.to_vec(),
+                    central: ickon_central::core::CentralConfig {
+                        schedule: policy,
+                        ..Default::default()
+                    },
                 };
                 scope.spawn(move || {
                     let mut done = 0u64;

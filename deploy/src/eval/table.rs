@@ -110,4 +110,30 @@ pub fn print_cells(outputs: &[ickon_sim::RunOutput]) {
             .collect();
         println!("  {:>9}: {}", o.config.route, cells.join("; "));
     }
+    println!(
+        "\nschedule and channel (cycles/s of the schedule; detections lost to collisions and reverberation)"
+    );
+    for o in outputs {
+        let c = &o.collisions;
+        println!(
+            "  {:>9}: {:.2} cycles/s, {} fixes/s; {} detections, {} collided ({} misdecoded), {} masked: {:.2} % lost",
+            o.config.route,
+            ickon_central::update_rate_hz(&o.schedule),
+            fmt_rate(o.fixes.len(), o.virtual_s),
+            c.detected,
+            c.collided,
+            c.misdecoded,
+            c.masked,
+            100.0 * c.lost_share()
+        );
+    }
+}
+
+/// `count` per second of `seconds`, two decimals (`-` for no time).
+fn fmt_rate(count: usize, seconds: f64) -> String {
+    if seconds > 0.0 {
+        format!("{:.2}", count as f64 / seconds)
+    } else {
+        "-".into()
+    }
 }

@@ -153,6 +153,8 @@ fn feed<W: std::io::Write + std::io::Seek>(
                 start: now,
                 schedule_version: 1,
                 epoch: 1,
+                firing: Vec::new(),
+                cycle_period: ickon_proto::time::Duration::ZERO,
             };
             put(recorder, &keys.central_cycle(), &trigger, now)?;
             for (c, cell) in cells.iter().enumerate() {

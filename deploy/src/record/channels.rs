@@ -190,6 +190,8 @@ mod tests {
             start: Time::from_nanos(9),
             schedule_version: 1,
             epoch: 1,
+            firing: Vec::new(),
+            cycle_period: ickon_proto::time::Duration::ZERO,
         })
         .unwrap();
         assert!(prepare(&p, &schedule_bytes).is_err());

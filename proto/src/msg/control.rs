@@ -69,8 +69,17 @@ pub struct Schedule {
     pub epoch: u64,
 }
 
-/// `central/cycle`: the trigger of one cycle.
+/// One transmitter named by a cycle trigger, and when it fires.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Firing {
+    /// Transmitter id.
+    pub tx_id: u32,
+    /// Offset of the emission from the cycle start.
+    pub offset: Duration,
+}
+
+/// `central/cycle`: the trigger of one cycle.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CycleTrigger {
     /// Cycle number, increasing by one per cycle.
     pub cycle: u64,
@@ -84,6 +93,54 @@ pub struct CycleTrigger {
     /// recognised at its first message, and cycle numbers count from 0
     /// within each epoch.
     pub epoch: u64,
+    /// The transmitters that fire in this cycle and their offsets, when the
+    /// central unit fires only where robots are (issue 20); empty: every
+    /// emission of the schedule fires at its scheduled offset.
+    pub firing: Vec<Firing>,
+    /// This cycle's length; zero: the schedule's `cycle_period`.
+    pub cycle_period: Duration,
+}
+
+impl CycleTrigger {
+    /// The emissions of this cycle: the named firings (their cells taken
+    /// from `schedule`, transmitters it does not know left out), or the
+    /// whole schedule when none are named.
+    pub fn emissions(&self, schedule: &Schedule) -> Vec<Emission> {
+        if self.firing.is_empty() {
+            return schedule.emissions.clone();
+        }
+        self.firing
+            .iter()
+            .enumerate()
+            .filter_map(|(k, f)| {
+                let e = schedule.emissions.iter().find(|e| e.tx_id == f.tx_id)?;
+                Some(Emission {
+                    offset: f.offset,
+                    slot: u32::try_from(k).unwrap_or(u32::MAX),
+                    ..e.clone()
+                })
+            })
+            .collect()
+    }
+
+    /// This cycle's length under `schedule`.
+    pub fn period(&self, schedule: &Schedule) -> Duration {
+        if self.cycle_period > Duration::ZERO {
+            self.cycle_period
+        } else {
+            schedule.cycle_period
+        }
+    }
+
+    /// `schedule` as it applies to this cycle: only the named firings, at
+    /// their offsets, and this cycle's length (what an MSU solves with).
+    pub fn schedule_of_cycle(&self, schedule: &Schedule) -> Schedule {
+        Schedule {
+            emissions: self.emissions(schedule),
+            cycle_period: self.period(schedule),
+            ..schedule.clone()
+        }
+    }
 }
 
 /// Query payload on `central/clock`: the first timestamp of an NTP-style exchange.

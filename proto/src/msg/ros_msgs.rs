@@ -35,6 +35,7 @@ pub const MSG_FILES: &[(&str, &str)] = &[
     ("SiteInfo", include_str!("../../msg/SiteInfo.msg")),
     ("Emission", include_str!("../../msg/Emission.msg")),
     ("Schedule", include_str!("../../msg/Schedule.msg")),
+    ("Firing", include_str!("../../msg/Firing.msg")),
     ("CycleTrigger", include_str!("../../msg/CycleTrigger.msg")),
     ("Burst", include_str!("../../msg/Burst.msg")),
     ("CellStatus", include_str!("../../msg/CellStatus.msg")),

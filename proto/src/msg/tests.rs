@@ -65,6 +65,8 @@ fn control_messages_round_trip() {
         start: Time(123_456_789),
         schedule_version: 2,
         epoch: 42,
+        firing: Vec::new(),
+        cycle_period: crate::time::Duration::ZERO,
     });
     round_trip(ClockRequest {
         cell_id: "c3".into(),
@@ -308,6 +310,11 @@ fn cycle_trigger_matches_hand_written_cdr() {
         start: Time(-2),
         schedule_version: 0xAABB_CCDD,
         epoch: 0x1122_3344_5566_7788,
+        firing: vec![crate::msg::control::Firing {
+            tx_id: 5,
+            offset: crate::time::Duration::from_nanos(3),
+        }],
+        cycle_period: crate::time::Duration::from_nanos(7),
     };
     #[rustfmt::skip]
     let expected: Vec<u8> = vec![
@@ -316,7 +323,11 @@ fn cycle_trigger_matches_hand_written_cdr() {
         0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, // i64 start = -2
         0xDD, 0xCC, 0xBB, 0xAA,                         // u32 schedule_version
         0x00, 0x00, 0x00, 0x00,                         // pad 20 -> 24 for the u64
-        0x88, 0x77, 0x66, 0x55, 0x44, 0x33, 0x22, 0x11, // u64 epoch
+        0x88, 0x77, 0x66, 0x55, 0x44, 0x33, 0x22, 0x11, // u64 epoch at 24
+        0x01, 0x00, 0x00, 0x00,                         // u32 length of firing at 32
+        0x05, 0x00, 0x00, 0x00,                         // firing[0].tx_id at 36
+        0x03, 0, 0, 0, 0, 0, 0, 0,                      // firing[0].offset at 40
+        0x07, 0, 0, 0, 0, 0, 0, 0,                      // i64 cycle_period at 48
     ];
     assert_eq!(encode(&msg).unwrap(), expected);
     assert_eq!(decode::<CycleTrigger>(&expected).unwrap(), msg);
@@ -497,11 +508,15 @@ fn big_endian_payloads_decode_too() {
     be.extend_from_slice(&5i64.to_be_bytes());
     be.extend_from_slice(&1u32.to_be_bytes());
     be.extend_from_slice(&[0; 4]);
-    be.extend_from_slice(&9u64.to_be_bytes());
+    be.extend_from_slice(&9u64.to_be_bytes()); // epoch
+    be.extend_from_slice(&0u32.to_be_bytes()); // no firings named
+    be.extend_from_slice(&[0; 4]);
+    be.extend_from_slice(&11i64.to_be_bytes()); // cycle_period
     let t: CycleTrigger = decode(&be).unwrap();
     assert_eq!(t.cycle, 7);
     assert_eq!(t.start, Time(5));
     assert_eq!(t.epoch, 9);
+    assert_eq!(t.cycle_period, crate::time::Duration::from_nanos(11));
 }
 
 mod random {

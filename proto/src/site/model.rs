@@ -15,6 +15,9 @@ pub struct MsuGeometry {
     pub receiver_angles_rad: Vec<f64>,
     /// Height of the receivers above the floor, metres.
     pub height_m: f64,
+    /// Number of carrier channels the receivers can tell apart (channels
+    /// `0..channels`); every transmitter's channel must be one of them.
+    pub channels: u8,
 }
 
 /// One cell: a floor polygon served by one cell controller.
@@ -47,6 +50,9 @@ pub struct Transmitter {
     pub cell: String,
     /// Position, metres (x, y on the floor, z height).
     pub position_m: [f64; 3],
+    /// Carrier channel (0 unless the file says otherwise): bursts on
+    /// different channels do not collide at a receiver.
+    pub channel: u8,
 }
 
 /// A wall segment that blocks sound up to its height.
@@ -163,6 +169,12 @@ pub struct Site {
     pub temperature_c: Option<f64>,
     /// Reverberation guard added to every slot, seconds.
     pub guard_time_s: f64,
+    /// Length of one coded burst, seconds: two bursts on one channel must
+    /// reach a receiver at least this plus [`Site::decoder_window_s`] apart.
+    pub burst_length_s: f64,
+    /// How long after a burst's onset the MSU's decoder still takes in
+    /// sound as part of it, seconds (beyond the burst itself).
+    pub decoder_window_s: f64,
     /// Ceiling height, metres (walls and columns without a height reach it).
     pub ceiling_height_m: f64,
     /// MSU geometry, the same on every robot.

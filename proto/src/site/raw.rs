@@ -11,6 +11,8 @@ pub(super) struct RawMsu {
     pub receivers: Spanned<i64>,
     pub receiver_angles_deg: Option<Spanned<Vec<f64>>>,
     pub height_m: Spanned<f64>,
+    /// Carrier channels the MSU can hear (default 1).
+    pub channels: Option<Spanned<i64>>,
 }
 
 /// `[[cells]]`
@@ -28,6 +30,8 @@ pub(super) struct RawTransmitter {
     pub id: Spanned<i64>,
     pub cell: Spanned<String>,
     pub position: Spanned<[f64; 3]>,
+    /// Carrier channel, from 0 (default 0).
+    pub channel: Option<Spanned<i64>>,
 }
 
 /// `[[walls]]`
@@ -77,6 +81,8 @@ pub(super) struct RawSite {
     pub speed_of_sound_m_s: Option<Spanned<f64>>,
     pub temperature_c: Option<Spanned<f64>>,
     pub guard_time_ms: Option<Spanned<f64>>,
+    pub burst_length_ms: Option<Spanned<f64>>,
+    pub decoder_window_ms: Option<Spanned<f64>>,
     pub ceiling_height_m: Option<Spanned<f64>>,
     pub msu: Spanned<RawMsu>,
     #[serde(default)]

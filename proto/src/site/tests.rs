@@ -249,3 +249,43 @@ fn line_of_sight_is_blocked_by_walls_but_not_over_them() {
     low.columns.clear();
     assert!(low.line_of_sight(tx, [18.0, 6.0, 0.5]));
 }
+
+#[test]
+fn carrier_channels_default_to_one_and_a_transmitter_may_not_use_more_than_the_msu_hears() {
+    let site = Site::default_site();
+    assert_eq!(site.msu.channels, 1);
+    assert!(site.transmitters.iter().all(|t| t.channel == 0));
+    assert!((site.burst_length_s - 0.002).abs() < 1e-12);
+    assert!((site.decoder_window_s - 0.0005).abs() < 1e-12);
+
+    let text = broken(
+        "id = 12\ncell = \"c1\"",
+        "id = 12\ncell = \"c1\"\nchannel = 1",
+    );
+    let issues = issues_of(&text);
+    assert_eq!(issues.len(), 1, "{issues:?}");
+    assert_eq!(issues[0].field, "transmitters[1].channel");
+    assert_eq!(issues[0].line, line_of(&text, "channel = 1"));
+    assert!(
+        issues[0].message.contains("declares 1 channel"),
+        "{}",
+        issues[0].message
+    );
+
+    let two = text.replace("channels = 1", "channels = 2");
+    let site = Site::from_toml(&two, "two.toml").unwrap();
+    assert_eq!(site.msu.channels, 2);
+    assert_eq!(site.transmitter(12).unwrap().channel, 1);
+
+    for bad in ["channels = 0", "channels = 17", "channels = -3"] {
+        let issues = issues_of(&broken("channels = 1", bad));
+        assert_eq!(issues[0].field, "msu.channels", "{bad}");
+    }
+    let issues = issues_of(&broken(
+        "id = 12\ncell = \"c1\"",
+        "id = 12\ncell = \"c1\"\nchannel = -1",
+    ));
+    assert_eq!(issues[0].field, "transmitters[1].channel");
+    let issues = issues_of(&broken("burst_length_ms = 2.0", "burst_length_ms = -2.0"));
+    assert_eq!(issues[0].field, "burst_length_ms");
+}

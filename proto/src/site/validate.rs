@@ -17,6 +17,12 @@ const WALL_CLEARANCE_M: f64 = 0.05;
 const DEFAULT_TEMPERATURE_C: f64 = 20.0;
 /// Reverberation guard when the file gives none, seconds.
 const DEFAULT_GUARD_TIME_MS: f64 = 10.0;
+/// Burst length when the file gives none, milliseconds.
+const DEFAULT_BURST_LENGTH_MS: f64 = 2.0;
+/// Decoder window when the file gives none, milliseconds.
+const DEFAULT_DECODER_WINDOW_MS: f64 = 0.5;
+/// Most carrier channels an MSU can declare.
+pub(super) const MAX_CHANNELS: i64 = 16;
 /// Ceiling when the file gives none, metres.
 const DEFAULT_CEILING_M: f64 = 3.0;
 /// Reference points per route when the file gives no count (seed 000 uses 60).
@@ -169,6 +175,23 @@ fn validate(ctx: &mut Ctx, raw: RawSite) -> Site {
         }
         None => DEFAULT_GUARD_TIME_MS,
     };
+    let mut optional_ms = |v: &Option<Spanned<f64>>, field: &str, default: f64| match v {
+        Some(g) => {
+            ctx.in_range(g, field, 0.0, 100.0, "ms");
+            *g.get_ref()
+        }
+        None => default,
+    };
+    let burst_ms = optional_ms(
+        &raw.burst_length_ms,
+        "burst_length_ms",
+        DEFAULT_BURST_LENGTH_MS,
+    );
+    let window_ms = optional_ms(
+        &raw.decoder_window_ms,
+        "decoder_window_ms",
+        DEFAULT_DECODER_WINDOW_MS,
+    );
     let ceiling = match &raw.ceiling_height_m {
         Some(c) => {
             ctx.in_range(c, "ceiling_height_m", 1.0, 50.0, "m");
@@ -179,7 +202,7 @@ fn validate(ctx: &mut Ctx, raw: RawSite) -> Site {
 
     let msu = validate_msu(ctx, &raw.msu);
     let cells = validate_cells(ctx, &raw.cells);
-    let transmitters = validate_transmitters(ctx, &raw.transmitters, &cells);
+    let transmitters = validate_transmitters(ctx, &raw.transmitters, &cells, msu.channels);
     let walls = validate_walls(ctx, &raw.walls, ceiling);
     let columns = validate_columns(ctx, &raw.columns, ceiling);
 
@@ -188,6 +211,8 @@ fn validate(ctx: &mut Ctx, raw: RawSite) -> Site {
         speed_of_sound_m_s: speed,
         temperature_c: temperature,
         guard_time_s: guard_ms / 1000.0,
+        burst_length_s: burst_ms / 1000.0,
+        decoder_window_s: window_ms / 1000.0,
         ceiling_height_m: ceiling,
         msu,
         cells,
@@ -236,9 +261,24 @@ fn validate_msu(ctx: &mut Ctx, msu: &Spanned<RawMsu>) -> MsuGeometry {
             .collect(),
     };
     ctx.in_range(&m.height_m, "msu.height_m", 0.0, 5.0, "m");
+    let channels = match &m.channels {
+        Some(c) => {
+            let n = *c.get_ref();
+            if !(1..=MAX_CHANNELS).contains(&n) {
+                ctx.issue(
+                    c.span(),
+                    "msu.channels",
+                    format!("{n} channels: expected 1 to {MAX_CHANNELS}"),
+                );
+            }
+            n.clamp(1, MAX_CHANNELS) as u8
+        }
+        None => 1,
+    };
     MsuGeometry {
         receiver_angles_rad: angles_rad,
         height_m: *m.height_m.get_ref(),
+        channels,
     }
 }
 
@@ -282,6 +322,7 @@ fn validate_transmitters(
     ctx: &mut Ctx,
     raw: &[RawTransmitter],
     cells: &[Cell],
+    msu_channels: u8,
 ) -> Vec<Transmitter> {
     let mut seen: HashMap<i64, usize> = HashMap::new();
     let mut out = Vec::new();
@@ -334,10 +375,29 @@ fn validate_transmitters(
                 ),
             );
         }
+        let channel = match &t.channel {
+            Some(c) => {
+                let ch = *c.get_ref();
+                if !(0..i64::from(msu_channels)).contains(&ch) {
+                    ctx.issue(
+                        c.span(),
+                        format!("{field}.channel"),
+                        format!(
+                            "channel {ch}: the MSU declares {msu_channels} channel(s) it can hear \
+                             (msu.channels), so expected 0 to {}",
+                            msu_channels - 1
+                        ),
+                    );
+                }
+                ch.clamp(0, MAX_CHANNELS - 1) as u8
+            }
+            None => 0,
+        };
         out.push(Transmitter {
             id: id.clamp(0, i64::from(u32::MAX)) as u32,
             cell: t.cell.get_ref().clone(),
             position_m: pos,
+            channel,
         });
     }
     out

@@ -25,7 +25,7 @@ fn standby(now: Time) -> CentralCore {
 fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
     out.iter()
         .filter_map(|o| match o {
-            Output::Trigger(t) => Some(*t),
+            Output::Trigger(t) => Some(t.clone()),
             _ => None,
         })
         .collect()
@@ -41,7 +41,7 @@ fn run_both(a: &mut CentralCore, s: &mut CentralCore, cycles: usize) -> CycleTri
         for o in a.tick(now) {
             let ev = match o {
                 Output::Trigger(t) => {
-                    last = Some(t);
+                    last = Some(t.clone());
                     n += 1;
                     Event::TriggerSeen(t)
                 }
@@ -96,7 +96,7 @@ fn a_hung_active_is_replaced_after_its_lease_and_steps_down_when_it_wakes() {
     let out = s.handle(lease, Event::Tick);
     assert!(s.is_active(), "{out:?}");
     // The old one wakes and hears the new epoch: it stands by.
-    let t = triggers(&s.tick(s.next_wake()))[0];
+    let t = triggers(&s.tick(s.next_wake()))[0].clone();
     a.handle(t.start, Event::TriggerSeen(t));
     assert!(!a.is_active());
     assert!(

@@ -1,0 +1,258 @@
+//! How far apart two transmitters must fire, from the geometry (issue 20's
+//! "tighter slots"), and the packing of a set of transmitters into one
+//! cycle.
+//!
+//! Two transmitters **conflict** when they share a carrier channel and some
+//! point of the floor (MSU height, sampled every [`GRID_M`]) hears both:
+//! within [`AUDIBLE_RANGE_M`] and in line of sight. When `j` fires after
+//! `i`, its burst must reach every such point at least the burst length
+//! plus the decoder window plus the reverberation guard after `i`'s:
+//!
+//! `need(i -> j) = max_p (d_i(p) - d_j(p)) / c + burst + window + guard`
+//!
+//! instead of one slot of the longest flight of any cell for every
+//! emission. Transmitters on different channels, or never heard together,
+//! may fire at the same instant.
+//!
+//! [`SpacingTable::pack`] places a set of transmitters greedily (most
+//! conflicts first, then site order; each at the earliest time that keeps
+//! every spacing with those placed), and the cycle period is the least
+//! that keeps the spacings into the next cycle too. Deterministic: the
+//! same site and set give the same offsets on every machine.
+
+use ickon_proto::site::Site;
+use ickon_proto::time::Duration;
+
+use crate::schedule::{AUDIBLE_RANGE_M, GRID_M, sample_points};
+
+/// Spacings needed between every pair of transmitters: `need[i][j]` is the
+/// least time from `i`'s emission to `j`'s when `j` fires after `i`;
+/// `None` when they do not conflict.
+pub type NeedMatrix = Vec<Vec<Option<Duration>>>;
+
+/// The spacings between the transmitters of some cells.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpacingTable {
+    /// Transmitter ids, site order.
+    pub tx_ids: Vec<u32>,
+    /// The cell of each.
+    pub cells: Vec<String>,
+    /// The spacings over the whole floor.
+    need: NeedMatrix,
+    /// The floor sample points (MSU height is the site's).
+    points: Vec<[f64; 2]>,
+    /// At each point, the transmitters audible there and their distance, metres.
+    heard: Vec<Vec<(usize, f64)>>,
+    channels: Vec<u8>,
+    positions: Vec<[f64; 3]>,
+    fixed: Duration,
+    speed_m_s: f64,
+}
+
+/// Where each transmitter of a set fires in a cycle, and the cycle period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Packing {
+    /// `(index into the table, offset from the cycle start)`, by offset then index.
+    pub offsets: Vec<(usize, Duration)>,
+    /// The least cycle period that keeps every spacing into the next cycle.
+    pub period: Duration,
+}
+
+impl SpacingTable {
+    /// The table of the transmitters of `cells` (ids) on `site`.
+    pub fn new(site: &Site, cells: &[String]) -> Self {
+        let txs: Vec<_> = site
+            .transmitters
+            .iter()
+            .filter(|t| cells.contains(&t.cell))
+            .collect();
+        let h = site.msu.height_m;
+        let mut points = Vec::new();
+        let mut heard = Vec::new();
+        for cell in &site.cells {
+            for p in sample_points(cell, GRID_M) {
+                let at = [p[0], p[1], h];
+                let here: Vec<(usize, f64)> = txs
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, t)| {
+                        let d = distance3(t.position_m, at);
+                        (d <= AUDIBLE_RANGE_M && site.line_of_sight(t.position_m, at))
+                            .then_some((k, d))
+                    })
+                    .collect();
+                points.push(p);
+                heard.push(here);
+            }
+        }
+        let mut table = Self {
+            tx_ids: txs.iter().map(|t| t.id).collect(),
+            cells: txs.iter().map(|t| t.cell.clone()).collect(),
+            need: Vec::new(),
+            points,
+            heard,
+            channels: txs.iter().map(|t| t.channel).collect(),
+            positions: txs.iter().map(|t| t.position_m).collect(),
+            fixed: Duration::from_secs_f64(
+                site.burst_length_s + site.decoder_window_s + site.guard_time_s,
+            ),
+            speed_m_s: site.speed_of_sound_m_s,
+        };
+        table.need = table.needs_over(0..table.points.len());
+        table
+    }
+
+    /// The spacings needed where only the sample points `points` (indices)
+    /// matter: bursts that never meet at any of them do not conflict.
+    pub fn needs_over(&self, points: impl Iterator<Item = usize>) -> NeedMatrix {
+        let n = self.tx_ids.len();
+        // Largest d_i - d_j over points hearing both, metres.
+        let mut ahead = vec![vec![f64::NEG_INFINITY; n]; n];
+        for p in points {
+            let Some(here) = self.heard.get(p) else {
+                continue;
+            };
+            for &(i, di) in here {
+                for &(j, dj) in here {
+                    if self.channels[i] == self.channels[j] {
+                        ahead[i][j] = ahead[i][j].max(di - dj);
+                    }
+                }
+            }
+        }
+        (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        let m = if i == j { 0.0 } else { ahead[i][j] };
+                        (m.is_finite() || i == j).then(|| {
+                            self.fixed + Duration::from_secs_f64(m.max(0.0) / self.speed_m_s)
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The sample points within `radius_m` of `centre` (indices).
+    pub fn points_within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
+        (0..self.points.len())
+            .filter(|&k| {
+                let p = self.points[k];
+                (p[0] - centre[0]).hypot(p[1] - centre[1]) <= radius_m
+            })
+            .collect()
+    }
+
+    /// The transmitters audible at sample point `point` and their distance, metres.
+    pub fn heard_at(&self, point: usize) -> &[(usize, f64)] {
+        self.heard.get(point).map_or(&[], Vec::as_slice)
+    }
+
+    /// Position of transmitter `i`, metres.
+    pub fn position(&self, i: usize) -> [f64; 3] {
+        self.positions.get(i).copied().unwrap_or([f64::NAN; 3])
+    }
+
+    /// Index of transmitter `tx_id`.
+    pub fn index_of(&self, tx_id: u32) -> Option<usize> {
+        self.tx_ids.iter().position(|&t| t == tx_id)
+    }
+
+    /// Least time from `i`'s emission to `j`'s when `j` comes after, if they conflict.
+    pub fn need(&self, i: usize, j: usize) -> Option<Duration> {
+        need_of(&self.need, i, j)
+    }
+
+    /// Packs the transmitters `set` (indices; duplicates and unknown ones ignored).
+    pub fn pack(&self, set: &[usize]) -> Packing {
+        self.pack_with(set, &self.need, &|_| 0.0)
+    }
+
+    /// Packs `set` under the spacings `need`; among equally constrained
+    /// transmitters, those with the smaller `order` key go first.
+    pub fn pack_with(
+        &self,
+        set: &[usize],
+        need: &NeedMatrix,
+        order: &dyn Fn(usize) -> f64,
+    ) -> Packing {
+        let need = |i: usize, j: usize| need_of(need, i, j);
+        let mut set: Vec<usize> = set
+            .iter()
+            .copied()
+            .filter(|&i| i < self.tx_ids.len())
+            .collect();
+        set.sort_unstable();
+        set.dedup();
+        let degree = |i: usize| {
+            set.iter()
+                .filter(|&&j| j != i && need(i, j).is_some())
+                .count()
+        };
+        let mut ranked: Vec<(std::cmp::Reverse<usize>, f64, usize)> = set
+            .iter()
+            .map(|&i| (std::cmp::Reverse(degree(i)), order(i), i))
+            .collect();
+        ranked.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let mut placed: Vec<(usize, Duration)> = Vec::with_capacity(set.len());
+        for &(_, _, i) in &ranked {
+            let fits = |t: Duration| {
+                placed
+                    .iter()
+                    .all(|&(j, tj)| match (need(j, i), need(i, j)) {
+                        (Some(after), Some(before)) => t >= tj + after || t + before <= tj,
+                        _ => true,
+                    })
+            };
+            let mut candidates: Vec<Duration> = std::iter::once(Duration::ZERO)
+                .chain(
+                    placed
+                        .iter()
+                        .filter_map(|&(j, tj)| need(j, i).map(|n| tj + n)),
+                )
+                .collect();
+            candidates.sort();
+            let t = candidates
+                .into_iter()
+                .find(|&t| fits(t))
+                .unwrap_or(Duration::ZERO);
+            placed.push((i, t));
+        }
+        let mut period = Duration::ZERO;
+        for &(i, ti) in &placed {
+            if let Some(own) = need(i, i) {
+                period = period.max(ti + own);
+            }
+            for &(j, tj) in &placed {
+                // j fires no earlier than i: i of the next cycle must follow j.
+                if i != j && tj >= ti {
+                    if let Some(n) = need(j, i) {
+                        period = period.max(tj - ti + n);
+                    }
+                }
+            }
+        }
+        placed.sort_by_key(|&(i, t)| (t, i));
+        Packing {
+            offsets: placed,
+            period,
+        }
+    }
+
+    /// Every transmitter of the table, packed.
+    pub fn pack_all(&self) -> Packing {
+        self.pack(&(0..self.tx_ids.len()).collect::<Vec<_>>())
+    }
+}
+
+fn need_of(need: &NeedMatrix, i: usize, j: usize) -> Option<Duration> {
+    need.get(i).and_then(|r| r.get(j)).copied().flatten()
+}
+
+fn distance3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,273 @@
+//! A fleet in virtual time: the first N robots of the site, each with its
+//! own world and MSU core, sharing one control plane (the central unit's
+//! and the cells' own cores). Each robot's pose goes to the central unit
+//! as the live agent publishes it, so occupancy-aware firing sees the
+//! fleet as it would on a site. Reports what issue 20 is measured by: each
+//! robot's achieved fix rate, its pose error against the truth, and what
+//! collisions cost; and the cycles the central unit triggered.
+
+use std::collections::BTreeMap;
+
+use ickon_central::core::{CentralConfig, Event as CentralEvent};
+use ickon_fusion::estimator;
+use ickon_msu::MsuCore;
+use ickon_proto::msg::control::CycleTrigger;
+use ickon_proto::site::Site;
+use ickon_proto::time::Time;
+use serde::Serialize;
+
+use crate::collision::CollisionCounts;
+use crate::control::ControlPlane;
+use crate::engine::{ENCODER_HZ, PHYSICS_DT_S, REST_S, RunError, estimator_config, msu_config};
+use crate::profile::NoiseProfile;
+use crate::world::World;
+
+/// How often each robot's pose reaches the central unit, and is scored, seconds.
+const POSE_DT_S: f64 = 0.1;
+
+/// What to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FleetConfig {
+    /// How many of the site's robots drive (the first N).
+    pub robots: usize,
+    /// Virtual seconds to run.
+    pub duration_s: f64,
+    /// Seconds left out of the scores at the start (standing still included).
+    pub warm_up_s: f64,
+    /// Noise profile.
+    pub profile: NoiseProfile,
+    /// Run seed.
+    pub seed: u64,
+    /// The estimator every robot runs.
+    pub estimator: String,
+    /// The central unit's tuning (schedule, firing).
+    pub central: CentralConfig,
+}
+
+/// One robot's results.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RobotResult {
+    /// Robot id.
+    pub id: String,
+    /// Its route.
+    pub route: String,
+    /// Raw fixes per second after the warm-up.
+    pub fixes_per_s: f64,
+    /// Mean error of the fused pose against the truth, sampled every 0.1 s after the warm-up, mm.
+    pub mean_err_mm: f64,
+    /// 95th percentile of the same, mm.
+    pub p95_err_mm: f64,
+    /// What collisions and reverberation did to its detections.
+    pub collisions: CollisionCounts,
+}
+
+/// A fleet run's results.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FleetOutput {
+    /// Per robot.
+    pub robots: Vec<RobotResult>,
+    /// Cycles triggered per second after the warm-up.
+    pub cycles_per_s: f64,
+    /// Mean number of transmitters a trigger named after the warm-up.
+    pub mean_firing: f64,
+    /// Transmitters of the schedule.
+    pub transmitters: usize,
+    /// Every robot's collisions added up.
+    pub collisions: CollisionCounts,
+}
+
+struct Member {
+    id: String,
+    route: String,
+    world: World,
+    core: MsuCore,
+    fixes: u64,
+    errors_mm: Vec<f64>,
+}
+
+/// Runs the first `config.robots` robots of `site` for `config.duration_s`.
+pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunError> {
+    if config.robots == 0 || config.robots > site.robots.len() {
+        return Err(RunError::FleetSize {
+            asked: config.robots,
+            site: site.robots.len(),
+        });
+    }
+    let mut control =
+        ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
+    let mut members = Vec::with_capacity(config.robots);
+    for spec in site.robots.iter().take(config.robots) {
+        let route = site
+            .route(&spec.route)
+            .ok_or_else(|| RunError::UnknownRoute {
+                name: spec.route.clone(),
+                known: String::new(),
+            })?
+            .starting_near([spec.start[0], spec.start[1]]);
+        let world = World::for_robot(site, &route, &config.profile, config.seed, &spec.id);
+        let s0 = world.robot.state;
+        let start = [s0.x_m, s0.y_m, s0.theta_rad];
+        let est = estimator::build(&estimator_config(
+            &config.estimator,
+            start,
+            site,
+            &config.profile,
+        )?)?;
+        let msu = msu_config(site, &config.profile, world.drive.geometry());
+        let mut core = MsuCore::with_estimators(msu, vec![est]);
+        // The control plane's own schedules: never refused.
+        let _ = core.set_schedule(control.central().latest_schedule().clone());
+        control.send_to_central(CentralEvent::RobotAlive {
+            id: spec.id.clone(),
+            up: true,
+        });
+        members.push(Member {
+            id: spec.id.clone(),
+            route: spec.route.clone(),
+            world,
+            core,
+            fixes: 0,
+            errors_mm: Vec::new(),
+        });
+    }
+    let max_flight_s = (config.profile.ultrasound.max_range_m
+        + config.profile.ultrasound.reflection_extra_m[1])
+        / site.speed_of_sound_m_s
+        + 0.005;
+    let gyro_every = ((1.0 / config.profile.gyro.rate_hz.max(1.0)) / PHYSICS_DT_S)
+        .round()
+        .max(1.0) as u64;
+    let encoder_every = ((1.0 / ENCODER_HZ) / PHYSICS_DT_S).round().max(1.0) as u64;
+    let pose_every = (POSE_DT_S / PHYSICS_DT_S).round().max(1.0) as u64;
+    let gyro_dt = gyro_every as f64 * PHYSICS_DT_S;
+    let mut triggers: BTreeMap<u64, CycleTrigger> = BTreeMap::new();
+    let mut due: BTreeMap<i64, Vec<u64>> = BTreeMap::new();
+    let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
+    let (mut counted_cycles, mut firing_sum) = (0u64, 0u64);
+    let steps = (config.duration_s / PHYSICS_DT_S).ceil() as u64;
+    for step in 1..=steps {
+        let t = step as f64 * PHYSICS_DT_S;
+        control.advance_to(Time::from_secs_f64(t));
+        for trigger in control.take_triggers() {
+            let schedule = control.schedule_for(trigger.cycle);
+            let end =
+                trigger.start.as_secs_f64() + trigger.period(schedule).as_secs_f64() + max_flight_s;
+            if trigger.start.as_secs_f64() > config.warm_up_s {
+                counted_cycles += 1;
+                firing_sum += trigger.emissions(schedule).len() as u64;
+            }
+            due.entry((end * 1e9) as i64)
+                .or_default()
+                .push(trigger.cycle);
+            triggers.insert(trigger.cycle, trigger);
+        }
+        for b in control.take_fired() {
+            emissions
+                .entry(b.cycle)
+                .or_default()
+                .push((b.tx_id, b.actual.as_secs_f64()));
+        }
+        let moving = t > REST_S;
+        let scoring = t > config.warm_up_s;
+        for m in &mut members {
+            m.world.step(t, PHYSICS_DT_S, moving);
+            if step % gyro_every == 0 {
+                let imu = m.world.gyro(t, gyro_dt);
+                let _ = m.core.on_imu(&imu);
+            }
+            if step % encoder_every == 0 {
+                let odom = m.world.odometry(t);
+                let _ = m.core.on_odometry(&odom);
+            }
+        }
+        let now_ns = (t * 1e9) as i64;
+        let ready: Vec<i64> = due.range(..=now_ns).map(|(k, _)| *k).collect();
+        for key in ready {
+            for k in due.remove(&key).unwrap_or_default() {
+                let fired = emissions.remove(&k).unwrap_or_default();
+                let Some(trigger) = triggers.remove(&k) else {
+                    continue;
+                };
+                if fired.is_empty() {
+                    continue;
+                }
+                let schedule = control.schedule_for(k);
+                for m in &mut members {
+                    let msg = m.world.arrivals_from_emissions(&fired);
+                    let _ = m.core.set_schedule(schedule.clone());
+                    m.core.set_cycle_trigger(Some(trigger.clone()));
+                    if let Ok(Some(_)) = m.core.on_arrivals(&msg) {
+                        if scoring {
+                            m.fixes += 1;
+                        }
+                    }
+                }
+            }
+        }
+        // Cycles that never fired are forgotten after a second.
+        let stale = triggers
+            .keys()
+            .next()
+            .copied()
+            .filter(|&k| triggers[&k].start.as_secs_f64() < t - 1.0);
+        if let Some(k) = stale {
+            triggers.remove(&k);
+            emissions.remove(&k);
+        }
+        if step % pose_every == 0 {
+            for m in &mut members {
+                let Some(pose) = m.core.pose() else { continue };
+                if scoring {
+                    let truth = m.world.truth(t);
+                    let err = (pose.x_m - truth.x_m).hypot(pose.y_m - truth.y_m);
+                    m.errors_mm.push(err * 1e3);
+                }
+                control.send_to_central(CentralEvent::Pose {
+                    robot: m.id.clone(),
+                    pose,
+                });
+            }
+        }
+    }
+    let scored_s = (config.duration_s - config.warm_up_s).max(1e-9);
+    let mut total = CollisionCounts::default();
+    let robots = members
+        .into_iter()
+        .map(|mut m| {
+            let c = m.world.collision_counts();
+            total.add(&c);
+            m.errors_mm.sort_by(f64::total_cmp);
+            let n = m.errors_mm.len();
+            RobotResult {
+                id: m.id,
+                route: m.route,
+                fixes_per_s: m.fixes as f64 / scored_s,
+                mean_err_mm: if n == 0 {
+                    f64::NAN
+                } else {
+                    m.errors_mm.iter().sum::<f64>() / n as f64
+                },
+                p95_err_mm: if n == 0 {
+                    f64::NAN
+                } else {
+                    m.errors_mm[((n as f64 * 0.95) as usize).min(n - 1)]
+                },
+                collisions: c,
+            }
+        })
+        .collect();
+    Ok(FleetOutput {
+        robots,
+        cycles_per_s: counted_cycles as f64 / scored_s,
+        mean_firing: if counted_cycles == 0 {
+            0.0
+        } else {
+            firing_sum as f64 / counted_cycles as f64
+        },
+        transmitters: control.central().latest_schedule().emissions.len(),
+        collisions: total,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -39,6 +39,29 @@ pub struct CentralArgs {
     /// cycles (see `ickon_central::core::standby`).
     #[arg(long)]
     pub standby: bool,
+    /// Which transmitters fire each cycle: `all` (the whole schedule) or
+    /// `occupancy` (only where robots may be, issue 20; the MSU agents
+    /// follow the cycle triggers' firing sets).
+    #[arg(long, value_enum, default_value_t = Firing::All)]
+    pub firing: Firing,
+}
+
+/// The central unit's firing policy, as a flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Firing {
+    /// Every emission of the schedule, every cycle.
+    All,
+    /// Only the transmitters audible from some robot's uncertainty region.
+    Occupancy,
+}
+
+impl CentralArgs {
+    /// The core's configuration these flags ask for.
+    pub fn core_config(&self) -> CentralConfig {
+        let mut config = CentralConfig::default();
+        config.firing.occupancy = self.firing == Firing::Occupancy;
+        config
+    }
 }
 
 /// Runs the central unit as a process: loads the site, opens the session,
@@ -69,6 +92,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             args.node.clock(),
             web.as_ref(),
             args.standby,
+            args.core_config(),
             args.node.shutdown(),
         )
         .await;
@@ -106,6 +130,7 @@ pub async fn run(
     clock: SimulatedClock,
     web: Option<&crate::http::WebMap>,
     standby: bool,
+    config: CentralConfig,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
@@ -115,8 +140,8 @@ pub async fn run(
     } else {
         CentralCore::new
     };
-    let mut core = make(site, site_toml, CentralConfig::default(), clock.now())
-        .map_err(|e| NodeError::Setup(e.to_string()))?;
+    let mut core =
+        make(site, site_toml, config, clock.now()).map_err(|e| NodeError::Setup(e.to_string()))?;
     let s = core.latest_schedule();
     tracing::info!(
         "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",

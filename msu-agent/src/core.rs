@@ -134,6 +134,12 @@ impl MsuCore {
         self.solver.set_cycle_trigger(trigger);
     }
 
+    /// A cycle trigger heard from the central unit (which transmitters fire
+    /// when): arrivals are solved with the trigger that explains them.
+    pub fn on_trigger(&mut self, trigger: CycleTrigger) {
+        self.solver.note_trigger(trigger);
+    }
+
     /// The primary estimator's name.
     pub fn estimator_name(&self) -> &'static str {
         self.host.name(0).unwrap_or("none")
@@ -287,6 +293,8 @@ impl MsuCore {
 }
 
 #[cfg(test)]
+mod firing_tests;
+#[cfg(test)]
 mod stale_tests;
 
 #[cfg(test)]
@@ -297,8 +305,8 @@ mod tests {
     use ickon_proto::msg::robot::{Arrival, FixQuality};
     use ickon_proto::time::{Duration, Time};
 
-    const C: f64 = 343.0;
-    const TX: [(u32, [f64; 3]); 5] = [
+    pub(super) const C: f64 = 343.0;
+    pub(super) const TX: [(u32, [f64; 3]); 5] = [
         (1, [0.0, 0.0, 2.8]),
         (2, [5.0, 0.0, 2.6]),
         (3, [5.0, 4.0, 2.8]),
@@ -310,7 +318,7 @@ mod tests {
         core_with("msu-raw")
     }
 
-    fn core_with(estimator: &str) -> MsuCore {
+    pub(super) fn core_with(estimator: &str) -> MsuCore {
         let config = MsuConfig {
             speed_of_sound_m_s: C,
             height_m: 0.5,

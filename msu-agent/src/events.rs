@@ -7,7 +7,7 @@
 //! each odometry sample (the robot's own rate); gyro and obstacle samples
 //! move the estimate without a publication of their own.
 
-use ickon_proto::msg::control::Schedule;
+use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
 
 use crate::core::{MsuCore, MsuError};
@@ -17,6 +17,8 @@ use crate::core::{MsuCore, MsuError};
 pub enum Event {
     /// A (new) schedule from the central unit.
     Schedule(Schedule),
+    /// A cycle trigger from the central unit (which transmitters fire).
+    Trigger(CycleTrigger),
     /// One cycle's arrivals from the receivers.
     Arrivals(UltrasoundArrivals),
     /// The robot's wheel odometry.
@@ -69,6 +71,7 @@ impl MsuCore {
                     out.push(refused(InputKind::Schedule, e));
                 }
             }
+            Event::Trigger(t) => self.on_trigger(t),
             Event::Arrivals(msg) => match self.on_arrivals(&msg) {
                 Ok(Some(fix)) => {
                     out.push(Output::Fix(fix));

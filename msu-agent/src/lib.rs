@@ -12,6 +12,7 @@ pub mod assembly;
 mod config;
 pub mod config_file;
 pub mod core;
+pub mod cycle_match;
 pub mod events;
 pub mod fusion_clock;
 pub mod host;

@@ -14,7 +14,7 @@ use clap::Args;
 
 use ickon_fusion::estimator;
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::control::{Schedule, SiteInfo};
+use ickon_proto::msg::control::{CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::{DecodeError, decode};
@@ -124,6 +124,12 @@ pub async fn run(
     let mut core = MsuCore::new(settings.tuning.msu_config(&site), estimator);
     let schedule_sub = session
         .declare_subscriber(keys.central_schedule())
+        .await
+        .map_err(zerr)?;
+    // The triggers name the transmitters of each cycle when the central unit
+    // fires only where robots are; the core matches arrivals to them.
+    let trigger_sub = session
+        .declare_subscriber(keys.central_cycle())
         .await
         .map_err(zerr)?;
     let Some(schedule) = fetch::<Schedule>(
@@ -237,6 +243,7 @@ pub async fn run(
                 tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
                 Event::Schedule(schedule)
             }),
+            Ok(s) = trigger_sub.recv_async() => decoded!(s, CycleTrigger, "undecodable cycle trigger").map(Event::Trigger),
             Some(input) = inputs.recv() => match input.into_event() {
                 Ok(event) => {
                     if matches!(event, Event::Arrivals(_)) {

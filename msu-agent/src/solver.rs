@@ -18,6 +18,7 @@ use nalgebra::{Vector2, Vector3};
 
 use crate::assembly::{Signal, assemble};
 use crate::core::{MsuConfig, MsuError};
+use crate::cycle_match::RecentTriggers;
 use crate::fusion_clock::FusionClock;
 use crate::motion::CycleMotion;
 
@@ -44,6 +45,8 @@ pub struct FixSolver {
     /// The trigger of the cycle about to be solved, when the central unit
     /// names which transmitters fire (occupancy firing, issue 20).
     cycle_trigger: Option<CycleTrigger>,
+    /// The triggers heard from the central unit, when the MSU follows them.
+    recent_triggers: RecentTriggers,
     last_fix: Option<(Time, Vector2<f64>)>,
     motion: CycleMotion,
 }
@@ -55,6 +58,7 @@ impl FixSolver {
             config,
             schedules: ScheduleBook::new(),
             cycle_trigger: None,
+            recent_triggers: RecentTriggers::default(),
             last_fix: None,
             motion: CycleMotion::new(),
         }
@@ -84,6 +88,14 @@ impl FixSolver {
     /// published). `None`: every emission of the schedule fires.
     pub fn set_cycle_trigger(&mut self, trigger: Option<CycleTrigger>) {
         self.cycle_trigger = trigger;
+    }
+
+    /// A cycle trigger heard from the central unit: later arrivals are
+    /// matched to the recent trigger that explains them best
+    /// ([`crate::cycle_match`]), whose firings and offsets they are solved
+    /// with.
+    pub fn note_trigger(&mut self, trigger: CycleTrigger) {
+        self.recent_triggers.note(trigger);
     }
 
     /// Forgets the schedules (tests; a site that changed).
@@ -116,15 +128,16 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
-        let published = match &self.cycle_trigger {
+        let trigger = self
+            .cycle_trigger
+            .as_ref()
+            .or_else(|| self.recent_triggers.best_for(msg, &self.schedules));
+        let published = match trigger {
             Some(t) => self.schedules.get(t.schedule_version),
             None => self.schedules.latest(),
         }
         .ok_or(MsuError::NoSchedule)?;
-        let of_cycle = self
-            .cycle_trigger
-            .as_ref()
-            .map(|t| t.schedule_of_cycle(published));
+        let of_cycle = trigger.map(|t| t.schedule_of_cycle(published));
         let schedule = of_cycle.as_ref().unwrap_or(published);
         let c = self.config.speed_of_sound_m_s;
         let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;

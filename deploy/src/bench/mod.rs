@@ -53,6 +53,9 @@ pub struct ScaleArgs {
     /// a fresh set of credentials per size).
     #[arg(long)]
     pub secure: bool,
+    /// Which transmitters fire each cycle (`ickon sim --firing`).
+    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::All)]
+    pub firing: ickon_central::node::Firing,
 }
 
 /// One size of the benchmark in the JSON document.
@@ -89,6 +92,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             record: None,
             ros2: false,
             secure: args.secure.then_some(None),
+            firing: args.firing,
             restart: false,
             standby: false,
             faults: None,

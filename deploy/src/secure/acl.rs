@@ -138,6 +138,8 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
                 vec![
                     format!("{p}/robot/{id}/**"),
                     keys.central_schedule(),
+                    // Which transmitters fire each cycle (occupancy firing).
+                    keys.central_cycle(),
                     format!("{d}/{id}/**"),
                 ],
             ),
@@ -319,6 +321,7 @@ mod tests {
             reads,
             [
                 "7/r1/**",
+                "ickon/lab/central/cycle",
                 "ickon/lab/central/schedule",
                 "ickon/lab/robot/r1/**"
             ]

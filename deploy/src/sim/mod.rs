@@ -95,6 +95,10 @@ pub struct SimArgs {
     /// temporary directory removed at exit.
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub secure: Option<Option<PathBuf>>,
+    /// Which transmitters the central unit fires each cycle: `all` or
+    /// `occupancy` (only where robots may be; issue 20).
+    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::All)]
+    pub firing: ickon_central::node::Firing,
     /// Start a node again when it dies, as systemd would, instead of
     /// stopping the run.
     #[arg(long)]
@@ -319,6 +323,8 @@ pub async fn measure(
         }
         Mesh::Peer => node_command(args, site, "central", "", &hub)?,
     };
+    let firing = launch::firing_flag(args.firing);
+    central_cmd.args(["--firing", firing]);
     credential(&mut central_cmd, &crate::secure::Identity::Central);
     let web = launch::http_flags(args, &mut central_cmd)?;
     sup.spawn("central", central_cmd)?;
@@ -328,7 +334,7 @@ pub async fn measure(
             Mesh::Router => node_command(args, site, "central", &hub, "")?,
             Mesh::Peer => node_command(args, site, "central", "", &hub)?,
         };
-        standby.arg("--standby");
+        standby.args(["--standby", "--firing", firing]);
         credential(&mut standby, &crate::secure::Identity::Central);
         sup.spawn("central standby", standby)?;
     }

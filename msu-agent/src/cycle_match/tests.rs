@@ -1,0 +1,138 @@
+use super::*;
+use ickon_proto::msg::control::{Emission, Firing, Schedule};
+use ickon_proto::msg::robot::Arrival;
+use ickon_proto::time::{Duration, Time};
+
+const EPOCH: u64 = 7;
+
+fn book() -> ScheduleBook {
+    let emissions = (1..=4)
+        .map(|tx_id| Emission {
+            tx_id,
+            cell_id: "a".into(),
+            offset: Duration::from_millis(100 * i64::from(tx_id - 1)),
+            slot: tx_id - 1,
+        })
+        .collect();
+    let mut book = ScheduleBook::new();
+    book.offer(Schedule {
+        version: 1,
+        effective_cycle: 0,
+        cycle_period: Duration::from_millis(400),
+        slot_length: Duration::from_millis(100),
+        emissions,
+        active_cells: vec!["a".into()],
+        epoch: EPOCH,
+    })
+    .unwrap();
+    book
+}
+
+fn trigger(cycle: u64, firing: &[(u32, i64)]) -> CycleTrigger {
+    CycleTrigger {
+        cycle,
+        start: Time::from_nanos(cycle as i64 * 100_000_000),
+        schedule_version: 1,
+        epoch: EPOCH,
+        firing: firing
+            .iter()
+            .map(|&(tx_id, ms)| Firing {
+                tx_id,
+                offset: Duration::from_millis(ms),
+            })
+            .collect(),
+        cycle_period: Duration::from_millis(100),
+    }
+}
+
+/// Arrivals of bursts at the given offsets from a cycle start of `start_ms`
+/// (MSU clock), each with its own flight time.
+fn heard(start_ms: i64, bursts: &[(u32, i64, i64)]) -> UltrasoundArrivals {
+    UltrasoundArrivals {
+        seq: 1,
+        arrivals: bursts
+            .iter()
+            .map(|&(tx_id, offset_ms, flight_us)| Arrival {
+                tx_id,
+                receiver_id: 0,
+                t_arrival: Time::from_nanos((start_ms + offset_ms) * 1_000_000 + flight_us * 1_000),
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn the_trigger_naming_the_heard_transmitters_wins_over_a_newer_one() {
+    let mut recent = RecentTriggers::default();
+    recent.note(trigger(10, &[(1, 0), (2, 30), (3, 60)]));
+    recent.note(trigger(11, &[(2, 0), (4, 30)]));
+    let msg = heard(5_000, &[(1, 0, 4_000), (2, 30, 9_000), (3, 60, 6_000)]);
+    assert_eq!(recent.best_for(&msg, &book()).map(|t| t.cycle), Some(10));
+}
+
+#[test]
+fn among_triggers_naming_the_same_set_the_offsets_that_explain_the_times_win() {
+    let mut recent = RecentTriggers::default();
+    recent.note(trigger(20, &[(1, 0), (2, 30)]));
+    recent.note(trigger(21, &[(2, 0), (1, 30)]));
+    // Heard as cycle 20 fired: 1 first, 2 thirty milliseconds later.
+    let msg = heard(9_000, &[(1, 0, 5_000), (2, 30, 7_000)]);
+    assert_eq!(recent.best_for(&msg, &book()).map(|t| t.cycle), Some(20));
+    let msg = heard(9_000, &[(2, 0, 5_000), (1, 30, 7_000)]);
+    assert_eq!(recent.best_for(&msg, &book()).map(|t| t.cycle), Some(21));
+}
+
+#[test]
+fn triggers_without_their_schedule_older_epochs_and_oversized_ones_are_not_used() {
+    let mut recent = RecentTriggers::default();
+    let mut unknown = trigger(30, &[(1, 0)]);
+    unknown.schedule_version = 9;
+    recent.note(unknown);
+    let msg = heard(0, &[(1, 0, 1_000)]);
+    assert!(recent.best_for(&msg, &book()).is_none());
+    let mut huge = trigger(31, &[(1, 0)]);
+    huge.firing = vec![
+        Firing {
+            tx_id: 1,
+            offset: Duration::ZERO
+        };
+        5
+    ];
+    recent.note(huge);
+    assert!(recent.best_for(&msg, &book()).is_none());
+    let mut old = trigger(40, &[(1, 0)]);
+    old.epoch = EPOCH - 1;
+    recent.note(old);
+    assert!(
+        recent.best_for(&msg, &book()).is_none(),
+        "an older epoch is ignored"
+    );
+    recent.note(trigger(31, &[(1, 0)]));
+    assert!(
+        recent.best_for(&msg, &book()).is_none(),
+        "a repeated cycle is ignored"
+    );
+}
+
+#[test]
+fn at_most_the_kept_number_of_triggers_is_held() {
+    let mut recent = RecentTriggers::default();
+    for cycle in 0..100 {
+        recent.note(trigger(cycle, &[(1, 0)]));
+    }
+    assert_eq!(recent.triggers.len(), TRIGGERS_KEPT);
+    assert_eq!(
+        recent.triggers.front().map(|t| t.cycle),
+        Some(100 - TRIGGERS_KEPT as u64)
+    );
+}
+
+#[test]
+fn a_trigger_of_the_whole_schedule_forgets_the_others() {
+    let mut recent = RecentTriggers::default();
+    recent.note(trigger(50, &[(1, 0)]));
+    let mut plain = trigger(51, &[]);
+    plain.cycle_period = Duration::ZERO;
+    recent.note(plain);
+    assert!(recent.is_empty());
+}

@@ -55,10 +55,17 @@ impl ZenohArgs {
     /// The Zenoh configuration the flags describe.
     pub fn zenoh_config(&self) -> Result<zenoh::Config, NodeError> {
         let mut config = match &self.zenoh_config {
-            Some(path) => zenoh::Config::from_file(path).map_err(|e| NodeError::Config {
-                what: path.display().to_string(),
-                reason: e.to_string(),
-            })?,
+            Some(path) => {
+                let config = zenoh::Config::from_file(path).map_err(|e| NodeError::Config {
+                    what: path.display().to_string(),
+                    reason: explain_refusal(path, &e.to_string()),
+                })?;
+                check_credential(&config).map_err(|reason| NodeError::Config {
+                    what: path.display().to_string(),
+                    reason,
+                })?;
+                config
+            }
             None => zenoh::Config::default(),
         };
         let mut set = |k: &str, v: String| {
@@ -90,6 +97,58 @@ impl ZenohArgs {
             .await
             .map_err(|e| NodeError::Zenoh(format!("cannot open the session: {e}")))
     }
+}
+
+/// Zenoh's reason for refusing a configuration file, made readable: its
+/// validation error prints the whole resolved configuration, so a
+/// credential missing half of itself is named from the file's own text,
+/// and otherwise the dump is cut off.
+fn explain_refusal(path: &std::path::Path, zenoh_reason: &str) -> String {
+    // A client file is a few hundred bytes; a huge one is not worth parsing twice.
+    const MAX_EXPLAINED_BYTES: u64 = 1 << 20;
+    let small = std::fs::metadata(path).is_ok_and(|m| m.len() <= MAX_EXPLAINED_BYTES);
+    let parsed = small
+        .then(|| std::fs::read_to_string(path).ok())
+        .flatten()
+        .and_then(|text| json5::from_str::<serde_json::Value>(&text).ok());
+    if let Some(value) = parsed {
+        let usrpwd = &value["transport"]["auth"]["usrpwd"];
+        let set = |name: &str| usrpwd[name].as_str().is_some_and(|v| !v.is_empty());
+        if let Err(reason) = credential_complete(set("user"), set("password")) {
+            return reason;
+        }
+    }
+    match zenoh_reason.find(": {") {
+        Some(cut) => format!(
+            "{} (a field has a value Zenoh does not accept)",
+            &zenoh_reason[..cut]
+        ),
+        None => zenoh_reason.to_string(),
+    }
+}
+
+/// `Err` names the missing half of a user/password credential.
+fn credential_complete(user: bool, password: bool) -> Result<(), String> {
+    match (user, password) {
+        (true, false) => Err("transport.auth.usrpwd.password: missing (a user is given)".into()),
+        (false, true) => Err("transport.auth.usrpwd.user: missing (a password is given)".into()),
+        _ => Ok(()),
+    }
+}
+
+/// A client's user/password credential is all or nothing: a file that
+/// names only one of the two cannot authenticate, and would fail later
+/// with a less clear message from the router. `Err` names the field.
+fn check_credential(config: &zenoh::Config) -> Result<(), String> {
+    let set = |name: &str| {
+        config
+            .get_json(&format!("transport/auth/usrpwd/{name}"))
+            .ok()
+            .and_then(|text| serde_json::from_str::<Option<String>>(&text).ok())
+            .flatten()
+            .is_some_and(|v| !v.is_empty())
+    };
+    credential_complete(set("user"), set("password"))
 }
 
 /// Connection and simulation flags shared by every node.
@@ -231,6 +290,52 @@ mod tests {
             (ok.node.clock_offset_us, ok.node.clock_drift_ppm),
             (-50_000.0, 99.5)
         );
+    }
+
+    #[test]
+    fn a_credential_with_only_a_user_or_only_a_password_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, text: &str| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            ZenohArgs {
+                zenoh_config: Some(path),
+                ..ZenohArgs::default()
+            }
+        };
+        let user_only = write(
+            "user.json5",
+            r#"{ mode: "client", transport: { auth: { usrpwd: { user: "cell-c1" } } } }"#,
+        );
+        let err = user_only.zenoh_config().unwrap_err();
+        assert!(matches!(err, NodeError::Config { .. }), "{err}");
+        let text = err.to_string();
+        assert!(
+            text.contains("user.json5") && text.contains("usrpwd.password"),
+            "{text}"
+        );
+        let password_only = write(
+            "password.json5",
+            r#"{ mode: "client", transport: { auth: { usrpwd: { password: "x" } } } }"#,
+        );
+        let text = password_only.zenoh_config().unwrap_err().to_string();
+        assert!(text.contains("usrpwd.user"), "{text}");
+        let garbage = write(
+            "garbage.json5",
+            r#"{ mode: "client", transport: { link: { tx: { lease: "soon" } } } }"#,
+        );
+        let text = garbage.zenoh_config().unwrap_err().to_string();
+        assert!(
+            text.contains("garbage.json5") && text.len() < 400,
+            "short and naming the file: {text}"
+        );
+        let both = write(
+            "both.json5",
+            r#"{ mode: "client", transport: { auth: { usrpwd: { user: "a", password: "b" } } } }"#,
+        );
+        assert!(both.zenoh_config().is_ok());
+        let none = write("none.json5", r#"{ mode: "client" }"#);
+        assert!(none.zenoh_config().is_ok());
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! The one error type of the nodes' Zenoh edges: what can stop a node from
-//! starting or running, with a clear text. Binaries print it and exit 1.
+//! starting or running, with a clear text. Binaries print it and exit 1
+//! (2 for an invalid configuration: [`crate::run_node`]).
 
 /// Why a node could not start or go on.
 #[derive(Debug, thiserror::Error)]

@@ -4,6 +4,8 @@
 use std::future::Future;
 use std::process::ExitCode;
 
+use crate::NodeError;
+
 /// Sets up `tracing` for a binary: the `RUST_LOG` filter when set, else
 /// `default` (e.g. `"info"`), written to stderr so stdout stays clean.
 pub fn init_tracing(default: &str) {
@@ -34,21 +36,28 @@ pub fn block_on<F: Future>(worker_threads: usize, work: F) -> Option<F::Output> 
 }
 
 /// [`block_on`] for a node: success is exit code 0; an error is printed
-/// with its causes and gives exit code 1, as does a runtime that cannot
-/// start.
-pub fn run_node<T, E: std::fmt::Display>(
+/// with its causes and gives exit code 2 when it is bad input the user can
+/// fix (an invalid Zenoh configuration or credential file:
+/// [`NodeError::Config`]), else 1, as does a runtime that cannot start.
+pub fn run_node<T>(
     worker_threads: usize,
-    work: impl Future<Output = Result<T, E>>,
+    work: impl Future<Output = Result<T, NodeError>>,
 ) -> ExitCode {
     match block_on(worker_threads, work) {
         Some(Ok(_)) => ExitCode::SUCCESS,
         Some(Err(e)) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            match e {
+                NodeError::Config { .. } => ExitCode::from(EXIT_BAD_CONFIG),
+                _ => ExitCode::FAILURE,
+            }
         }
         None => ExitCode::FAILURE,
     }
 }
+
+/// The exit code of a node whose configuration is invalid.
+pub const EXIT_BAD_CONFIG: u8 = 2;
 
 #[cfg(test)]
 mod tests {
@@ -61,10 +70,19 @@ mod tests {
             ExitCode::SUCCESS
         );
         assert_eq!(
-            run_node::<(), _>(1, async {
+            run_node::<()>(1, async {
                 Err(crate::NodeError::Setup("no central unit".into()))
             }),
             ExitCode::FAILURE
+        );
+        assert_eq!(
+            run_node::<()>(1, async {
+                Err(crate::NodeError::Config {
+                    what: "cell-c1.json5".into(),
+                    reason: "no password".into(),
+                })
+            }),
+            ExitCode::from(EXIT_BAD_CONFIG)
         );
     }
 }

@@ -15,7 +15,9 @@
 use ickon_msu::MsuCore;
 use ickon_proto::decode;
 use ickon_proto::keys::{Key, RobotTopic};
-use ickon_proto::msg::control::Schedule;
+use std::sync::Arc;
+
+use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{
     Imu, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
 };
@@ -38,6 +40,9 @@ const MAX_JOIN_CANDIDATES: usize = 5_000;
 pub enum Input {
     /// A new schedule (the central unit's, to every robot).
     Schedule(Box<Schedule>),
+    /// A cycle trigger (the central unit's, to every robot; shared, since
+    /// every robot's stream holds each one).
+    Trigger(Arc<CycleTrigger>),
     /// The arrivals of one cycle.
     Arrivals(UltrasoundArrivals),
     /// Wheel odometry.
@@ -65,7 +70,8 @@ pub struct RobotStream {
 /// messages that do not decode are skipped and counted as a problem.
 pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
     let mut robots: Vec<RobotStream> = Vec::new();
-    let mut schedules: Vec<(usize, Schedule)> = Vec::new();
+    // The central unit's messages to every robot, with their place in the file.
+    let mut control: Vec<(usize, Input)> = Vec::new();
     let mut bad = 0u64;
     fn robot<'a>(robots: &'a mut Vec<RobotStream>, id: &str) -> &'a mut RobotStream {
         if let Some(i) = robots.iter().position(|r| r.id == id) {
@@ -85,7 +91,10 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
         let t = m.log_time_ns;
         let ok = match &m.key {
             Key::CentralSchedule => decode::<Schedule>(&m.data)
-                .map(|s| schedules.push((i, s)))
+                .map(|s| control.push((i, Input::Schedule(Box::new(s)))))
+                .is_ok(),
+            Key::CentralCycle => decode::<CycleTrigger>(&m.data)
+                .map(|c| control.push((i, Input::Trigger(Arc::new(c)))))
                 .is_ok(),
             Key::SimTruth(id) => decode::<Truth>(&m.data)
                 .map(|v| robot(&mut robots, id).truth.push(v))
@@ -127,11 +136,11 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
     }
     for (k, r) in robots.iter_mut().enumerate() {
         let places = placed.get(k).map_or(&[][..], |p| &p[..]);
-        let mut merged = Vec::with_capacity(r.inputs.len() + schedules.len());
+        let mut merged = Vec::with_capacity(r.inputs.len() + control.len());
         let mut next = 0usize;
         for ((t, input), &at) in r.inputs.drain(..).zip(places) {
-            while let Some((_, s)) = schedules.get(next).filter(|(si, _)| *si < at) {
-                merged.push((t, Input::Schedule(Box::new(s.clone()))));
+            while let Some((_, c)) = control.get(next).filter(|(ci, _)| *ci < at) {
+                merged.push((t, c.clone()));
                 next += 1;
             }
             merged.push((t, input));
@@ -179,10 +188,21 @@ pub fn run(
         // A schedule refused here was refused by the live agent too (same rules).
         let _ = core.set_schedule((**s).clone());
     }
+    // The triggers before the joining point, which the agent may match
+    // its first arrivals to (it keeps only the last few).
+    for (_, input) in &inputs[..from.min(inputs.len())] {
+        if let Input::Trigger(t) = input {
+            core.on_trigger((**t).clone());
+        }
+    }
     for (t, input) in inputs.iter().skip(from) {
         let pose_now = match input {
             Input::Schedule(s) => {
                 let _ = core.set_schedule((**s).clone());
+                false
+            }
+            Input::Trigger(c) => {
+                core.on_trigger((**c).clone());
                 false
             }
             Input::Arrivals(m) => matches!(core.on_arrivals(m), Ok(Some(_))),
@@ -291,7 +311,9 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         .inputs
         .iter()
         .enumerate()
-        .filter(|(_, (t, i))| *t <= first_live_t && !matches!(i, Input::Schedule(_)))
+        .filter(|(_, (t, i))| {
+            *t <= first_live_t && !matches!(i, Input::Schedule(_) | Input::Trigger(_))
+        })
         .map(|(k, _)| k)
         .take(MAX_JOIN_CANDIDATES);
     let mut best: Option<Join> = None;
@@ -308,7 +330,7 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         let limit = best.map_or(f64::INFINITY, |b| b.probe_difference);
         let skipped_inputs = stream.inputs[..from]
             .iter()
-            .filter(|(_, i)| !matches!(i, Input::Schedule(_)))
+            .filter(|(_, i)| !matches!(i, Input::Schedule(_) | Input::Trigger(_)))
             .count();
         let mut join = Join {
             from,

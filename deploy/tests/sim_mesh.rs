@@ -1,7 +1,7 @@
 //! The whole mesh as separate processes (`ickon sim`): central unit, four
 //! cells, the world and two MSU agents on a loopback Zenoh mesh for 15 s.
 //! Checks accuracy, fix rate, that every cell fired, and that no process of
-//! the run is left behind.
+//! the run is left behind; and the same mesh with occupancy firing.
 
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -91,4 +91,44 @@ fn two_robots_on_the_full_mesh_are_accurate_and_every_process_stops() {
         );
         std::thread::sleep(Duration::from_millis(100));
     }
+}
+
+/// Occupancy firing on the live mesh: the central unit fires only where the
+/// robots are, the cells fire what each trigger names, and the MSU agents
+/// match their arrivals to the triggers: faster cycles than the schedule's,
+/// and still a fix from nearly every cycle.
+#[test]
+fn occupancy_firing_gives_faster_cycles_and_every_robot_its_fixes() {
+    let duration_s = 12.0;
+    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
+        .args(["sim", "--robots", "2", "--json", "--seed", "2"])
+        .args(["--firing", "occupancy"])
+        .args(["--duration", &duration_s.to_string()])
+        .output()
+        .expect("ickon sim starts");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "ickon sim failed:\n{stderr}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stderr}"));
+    let schedule_hz = doc["update_rate_hz"].as_f64().expect("update rate");
+    let cycles_per_s = doc["cycles_per_s"].as_f64().expect("cycles per second");
+    assert!(
+        cycles_per_s > 1.5 * schedule_hz,
+        "occupancy cycles {cycles_per_s}/s against the whole schedule's {schedule_hz}/s\n{doc}"
+    );
+    for r in doc["robots"].as_array().expect("robots") {
+        let mean_mm = r["mean_mm"].as_f64().unwrap_or(f64::INFINITY);
+        assert!(
+            mean_mm < 150.0,
+            "robot {}: mean {mean_mm} mm\n{doc}",
+            r["id"]
+        );
+        let share = r["fix_share"].as_f64().unwrap_or(0.0);
+        assert!(
+            share >= 0.8,
+            "robot {}: fixes in {share} of cycles\n{doc}",
+            r["id"]
+        );
+    }
+    assert_eq!(doc["bad_messages"], 0, "{doc}");
 }

@@ -12,6 +12,7 @@
 //!   liveliness tokens and the sample attachment.
 //! - [`epoch`]: central unit epochs and the rules for taking a schedule.
 //! - [`site`]: the site model in TOML, its validation and the built-in default site.
+//! - [`text_file`]: reading a configuration-sized text file with a bound.
 //!
 //! Conventions: SI units inside (metres, seconds, radians); field names carry
 //! their unit where it is not SI or not obvious (`drift_ppb`, `offset_ns`).
@@ -23,6 +24,7 @@ pub mod keys;
 pub mod msg;
 pub mod ros;
 pub mod site;
+pub mod text_file;
 pub mod time;
 mod wire_string;
 

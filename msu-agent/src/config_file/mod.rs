@@ -125,18 +125,11 @@ impl MsuTuning {
         // A configuration file is a page of text: refuse to read a huge one
         // (a wrong path to a log or a device) into memory.
         const MAX_BYTES: u64 = 1 << 20;
-        let too_big = std::fs::metadata(path)
-            .map(|m| m.is_file() && m.len() > MAX_BYTES)
-            .unwrap_or(false);
-        if too_big {
-            return Err(MsuConfigError::Io {
-                file,
-                reason: format!("larger than {MAX_BYTES} bytes: not a configuration file"),
-            });
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| MsuConfigError::Io {
-            file: file.clone(),
-            reason: e.to_string(),
+        let text = ickon_proto::text_file::read_bounded(path, MAX_BYTES).map_err(|reason| {
+            MsuConfigError::Io {
+                file: file.clone(),
+                reason,
+            }
         })?;
         Self::from_toml(&text, &file)
     }

@@ -65,18 +65,31 @@ fn render_issues(file: &str, issues: &[SiteIssue]) -> String {
     crate::file_issue::render_issues("site file", file, issues)
 }
 
+/// The largest site file read, bytes: `warehouse` (16 cells, 128 robots)
+/// is 19 kB, so 4 MiB leaves room for sites two hundred times its size.
+pub const MAX_SITE_FILE_BYTES: u64 = 4 << 20;
+
 impl Site {
     /// Parses and validates a site from TOML text; `file` names it in messages.
     pub fn from_toml(text: &str, file: &str) -> Result<Site, SiteError> {
+        // The text may come from the network (the central unit's site).
+        if text.len() as u64 > MAX_SITE_FILE_BYTES {
+            return Err(SiteError::Io {
+                file: file.to_string(),
+                reason: format!("larger than {MAX_SITE_FILE_BYTES} bytes: not a site file"),
+            });
+        }
         validate::parse_and_validate(text, file)
     }
 
     /// Reads, parses and validates a site file.
     pub fn from_file(path: &Path) -> Result<Site, SiteError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SiteError::Io {
-            file: file.clone(),
-            reason: e.to_string(),
+        let text = crate::text_file::read_bounded(path, MAX_SITE_FILE_BYTES).map_err(|reason| {
+            SiteError::Io {
+                file: file.clone(),
+                reason,
+            }
         })?;
         Site::from_toml(&text, &file)
     }
@@ -110,10 +123,16 @@ impl Site {
         match path {
             Some(p) => {
                 let file = p.display().to_string();
-                let text = std::fs::read_to_string(p).map_err(|e| SiteError::Io {
-                    file: file.clone(),
-                    reason: format!("{e} (and it is not a built-in site: {})", builtin_names()),
-                })?;
+                let text =
+                    crate::text_file::read_bounded(p, MAX_SITE_FILE_BYTES).map_err(|reason| {
+                        SiteError::Io {
+                            file: file.clone(),
+                            reason: format!(
+                                "{reason} (and it is not a built-in site: {})",
+                                builtin_names()
+                            ),
+                        }
+                    })?;
                 let site = Site::from_toml(&text, &file)?;
                 Ok((site, text, file))
             }

@@ -131,6 +131,7 @@ pub async fn run(
     let keys = Keys::new(&args.node.site_name)?;
     let cell = args.cell.as_str();
     let clock = args.node.clock();
+    args.node.listen_for_clock_steps(clock)?;
     let mut driver = driver(args.driver, cell, clock);
     let mut core = CellCore::new(cell, CellConfig::default(), clock.now());
     let triggers = session

@@ -85,11 +85,13 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
         let web = crate::http::WebMap::start(&session, &keys, &site, &args.http)
             .await
             .map_err(|e| NodeError::Setup(e.to_string()))?;
+        let clock = args.node.clock();
+        args.node.listen_for_clock_steps(clock)?;
         let r = run(
             &session,
             site,
             text,
-            args.node.clock(),
+            clock,
             web.as_ref(),
             args.standby,
             args.core_config(),
@@ -116,10 +118,16 @@ async fn reply<T: serde::Serialize>(query: &Query, value: &T) {
     }
 }
 
+/// The longest a central unit waits at start to learn whether another is
+/// active (the routers answer a liveliness query at once; this bounds a
+/// router that does not).
+const ACTIVE_QUERY_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(1_000);
+
 /// Serves `site` until `shutdown` completes. `clock` is the master time base
 /// (the system clock, with an injected offset and drift in a simulation);
 /// `web`, when given, is handed the status several times a second. With
-/// `standby` it follows the active central unit until it takes over: until
+/// `standby`, or when another central unit is active at its start, it
+/// follows the active central unit until it takes over: until
 /// then it answers no clock or schedule query and holds no `alive/central`
 /// token, so that no cell follows it by mistake.
 #[allow(clippy::too_many_arguments)]
@@ -135,13 +143,23 @@ pub async fn run(
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&site.name)?;
-    let make = if standby {
-        CentralCore::standby
-    } else {
-        CentralCore::new
-    };
-    let mut core =
-        make(site, site_toml, config, clock.now()).map_err(|e| NodeError::Setup(e.to_string()))?;
+    // Another central unit active already (this one was restarted after
+    // the standby took over): stand by instead of taking the site back.
+    let active_seen = !standby
+        && ickon_runtime::token_present(session, &keys.alive_central(), ACTIVE_QUERY_TIMEOUT)
+            .await?;
+    if active_seen {
+        tracing::info!("another central unit is active: starting as its standby");
+    }
+    let mut core = CentralCore::starting(
+        site,
+        site_toml,
+        config,
+        clock.now(),
+        standby,
+        active_seen,
+    )
+    .map_err(|e| NodeError::Setup(e.to_string()))?;
     let s = core.latest_schedule();
     tracing::info!(
         "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",

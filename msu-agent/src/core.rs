@@ -444,6 +444,43 @@ mod tests {
     }
 
     #[test]
+    fn a_restarted_msu_takes_its_pose_from_its_first_fixes_not_the_start_pose() {
+        // The MSU restarted with the site's start pose, 3 m from the robot.
+        let truth = [3.6, 2.9, 0.5];
+        for name in ["tdoa-ekf", "ickon-akf"] {
+            let mut estimator =
+                ickon_fusion::estimator::EstimatorConfig::default_for(name).unwrap();
+            estimator.set_initial_pose([0.8, 1.0, 0.0]);
+            if let ickon_fusion::estimator::EstimatorConfig::TdoaEkf(p) = &mut estimator {
+                p.receiver_height_m = 0.5;
+            }
+            let mut core = core_with("msu-raw");
+            core.host = FusionHost::new(vec![ickon_fusion::estimator::build(&estimator).unwrap()]);
+            let mut placed = None;
+            for k in 0..10_u64 {
+                let mut msg = arrivals(truth, &[]);
+                msg.seq = k;
+                for a in &mut msg.arrivals {
+                    a.t_arrival = a.t_arrival + Duration::from_millis(200 * k as i64);
+                }
+                core.on_arrivals(&msg).unwrap();
+                let pose = core.pose().expect("started at the start pose");
+                let err = (pose.x_m - truth[0]).hypot(pose.y_m - truth[1]);
+                if err < 0.05 {
+                    placed.get_or_insert(k);
+                } else {
+                    assert!(
+                        placed.is_none(),
+                        "{name}: lost again at cycle {k}: {pose:?}"
+                    );
+                }
+            }
+            // Two agreeing cycles: placed at the second.
+            assert_eq!(placed, Some(1), "{name}");
+        }
+    }
+
+    #[test]
     fn a_valid_fix_is_published_when_the_estimator_refuses_it() {
         for name in ["ickon-akf", "gyro-ckf", "tdoa-ekf"] {
             let mut core = core_with(name);

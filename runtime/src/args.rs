@@ -172,6 +172,11 @@ pub struct NodeArgs {
     /// Simulation only: drift of this node's clock, parts per million (at most 1000 either way).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = clock_drift_ppm)]
     pub clock_drift_ppm: f64,
+    /// Simulation only: steps of this node's clock, microseconds, one taken
+    /// at each SIGUSR1 in this order (`ickon sim --faults clockstep:`; see
+    /// `ickon_runtime::clock_steps`).
+    #[arg(long, allow_hyphen_values = true, value_parser = crate::clock_steps::parse_step_list)]
+    pub sim_clock_steps_us: Option<crate::clock_steps::StepList>,
     /// Stop when the parent process (the launcher) goes away.
     #[arg(long)]
     pub exit_with_parent: bool,
@@ -222,6 +227,17 @@ impl NodeArgs {
         )
     }
 
+    /// Takes `--sim-clock-steps-us` on `clock` at each SIGUSR1 (nothing
+    /// without the flag); call once, inside the node's Tokio runtime.
+    pub fn listen_for_clock_steps(&self, clock: SimulatedClock) -> Result<(), NodeError> {
+        let steps = self
+            .sim_clock_steps_us
+            .clone()
+            .map_or_else(Vec::new, |s| s.0);
+        crate::clock_steps::listen(steps, clock)
+            .map_err(|e| NodeError::Setup(format!("--sim-clock-steps-us: {e}")))
+    }
+
     /// Completes on Ctrl-C, SIGTERM, or (with `--exit-with-parent`) when the parent goes away.
     pub fn shutdown(&self) -> impl Future<Output = ()> + use<> {
         shutdown_signal(self.exit_with_parent)
@@ -231,6 +247,23 @@ impl NodeArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn clock_steps_are_one_flag_value() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            node: NodeArgs,
+        }
+        let cli = Cli::parse_from(["x", "--sim-clock-steps-us", "5000,-200"]);
+        assert_eq!(
+            cli.node.sim_clock_steps_us,
+            Some(crate::clock_steps::StepList(vec![5_000_000, -200_000]))
+        );
+        assert!(Cli::try_parse_from(["x", "--sim-clock-steps-us", "NaN"]).is_err());
+        assert_eq!(Cli::parse_from(["x"]).node.sim_clock_steps_us, None);
+    }
 
     #[test]
     fn flags_become_a_zenoh_config() {

@@ -10,7 +10,7 @@
 //! - [`error`]: [`NodeError`], the typed error of every node's edge;
 //! - [`clock`]: the system clock as a [`Time`](ickon_proto::time::Time), and
 //!   the simulated device clock that lets a node run with an injected offset
-//!   and drift;
+//!   and drift, and [`clock_steps`]: its steps at run time in a simulation;
 //! - [`query`]: a query with a timeout, one that retries until the central
 //!   unit answers, and a wait for a liveliness token;
 //! - [`publish`]: a put whose failure is counted, never fatal;
@@ -20,6 +20,7 @@
 
 pub mod args;
 pub mod clock;
+pub mod clock_steps;
 pub mod error;
 pub mod log_limit;
 pub mod process;
@@ -34,6 +35,6 @@ pub use error::{NodeError, zerr};
 pub use log_limit::LogLimiter;
 pub use process::{block_on, init_tracing, run_node};
 pub use publish::put_counted;
-pub use query::{Stamped, fetch, query_once, query_stamped, wait_for_token};
+pub use query::{Stamped, fetch, query_once, query_stamped, token_present, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;

@@ -79,6 +79,29 @@ pub async fn wait_for_token(
     Ok(seen.unwrap_or(false))
 }
 
+/// Whether a liveliness token matching `key` is declared now, as far as
+/// the session's routers know: `false` when none answers within `timeout`.
+/// Unlike [`wait_for_token`] it does not wait for a token to come: the
+/// liveliness query ends as soon as every router has answered.
+pub async fn token_present(
+    session: &Session,
+    key: &str,
+    timeout: Duration,
+) -> Result<bool, NodeError> {
+    let replies = session
+        .liveliness()
+        .get(key)
+        .timeout(timeout)
+        .await
+        .map_err(zerr)?;
+    while let Ok(reply) = replies.recv_async().await {
+        if reply.result().is_ok() {
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
 /// An answer with the instants around it, read from the caller's clock.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stamped<T> {

@@ -11,6 +11,12 @@
 //! its next cycle, with the followed schedule re-issued as version 1. An
 //! active central unit that hears a newer epoch steps down and follows it.
 //!
+//! A central unit started while another is active (its `alive/central`
+//! token seen at start: [`CentralCore::starting`]) starts as a standby
+//! even without `--standby`: a restarted first central unit must not take
+//! the site back from the standby that took over from it (a second switch
+//! for nothing).
+//!
 //! [`Event::ActiveGone`]: super::Event::ActiveGone
 
 use ickon_proto::epoch::{ScheduleBook, epoch_of};
@@ -60,6 +66,24 @@ impl CentralCore {
             lease_end: now + FIRST_LEASE,
         });
         Ok(core)
+    }
+
+    /// A central unit started at `now`: a standby when `standby` (the
+    /// `--standby` flag) says so or when `active_seen` (another central
+    /// unit's token was there at start), active otherwise.
+    pub fn starting(
+        site: ickon_proto::site::Site,
+        site_toml: String,
+        config: CentralConfig,
+        now: Time,
+        standby: bool,
+        active_seen: bool,
+    ) -> Result<Self, ScheduleError> {
+        if standby || active_seen {
+            Self::standby(site, site_toml, config, now)
+        } else {
+            Self::new(site, site_toml, config, now)
+        }
     }
 
     /// The epoch followed by a standby (the active one's), if it saw one.

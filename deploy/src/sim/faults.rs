@@ -6,8 +6,11 @@
 //! - `kill:NODE@10s`: SIGKILL the node at 10 s (with `--restart` it is
 //!   started again, as systemd would);
 //! - `stop:NODE@15s+3s`: SIGSTOP it at 15 s, SIGCONT 3 s later (a hung node);
-//! - `clockstep:NODE@20s+5ms`: step its clock by 5 ms (accepted by the
-//!   parser; not carried out yet, `ickon sim` says so and exits 2).
+//! - `clockstep:NODE@20s+5ms`: step its clock by 5 ms (a cell or a central
+//!   unit: the nodes that keep a clock). The node is started with
+//!   `--sim-clock-steps-us` listing its steps in time order, and takes the
+//!   next one at each SIGUSR1 the supervisor sends (see
+//!   `ickon_runtime::clock_steps` for why this way).
 //!
 //! `NODE` is `central` (the first central unit), `central/standby` (the
 //! second, with `--standby`), `world`, `router`, `cell/<id>` or `msu/<id>`;
@@ -139,7 +142,8 @@ fn duration(text: &str) -> Option<Duration> {
     (s.is_finite() && s >= 0.0 && s <= LONGEST.as_secs_f64()).then(|| Duration::from_secs_f64(s))
 }
 
-/// `5ms`, `-200us`: a clock step of at most an hour either way, nanoseconds.
+/// `5ms`, `-200us`: a clock step of at most 1000 s either way (the bound
+/// of `--clock-offset-us`), nanoseconds.
 fn step_ns(text: &str) -> Option<i64> {
     let (value, scale) = if let Some(v) = text.strip_suffix("ms") {
         (v, 1e6)
@@ -147,12 +151,54 @@ fn step_ns(text: &str) -> Option<i64> {
         (text.strip_suffix("us")?, 1e3)
     };
     let ns = value.parse::<f64>().ok()? * scale;
-    (ns.is_finite() && ns.abs() <= 3.6e12).then_some(ns.round() as i64)
+    (ns.is_finite() && ns.abs() <= 1e12).then_some(ns.round() as i64)
+}
+
+/// Whether `node` (as the supervisor names it) keeps a clock a
+/// `clockstep` can step: a cell or a central unit.
+pub fn keeps_a_clock(node: &str) -> bool {
+    node == "central" || node == "central standby" || node.starts_with("cell ")
+}
+
+/// The `--sim-clock-steps-us` value for `node`: its clock steps in time
+/// order, microseconds; `None` when the plan steps no clock of it.
+pub fn clock_steps_flag(plan: &[Fault], node: &str) -> Option<String> {
+    let steps: Vec<String> = plan
+        .iter()
+        .filter(|f| f.node == node)
+        .filter_map(|f| match f.action {
+            FaultAction::ClockStep(ns) => Some(format!("{}", ns as f64 / 1e3)),
+            _ => None,
+        })
+        .collect();
+    (!steps.is_empty()).then(|| steps.join(","))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_node_gets_its_clock_steps_in_time_order() {
+        let plan = parse_plan(
+            "clockstep:cell/c3@30s+-200us,clockstep:cell/c3@20s+5ms,kill:cell/c3@25s,clockstep:central@1s+1ms",
+        )
+        .unwrap();
+        assert_eq!(
+            clock_steps_flag(&plan, "cell c3").as_deref(),
+            Some("5000,-200")
+        );
+        assert_eq!(clock_steps_flag(&plan, "central").as_deref(), Some("1000"));
+        assert_eq!(clock_steps_flag(&plan, "cell c1"), None);
+        assert!(keeps_a_clock("cell c3") && keeps_a_clock("central standby"));
+        assert!(!keeps_a_clock("msu r1") && !keeps_a_clock("world"));
+        // The node parses what the supervisor writes.
+        assert_eq!(
+            ickon_runtime::clock_steps::parse_steps_us("5000,-200"),
+            Ok(vec![5_000_000, -200_000])
+        );
+        assert!(parse_plan("clockstep:cell/c1@1s+2000s").is_err());
+    }
 
     #[test]
     fn the_issues_plan_reads_in_time_order() {

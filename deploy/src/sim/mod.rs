@@ -107,7 +107,7 @@ pub struct SimArgs {
     /// that takes over when the first goes.
     #[arg(long)]
     pub standby: bool,
-    /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,kill:msu/r1@25s`
+    /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,clockstep:cell/c3@20s+5ms,kill:msu/r1@25s`
     /// (times from the moment every node is live; see `deploy/src/sim/faults.rs`).
     #[arg(long, value_name = "PLAN")]
     pub faults: Option<String>,
@@ -239,12 +239,12 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
                 return Err(ExitCode::from(EXIT_BAD_INPUT));
             }
             Ok(plan) => {
-                if let Some(f) = plan
-                    .iter()
-                    .find(|f| matches!(f.action, faults::FaultAction::ClockStep(_)))
-                {
+                if let Some(f) = plan.iter().find(|f| {
+                    matches!(f.action, faults::FaultAction::ClockStep(_))
+                        && !faults::keeps_a_clock(&f.node)
+                }) {
                     eprintln!(
-                        "error: --faults: {:?}: clock steps cannot be injected into a running node yet",
+                        "error: --faults: {:?}: only a cell or a central unit keeps a clock to step",
                         f.text
                     );
                     return Err(ExitCode::from(EXIT_BAD_INPUT));
@@ -306,6 +306,18 @@ pub async fn measure(
         }
     };
     let mut sup = supervisor::Supervisor::new();
+    // The clock steps of the plan (checked already), given to each node at
+    // its start: it takes the next at each SIGUSR1 the plan sends.
+    let plan = args
+        .faults
+        .as_deref()
+        .and_then(|p| faults::parse_plan(p).ok())
+        .unwrap_or_default();
+    let clock_steps = |cmd: &mut std::process::Command, node: &str| {
+        if let Some(steps) = faults::clock_steps_flag(&plan, node) {
+            cmd.arg("--sim-clock-steps-us").arg(steps);
+        }
+    };
 
     let mut central_cmd = match args.mesh {
         Mesh::Router => {
@@ -327,6 +339,7 @@ pub async fn measure(
     central_cmd.args(["--firing", firing]);
     credential(&mut central_cmd, &crate::secure::Identity::Central);
     let web = launch::http_flags(args, &mut central_cmd)?;
+    clock_steps(&mut central_cmd, "central");
     sup.spawn("central", central_cmd)?;
     if args.standby {
         // A second central unit that follows the first and takes over.
@@ -335,6 +348,7 @@ pub async fn measure(
             Mesh::Peer => node_command(args, site, "central", "", &hub)?,
         };
         standby.args(["--standby", "--firing", firing]);
+        clock_steps(&mut standby, "central standby");
         credential(&mut standby, &crate::secure::Identity::Central);
         sup.spawn("central standby", standby)?;
     }
@@ -418,6 +432,7 @@ pub async fn measure(
         cmd.args(["--cell", &cell.id])
             .args(clock_flags(&mut clocks))
             .args(&to_recorder);
+        clock_steps(&mut cmd, &format!("cell {}", cell.id));
         credential(&mut cmd, &crate::secure::Identity::Cell(cell.id.clone()));
         sup.spawn(&format!("cell {}", cell.id), cmd)?;
     }

@@ -271,8 +271,8 @@ fn inject_due(
                 }
                 stopped
             }
-            // Refused by the argument check: not carried out.
-            FaultAction::ClockStep(_) => false,
+            // The node takes the next step of its `--sim-clock-steps-us`.
+            FaultAction::ClockStep(_) => sup.signal(&f.node, Signal::SIGUSR1),
         };
         if done {
             stats

@@ -21,7 +21,9 @@
 //! - `dd` is signed by the direction of travel (see [`super::Increment`]).
 //! - Start: the position filter starts at the first fix; the heading filter
 //!   starts at 0 deg with a 180 deg standard deviation so the first MSU
-//!   heading takes over; with [`InitialPose`] both start there instead. No
+//!   heading takes over; with [`InitialPose`] both start there instead,
+//!   until two fixes that agree with each other but not with it replace it
+//!   (position at the fix, heading unknown: [`super::start_check`]). No
 //!   pose is reported before the position is known.
 //! - A fix without a heading updates only the position.
 //! - Late fixes are applied at their measurement time and the later
@@ -33,6 +35,7 @@ use super::dead_reckoning::IncrementTracker;
 use super::heading_kf::{HeadingKf, HeadingKfParams};
 use super::position_akf::{PositionAkf, PositionAkfParams};
 use super::replay::Core;
+use super::start_check::{StartCheck, StartVerdict};
 use super::{InitialPose, Input, PoseEstimate};
 
 /// Parameters of `ickon-akf` (seed 000 values by default).
@@ -67,6 +70,8 @@ pub(crate) struct HeadingPositionFusion {
     pub(crate) heading: HeadingKf,
     pub(crate) position: PositionAkf,
     pub(crate) t_s: f64,
+    heading_params: HeadingKfParams,
+    start: StartCheck,
 }
 
 impl HeadingPositionFusion {
@@ -79,6 +84,8 @@ impl HeadingPositionFusion {
             heading: HeadingKf::uninformed(heading),
             position: PositionAkf::new(position),
             t_s: f64::NEG_INFINITY,
+            heading_params: heading,
+            start: StartCheck::new(initial.is_some()),
         };
         if let Some(p) = initial {
             out.heading = HeadingKf::new(heading, p.theta_rad, p.sigma_theta_rad);
@@ -99,7 +106,23 @@ impl HeadingPositionFusion {
     }
 
     /// Eq. 8 (if the fix has a heading) and eq. 16-19.
+    /// A start pose is checked against the first fixes first.
     pub(crate) fn fix(&mut self, fix: &crate::tdoa::Fix) {
+        let own = self.position.state().map(|(s, p)| ([s.x, s.y], p));
+        match self.start.judge(fix, own) {
+            StartVerdict::Fuse => {}
+            StartVerdict::Hold => return,
+            StartVerdict::Replace => {
+                self.heading = HeadingKf::uninformed(self.heading_params);
+                self.position
+                    .initialise(fix.x_m(), fix.y_m(), fix.covariance_xy_m2(), fix.t_s);
+                if let Some(h) = fix.heading_rad {
+                    self.heading.correct(h);
+                }
+                self.t_s = self.t_s.max(fix.t_s);
+                return;
+            }
+        }
         if let Some(h) = fix.heading_rad {
             self.heading.correct(h);
         }

@@ -54,6 +54,7 @@ pub mod odometry;
 pub mod position_akf;
 mod registry;
 pub mod replay;
+mod start_check;
 pub mod tdoa_ekf;
 
 #[cfg(test)]

@@ -128,3 +128,42 @@ fn a_standby_publishes_nothing_when_cells_come_and_go() {
         assert!(out.is_empty(), "{out:?}");
     }
 }
+
+#[test]
+fn a_central_unit_restarted_while_another_is_active_stands_by() {
+    // The first central unit dies; the standby takes over.
+    let mut first = active(Time(1_000));
+    let mut s = standby(Time(2_000));
+    let last = run_both(&mut first, &mut s, 5);
+    s.handle(last.start, Event::ActiveGone);
+    assert!(s.is_active());
+    // The first is restarted (a newer start, so a newer epoch were it
+    // active) and sees the token of the one that took over.
+    let now = last.start + Duration::from_millis(500);
+    let mut restarted = CentralCore::starting(
+        Site::default_site(),
+        String::new(),
+        CentralConfig::default(),
+        now,
+        false,
+        true,
+    )
+    .unwrap();
+    assert!(!restarted.is_active());
+    // It follows the active one, publishes nothing, and the active one
+    // never hears a newer epoch to step down for.
+    run_both(&mut s, &mut restarted, 10);
+    assert!(s.is_active() && !restarted.is_active());
+    assert_eq!(restarted.followed_epoch(), Some(s.epoch()));
+    // Without another central unit it starts active, as before.
+    let alone = CentralCore::starting(
+        Site::default_site(),
+        String::new(),
+        CentralConfig::default(),
+        now,
+        false,
+        false,
+    )
+    .unwrap();
+    assert!(alone.is_active());
+}

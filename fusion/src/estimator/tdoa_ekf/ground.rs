@@ -38,7 +38,11 @@
 //!   position there (when they agree with the filter too, it was not
 //!   displaced and simply counts as found again), counted in [`TdoaEkf::reinitialisations`]. It does
 //!   not widen its variance or jump to single fixes meanwhile.
-//! - Start: at `initial_pose` when given; otherwise at the first
+//! - Start: at `initial_pose` when given, but only as a guess checked like
+//!   a lost filter's position: its first two agreeing consistent cycles
+//!   confirm it or, when they disagree with it (an MSU restarted on a robot
+//!   that drove away from its start), replace it, as if there were no start
+//!   pose. Otherwise at the first
 //!   consistent cycle (or at the centroid of the first `start_transmitters`
 //!   transmitters heard, with `start_sigma_xy_m`), heading unknown: the
 //!   position only diffuses by the distance driven, and the heading is
@@ -228,6 +232,10 @@ pub struct TdoaEkf {
     adaptations: u32,
     watch: RejectionWatch,
     lost: bool,
+    /// Whether consistent cycles have confirmed where the filter started
+    /// (a start pose is the site's guess: a restarted MSU's robot is
+    /// wherever it drove to).
+    start_confirmed: bool,
     candidate: Option<Candidate>,
     last_outcome: Option<Outcome>,
     reinits: Vec<Reinitialisation>,
@@ -285,7 +293,11 @@ impl TdoaEkf {
             nis_seen: 0,
             adaptations: 0,
             watch: RejectionWatch::default(),
-            lost: params.initial_pose.is_none(),
+            // A start pose is checked like a lost filter's position: the
+            // filter fuses as usual, and its first two consistent cycles
+            // either confirm the start or replace it (see `try_reinitialise`).
+            lost: true,
+            start_confirmed: false,
             candidate: None,
             last_outcome: None,
             reinits: Vec::new(),
@@ -310,7 +322,8 @@ impl TdoaEkf {
         self.adaptations
     }
 
-    /// Whether the filter currently counts as lost.
+    /// Whether the filter currently counts as lost (also from a start
+    /// pose until consistent cycles confirm it).
     pub fn is_lost(&self) -> bool {
         self.lost
     }
@@ -716,10 +729,18 @@ impl TdoaEkf {
             let own = (p[(X, X)] + p[(Y, Y)]).max(0.0).sqrt();
             if (fx - x[X]).hypot(fy - x[Y]) <= 3.0 * (sigma + own) {
                 self.lost = false;
+                self.start_confirmed = true;
                 self.watch = RejectionWatch::default();
                 return false;
             }
+            if !self.start_confirmed {
+                // The start pose was wrong (an MSU restarted on a robot
+                // that had driven away): its heading is no better than its
+                // position, so start as without one, at the consistent fix.
+                self.state = None;
+            }
         }
+        self.start_confirmed = true;
         let cov = [[cov[(0, 0)], cov[(0, 1)]], [cov[(1, 0)], cov[(1, 1)]]];
         let extra = self.params.reinit_heading_sigma_deg.to_radians().powi(2);
         match &mut self.state {
@@ -832,7 +853,9 @@ impl TdoaEkf {
         let (Some(heading), true) = (f.heading_rad, sigma > 0.0) else {
             return;
         };
-        if self.heading_from_track.is_some() || self.lost {
+        // A lost filter's heading waits for its position; an unconfirmed
+        // start pose is no lost filter (the heading is measured as well).
+        if self.heading_from_track.is_some() || (self.lost && self.start_confirmed) {
             return;
         }
         let Some((x, p)) = self.state else {

@@ -35,3 +35,16 @@ pub fn offset_ns(span: i64) -> impl Strategy<Value = i64> {
 pub fn time_near(now: Time, span: Duration) -> impl Strategy<Value = Time> {
     offset_ns(span.as_nanos()).prop_map(move |d| now + Duration::from_nanos(d))
 }
+
+/// A step of a node's own clock between two events: mostly forward by up
+/// to half a second, sometimes backwards (a clock step), sometimes a jump
+/// of up to a day either way, rarely to the ends of time.
+pub fn clock_step() -> impl Strategy<Value = Duration> {
+    prop_oneof![
+        12 => 0i64..500_000_000,
+        2 => -1_000_000_000i64..0,
+        1 => -86_400_000_000_000i64..86_400_000_000_000,
+        1 => prop_oneof![Just(i64::MIN), Just(i64::MAX)],
+    ]
+    .prop_map(Duration::from_nanos)
+}

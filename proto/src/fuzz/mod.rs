@@ -24,18 +24,28 @@ pub const SEED: u64 = 0x1C0_F022;
 /// The case count: `ICKON_FUZZ_CASES`, or [`DEFAULT_CASES`] when unset or
 /// not a number.
 pub fn cases() -> u32 {
+    cases_or(DEFAULT_CASES)
+}
+
+fn cases_or(default: u32) -> u32 {
     std::env::var("ICKON_FUZZ_CASES")
         .ok()
         .and_then(|v| v.trim().parse().ok())
-        .unwrap_or(DEFAULT_CASES)
+        .unwrap_or(default)
 }
 
 /// The proptest configuration of a fuzz target: [`cases`] cases from the
 /// fixed [`SEED`], no failure files (a failure prints its input and the
 /// seed reproduces it), no forking.
 pub fn config() -> Config {
+    config_for(DEFAULT_CASES)
+}
+
+/// [`config`] for a slow target (a core fed event sequences): `default`
+/// cases when `ICKON_FUZZ_CASES` is unset.
+pub fn config_for(default: u32) -> Config {
     Config {
-        cases: cases(),
+        cases: cases_or(default),
         rng_algorithm: RngAlgorithm::ChaCha,
         rng_seed: RngSeed::Fixed(SEED),
         failure_persistence: None,

@@ -94,7 +94,7 @@ fn arrivals(stamp: Time, a: &Act) -> Option<UltrasoundArrivals> {
             let d = ((2.0 - p[0]).powi(2) + (2.0 - p[1]).powi(2) + (0.5 - p[2]).powi(2)).sqrt();
             m.arrivals.push(ickon_proto::msg::robot::Arrival {
                 tx_id: *id,
-                receiver_id: (a.kind % 6) as u8,
+                receiver_id: a.kind % 6,
                 t_arrival: stamp + Duration::from_secs_f64(0.04 * i as f64 + d / 343.0),
             });
         }

@@ -172,11 +172,12 @@ impl SyncSlave {
         let (Some(first), Some(last)) = (self.samples.front(), self.samples.back()) else {
             return Vec::new();
         };
-        let t0 = first.local_mid().as_nanos();
-        let span = (last.local_mid().as_nanos() - t0).max(1) as f64;
+        // In i128: a local clock that jumped across the window spans more than i64.
+        let t0 = i128::from(first.local_mid().as_nanos());
+        let span = (i128::from(last.local_mid().as_nanos()) - t0).max(1) as f64;
         let mut best: Vec<Option<&ClockSample>> = vec![None; buckets];
         for s in &self.samples {
-            let at = (s.local_mid().as_nanos() - t0) as f64 / span;
+            let at = (i128::from(s.local_mid().as_nanos()) - t0) as f64 / span;
             let k = ((at * buckets as f64) as usize).min(buckets - 1);
             best[k] = min_delay(best[k].into_iter().chain(std::iter::once(s)));
         }
@@ -303,6 +304,17 @@ mod tests {
         };
         assert_eq!(far.local_mid(), Time(-1));
         slave.add(far);
+        // And a window whose exchanges span the whole of i64 (a local
+        // clock jump found by `fuzz_cell_core`).
+        for t in [i64::MIN, i64::MAX, i64::MIN] {
+            slave.add(ClockSample {
+                t1: Time(t),
+                t2: Time(0),
+                t3: Time(0),
+                t4: Time(t),
+                epoch: 0,
+            });
+        }
         assert!(slave.estimate().is_none_or(|e| e.offset_ns.is_finite()));
         // A local clock at the ends of time maps to them, saturated.
         let e = SyncEstimate {

@@ -142,8 +142,8 @@ fn admin(core: &mut CentralCore, now: Time, a: &Act) -> Result<(), TestCaseError
 }
 
 fn check_outputs(core: &CentralCore, now: Time, out: &[Output]) -> Result<(), TestCaseError> {
-    // One event never floods the network (a few late cycles at most).
-    prop_assert!(out.len() <= 8, "{} outputs", out.len());
+    // One event never floods the network (a few late cycles, schedules).
+    prop_assert!(out.len() <= 16, "{} outputs: {out:?}", out.len());
     let mut last_cycle = None;
     for o in out {
         match o {

@@ -232,7 +232,9 @@ impl SyncSlave {
         );
         let xs: Vec<f64> = fitted
             .iter()
-            .map(|s| (s.local_mid().as_nanos() - reference.as_nanos()) as f64)
+            .map(|s| {
+                (i128::from(s.local_mid().as_nanos()) - i128::from(reference.as_nanos())) as f64
+            })
             .collect();
         let ys: Vec<f64> = fitted.iter().map(|s| s.offset_ns()).collect();
         let mean_y = ys.iter().sum::<f64>() / n;

@@ -564,7 +564,11 @@ impl CentralCore {
         if live.is_empty() || live == self.latest_schedule().active_cells {
             return None;
         }
-        let version = self.latest_schedule().version + 1;
+        // A forged schedule may have pushed the version to the last one.
+        let Some(version) = self.latest_schedule().version.checked_add(1) else {
+            tracing::warn!("no schedule version left in epoch {}", self.epoch);
+            return None;
+        };
         let effective = self.first_announceable_cycle(now);
         let schedule = Schedule {
             epoch: self.epoch,
@@ -853,7 +857,12 @@ impl CentralCore {
         } else {
             live
         };
-        let version = self.latest_schedule().version + 1;
+        let Some(version) = self.latest_schedule().version.checked_add(1) else {
+            return refuse(vec![format!(
+                "no schedule version left in epoch {}",
+                self.epoch
+            )]);
+        };
         let effective = self.first_announceable_cycle(now);
         let schedule = match make_schedule(self.config.schedule, &site, &active, version, effective)
         {

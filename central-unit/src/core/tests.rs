@@ -490,3 +490,28 @@ fn a_forged_newer_trigger_stamped_far_ahead_stops_the_site_for_three_periods_at_
     assert!(c.is_active(), "took over again");
     assert!(schedule(&out).is_some());
 }
+
+/// Found by `fuzz_central_core`: a forged schedule claiming the last
+/// version made the next membership schedule (or reload) overflow it.
+#[test]
+fn a_forged_last_version_does_not_overflow_the_next_schedule() {
+    let mut c = all_alive();
+    let now = c.next_wake();
+    c.handle(now, Event::Tick);
+    let forged = Schedule {
+        version: u32::MAX,
+        emissions: Vec::new(),
+        ..c.latest_schedule().clone()
+    };
+    c.handle(now, Event::ScheduleSeen(forged));
+    c.handle(
+        now,
+        Event::CellAlive {
+            id: "c2".into(),
+            up: false,
+        },
+    );
+    c.handle(now + Duration::from_millis(500), Event::Tick);
+    let (ack, _) = c.reload(ickon_proto::site::DEFAULT_SITE_TOML, "lab.toml", now);
+    assert!(ack.ok || !ack.messages.is_empty());
+}

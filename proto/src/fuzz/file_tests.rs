@@ -52,3 +52,15 @@ fn mutated_sites_are_often_still_valid_so_the_checks_run() {
         .count();
     assert!(accepted > 15, "{accepted} of 300 accepted");
 }
+
+/// Found by `fuzz_site_file`: a cell corner at -1e308 was accepted and the
+/// cell's area was infinite.
+#[test]
+fn a_cell_corner_at_minus_1e308_is_refused() {
+    let text = BUILTIN_SITES[0]
+        .1
+        .replace("[21.0, 4.0], [16.0, 4.0]]", "[21.0, 4.0], [-1e308, 4.0]]");
+    assert_ne!(text, BUILTIN_SITES[0].1, "the lab's c3 polygon changed");
+    let err = Site::from_toml(&text, "fuzz.toml").unwrap_err();
+    assert!(err.to_string().contains("within"), "{err}");
+}

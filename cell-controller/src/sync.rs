@@ -23,7 +23,7 @@
 
 use std::collections::VecDeque;
 
-use ickon_proto::time::Time;
+use ickon_proto::time::{Duration, Time};
 
 /// One four-timestamp exchange.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,21 +42,27 @@ pub struct ClockSample {
 
 impl ClockSample {
     /// `master - local` at the middle of the exchange, nanoseconds.
+    /// (In i128: the master's stamps come from the network and may be
+    /// anything; a nonsense offset is refused by the filter, not a panic.)
     pub fn offset_ns(&self) -> f64 {
-        ((self.t2.as_nanos() - self.t1.as_nanos()) + (self.t3.as_nanos() - self.t4.as_nanos()))
-            as f64
-            / 2.0
+        let [t1, t2, t3, t4] = self.stamps();
+        ((t2 - t1) + (t3 - t4)) as f64 / 2.0
     }
 
     /// Round-trip delay without the master's processing time, nanoseconds.
     pub fn delay_ns(&self) -> f64 {
-        ((self.t4.as_nanos() - self.t1.as_nanos()) - (self.t3.as_nanos() - self.t2.as_nanos()))
-            as f64
+        let [t1, t2, t3, t4] = self.stamps();
+        ((t4 - t1) - (t3 - t2)) as f64
     }
 
     /// The local time at the middle of the exchange.
     pub fn local_mid(&self) -> Time {
-        Time::from_nanos(self.t1.as_nanos() + (self.t4.as_nanos() - self.t1.as_nanos()) / 2)
+        let [t1, _, _, t4] = self.stamps();
+        Time::from_nanos(i64::try_from(t1 + (t4 - t1) / 2).unwrap_or(i64::MAX))
+    }
+
+    fn stamps(&self) -> [i128; 4] {
+        [self.t1, self.t2, self.t3, self.t4].map(|t| i128::from(t.as_nanos()))
     }
 }
 
@@ -78,8 +84,10 @@ pub struct SyncEstimate {
 impl SyncEstimate {
     /// The master time at local time `local`.
     pub fn to_master(&self, local: Time) -> Time {
-        let dt = (local.as_nanos() - self.reference.as_nanos()) as f64;
-        Time::from_nanos(local.as_nanos() + (self.offset_ns + self.drift * dt).round() as i64)
+        // Saturating: a local clock that jumped to the ends of time gives
+        // the ends of time, not an overflow.
+        let dt = (i128::from(local.as_nanos()) - i128::from(self.reference.as_nanos())) as f64;
+        local + Duration::from_nanos((self.offset_ns + self.drift * dt).round() as i64)
     }
 
     /// The local time at master time `master` (inverse of [`to_master`](Self::to_master)).
@@ -164,11 +172,12 @@ impl SyncSlave {
         let (Some(first), Some(last)) = (self.samples.front(), self.samples.back()) else {
             return Vec::new();
         };
-        let t0 = first.local_mid().as_nanos();
-        let span = (last.local_mid().as_nanos() - t0).max(1) as f64;
+        // In i128: a local clock that jumped across the window spans more than i64.
+        let t0 = i128::from(first.local_mid().as_nanos());
+        let span = (i128::from(last.local_mid().as_nanos()) - t0).max(1) as f64;
         let mut best: Vec<Option<&ClockSample>> = vec![None; buckets];
         for s in &self.samples {
-            let at = (s.local_mid().as_nanos() - t0) as f64 / span;
+            let at = (i128::from(s.local_mid().as_nanos()) - t0) as f64 / span;
             let k = ((at * buckets as f64) as usize).min(buckets - 1);
             best[k] = min_delay(best[k].into_iter().chain(std::iter::once(s)));
         }
@@ -223,7 +232,9 @@ impl SyncSlave {
         );
         let xs: Vec<f64> = fitted
             .iter()
-            .map(|s| (s.local_mid().as_nanos() - reference.as_nanos()) as f64)
+            .map(|s| {
+                (i128::from(s.local_mid().as_nanos()) - i128::from(reference.as_nanos())) as f64
+            })
             .collect();
         let ys: Vec<f64> = fitted.iter().map(|s| s.offset_ns()).collect();
         let mean_y = ys.iter().sum::<f64>() / n;
@@ -270,6 +281,54 @@ impl SyncSlave {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Found by `fuzz_cell_core`: a clock answer stamped at the ends of
+    /// time overflowed the offset (a panic in a debug build); it is now
+    /// one more exchange the filter refuses.
+    #[test]
+    fn a_clock_answer_at_the_ends_of_time_is_refused_not_a_panic() {
+        let s = ClockSample {
+            t1: Time(1_000),
+            t2: Time(i64::MIN),
+            t3: Time(i64::MAX),
+            t4: Time(2_000),
+            epoch: 0,
+        };
+        assert!(s.offset_ns().is_finite() && s.delay_ns().is_finite());
+        let mut slave = SyncSlave::new(SyncConfig::default());
+        slave.add(s);
+        let far = ClockSample {
+            t1: Time(i64::MIN),
+            t2: Time(i64::MAX),
+            t3: Time(i64::MAX),
+            t4: Time(i64::MAX),
+            epoch: 0,
+        };
+        assert_eq!(far.local_mid(), Time(-1));
+        slave.add(far);
+        // And a window whose exchanges span the whole of i64 (a local
+        // clock jump found by `fuzz_cell_core`).
+        for t in [i64::MIN, i64::MAX, i64::MIN] {
+            slave.add(ClockSample {
+                t1: Time(t),
+                t2: Time(0),
+                t3: Time(0),
+                t4: Time(t),
+                epoch: 0,
+            });
+        }
+        assert!(slave.estimate().is_none_or(|e| e.offset_ns.is_finite()));
+        // A local clock at the ends of time maps to them, saturated.
+        let e = SyncEstimate {
+            reference: Time(0),
+            offset_ns: 5.0,
+            drift: 1e-6,
+            sigma_ns: 1.0,
+            samples: 3,
+        };
+        assert_eq!(e.to_master(Time(i64::MAX)), Time(i64::MAX));
+        assert_eq!(e.to_master(Time(i64::MIN)), Time(i64::MIN));
+    }
 
     /// A local clock `offset` ahead of the master and drifting, exchanges with
     /// symmetric delays plus some queueing on one side.

@@ -170,6 +170,9 @@ pub struct CentralCore {
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
 const SENT_TRIGGERS_KEPT: usize = 16;
 
+/// Cycles that may still be triggered late in one tick; older ones are skipped.
+const MAX_LATE_CYCLES: i64 = 2;
+
 impl CentralCore {
     /// A central unit serving `site` (whose file text is `site_toml`), starting at `now`.
     pub fn new(
@@ -306,7 +309,7 @@ impl CentralCore {
                 Vec::new()
             }
             Event::TriggerSeen(trigger) if self.standby.is_some() => {
-                self.follow_trigger(trigger);
+                self.follow_trigger(trigger, now);
                 Vec::new()
             }
             Event::ScheduleSeen(schedule) => {
@@ -318,7 +321,7 @@ impl CentralCore {
             }
             Event::TriggerSeen(trigger) => {
                 if trigger.epoch > self.epoch {
-                    self.step_down_for(trigger);
+                    self.step_down_for(trigger, now);
                     return Vec::new();
                 }
                 self.on_trigger_seen(&trigger);
@@ -349,7 +352,9 @@ impl CentralCore {
         if self.standby.is_some() {
             return out;
         }
+        self.skip_stale_cycles(now);
         while now >= self.next_trigger_at() {
+            let before = self.next_start;
             let cycle = self.next_cycle;
             let schedule = self.schedule_for(cycle).clone();
             let (firing, period) = self.plan_cycle(&schedule, now);
@@ -370,8 +375,12 @@ impl CentralCore {
                 self.count_missed(cycle);
             }
             self.last_trigger = Some(trigger);
-            self.next_cycle += 1;
+            self.next_cycle = self.next_cycle.saturating_add(1);
             self.next_start = self.next_start + period;
+            if self.next_start <= before {
+                // At the end of time (saturated): nothing more to trigger.
+                break;
+            }
         }
         if now >= self.next_reannounce && !out.is_empty() {
             self.next_reannounce = now + self.config.schedule_reannounce;
@@ -380,6 +389,31 @@ impl CentralCore {
         out.extend(self.reconcile_membership(now));
         self.update_states();
         out
+    }
+
+    /// After a forward clock jump (or a process that was stopped), skips
+    /// the cycles whose time is long past instead of triggering each of
+    /// them late (a day's jump was 432 000 triggers in one tick, the end
+    /// of time a loop without end); the cycle count moves on with the
+    /// time, so that the cells' trigger gate still finds it in step.
+    fn skip_stale_cycles(&mut self, now: Time) {
+        let period = i128::from(
+            self.schedule_for(self.next_cycle)
+                .cycle_period
+                .as_nanos()
+                .max(1),
+        );
+        // In i128: the gap between two times may exceed i64 (a start taken
+        // over from a forged trigger near i64::MIN, a clock near i64::MAX).
+        let behind = i128::from(now.as_nanos()) - i128::from(self.next_trigger_at().as_nanos());
+        let skip = behind / period - i128::from(MAX_LATE_CYCLES);
+        if skip > 0 {
+            self.next_cycle = self
+                .next_cycle
+                .saturating_add(u64::try_from(skip).unwrap_or(u64::MAX));
+            let start = i128::from(self.next_start.as_nanos()) + skip * period;
+            self.next_start = Time::from_nanos(i64::try_from(start).unwrap_or(i64::MAX));
+        }
     }
 
     /// The transmitters that fire in the next cycle under `schedule` and
@@ -530,7 +564,11 @@ impl CentralCore {
         if live.is_empty() || live == self.latest_schedule().active_cells {
             return None;
         }
-        let version = self.latest_schedule().version + 1;
+        // A forged schedule may have pushed the version to the last one.
+        let Some(version) = self.latest_schedule().version.checked_add(1) else {
+            tracing::warn!("no schedule version left in epoch {}", self.epoch);
+            return None;
+        };
         let effective = self.first_announceable_cycle(now);
         let schedule = Schedule {
             epoch: self.epoch,
@@ -819,7 +857,12 @@ impl CentralCore {
         } else {
             live
         };
-        let version = self.latest_schedule().version + 1;
+        let Some(version) = self.latest_schedule().version.checked_add(1) else {
+            return refuse(vec![format!(
+                "no schedule version left in epoch {}",
+                self.epoch
+            )]);
+        };
         let effective = self.first_announceable_cycle(now);
         let schedule = match make_schedule(self.config.schedule, &site, &active, version, effective)
         {

@@ -55,8 +55,12 @@ impl CellTracker {
         if self.residuals_ns.len() == RESIDUAL_WINDOW {
             self.residuals_ns.pop_front();
         }
-        self.residuals_ns
-            .push_back(burst.actual.as_nanos() - burst.scheduled.as_nanos());
+        self.residuals_ns.push_back(
+            burst
+                .actual
+                .as_nanos()
+                .saturating_sub(burst.scheduled.as_nanos()),
+        );
         if self.fired.insert(burst.cycle) {
             self.cycles_fired += 1;
             self.last_cycle_fired = self.last_cycle_fired.max(burst.cycle);
@@ -90,7 +94,12 @@ impl CellTracker {
     /// The admin view of this cell.
     pub fn health(&self, id: &str) -> CellHealth {
         let n = self.residuals_ns.len();
-        let max = self.residuals_ns.iter().map(|r| r.abs()).max().unwrap_or(0);
+        let max = self
+            .residuals_ns
+            .iter()
+            .map(|r| r.saturating_abs())
+            .max()
+            .unwrap_or(0);
         let rms = if n == 0 {
             0.0
         } else {
@@ -213,6 +222,25 @@ mod tests {
             actual: Time(1_000_000_000 + error_ns),
             epoch: 1,
         }
+    }
+
+    /// Found by `fuzz_central_core`: a burst report scheduled at
+    /// `i64::MIN` overflowed the residual (a panic in a debug build).
+    #[test]
+    fn a_burst_scheduled_at_the_start_of_time_saturates_its_residual() {
+        let mut c = CellTracker::default();
+        c.on_burst(&Burst {
+            scheduled: Time(i64::MIN),
+            ..burst(1, 0)
+        });
+        c.on_burst(&Burst {
+            actual: Time(i64::MIN),
+            scheduled: Time(i64::MAX),
+            ..burst(2, 0)
+        });
+        let h = c.health("c1");
+        assert_eq!(h.residual_max_ns, i64::MAX);
+        assert!(h.residual_rms_ns > 0);
     }
 
     #[test]

@@ -30,3 +30,5 @@ mod wire_string;
 
 pub use codec::{DecodeError, EncodeError, decode, encode};
 pub use time::{Duration, Time};
+#[cfg(any(test, feature = "fuzz"))]
+pub mod fuzz;

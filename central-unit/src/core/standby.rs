@@ -97,7 +97,7 @@ impl CentralCore {
         }
     }
 
-    pub(super) fn follow_trigger(&mut self, trigger: CycleTrigger) {
+    pub(super) fn follow_trigger(&mut self, trigger: CycleTrigger, now: Time) {
         let own_period = self.latest_schedule().cycle_period;
         let Some(f) = &mut self.standby else {
             return;
@@ -114,7 +114,10 @@ impl CentralCore {
             .map_or(own_period, |s| s.cycle_period);
         // The lease counts whole periods of the schedule, never the shorter
         // cycles of occupancy firing: a late takeover, never a false one.
-        f.lease_end = trigger.start + period * LEASE_CYCLES;
+        // A real trigger starts a trigger lead after it is heard; one
+        // stamped further ahead (forged) must not hold the standby back
+        // until then: its start counts as one period from now at most.
+        f.lease_end = trigger.start.min(now + period) + period * LEASE_CYCLES;
         f.last_trigger = Some(trigger);
     }
 
@@ -154,11 +157,15 @@ impl CentralCore {
             Some(t) => t.start + t.period(&schedule),
             None => now + self.config.start_delay,
         };
-        for _ in 0..100_000 {
-            if start - self.config.trigger_lead >= now {
-                break;
-            }
-            start = start + schedule.cycle_period;
+        // Whole periods up to the first start still ahead of the trigger
+        // lead (in i128: a followed start may lie anywhere in i64).
+        let period = i128::from(schedule.cycle_period.as_nanos().max(1));
+        let due = i128::from((now + self.config.trigger_lead).as_nanos());
+        let behind = due - i128::from(start.as_nanos());
+        if behind > 0 {
+            let periods = (behind + period - 1) / period;
+            let at = i128::from(start.as_nanos()) + periods * period;
+            start = Time::from_nanos(i64::try_from(at).unwrap_or(i64::MAX));
         }
         self.schedules = vec![schedule.clone()];
         self.next_cycle = 0;
@@ -192,7 +199,7 @@ impl CentralCore {
     }
 
     /// The same for a newer epoch's trigger.
-    pub(super) fn step_down_for(&mut self, trigger: CycleTrigger) {
+    pub(super) fn step_down_for(&mut self, trigger: CycleTrigger, now: Time) {
         tracing::warn!(
             "a central unit of a newer epoch ({} > {}) is active: standing by",
             trigger.epoch,
@@ -203,7 +210,7 @@ impl CentralCore {
             last_trigger: None,
             lease_end: trigger.start,
         });
-        self.follow_trigger(trigger);
+        self.follow_trigger(trigger, now);
     }
 }
 

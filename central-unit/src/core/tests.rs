@@ -411,3 +411,107 @@ fn with_occupancy_the_triggers_name_only_what_a_tracked_robot_hears() {
     // The admin sees that cycle's firing set and rate.
     assert_eq!(c.current_firing().emissions.len(), last.firing.len());
 }
+
+/// Found by `fuzz_central_core`: a clock jump forward made one tick send
+/// every cycle of the gap (the end of time: a loop without end).
+#[test]
+fn a_clock_jump_forward_skips_the_stale_cycles_instead_of_sending_each() {
+    let mut c = all_alive();
+    let first = triggers(&c.tick(c.next_wake()));
+    assert_eq!(first.len(), 1);
+    let period = c.latest_schedule().cycle_period;
+    let later = c.next_wake() + Duration::from_millis(86_400_000);
+    let sent = triggers(&c.tick(later));
+    assert!(
+        !sent.is_empty() && sent.len() <= 3,
+        "{} triggers",
+        sent.len()
+    );
+    // The count moved on with the time: cycle and start still agree.
+    let last = sent.last().unwrap();
+    let cycles = (last.start - first[0].start).as_nanos() / period.as_nanos();
+    assert_eq!(last.cycle - first[0].cycle, cycles as u64);
+    assert!(c.next_wake() > later);
+    // The end of time ends the tick too.
+    let end = Time::from_nanos(i64::MAX);
+    assert!(triggers(&c.tick(end)).len() < 8);
+}
+
+/// Found by `fuzz_central_core`: a standby that followed a trigger from
+/// long ago (or with a nonsense period) took over with its cycle 0 in the
+/// past (the catch-up loop gave up after 100 000 periods).
+#[test]
+fn a_takeover_after_a_trigger_from_long_ago_starts_its_cycle_0_ahead() {
+    let now = Time::from_nanos(1_700_000_000_000_000_000);
+    let site = Site::default_site();
+    let mut c = CentralCore::standby(site, String::new(), CentralConfig::default(), now).unwrap();
+    let old = CycleTrigger {
+        cycle: 3,
+        start: Time::from_nanos(26_404_000_000_000),
+        schedule_version: 1,
+        epoch: 5,
+        firing: Vec::new(),
+        cycle_period: Duration::from_nanos(i64::MIN),
+    };
+    // Its lease ended long ago: it takes over at once.
+    let out = c.handle(now, Event::TriggerSeen(old));
+    assert!(c.is_active());
+    assert!(schedule(&out).is_some());
+    let period = c.latest_schedule().cycle_period;
+    let wake = c.next_wake();
+    assert!(wake >= now && wake <= now + period, "wake {wake} at {now}");
+}
+
+/// Found by `fuzz_central_core`: one forged trigger of a newer epoch
+/// stamped an hour ahead made the active central unit stand by until
+/// then; it now takes over again once three periods pass without a trigger.
+#[test]
+fn a_forged_newer_trigger_stamped_far_ahead_stops_the_site_for_three_periods_at_most() {
+    let mut c = all_alive();
+    let now = c.next_wake();
+    c.handle(now, Event::Tick);
+    let forged = CycleTrigger {
+        cycle: 1,
+        start: now + Duration::from_millis(3_600_000),
+        schedule_version: 1,
+        epoch: c.epoch() + 1,
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
+    };
+    c.handle(now, Event::TriggerSeen(forged));
+    assert!(!c.is_active(), "a newer epoch is followed");
+    let period = c.latest_schedule().cycle_period;
+    let later = now + period * 3;
+    assert!(
+        c.handle(later - Duration::from_millis(1), Event::Tick)
+            .is_empty()
+    );
+    let out = c.handle(later, Event::Tick);
+    assert!(c.is_active(), "took over again");
+    assert!(schedule(&out).is_some());
+}
+
+/// Found by `fuzz_central_core`: a forged schedule claiming the last
+/// version made the next membership schedule (or reload) overflow it.
+#[test]
+fn a_forged_last_version_does_not_overflow_the_next_schedule() {
+    let mut c = all_alive();
+    let now = c.next_wake();
+    c.handle(now, Event::Tick);
+    let forged = Schedule {
+        version: u32::MAX,
+        emissions: Vec::new(),
+        ..c.latest_schedule().clone()
+    };
+    c.handle(now, Event::ScheduleSeen(forged));
+    c.handle(
+        now,
+        Event::CellAlive {
+            id: "c2".into(),
+            up: false,
+        },
+    );
+    c.handle(now + Duration::from_millis(500), Event::Tick);
+    let (ack, _) = c.reload(ickon_proto::site::DEFAULT_SITE_TOML, "lab.toml", now);
+    assert!(ack.ok || !ack.messages.is_empty());
+}

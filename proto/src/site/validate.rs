@@ -88,6 +88,15 @@ impl Ctx<'_> {
         if !self.finite_all(v.span(), field, &flat) {
             return false;
         }
+        if flat.iter().any(|x| x.abs() > MAX_EXTENT_M) {
+            // Finite but absurd (1e308): areas and distances would overflow to inf.
+            self.issue(
+                v.span(),
+                field,
+                format!("coordinates must lie within +-{MAX_EXTENT_M} m"),
+            );
+            return false;
+        }
         if pts.len() < 3 {
             self.issue(
                 v.span(),
@@ -107,6 +116,10 @@ impl Ctx<'_> {
         true
     }
 }
+
+/// The largest polygon coordinate a site may have, metres (1000 km: no
+/// building is larger, and squares of it stay far from overflow).
+const MAX_EXTENT_M: f64 = 1e6;
 
 fn counter_clockwise(mut polygon: Vec<Point2>) -> Vec<Point2> {
     if geometry::signed_area(&polygon) < 0.0 {

@@ -1,0 +1,216 @@
+//! The central unit's core fed random sequences of events (fuzz target,
+//! see `ickon_proto::fuzz`): cells and robots known and unknown coming and
+//! going, forged statuses, bursts, poses, schedules and triggers with
+//! extreme fields, admin commands, and a clock that steps and jumps. It
+//! never panics, its tables stay bounded by the site, what it publishes is
+//! a schedule the receivers' rules accept and triggers of its own epoch
+//! that count up, and its next wake-up is never in the past.
+
+use ickon_central::core::{CentralConfig, CentralCore, Event, Output};
+use ickon_proto::fuzz::extreme::{clock_step, float};
+use ickon_proto::fuzz::values::draw;
+use ickon_proto::fuzz::{config_for, entropy};
+use ickon_proto::msg::control::{Burst, CellStatus, CycleTrigger, Schedule};
+use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::site::{BUILTIN_SITES, Site};
+use ickon_proto::time::{Duration, Time};
+use proptest::prelude::*;
+
+/// One thing happening to the central unit: which kind (`kind`), after
+/// `step` on its clock, with `e` as the entropy of its content.
+#[derive(Debug, Clone)]
+struct Act {
+    kind: u8,
+    step: Duration,
+    e: Vec<u8>,
+    x: f64,
+}
+
+fn act() -> impl Strategy<Value = Act> {
+    (any::<u8>(), clock_step(), entropy(), float()).prop_map(|(kind, step, e, x)| Act {
+        kind,
+        step,
+        e,
+        x,
+    })
+}
+
+const IDS: [&str; 8] = ["c1", "c2", "c3", "c4", "r1", "r2", "r3", "zz"];
+
+fn id(e: &[u8]) -> String {
+    match e.first() {
+        Some(b) if *b < 240 => IDS[usize::from(*b) % IDS.len()].to_string(),
+        _ => draw::<String>(e).unwrap_or_default(),
+    }
+}
+
+/// A message near what the core expects: drawn, then (often) stamped
+/// with its epoch, near its cycle and near `now`, so the checks past the
+/// first are reached.
+fn near<T>(mut m: T, e: &[u8], fix: impl FnOnce(&mut T, u8)) -> T {
+    let b = e.get(1).copied().unwrap_or(0);
+    if b < 200 {
+        fix(&mut m, b);
+    }
+    m
+}
+
+fn event(core: &CentralCore, now: Time, a: &Act) -> Option<Event> {
+    let e = &a.e;
+    let epoch = core.epoch();
+    let cycle = core.last_cycle();
+    Some(match a.kind % 12 {
+        0 | 1 => Event::Tick,
+        2 => Event::CellAlive {
+            id: id(e),
+            up: a.kind & 0x80 == 0,
+        },
+        3 => Event::RobotAlive {
+            id: id(e),
+            up: a.kind & 0x80 == 0,
+        },
+        4 => Event::CellStatus(near(draw::<CellStatus>(e)?, e, |s, _| {
+            s.cell_id = id(e);
+            s.stamp = now;
+        })),
+        5 => Event::Burst(near(draw::<Burst>(e)?, e, |b, k| {
+            b.cell_id = id(e);
+            b.epoch = epoch;
+            b.cycle = cycle.saturating_add(u64::from(k % 4)).saturating_sub(2);
+            b.actual = now;
+        })),
+        6 => Event::Pose {
+            robot: id(e),
+            pose: near(draw::<RobotPose>(e)?, e, |p, _| p.stamp = now),
+        },
+        7 => Event::Fix { robot: id(e) },
+        8 => Event::ScheduleSeen(near(draw::<Schedule>(e)?, e, |s, k| {
+            let own = core.latest_schedule();
+            s.epoch = epoch;
+            if k % 2 == 0 {
+                // A forgery under the current version, or one above it.
+                s.version = own.version.saturating_add(u32::from(k % 4 == 0));
+            }
+        })),
+        9 => Event::TriggerSeen(near(draw::<CycleTrigger>(e)?, e, |t, k| {
+            t.epoch = if k % 8 == 0 {
+                epoch.saturating_add(1)
+            } else {
+                epoch
+            };
+            t.cycle = cycle.saturating_add(u64::from(k % 3));
+            t.start = now;
+        })),
+        10 => Event::ActiveGone,
+        _ => return None,
+    })
+}
+
+/// The admin side: pause, resume, reload, status and coverage queries.
+fn admin(core: &mut CentralCore, now: Time, a: &Act) -> Result<(), TestCaseError> {
+    match a.kind / 12 % 5 {
+        0 => {
+            core.set_paused(a.kind & 1 == 0);
+        }
+        1 => {
+            let text = match a.e.first() {
+                Some(b) if *b < 128 => BUILTIN_SITES[usize::from(*b) % 2].1.to_string(),
+                _ => draw::<String>(&a.e).unwrap_or_default(),
+            };
+            let (_, out) = core.reload(&text, "fuzz.toml", now);
+            if let Some(o) = out {
+                check_outputs(core, now, &[o])?;
+            }
+        }
+        2 => {
+            // A full grid takes milliseconds: the bound is checked on every
+            // wish, the grid built for a few.
+            let (lo, hi) = core.site().bounds();
+            let r =
+                ickon_central::coverage::effective_resolution_m(a.x, hi[0] - lo[0], hi[1] - lo[1]);
+            prop_assert!(r.is_finite() && r > 0.0, "resolution {r} for {}", a.x);
+            if a.e.first() == Some(&0) && core.site().transmitters.len() < 40 {
+                let report = core.coverage(a.x);
+                prop_assert!(report.visible.len() <= ickon_central::coverage::MAX_GRID_POINTS);
+            }
+        }
+        _ => {
+            core.status(now);
+        }
+    }
+    Ok(())
+}
+
+fn check_outputs(core: &CentralCore, now: Time, out: &[Output]) -> Result<(), TestCaseError> {
+    // One event never floods the network (a few late cycles, schedules).
+    prop_assert!(out.len() <= 16, "{} outputs: {out:?}", out.len());
+    let mut last_cycle = None;
+    for o in out {
+        match o {
+            Output::Schedule(s) => {
+                prop_assert!(ickon_proto::epoch::check_schedule(s).is_ok(), "{s:?}");
+                prop_assert_eq!(s.epoch, core.epoch());
+            }
+            Output::Trigger(t) => {
+                prop_assert_eq!(t.epoch, core.epoch());
+                prop_assert!(last_cycle < Some(t.cycle), "cycles out of order: {out:?}");
+                last_cycle = Some(t.cycle);
+                prop_assert!(t.cycle_period > Duration::ZERO, "{t:?}");
+                prop_assert!(
+                    t.start.since(now) < Duration::from_millis(120_000),
+                    "{t:?} at {now}"
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+fn run(site: usize, standby: bool, acts: &[Act]) -> Result<(), TestCaseError> {
+    let (name, text) = BUILTIN_SITES[site];
+    let site = Site::builtin(name).expect("built-in site").0;
+    let (cells, robots) = (site.cells.len(), site.robots.len());
+    let mut now = Time::from_nanos(1_700_000_000_000_000_000);
+    let build = if standby {
+        CentralCore::standby
+    } else {
+        CentralCore::new
+    };
+    let mut core = build(site, text.to_string(), CentralConfig::default(), now)
+        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+    for a in acts {
+        now = now + a.step;
+        match event(&core, now, a) {
+            Some(ev) => {
+                let out = core.handle(now, ev);
+                check_outputs(&core, now, &out)?;
+                // Whatever was due has been done (short of the end of time).
+                if core.is_active() && now < Time::from_nanos(i64::MAX / 2) {
+                    prop_assert!(core.next_wake() > now, "wake {} at {now}", core.next_wake());
+                }
+            }
+            None => admin(&mut core, now, a)?,
+        }
+        let status = core.status(now);
+        prop_assert_eq!(status.cells.len(), cells);
+        prop_assert!(
+            status.robots.len() <= robots,
+            "{} robots",
+            status.robots.len()
+        );
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(config_for(24))]
+
+    #[test]
+    fn fuzz_central_core(
+        site in 0..BUILTIN_SITES.len(),
+        standby in any::<bool>(),
+        acts in proptest::collection::vec(act(), 1..24),
+    ) {
+        run(site, standby, &acts)?;
+    }
+}

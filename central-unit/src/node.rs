@@ -151,15 +151,9 @@ pub async fn run(
     if active_seen {
         tracing::info!("another central unit is active: starting as its standby");
     }
-    let mut core = CentralCore::starting(
-        site,
-        site_toml,
-        config,
-        clock.now(),
-        standby,
-        active_seen,
-    )
-    .map_err(|e| NodeError::Setup(e.to_string()))?;
+    let mut core =
+        CentralCore::starting(site, site_toml, config, clock.now(), standby, active_seen)
+            .map_err(|e| NodeError::Setup(e.to_string()))?;
     let s = core.latest_schedule();
     tracing::info!(
         "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",

@@ -28,17 +28,24 @@ fn processes_mentioning(needle: &str) -> Vec<u32> {
         .collect()
 }
 
-#[test]
-fn two_robots_on_the_full_mesh_are_accurate_and_every_process_stops() {
+/// `ickon sim --robots 2 --seed 2 --json` with `extra` flags for
+/// `duration_s`: its JSON report, after checking that it succeeded.
+fn sim_json(extra: &[&str], duration_s: f64) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
         .args(["sim", "--robots", "2", "--json", "--seed", "2"])
-        .args(["--duration", &DURATION_S.to_string()])
+        .args(extra)
+        .args(["--duration", &duration_s.to_string()])
         .output()
         .expect("ickon sim starts");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "ickon sim failed:\n{stderr}");
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stderr}"));
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stderr}"))
+}
+
+#[test]
+fn two_robots_on_the_full_mesh_are_accurate_and_every_process_stops() {
+    let doc = sim_json(&[], DURATION_S);
 
     let rate_hz = doc["update_rate_hz"].as_f64().expect("update rate");
     assert!(rate_hz > 1.0, "{doc}");
@@ -100,16 +107,7 @@ fn two_robots_on_the_full_mesh_are_accurate_and_every_process_stops() {
 #[test]
 fn occupancy_firing_gives_faster_cycles_and_every_robot_its_fixes() {
     let duration_s = 12.0;
-    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
-        .args(["sim", "--robots", "2", "--json", "--seed", "2"])
-        .args(["--firing", "occupancy"])
-        .args(["--duration", &duration_s.to_string()])
-        .output()
-        .expect("ickon sim starts");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "ickon sim failed:\n{stderr}");
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stderr}"));
+    let doc = sim_json(&["--firing", "occupancy"], duration_s);
     let schedule_hz = doc["update_rate_hz"].as_f64().expect("update rate");
     let cycles_per_s = doc["cycles_per_s"].as_f64().expect("cycles per second");
     assert!(

@@ -77,14 +77,6 @@ pub(super) fn node_command(
     Ok(cmd)
 }
 
-/// The central unit's `--firing` value for `firing`.
-pub(super) fn firing_flag(firing: ickon_central::node::Firing) -> &'static str {
-    match firing {
-        ickon_central::node::Firing::All => "all",
-        ickon_central::node::Firing::Occupancy => "occupancy",
-    }
-}
-
 /// The `ickon router` command line of a run's router, listening on `endpoint`.
 pub(super) fn router_command(endpoint: &str) -> anyhow::Result<Command> {
     let mut cmd = lean_command()?;

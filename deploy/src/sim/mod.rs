@@ -335,8 +335,11 @@ pub async fn measure(
         }
         Mesh::Peer => node_command(args, site, "central", "", &hub)?,
     };
-    let firing = launch::firing_flag(args.firing);
-    central_cmd.args(["--firing", firing]);
+    // The flag's own spelling, from the same clap definition that parses it.
+    let firing = clap::ValueEnum::to_possible_value(&args.firing)
+        .map(|v| v.get_name().to_string())
+        .unwrap_or_default();
+    central_cmd.args(["--firing", &firing]);
     credential(&mut central_cmd, &crate::secure::Identity::Central);
     let web = launch::http_flags(args, &mut central_cmd)?;
     clock_steps(&mut central_cmd, "central");
@@ -347,7 +350,7 @@ pub async fn measure(
             Mesh::Router => node_command(args, site, "central", &hub, "")?,
             Mesh::Peer => node_command(args, site, "central", "", &hub)?,
         };
-        standby.args(["--standby", "--firing", firing]);
+        standby.args(["--standby", "--firing", &firing]);
         clock_steps(&mut standby, "central standby");
         credential(&mut standby, &crate::secure::Identity::Central);
         sup.spawn("central standby", standby)?;

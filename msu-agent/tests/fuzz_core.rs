@@ -105,7 +105,7 @@ fn arrivals(stamp: Time, a: &Act) -> Option<UltrasoundArrivals> {
 fn event(now: Time, a: &Act) -> Option<Event> {
     let stamp = now + Duration::from_nanos(a.at);
     let plausible = a.e.first().is_some_and(|b| *b < 160);
-    Some(match a.kind % 6 {
+    Some(match a.kind % 7 {
         0 => Event::Schedule(if plausible { schedule() } else { draw(&a.e)? }),
         1 | 2 => Event::Arrivals(arrivals(stamp, a)?),
         3 => Event::Odometry({
@@ -122,6 +122,7 @@ fn event(now: Time, a: &Act) -> Option<Event> {
             }
             o
         }),
+        5 => Event::Trigger(draw::<ickon_proto::msg::control::CycleTrigger>(&a.e)?),
         _ => Event::Range({
             let mut o = draw::<ObstacleRanges>(&a.e)?;
             if plausible {

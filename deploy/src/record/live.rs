@@ -67,7 +67,7 @@ pub async fn record_site<W: Write + Seek>(
     let mut tick = tokio::time::interval(TICK);
     let result = loop {
         tokio::select! {
-            _ = &mut stop => break Ok(()),
+            _ = &mut stop => break drain(&samples, recorder),
             Ok(s) = samples.recv_async() => {
                 let key = s.key_expr().as_str().to_string();
                 if let Err(e) = recorder.record(&key, &s.payload().to_bytes(), system_now()) {
@@ -88,6 +88,18 @@ pub async fn record_site<W: Write + Seek>(
     };
     asking.abort();
     result
+}
+
+/// Records what already arrived when the stop came: a sample the nodes'
+/// other subscribers got is in the queue, and the file must hold it too.
+fn drain<W: Write + Seek>(
+    samples: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    recorder: &mut Recorder<W>,
+) -> Result<(), LiveError> {
+    while let Ok(Some(s)) = samples.try_recv() {
+        recorder.record(s.key_expr().as_str(), &s.payload().to_bytes(), system_now())?;
+    }
+    Ok(())
 }
 
 /// Asks `key` until a reply arrives and returns its raw payload (the

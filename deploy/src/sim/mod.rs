@@ -575,11 +575,13 @@ pub async fn measure(
     if let Some(me) = usage::read(std::process::id()) {
         used.push(("launcher".to_string(), me));
     }
+    // The nodes stop first, so that the file holds everything they
+    // published, the last poses the observer counted among it.
+    let killed = sup.stop_all(STOP_GRACE);
     let recorded = match recording {
         Some(r) => Some(r.finish().await),
         None => None,
     };
-    let killed = sup.stop_all(STOP_GRACE);
     if let Some(s) = recorder_session {
         let _ = s.close().await;
     }

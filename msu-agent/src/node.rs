@@ -194,15 +194,16 @@ pub async fn run(
         .await
         .map_err(zerr)?;
     drop(tx);
+    // Not express: batched with other samples only when the link is busy
+    // (Zenoh's adaptive batching), which is when one write per pose costs
+    // the router most.
     let fix_pub = session
         .declare_publisher(sub(RobotTopic::Fix)?)
-        .express(true)
         .priority(Priority::InteractiveHigh)
         .await
         .map_err(zerr)?;
     let pose_pub = session
         .declare_publisher(sub(RobotTopic::Pose)?)
-        .express(true)
         .priority(Priority::InteractiveHigh)
         .congestion_control(CongestionControl::Drop)
         .await

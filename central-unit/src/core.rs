@@ -32,7 +32,7 @@ use std::collections::{BTreeMap, VecDeque};
 use ickon_proto::epoch::epoch_of;
 use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo};
-use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::msg::robot::{PoseStatus, RobotPose};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
@@ -447,8 +447,12 @@ impl CentralCore {
             .robots
             .values()
             .filter_map(|r| match r.last_pose() {
-                Some((pose, at)) => Some(RobotView::Seen(pose, at)),
-                None => r.alive.then_some(RobotView::New),
+                // A pose no fix has confirmed may be far from the robot
+                // (a restarted MSU): as good as none, so everything fires.
+                Some((pose, at)) if pose.status != PoseStatus::Localising => {
+                    Some(RobotView::Seen(pose, at))
+                }
+                _ => r.alive.then_some(RobotView::New),
             })
             .collect();
         let guess = self

@@ -166,6 +166,9 @@ impl RobotTracker {
         match self.pose.as_ref().map(|p| p.status) {
             Some(PoseStatus::NoFixes) => Some("MSU: no fixes".into()),
             Some(PoseStatus::NoOdometry) => Some("MSU: no odometry".into()),
+            Some(PoseStatus::Localising) => {
+                Some("MSU: localising (no fix has confirmed its pose)".into())
+            }
             _ => None,
         }
     }

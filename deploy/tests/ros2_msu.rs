@@ -95,6 +95,9 @@ fn msu_pose_follows_ros2_odometry_and_imu_made_by_rosbags() {
         "--estimator",
         "odometry",
         "--ros2",
+        // No fix ever comes here: the start pose carried by odometry.
+        "--ros2-unconfirmed-poses",
+        "true",
     ])
     .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
     .args(["--connect", &central_endpoint, "--site-name", &site])

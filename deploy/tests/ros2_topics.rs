@@ -83,11 +83,20 @@ fn publish_once(session: &zenoh::Session, options: &Ros2Options) {
             left_ticks: 0,
             right_ticks: 0,
         });
+        // A pose no fix has confirmed (a restarted MSU's start pose) is
+        // held back: neither it nor its transform goes out.
+        let guess = RobotPose {
+            status: ickon_proto::msg::robot::PoseStatus::Localising,
+            x_m: 9.0,
+            ..pose()
+        };
+        link.publish_pose(&guess, true).await;
         link.publish_pose(&pose(), true).await;
         link.publish_fix(&fix()).await;
         // Keep the tokens alive while the test looks at them.
         tokio::time::sleep(Duration::from_millis(1500)).await;
         assert_eq!(link.counters().published, 3, "{:?}", link.counters());
+        assert_eq!(link.counters().withheld_localising, 1);
     });
 }
 

@@ -82,6 +82,23 @@ pub const STALE_AFTER: Duration = Duration::from_millis(3_000);
 /// (slip, a wrong wheel scale). About a tenth of the robot's top speed.
 pub const STALE_GROWTH_M_PER_S: f64 = 0.05;
 
+/// A fix and the estimator's pose agree (the pose is confirmed) when they
+/// are within this many standard deviations of both, added (the bound the
+/// estimators' own start check uses), the pose's counted at most as the
+/// fix's.
+const AGREE_SIGMAS: f64 = 3.0;
+
+/// Largest heading sigma of a confirmed pose, radians (30 deg): the
+/// receiver-id heading's own half-width, so a heading from the start pose,
+/// the track or the receivers qualifies and an unknown one (a filter placed
+/// at a fix, heading still to be found) does not.
+const CONFIRMED_HEADING_SIGMA_RAD: f64 = 0.52;
+
+/// Fastest a wheeled indoor robot drives, m/s (as the fix solver's motion
+/// check): bounds the distance between a fix and a newer pose when there is
+/// no odometry to tell it.
+const MAX_SPEED_M_S: f64 = 2.0;
+
 /// The per-robot MSU state machine.
 pub struct MsuCore {
     solver: FixSolver,
@@ -95,6 +112,9 @@ pub struct MsuCore {
     last_fix: Option<Time>,
     last_odometry: Option<Time>,
     first_input: Option<Time>,
+    /// Whether a fix has agreed with the primary estimator's pose yet
+    /// (until then every pose is [`PoseStatus::Localising`]).
+    localised: bool,
 }
 
 impl MsuCore {
@@ -116,6 +136,7 @@ impl MsuCore {
             last_fix: None,
             last_odometry: None,
             first_input: None,
+            localised: false,
         }
     }
 
@@ -166,8 +187,10 @@ impl MsuCore {
         }
     }
 
-    /// Whether a pose at `stamp` is tracked, and if not which input
-    /// stalled and for how long beyond [`STALE_AFTER`].
+    /// Whether a pose at `stamp` is tracked, and if not why: not yet
+    /// confirmed by a fix ([`PoseStatus::Localising`]), or which input
+    /// stalled; and how long fixes have been silent beyond [`STALE_AFTER`]
+    /// (zero when they are coming).
     pub fn staleness(&self, stamp: Time) -> (PoseStatus, Duration) {
         let silent = |last: Option<Time>| {
             let since = last
@@ -175,13 +198,52 @@ impl MsuCore {
                 .map_or(Duration::ZERO, |t| stamp.since(t));
             (since > STALE_AFTER).then(|| since - STALE_AFTER)
         };
-        if let Some(over) = silent(self.last_fix) {
-            (PoseStatus::NoFixes, over)
-        } else if let Some(over) = silent(self.last_odometry) {
-            (PoseStatus::NoOdometry, over)
+        let no_fixes = silent(self.last_fix);
+        let status = if !self.localised {
+            PoseStatus::Localising
+        } else if no_fixes.is_some() {
+            PoseStatus::NoFixes
+        } else if silent(self.last_odometry).is_some() {
+            PoseStatus::NoOdometry
         } else {
-            (PoseStatus::Tracking, Duration::ZERO)
+            PoseStatus::Tracking
+        };
+        (status, no_fixes.unwrap_or(Duration::ZERO))
+    }
+
+    /// Whether the primary estimator's pose agrees with a fix at `xy_m`
+    /// of one-sigma `fix_sigma_m` measured at `fix_t_s` (see
+    /// [`AGREE_SIGMAS`]). The pose is newer than the fix (a cycle's fix
+    /// comes after its last arrival, the pose moves with every odometry
+    /// sample), so the distance the wheels drove in between is allowed too;
+    /// without odometry, what the fastest robot could drive.
+    fn agrees_with(&self, xy_m: [f64; 2], fix_sigma_m: f64, fix_t_s: f64) -> bool {
+        let Some(p) = self.host.pose(0) else {
+            return false;
+        };
+        let c = &p.covariance;
+        let heading_sigma_rad = c[(2, 2)].sqrt();
+        // NaN (or a negative variance) counts as unknown.
+        if heading_sigma_rad.is_nan() || heading_sigma_rad > CONFIRMED_HEADING_SIGMA_RAD {
+            // Placed, heading unknown: odometry would carry the pose the
+            // wrong way, so the estimator has not found the robot yet.
+            return false;
         }
+        let own_sigma_m = (c[(0, 0)] + c[(1, 1)]).max(0.0).sqrt();
+        // A pose older than the fix (an estimator that did not take it)
+        // gets no allowance: it claims where the robot was, then.
+        let newer_s = (p.t_s - fix_t_s).max(0.0);
+        let driven_m = if newer_s > 0.0 {
+            self.solver
+                .travelled_m(fix_t_s, p.t_s)
+                .unwrap_or(MAX_SPEED_M_S * newer_s)
+        } else {
+            0.0
+        };
+        let apart_m = (p.x_m - xy_m[0]).hypot(p.y_m - xy_m[1]);
+        // The estimator's own sigma counts only up to the fix's: a filter
+        // that says it is lost (metres of sigma) would agree with anything.
+        apart_m <= AGREE_SIGMAS * (own_sigma_m.min(fix_sigma_m) + fix_sigma_m) + driven_m
     }
 
     /// Solves one cycle and hands the fix and the cycle's range differences
@@ -205,8 +267,23 @@ impl MsuCore {
         };
         self.fix_seq = msg.seq;
         self.last_fix = Some(self.last_fix.map_or(wire.stamp, |t| t.max(wire.stamp)));
+        let (fix_xy_m, fix_sigma_m, fix_t_s) = (
+            [fix.x_m(), fix.y_m()],
+            fix.covariance_xy_m2().trace().max(0.0).sqrt(),
+            fix.t_s,
+        );
         if let Err(e) = self.host.feed(&Input::Fix(fix)) {
             tracing::debug!("fix of cycle {} not fused: {e}", msg.seq);
+        }
+        // Once confirmed, later disagreements are the estimator's to weigh.
+        if !self.localised && self.agrees_with(fix_xy_m, fix_sigma_m, fix_t_s) {
+            self.localised = true;
+            tracing::info!(
+                "pose confirmed by the fix of cycle {} at ({:.2}, {:.2}) m",
+                msg.seq,
+                fix_xy_m[0],
+                fix_xy_m[1]
+            );
         }
         Ok(Some(wire))
     }
@@ -264,7 +341,7 @@ impl MsuCore {
         let mut c = p.covariance;
         let stamp = self.clock.to_wire(p.t_s);
         let (status, over) = self.staleness(stamp);
-        if status == PoseStatus::NoFixes {
+        if over > Duration::ZERO {
             let grown = (STALE_GROWTH_M_PER_S * over.as_secs_f64()).powi(2);
             c[(0, 0)] += grown;
             c[(1, 1)] += grown;
@@ -369,7 +446,7 @@ mod tests {
         }
     }
 
-    fn arrivals(p: [f64; 3], late_m: &[(u32, f64)]) -> UltrasoundArrivals {
+    pub(super) fn arrivals(p: [f64; 3], late_m: &[(u32, f64)]) -> UltrasoundArrivals {
         let start_s = 10.0;
         let arrivals = TX
             .iter()
@@ -466,6 +543,18 @@ mod tests {
                 core.on_arrivals(&msg).unwrap();
                 let pose = core.pose().expect("started at the start pose");
                 let err = (pose.x_m - truth[0]).hypot(pose.y_m - truth[1]);
+                // Until a fix confirms it, the pose says it is a guess; a
+                // placed filter whose heading is still unknown (this robot
+                // stands still, so its track never gives one) is not
+                // confirmed either.
+                if pose.status != PoseStatus::Localising {
+                    assert!(err < 0.05, "{name} cycle {k}: {pose:?}");
+                } else if err < 0.05 {
+                    assert!(
+                        pose.covariance[8].sqrt() > CONFIRMED_HEADING_SIGMA_RAD,
+                        "{name} cycle {k}: placed and heading known: {pose:?}"
+                    );
+                }
                 if err < 0.05 {
                     placed.get_or_insert(k);
                 } else {

@@ -138,6 +138,23 @@ impl CycleMotion {
         Some([a.x_m + w * (b.x_m - a.x_m), a.y_m + w * (b.y_m - a.y_m)])
     }
 
+    /// How far apart the robot was at `from_s` and at `to_s` by the
+    /// odometry (the straight distance, which needs no rotation into the
+    /// site frame), with both times clamped to the track; `None` without a
+    /// track.
+    pub fn travelled_m(&self, from_s: f64, to_s: f64) -> Option<f64> {
+        let (first, last) = (self.track.front()?.t_s, self.track.back()?.t_s);
+        let clamp = |t: f64| {
+            if t.is_finite() {
+                t.clamp(first, last)
+            } else {
+                last
+            }
+        };
+        let (a, b) = (self.at(clamp(from_s))?, self.at(clamp(to_s))?);
+        Some((a[0] - b[0]).hypot(a[1] - b[1]))
+    }
+
     /// Records a fix (site frame, at its measurement time `t_s`, standard
     /// deviation `sigma_m`) for the rotation; ignored when the odometry does
     /// not cover its time.
@@ -253,6 +270,17 @@ mod tests {
             }
         }
         m
+    }
+
+    #[test]
+    fn the_distance_driven_needs_no_rotation_and_is_clamped_to_the_track() {
+        let m = drive(2.0, 4.0);
+        let d = m.travelled_m(1.0, 2.5).unwrap();
+        assert!((d - 0.45).abs() < 1e-9, "{d}");
+        // Beyond the track's end (4 s): what the track covers.
+        let d = m.travelled_m(3.0, 9.0).unwrap();
+        assert!((d - 0.3).abs() < 1e-9, "{d}");
+        assert!(CycleMotion::new().travelled_m(0.0, 1.0).is_none());
     }
 
     #[test]

@@ -76,6 +76,12 @@ impl FixSolver {
         &self.config
     }
 
+    /// How far the robot drove between two fusion times, by its odometry
+    /// ([`CycleMotion::travelled_m`]).
+    pub fn travelled_m(&self, from_s: f64, to_s: f64) -> Option<f64> {
+        self.motion.travelled_m(from_s, to_s)
+    }
+
     /// Takes the schedule the arrivals are matched against (the newest
     /// the rules of [`ickon_proto::epoch`] allow; a refused one changes nothing).
     pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), ScheduleRefused> {

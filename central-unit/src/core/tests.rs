@@ -267,6 +267,18 @@ fn a_live_robot_whose_poses_stop_is_stale_and_its_msus_word_is_shown() {
         later,
     );
     assert_eq!(c.status(later).robots[0].stale, "MSU: no fixes");
+    c.on_pose(
+        "r1",
+        pose(ickon_proto::msg::robot::PoseStatus::Localising),
+        later,
+    );
+    assert!(
+        c.status(later).robots[0]
+            .stale
+            .starts_with("MSU: localising"),
+        "{}",
+        c.status(later).robots[0].stale
+    );
 }
 
 #[test]
@@ -398,9 +410,25 @@ fn with_occupancy_the_triggers_name_only_what_a_tracked_robot_hears() {
         fix_seq: 1,
         status: ickon_proto::msg::robot::PoseStatus::Tracking,
     };
-    let now = Time::from_secs_f64(1.0);
+    // A pose its MSU has not confirmed (a restarted MSU at the site's start
+    // pose) is as good as none: the whole schedule still fires.
+    let unconfirmed = RobotPose {
+        status: ickon_proto::msg::robot::PoseStatus::Localising,
+        ..pose.clone()
+    };
+    c.handle(
+        Time::from_secs_f64(1.0),
+        Event::Pose {
+            robot: robot.clone(),
+            pose: unconfirmed,
+        },
+    );
+    let guessing = triggers(&c.handle(Time::from_secs_f64(1.5), Event::Tick));
+    assert!(!guessing.is_empty());
+    assert!(guessing.iter().all(|t| t.firing.len() == all));
+    let now = Time::from_secs_f64(1.5);
     c.handle(now, Event::Pose { robot, pose });
-    let later = triggers(&c.handle(Time::from_secs_f64(2.0), Event::Tick));
+    let later = triggers(&c.handle(Time::from_secs_f64(2.5), Event::Tick));
     let last = later.last().unwrap();
     assert!(
         last.firing.len() < all / 2,

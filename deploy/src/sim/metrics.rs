@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
 use std::time::Instant;
 
 use ickon_proto::msg::control::Burst;
-use ickon_proto::msg::robot::{RobotPose, Truth};
+use ickon_proto::msg::robot::{PoseStatus, RobotPose, Truth};
 use ickon_proto::time::Time;
 use serde::Serialize;
 
@@ -44,6 +44,8 @@ pub struct RobotStats {
     pub poses: u64,
     /// Arrival messages received.
     pub arrival_messages: u64,
+    /// Poses its MSU published as not yet confirmed by a fix.
+    pub localising_poses: u64,
     errors_m: Vec<f64>,
     latencies_us: Vec<f64>,
     /// Error of the newest scored pose, metres.
@@ -106,10 +108,14 @@ impl RobotStats {
                     .push(at.duration_since(*t).as_secs_f64() * 1e6);
             }
         }
+        // A pose its MSU says is a guess (no fix has confirmed it since a
+        // restart) is counted apart, not scored: nothing may steer by it.
+        let confirmed = pose.status != PoseStatus::Localising;
+        self.localising_poses += u64::from(!confirmed);
         if let Some((x, y)) = self.truth_at(pose.stamp) {
             let err = ((pose.x_m - x).powi(2) + (pose.y_m - y).powi(2)).sqrt();
             self.current_error_m = Some(err);
-            if pose.stamp.since(first).as_secs_f64() >= WARM_UP_S {
+            if confirmed && pose.stamp.since(first).as_secs_f64() >= WARM_UP_S {
                 self.errors_m.push(err);
             }
         }
@@ -153,6 +159,7 @@ impl RobotStats {
             arrivals_share: share(self.arrival_messages),
             fix_share: share(self.fixes),
             scored_poses: self.errors_m.len() as u64,
+            localising_poses: self.localising_poses,
             mean_mm: mean.map(|m| m * 1e3),
             rmse_mm: rmse.map(|m| m * 1e3),
             p95_mm: percentile(&self.errors_m, 95.0).map(|m| m * 1e3),
@@ -220,8 +227,12 @@ pub struct RobotSummary {
     pub arrivals_share: Option<f64>,
     /// Fixes per cycle triggered while watched (at most 1).
     pub fix_share: Option<f64>,
-    /// Poses scored against truth (after the warm-up).
+    /// Poses scored against truth (after the warm-up; only those a fix
+    /// has confirmed).
     pub scored_poses: u64,
+    /// Poses published as `Localising` (not yet confirmed by a fix: the
+    /// start pose of a restarted MSU), not scored.
+    pub localising_poses: u64,
     /// Mean position error, mm.
     pub mean_mm: Option<f64>,
     /// Root-mean-square position error, mm.
@@ -343,6 +354,15 @@ mod tests {
         r.on_pose(&pose(100.0 + last + 0.5, 0.0, 0), now);
         let s = r.summary("r1", 10);
         assert_eq!(s.scored_poses, 3, "far past the truth is not scored");
+        assert!((s.mean_mm.unwrap() - 20.0 / 3.0).abs() < 1e-6);
+        // A pose its MSU says is a guess is counted, not scored.
+        let guess = RobotPose {
+            status: PoseStatus::Localising,
+            ..pose(100.0 + last, 3.0, 0)
+        };
+        r.on_pose(&guess, now);
+        let s = r.summary("r1", 10);
+        assert_eq!((s.scored_poses, s.localising_poses), (3, 1));
         assert!((s.mean_mm.unwrap() - 20.0 / 3.0).abs() < 1e-6);
     }
 

@@ -72,6 +72,13 @@ pub(super) fn render_report(r: &SimReport) -> String {
                 .map_or("-".to_string(), |g| format!("{g:.2}"))
         );
     }
+    for x in r.robots.iter().filter(|x| x.localising_poses > 0) {
+        let _ = writeln!(
+            out,
+            "{}: {} poses published as localising (no fix had confirmed them), not scored",
+            x.id, x.localising_poses
+        );
+    }
     let _ = writeln!(
         out,
         "zenoh one-hop latency: p50 {} us, p99 {} us",

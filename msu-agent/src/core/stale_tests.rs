@@ -46,9 +46,40 @@ fn without_fixes_the_pose_says_so_and_its_covariance_grows() {
             .find(|p| p.stamp.since(t0).as_secs_f64() >= s)
             .unwrap()
     };
-    assert_eq!(at(1.0).status, PoseStatus::Tracking);
-    assert_eq!(at(3.5).status, PoseStatus::NoFixes);
+    // No fix ever: the start pose was never confirmed.
+    assert_eq!(at(1.0).status, PoseStatus::Localising);
+    assert_eq!(at(3.5).status, PoseStatus::Localising);
     let (early, late) = (at(3.5).covariance[0], at(5.9).covariance[0]);
     // Beyond the estimator's own growth: (0.05 m/s * 2.9 s)^2 at the end.
     assert!(late - early > 0.02, "variance {early} -> {late} m^2");
+}
+
+#[test]
+fn a_confirmed_pose_tracks_and_says_when_its_fixes_stall() {
+    let mut core = super::tests::core_with("ickon-akf");
+    let odometry = |core: &mut MsuCore, t_s: f64| {
+        core.handle(Event::Odometry(Odometry {
+            stamp: Time::from_secs_f64(t_s),
+            x_m: 0.0,
+            y_m: 0.0,
+            theta_rad: 0.0,
+            left_ticks: 0,
+            right_ticks: 0,
+        }))
+    };
+    let status_at = |out: Vec<Output>| match out.as_slice() {
+        [Output::Pose(p)] => p.status,
+        other => panic!("one pose expected: {other:?}"),
+    };
+    // Without a start pose the filter waits for its first fix.
+    assert!(odometry(&mut core, 9.9).is_empty());
+    // The fixture's arrivals go out at 10 s; the first fix places the
+    // filter, which then agrees with it.
+    core.on_arrivals(&super::tests::arrivals([1.7, 2.9, 0.5], &[]))
+        .unwrap()
+        .expect("a valid fix");
+    assert_eq!(status_at(odometry(&mut core, 10.5)), PoseStatus::Tracking);
+    assert_eq!(status_at(odometry(&mut core, 12.0)), PoseStatus::Tracking);
+    // Odometry goes on, fixes stop: stale after STALE_AFTER.
+    assert_eq!(status_at(odometry(&mut core, 13.6)), PoseStatus::NoFixes);
 }

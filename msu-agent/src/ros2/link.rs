@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use ickon_fusion::estimator::WheelGeometry;
-use ickon_proto::msg::robot::{Fix, Odometry, RobotPose};
+use ickon_proto::msg::robot::{Fix, Odometry, PoseStatus, RobotPose};
 use ickon_proto::ros::SampleStamper;
 use ickon_proto::time::Time;
 use ickon_runtime::{LogLimiter, NodeError, system_now, zerr};
@@ -38,6 +38,10 @@ pub struct Ros2Counters {
     pub not_finite: u64,
     /// Puts that failed.
     pub failed_puts: u64,
+    /// Poses (and their transforms) held back because no fix has confirmed
+    /// the pose yet ([`PoseStatus::Localising`]): a ROS 2 pose has no status
+    /// field, and nav2 would steer by a start pose the robot is not at.
+    pub withheld_localising: u64,
 }
 
 struct RosPublisher {
@@ -217,6 +221,10 @@ impl Ros2Link {
     /// sending it with every odometry-rate pose would only add work (AMCL
     /// too sends it per scan, not per odometry sample).
     pub async fn publish_pose(&mut self, pose: &RobotPose, absorbed_fix: bool) {
+        if pose.status == PoseStatus::Localising && !self.plan.unconfirmed_poses {
+            self.counters.withheld_localising += 1;
+            return;
+        }
         let Some(msg) = pose_message(pose, &self.plan.map_frame) else {
             self.counters.not_finite += 1;
             return;

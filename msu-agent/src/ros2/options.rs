@@ -96,6 +96,13 @@ pub struct Ros2Options {
     /// How far ahead `map -> odom` is stamped, seconds (AMCL's `transform_tolerance`).
     #[arg(id = "ros2_tf_tolerance_s", long = "ros2-tf-tolerance-s", default_value_t = DEFAULT_TF_TOLERANCE_S)]
     pub tf_tolerance_s: f64,
+    /// Publish poses no fix has confirmed yet (the start pose carried by
+    /// odometry; `Localising` on ICKON's own pose key). Off by default: nav2
+    /// would steer by a start pose the robot may not be at (an MSU restarted
+    /// while its robot drove); on for a robot that starts at a known pose
+    /// and drives on odometry before its first fix.
+    #[arg(id = "ros2_unconfirmed_poses", long = "ros2-unconfirmed-poses", action = clap::ArgAction::Set, default_value_t = false)]
+    pub unconfirmed_poses: bool,
 }
 
 impl Default for Ros2Options {
@@ -117,6 +124,7 @@ impl Default for Ros2Options {
             inputs: true,
             publish_tf: true,
             tf_tolerance_s: DEFAULT_TF_TOLERANCE_S,
+            unconfirmed_poses: false,
         }
     }
 }

@@ -74,6 +74,8 @@ pub struct Ros2Plan {
     pub odom_frame: String,
     /// How far ahead the transform is stamped, seconds.
     pub tf_tolerance_s: f64,
+    /// Whether poses no fix has confirmed are published too.
+    pub unconfirmed_poses: bool,
 }
 
 /// Publishers keep the last 10 samples (rclcpp's usual depth); `/tf` 100, as
@@ -226,6 +228,7 @@ impl Ros2Plan {
             map_frame: frame("map_frame", &options.map_frame)?,
             odom_frame: frame("odom_frame", &options.odom_frame)?,
             tf_tolerance_s: options.tf_tolerance_s,
+            unconfirmed_poses: options.unconfirmed_poses,
         })
     }
 

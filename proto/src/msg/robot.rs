@@ -128,6 +128,11 @@ pub enum PoseStatus {
     NoFixes,
     /// No odometry for a while: the pose moves only with the fixes.
     NoOdometry,
+    /// No fix has agreed with the pose since the MSU started: the position
+    /// is the configured start pose carried by odometry (an MSU restarted
+    /// while its robot drove has the wrong one), a guess to show, not to
+    /// steer by. Ends at the first fix the estimator's pose agrees with.
+    Localising,
 }
 
 /// `robot/<id>/pose`: the fused pose.

@@ -220,6 +220,10 @@ pub struct TdoaEkf {
     /// While the heading is unknown: where the settled track started and
     /// the turn driven since (`None` inside until the position settles).
     heading_from_track: Option<Option<TrackStart>>,
+    /// While the heading is unknown: the distance driven since the last
+    /// accepted update (the motion is coherent, so the position's variance
+    /// grows with its square, not with the sum of each step's square).
+    unknown_heading_drift_m: f64,
     chain: Chain,
     /// Whether the cycle's offset is initialised for the current chain.
     offset_ready: bool,
@@ -286,6 +290,7 @@ impl TdoaEkf {
             gyro_turn_rad: 0.0,
             gyro_time_s: 0.0,
             heading_from_track: None,
+            unknown_heading_drift_m: 0.0,
             chain: Chain::default(),
             offset_ready: false,
             offset_confirmed: false,
@@ -414,8 +419,16 @@ impl TdoaEkf {
             return;
         };
         if let Some(track) = &mut self.heading_from_track {
-            // Heading unknown: the position diffuses by the distance driven.
-            let v = distance_m * distance_m;
+            // Heading unknown: the robot may have driven anywhere within the
+            // distance since the position was last measured. Growing the
+            // variance by each step's square instead let a robot at 0.3 m/s
+            // drift 8 cm between cycles while the filter claimed 1.5 cm: its
+            // updates were gated out, the filter counted itself lost and
+            // re-placed, and the heading's chord started again (a restarted
+            // MSU took 5-10 s to find its heading).
+            let before = self.unknown_heading_drift_m;
+            self.unknown_heading_drift_m += distance_m.abs();
+            let v = self.unknown_heading_drift_m.powi(2) - before.powi(2);
             p[(X, X)] += v;
             p[(Y, Y)] += v;
             if let Some(start) = track {
@@ -569,6 +582,7 @@ impl TdoaEkf {
                 self.offset_confirmed |= normalised.abs() <= soft;
                 self.adapt(normalised);
                 self.project_on_floor();
+                self.unknown_heading_drift_m = 0.0;
                 self.heading_from_track();
                 Outcome::Accepted {
                     innovation_m: nu,

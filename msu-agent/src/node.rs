@@ -237,11 +237,17 @@ pub async fn run(
         };
     }
     let mut refusal_limit = LogLimiter::<InputKind>::default();
+    let mut last_schedule_logged: Option<(u64, u32)> = None;
     loop {
         let event = tokio::select! {
             _ = &mut shutdown => break,
             Ok(s) = schedule_sub.recv_async() => decoded!(s, Schedule, "undecodable schedule").map(|schedule| {
-                tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
+                // The central re-announces its schedule every second: only
+                // a new one is worth a line.
+                if last_schedule_logged != Some((schedule.epoch, schedule.version)) {
+                    last_schedule_logged = Some((schedule.epoch, schedule.version));
+                    tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
+                }
                 Event::Schedule(schedule)
             }),
             Ok(s) = trigger_sub.recv_async() => decoded!(s, CycleTrigger, "undecodable cycle trigger").map(Event::Trigger),

@@ -165,6 +165,8 @@ pub struct CentralCore {
     /// triggered, for packing occupancy-aware cycles (built when first needed).
     table: Option<SpacingTable>,
     last_trigger: Option<CycleTrigger>,
+    /// The latest `now` seen, to notice the master clock stepping back.
+    latest_now: Time,
 }
 
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
@@ -211,6 +213,7 @@ impl CentralCore {
             standby: None,
             table: None,
             last_trigger: None,
+            latest_now: now,
         })
     }
 
@@ -281,6 +284,7 @@ impl CentralCore {
 
     /// Takes `event` at master time `now`, then emits whatever is due.
     pub fn handle(&mut self, now: Time, event: Event) -> Vec<Output> {
+        let stepped = self.notice_clock_step_back(now);
         let mut out = match event {
             Event::Tick => Vec::new(),
             Event::CellAlive { id, up } => self.cell_alive(&id, up, now),
@@ -342,13 +346,43 @@ impl CentralCore {
         if now >= self.next_wake() {
             out.extend(self.tick(now));
         }
+        if !stepped.is_empty() {
+            let mut all = stepped;
+            all.extend(out);
+            return all;
+        }
+        out
+    }
+
+    /// When the master clock stepped back by more than a cycle (an operator
+    /// or NTP set it), the next trigger time lies that far ahead and the
+    /// site would stay silent until the clock caught up. Instead the cycles
+    /// start again at once in a new epoch, as after a restart: receivers
+    /// drop the old epoch's cycle count, whose starts are now in the future.
+    /// A standby only follows; smaller steps just delay one cycle.
+    fn notice_clock_step_back(&mut self, now: Time) -> Vec<Output> {
+        let period = self.schedule_for(self.next_cycle).cycle_period;
+        let back = self.latest_now.since(now);
+        self.latest_now = self.latest_now.max(now);
+        if self.standby.is_some() || back <= period {
+            return Vec::new();
+        }
+        self.latest_now = now;
+        tracing::warn!(
+            "the master clock stepped back by {:.3} s: cycles start again in a new epoch",
+            back.as_secs_f64()
+        );
+        let out = self.new_epoch(now);
+        // The first trigger of the new epoch after its schedule is out.
+        self.next_start = now + self.config.schedule_announce + self.config.trigger_lead;
+        self.next_reannounce = now + self.config.schedule_reannounce;
         out
     }
 
     /// Emits every trigger due at `now` (one per cycle, never two for one
     /// cycle); a standby emits nothing.
     pub fn tick(&mut self, now: Time) -> Vec<Output> {
-        let mut out = Vec::new();
+        let mut out = self.notice_clock_step_back(now);
         if self.standby.is_some() {
             return out;
         }

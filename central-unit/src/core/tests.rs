@@ -440,6 +440,35 @@ fn with_occupancy_the_triggers_name_only_what_a_tracked_robot_hears() {
     assert_eq!(c.current_firing().emissions.len(), last.firing.len());
 }
 
+/// A master clock set back by seconds (by an operator, or NTP) left the
+/// site silent until the clock caught up with the next trigger time.
+#[test]
+fn a_clock_stepped_back_starts_a_new_epoch_at_once_instead_of_waiting() {
+    let mut c = all_alive();
+    let t = c.next_wake();
+    let first = triggers(&c.tick(t));
+    let epoch = c.epoch();
+    let period = c.latest_schedule().cycle_period;
+    // Back by less than a cycle: the same epoch goes on, one cycle later.
+    let now = t - Duration::from_nanos(period.as_nanos() / 2);
+    assert!(triggers(&c.handle(now, Event::Tick)).is_empty());
+    assert_eq!(c.epoch(), epoch);
+    // Back by two seconds: a new epoch, its schedule now, a trigger soon.
+    let back = t - Duration::from_millis(2_000);
+    let out = c.handle(back, Event::Tick);
+    assert!(c.epoch() > epoch);
+    assert!(
+        out.iter()
+            .any(|o| matches!(o, Output::Schedule(s) if s.epoch == c.epoch())),
+        "{out:?}"
+    );
+    assert!(c.next_wake() <= back + Duration::from_millis(200));
+    let next = triggers(&c.tick(c.next_wake()));
+    assert_eq!(next.len(), 1);
+    assert_eq!((next[0].epoch, next[0].cycle), (c.epoch(), 0));
+    assert!(next[0].start > back && next[0].start < first[0].start);
+}
+
 /// Found by `fuzz_central_core`: a clock jump forward made one tick send
 /// every cycle of the gap (the end of time: a loop without end).
 #[test]

@@ -166,6 +166,10 @@ pub const CONFIRMING_EXCHANGES: u32 = 3;
 /// noise: the cell synchronises afresh instead of firing on a stale line.
 const STEP_TOLERANCE: Duration = Duration::from_micros(100);
 
+/// A local clock going back further than this between two calls has been
+/// stepped (calls come in order; a clock that is slewed never goes back).
+const STEP_BACK_NOTICED: Duration = Duration::from_millis(1);
+
 /// A planned burst waiting to be programmed, ordered by its master time:
 /// (master, tx, cycle, local, epoch).
 type PendingBurst = Reverse<(Time, u32, u64, Time, u64)>;
@@ -194,6 +198,8 @@ pub struct CellCore {
     counters: CellCounters,
     faults: Vec<String>,
     stopped: bool,
+    /// The latest local `now` seen, to notice the local clock stepping back.
+    latest_now: Time,
 }
 
 impl CellCore {
@@ -219,6 +225,7 @@ impl CellCore {
             counters: CellCounters::default(),
             faults: Vec::new(),
             stopped: false,
+            latest_now: now,
         }
     }
 
@@ -276,6 +283,7 @@ impl CellCore {
         if self.stopped {
             return out;
         }
+        self.notice_clock_step_back(now);
         match event {
             Event::Shutdown => {
                 let dropped = self.pending.len();
@@ -359,6 +367,22 @@ impl CellCore {
         }
         self.poll(now, &mut out);
         out
+    }
+
+    /// When the local clock stepped back, every deadline kept in it (the
+    /// next exchange, status and schedule query) lies that far ahead: a cell
+    /// stepped back 5 s made no exchange, so noticed nothing and fired
+    /// nothing, for 5 s. They are brought forward, the exchange to now: it
+    /// shows the step ([`Self::detect_step`]).
+    fn notice_clock_step_back(&mut self, now: Time) {
+        if self.latest_now.since(now) <= STEP_BACK_NOTICED {
+            self.latest_now = self.latest_now.max(now);
+            return;
+        }
+        self.latest_now = now;
+        self.next_sync = self.next_sync.min(now);
+        self.next_status = self.next_status.min(now + self.config.status_every);
+        self.next_schedule_query = self.next_schedule_query.map(|t| t.min(now));
     }
 
     /// Whether `s` may be added to the synchronisation. An exchange that

@@ -134,3 +134,21 @@ fn a_restarted_central_units_cycle_0_fires_at_once_and_the_old_one_is_fenced() {
     assert_eq!(core.counters().triggers_refused, 1);
     assert_eq!(core.epoch(), Some(epoch));
 }
+
+/// A local clock set back 5 s left every deadline 5 s ahead: no exchange
+/// noticed the step, so the cell fired nothing for 5 s.
+#[test]
+fn a_local_clock_stepped_back_asks_for_an_exchange_at_once() {
+    let (mut core, now, _) = firing_cell();
+    assert!(core.next_wake() > now);
+    let back = now - Duration::from_millis(5_000);
+    let out = core.handle(back, Event::Tick);
+    assert!(out.contains(&Output::RequestClock), "{out:?}");
+    assert!(core.next_wake() <= back + CellConfig::default().status_every);
+    // A clock that only went back within the tolerance changes nothing.
+    let (mut core, now, _) = firing_cell();
+    let wake = core.next_wake();
+    let out = core.handle(now - Duration::from_micros(500), Event::Tick);
+    assert!(!out.contains(&Output::RequestClock), "{out:?}");
+    assert_eq!(core.next_wake(), wake);
+}

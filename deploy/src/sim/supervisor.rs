@@ -185,8 +185,17 @@ impl Supervisor {
     }
 }
 
-/// The kind of a node named `name` (`cell c2` -> `cell`).
+/// The name and kind of a standby central unit.
+const STANDBY: &str = "central standby";
+
+/// The kind of a node named `name` (`cell c2` -> `cell`). A standby central
+/// unit is a kind of its own: started after the active one, it stops before
+/// it, instead of seeing the active one's token go and taking over for its
+/// last milliseconds (a restart keeps a node's place).
 fn kind_of(name: &str) -> &str {
+    if name == STANDBY {
+        return STANDBY;
+    }
     name.split_whitespace().next().unwrap_or(name)
 }
 
@@ -313,7 +322,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let log = dir.path().join("order");
         let mut sup = Supervisor::new();
-        for name in ["router", "central", "cell c1", "cell c2", "msu r1"] {
+        for name in [
+            "router",
+            "central",
+            "central standby",
+            "cell c1",
+            "cell c2",
+            "msu r1",
+        ] {
             let mut c = Command::new("sh");
             // Each notes its kind when asked to stop, then ends.
             c.args([
@@ -330,7 +346,17 @@ mod tests {
         assert!(sup.stop_all(Duration::from_secs(5)).is_empty());
         let order = std::fs::read_to_string(&log).unwrap();
         let order: Vec<&str> = order.lines().collect();
-        assert_eq!(order, ["msu", "cell", "cell", "central", "router"]);
+        assert_eq!(
+            order,
+            [
+                "msu",
+                "cell",
+                "cell",
+                "central standby",
+                "central",
+                "router"
+            ]
+        );
     }
 
     #[test]

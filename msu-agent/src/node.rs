@@ -403,9 +403,13 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
                 .map_or(String::new(), |p| p.display().to_string())
         );
     }
-    let ros2 = if args.ros2.enabled {
+    let ros2_options = match &tuning.ros2 {
+        Some(file) => Ros2Options::under_flags(file, &args.ros2),
+        None => (*args.ros2).clone(),
+    };
+    let ros2 = if ros2_options.enabled {
         let env_domain = std::env::var("ROS_DOMAIN_ID").ok();
-        match Ros2Plan::new(&args.ros2, &args.robot, env_domain.as_deref()) {
+        match Ros2Plan::new(&ros2_options, &args.robot, env_domain.as_deref()) {
             Ok(plan) => Some(plan),
             Err(e) => {
                 eprintln!("error: {e}");

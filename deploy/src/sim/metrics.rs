@@ -284,6 +284,31 @@ pub struct RunStats {
     pub restarts: Vec<String>,
     /// Faults injected (`--faults`), as planned and when they were done, seconds.
     pub faults_done: Vec<(String, f64)>,
+    /// When the triggers of the last two seconds came, for the status line.
+    pub recent_triggers: VecDeque<Instant>,
+    /// Transmitters the newest trigger named (`None`: the whole schedule).
+    pub last_firing: Option<usize>,
+}
+
+impl RunStats {
+    /// Notes a cycle trigger received at `at`.
+    pub fn on_trigger(&mut self, trigger: &ickon_proto::msg::control::CycleTrigger, at: Instant) {
+        self.cycles_triggered.insert((trigger.epoch, trigger.cycle));
+        self.last_firing = (!trigger.firing.is_empty()).then_some(trigger.firing.len());
+        self.recent_triggers.push_back(at);
+        while self
+            .recent_triggers
+            .front()
+            .is_some_and(|t| at.duration_since(*t).as_secs_f64() > 2.0)
+        {
+            self.recent_triggers.pop_front();
+        }
+    }
+
+    /// Cycles triggered per second over the last two seconds.
+    pub fn cycles_per_s(&self) -> f64 {
+        self.recent_triggers.len() as f64 / 2.0
+    }
 }
 
 /// Triggered cycles whose bursts and arrivals had time to be seen: all but

@@ -463,6 +463,7 @@ pub async fn measure(
         &ickon_sim::engine::estimator_config(&args.estimator, [0.0; 3], site, profile)?,
         ickon_sim::engine::timing_sigma_s(profile),
         drive.geometry(),
+        args.ros2,
     )?)?;
     for msu in &msus {
         let mut cmd = node_command(args, site, "msu", &hub, "tcp/127.0.0.1:0")?;
@@ -470,9 +471,6 @@ pub async fn measure(
             .arg(msu_file.path())
             .args(&to_recorder);
         credential(&mut cmd, &crate::secure::Identity::Robot(msu.robot.clone()));
-        if args.ros2 {
-            cmd.arg("--ros2");
-        }
         sup.spawn(&format!("msu {}", msu.robot), cmd)?;
     }
 

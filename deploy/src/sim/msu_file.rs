@@ -12,6 +12,7 @@ pub(super) fn render(
     config: &EstimatorConfig,
     timing_sigma_s: f64,
     wheels: WheelGeometry,
+    ros2: bool,
 ) -> anyhow::Result<String> {
     let mut params = toml::Table::try_from(config)?;
     params.remove("name");
@@ -27,6 +28,13 @@ pub(super) fn render(
     root.insert("filter".into(), filter.into());
     root.insert("robot".into(), robot.into());
     root.insert("fix".into(), fix.into());
+    if ros2 {
+        // `ickon sim --ros2`: the agents speak ROS 2 by their file, as a
+        // deployed one configured once would.
+        let mut block = toml::Table::new();
+        block.insert("enabled".into(), true.into());
+        root.insert("ros2".into(), block.into());
+    }
     Ok(format!(
         "# Written by `ickon sim` for its MSU agents: `{}` as `ickon eval` configures it.\n{}",
         config.name(),
@@ -58,12 +66,15 @@ mod tests {
         let wheels = ickon_msu::config_file::pioneer_wheels();
         for name in ickon_fusion::estimator::names() {
             let config = ickon_sim::engine::estimator_config(name, start, &site, &profile).unwrap();
-            let text = render(&config, 42e-6, wheels).unwrap();
+            let text = render(&config, 42e-6, wheels, *name == "tdoa-ekf").unwrap();
             let tuning = ickon_msu::MsuTuning::from_toml(&text, "sim").unwrap();
             assert!(tuning.warnings.is_empty(), "{name}: {:?}", tuning.warnings);
             assert_eq!(tuning.estimator_for(&site, start), config, "{name}\n{text}");
             assert_eq!(tuning.wheels, wheels);
             assert!((tuning.solver.timing_sigma_s - 42e-6).abs() < 1e-15);
+            // `--ros2` is written as the file's `[ros2]` block.
+            let ros2 = tuning.ros2.as_ref().is_some_and(|r| r.enabled);
+            assert_eq!(ros2, *name == "tdoa-ekf", "{name}\n{text}");
         }
     }
 }

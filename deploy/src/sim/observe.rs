@@ -175,7 +175,7 @@ pub(super) async fn observe(
             Ok(s) = triggers.recv_async() => {
                 let key = s.key_expr().as_str().to_string();
                 if let Some(t) = decode_or_count::<CycleTrigger>(&mut stats, &key, &s.payload().to_bytes()) {
-                    stats.cycles_triggered.insert((t.epoch, t.cycle));
+                    stats.on_trigger(&t, Instant::now());
                 }
             }
             Ok(s) = truth.recv_async() => {

@@ -26,10 +26,15 @@ pub(super) fn status_line(
             format!("{id} {:>4.1} fix/s {err}", r.fixes_per_s())
         })
         .collect();
+    // Under occupancy firing a trigger names its transmitters.
+    let set = stats
+        .last_firing
+        .map_or("all tx".to_string(), |n| format!("{n} tx"));
     format!(
-        "[{:>5.0} s] {} | cells firing {firing}/{cells}   ",
+        "[{:>5.0} s] {} | cells firing {firing}/{cells}, {:.1} cycles/s, {set}   ",
         started.elapsed().as_secs_f64(),
-        robots.join(" | ")
+        robots.join(" | "),
+        stats.cycles_per_s()
     )
 }
 

@@ -3,7 +3,8 @@
 //! `[receiver_heading]`) with its noise and its gate in data-sheet units,
 //! the filter-wide tuning apart (`[filter]`, with the estimator's own
 //! remaining parameters in `[filter.params]`), and the drive geometry
-//! (`[robot]`). Every key is optional except `[filter] estimator`; what is
+//! (`[robot]`), and the ROS 2 side (`[ros2]`, the fields of the `--ros2-*`
+//! flags; a flag given with another value than its default wins). Every key is optional except `[filter] estimator`; what is
 //! left out keeps the estimator's defaults. Validated like the site file:
 //! every problem at once, each with its line and column. A commented example
 //! is `deploy/msu.toml`.
@@ -99,6 +100,8 @@ pub struct MsuTuning {
     pub wheels: WheelGeometry,
     /// Values the chosen estimator has no use for (ignored), with where they are.
     pub warnings: Vec<ConfigIssue>,
+    /// The file's `[ros2]` block, when it has one.
+    pub ros2: Option<crate::ros2::Ros2Options>,
 }
 
 impl MsuTuning {
@@ -110,6 +113,7 @@ impl MsuTuning {
             solver: SolverTuning::default(),
             wheels: pioneer_wheels(),
             warnings: Vec::new(),
+            ros2: None,
         })
     }
 

@@ -86,4 +86,7 @@ pub(super) struct RawMsuFile {
     pub odometry: Option<Spanned<RawOdometry>>,
     pub gyro: Option<Spanned<RawGyro>>,
     pub receiver_heading: Option<Spanned<RawReceiverHeading>>,
+    /// `[ros2]`: the ROS 2 side, the fields of the `--ros2-*` flags (checked
+    /// when the agent starts, like the flags).
+    pub ros2: Option<crate::ros2::Ros2Options>,
 }

@@ -29,7 +29,14 @@ fn a_file_naming_only_the_estimator_gives_its_defaults() {
 #[test]
 fn the_example_file_is_valid_and_its_commented_values_are_the_defaults() {
     let t = parse(EXAMPLE).unwrap();
-    assert_eq!(t, MsuTuning::defaults("tdoa-ekf").unwrap());
+    let ros2 = Some(crate::ros2::Ros2Options::default());
+    assert_eq!(
+        t,
+        MsuTuning {
+            ros2: ros2.clone(),
+            ..MsuTuning::defaults("tdoa-ekf").unwrap()
+        }
+    );
     // Uncomment every `#key = value` line: the same tuning (to the digits
     // the example shows), with one warning for the key tdoa-ekf does not use.
     let uncommented: String = EXAMPLE
@@ -65,6 +72,36 @@ fn the_example_file_is_valid_and_its_commented_values_are_the_defaults() {
     assert_eq!(all.start, Some([1.0, 1.0, 0.0]));
     assert_eq!(all.solver.residual_gate_m, Some(0.07));
     assert!((all.wheels.left_m_per_tick - 3.2e-5).abs() < 1e-12);
+    assert_eq!(all.ros2, ros2);
+}
+
+#[test]
+fn the_ros2_block_sets_the_ros2_side_and_a_flag_away_from_its_default_wins() {
+    use crate::ros2::{Ros2Mode, Ros2Options};
+    let t = parse(
+        "[filter]\nestimator = \"tdoa-ekf\"\n[ros2]\nenabled = true\nmode = \"bridge\"\n\
+         domain = 7\npose_topic = \"loc/pose\"\nunconfirmed_poses = true\n",
+    )
+    .unwrap();
+    let file = t.ros2.expect("the block");
+    assert!(file.enabled && file.unconfirmed_poses);
+    assert_eq!((file.mode, file.domain), (Ros2Mode::Bridge, Some(7)));
+    assert_eq!(file.pose_topic, "loc/pose");
+    assert_eq!(file.odom_topic, Ros2Options::default().odom_topic);
+    let flags = Ros2Options {
+        pose_topic: "other/pose".into(),
+        ..Ros2Options::default()
+    };
+    let both = Ros2Options::under_flags(&file, &flags);
+    assert!(both.enabled, "the file turns it on");
+    assert_eq!(both.pose_topic, "other/pose");
+    assert_eq!((both.mode, both.domain), (Ros2Mode::Bridge, Some(7)));
+    // A misspelt key or a wrong value is named with its line.
+    let issues =
+        parse("[filter]\nestimator = \"tdoa-ekf\"\n[ros2]\npose_topik = \"x\"\n").unwrap_err();
+    assert_eq!(issues[0].line, 4, "{issues:?}");
+    let issues = parse("[filter]\nestimator = \"tdoa-ekf\"\n[ros2]\nmode = \"dds\"\n").unwrap_err();
+    assert_eq!(issues[0].line, 4, "{issues:?}");
 }
 
 #[test]

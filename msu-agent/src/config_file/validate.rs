@@ -422,5 +422,6 @@ fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
         },
         wheels,
         warnings: Vec::new(),
+        ros2: raw.ros2.clone(),
     })
 }

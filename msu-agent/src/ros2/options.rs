@@ -105,6 +105,47 @@ pub struct Ros2Options {
     pub unconfirmed_poses: bool,
 }
 
+impl Ros2Options {
+    /// The options of a configuration file's `[ros2]` block (`file`) under
+    /// the command line's (`flags`): a flag whose value differs from its
+    /// default wins, every other field keeps the file's; `--ros2` or the
+    /// file's `enabled` turns ROS 2 on. (A flag given with its default value
+    /// cannot be told from one not given, so it does not override the file.)
+    pub fn under_flags(file: &Self, flags: &Self) -> Self {
+        let default = Self::default();
+        macro_rules! pick {
+            ($($field:ident),*) => {
+                Self {
+                    enabled: file.enabled || flags.enabled,
+                    $($field: if flags.$field != default.$field {
+                        flags.$field.clone()
+                    } else {
+                        file.$field.clone()
+                    },)*
+                }
+            };
+        }
+        pick!(
+            mode,
+            domain,
+            namespace,
+            node_name,
+            bridge_namespace,
+            pose_topic,
+            fix_topic,
+            tf_topic,
+            odom_topic,
+            imu_topic,
+            map_frame,
+            odom_frame,
+            inputs,
+            publish_tf,
+            tf_tolerance_s,
+            unconfirmed_poses
+        )
+    }
+}
+
 impl Default for Ros2Options {
     fn default() -> Self {
         Self {

@@ -40,9 +40,9 @@
 //!   not widen its variance or jump to single fixes meanwhile.
 //! - Start: at `initial_pose` when given, but only as a guess checked like
 //!   a lost filter's position: its first two agreeing consistent cycles
-//!   confirm it or, when they disagree with it (an MSU restarted on a robot
-//!   that drove away from its start), replace it, as if there were no start
-//!   pose. Otherwise at the first
+//!   confirm it or, when three disagree with it (an MSU restarted on a
+//!   robot that drove away from its start), replace it, as if there were no
+//!   start pose. Otherwise at the first
 //!   consistent cycle (or at the centroid of the first `start_transmitters`
 //!   transmitters heard, with `start_sigma_xy_m`), heading unknown: the
 //!   position only diffuses by the distance driven, and the heading is
@@ -255,7 +255,16 @@ struct Candidate {
     t_s: f64,
     xy_m: [f64; 2],
     sigma_m: f64,
+    /// Consistent cycles before it that agreed, each with the next.
+    agreeing_before: u32,
 }
+
+/// Agreeing consistent cycles that replace a start pose not yet confirmed:
+/// one more than the two that place a lost filter, since two cycles can
+/// share a bias (the same reflection off a rack passes the solver's check
+/// in both: on warehouse one robot's right start was moved 1.4 m that way
+/// and lost its heading).
+const AGREEING_CYCLES_AGAINST_A_START: u32 = 3;
 
 /// Start of the chord an unknown heading is taken from.
 #[derive(Debug, Clone, Copy)]
@@ -713,11 +722,12 @@ impl TdoaEkf {
         // their noise and the distance driven between them).
         let chain_start = arrivals[0].t_s;
         let sigma = cov.trace().max(0.0).sqrt();
-        let candidate = Candidate {
+        let mut candidate = Candidate {
             chain_start_s: chain_start,
             t_s,
             xy_m: [fx, fy],
             sigma_m: sigma,
+            agreeing_before: 0,
         };
         match self.candidate {
             Some(c) if c.chain_start_s != chain_start => {
@@ -727,6 +737,7 @@ impl TdoaEkf {
                     self.candidate = Some(candidate);
                     return false;
                 }
+                candidate.agreeing_before = c.agreeing_before + 1;
             }
             Some(_) => return false,
             None => {
@@ -734,6 +745,7 @@ impl TdoaEkf {
                 return false;
             }
         }
+        let agreeing = candidate.agreeing_before + 1;
         self.candidate = None;
         let tracking = self.heading_from_track.is_none();
         if let (true, Some((x, p))) = (tracking, &self.state) {
@@ -745,6 +757,11 @@ impl TdoaEkf {
                 self.lost = false;
                 self.start_confirmed = true;
                 self.watch = RejectionWatch::default();
+                return false;
+            }
+            if !self.start_confirmed && agreeing < AGREEING_CYCLES_AGAINST_A_START {
+                // Not yet: the next consistent cycle may confirm the start.
+                self.candidate = Some(candidate);
                 return false;
             }
             if !self.start_confirmed {

@@ -216,7 +216,7 @@ fn a_forged_far_future_empty_schedule_is_not_taken_over() {
     let later = a.next_wake();
     let out = a.handle(later, Event::Tick);
     assert!(a.is_active(), "it takes over when the lease ends");
-    // In an epoch the cells accept (its start, not above the forged one),
+    // In an epoch the cells accept (near its clock, below the forged one),
     // with the site's own schedule, and nothing left due.
     assert!(epoch_start(a.epoch()).since(later) <= EPOCH_HORIZON);
     assert!(a.epoch() < u64::MAX);

@@ -6,6 +6,8 @@
 //! a schedule the receivers' rules accept and triggers of its own epoch
 //! that count up, and its next wake-up is never in the past.
 
+use std::sync::LazyLock;
+
 use ickon_central::core::{CentralConfig, CentralCore, Event, Output};
 use ickon_proto::fuzz::extreme::{clock_step, float};
 use ickon_proto::fuzz::values::draw;
@@ -166,18 +168,41 @@ fn check_outputs(core: &CentralCore, now: Time, out: &[Output]) -> Result<(), Te
     Ok(())
 }
 
+/// When every case's central unit starts.
+const START: Time = Time::from_nanos(1_700_000_000_000_000_000);
+
+/// The central units every case starts from, by built-in site and
+/// standby: built once (the schedule's spacing table takes milliseconds,
+/// nine tenths of a case) and copied for each case, the same state a case
+/// would build for itself.
+static CORES: LazyLock<Vec<[CentralCore; 2]>> = LazyLock::new(|| {
+    BUILTIN_SITES
+        .iter()
+        .map(|(name, text)| {
+            let site = Site::builtin(name).expect("built-in site").0;
+            let build = |standby| {
+                let build = if standby {
+                    CentralCore::standby
+                } else {
+                    CentralCore::new
+                };
+                build(
+                    site.clone(),
+                    text.to_string(),
+                    CentralConfig::default(),
+                    START,
+                )
+                .expect("a built-in site has a schedule")
+            };
+            [build(false), build(true)]
+        })
+        .collect()
+});
+
 fn run(site: usize, standby: bool, acts: &[Act]) -> Result<(), TestCaseError> {
-    let (name, text) = BUILTIN_SITES[site];
-    let site = Site::builtin(name).expect("built-in site").0;
-    let (cells, robots) = (site.cells.len(), site.robots.len());
-    let mut now = Time::from_nanos(1_700_000_000_000_000_000);
-    let build = if standby {
-        CentralCore::standby
-    } else {
-        CentralCore::new
-    };
-    let mut core = build(site, text.to_string(), CentralConfig::default(), now)
-        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let mut core = CORES[site][usize::from(standby)].clone();
+    let (cells, robots) = (core.site().cells.len(), core.site().robots.len());
+    let mut now = START;
     for a in acts {
         now = now + a.step;
         match event(&core, now, a) {
@@ -213,4 +238,52 @@ proptest! {
     ) {
         run(site, standby, &acts)?;
     }
+}
+
+/// Found by the long run (case 350 314): an active central unit that hears
+/// a schedule of epoch `u64::MAX` (period 11 ns, no emissions) stands by,
+/// and a forged trigger then expires its lease. It took over in that very
+/// epoch (nothing above it: no fencing), re-issued the empty schedule (a
+/// silent site) and left its first trigger due, unsent, until the next
+/// event. Every check of the target holds for the case now.
+#[test]
+fn a_takeover_after_a_forged_far_future_epoch_keeps_every_check() {
+    let tick = |ns: i64| Act {
+        kind: 0,
+        step: Duration::from_nanos(ns),
+        e: vec![],
+        x: f64::NAN,
+    };
+    let mut acts: Vec<Act> = [
+        72_583_809,
+        261_275_053,
+        181_765_915,
+        -483_398_602,
+        439_933_562,
+        199_725_538,
+        198_489_124,
+    ]
+    .into_iter()
+    .map(tick)
+    .collect();
+    let schedule = vec![
+        53, 200, 0, 0, 0, 0, 0, 0, 0, 21, 0, 0, 0, 0, 0, 0, 0, 0, 131, 75, 131, 1, 0, 24, 0, 168,
+        204, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+    ];
+    let forged = draw::<Schedule>(&schedule).expect("a schedule");
+    assert_eq!(forged.epoch, u64::MAX);
+    assert!(forged.emissions.is_empty());
+    acts.push(Act {
+        kind: 68,
+        step: Duration::from_nanos(70_801_480),
+        e: schedule,
+        x: f64::NAN,
+    });
+    acts.push(Act {
+        kind: 33,
+        step: Duration::from_nanos(341_782_252),
+        e: vec![149, 200, 0, 0, 0, 0, 0, 0, 0, 72],
+        x: f64::NAN,
+    });
+    run(0, false, &acts).expect("every check holds");
 }

@@ -4,6 +4,8 @@
 //! never panics, keeps its cycle tables bounded, and its sensors give
 //! finite samples.
 
+use std::sync::LazyLock;
+
 use ickon_proto::fuzz::extreme::offset_ns;
 use ickon_proto::fuzz::values::draw;
 use ickon_proto::fuzz::{config_for, entropy};
@@ -33,16 +35,23 @@ fn act() -> impl Strategy<Value = Act> {
     })
 }
 
-fn run(profile: usize, acts: &[Act], offsets: &[i64]) -> Result<(), TestCaseError> {
+/// The site and its schedule, the same for every case: parsed and
+/// computed once (half of a case's time when built per case).
+static SITE: LazyLock<(Site, Schedule)> = LazyLock::new(|| {
     let site = Site::default_site();
-    let profile = NoiseProfile::by_name(NoiseProfile::names()[profile]).expect("profile");
-    let ids = vec!["r1".to_string(), "r2".to_string()];
-    let mut world = RealtimeWorld::new(&site, &ids, &profile, 7).expect("robots of the site");
     let cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
     let schedule = Schedule {
         epoch: EPOCH,
         ..ickon_central::compute_schedule(&site, &cells, 1, 0).expect("schedule")
     };
+    (site, schedule)
+});
+
+fn run(profile: usize, acts: &[Act], offsets: &[i64]) -> Result<(), TestCaseError> {
+    let (site, schedule) = &*SITE;
+    let profile = NoiseProfile::by_name(NoiseProfile::names()[profile]).expect("profile");
+    let ids = vec!["r1".to_string(), "r2".to_string()];
+    let mut world = RealtimeWorld::new(site, &ids, &profile, 7).expect("robots of the site");
     let mut now = Time::from_nanos(1_000_000_000);
     let mut cycle = 0u64;
     for (i, a) in acts.iter().enumerate() {

@@ -19,7 +19,7 @@
 //!
 //! [`Event::ActiveGone`]: super::Event::ActiveGone
 
-use ickon_proto::epoch::{ScheduleBook, epoch_of};
+use ickon_proto::epoch::{ScheduleBook, epoch_of, epoch_start};
 use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::time::{Duration, Time};
 
@@ -30,6 +30,11 @@ use crate::schedule::ScheduleError;
 /// a hung active central unit (its liveliness token lives until the link
 /// lease ends, seconds later).
 pub const LEASE_CYCLES: i64 = 2;
+
+/// How far ahead of the master clock a followed epoch may lie, as for the
+/// cells (their trigger horizon): an epoch is a central unit's start, so
+/// one further ahead was forged and is not followed into a takeover.
+pub const EPOCH_HORIZON: Duration = Duration::from_millis(10_000);
 
 /// How long a standby started alone waits for an active one before it
 /// becomes active itself.
@@ -131,11 +136,17 @@ impl CentralCore {
         let Some(f) = self.standby.take() else {
             return Vec::new();
         };
+        // An epoch is a central unit's start: one further ahead of the
+        // clock than the cells accept was forged, and following it would
+        // fence nothing (at `u64::MAX` no epoch is above it) and put this
+        // one's epoch where the cells refuse it.
+        let real = |e: &u64| epoch_start(*e).since(now) <= EPOCH_HORIZON;
         let followed = f
             .last_trigger
             .as_ref()
             .map(|t| t.epoch)
-            .max(f.schedules.epoch());
+            .filter(real)
+            .max(f.schedules.epoch().filter(real));
         let after = followed.map_or(self.epoch, |e| e.max(self.epoch));
         self.epoch = epoch_of(now, Some(after));
         let base = f
@@ -143,6 +154,7 @@ impl CentralCore {
             .as_ref()
             .and_then(|t| f.schedules.get_in(t.epoch, t.schedule_version))
             .or(f.schedules.latest())
+            .filter(|s| real(&s.epoch) && self.can_fire(s))
             .cloned()
             .unwrap_or_else(|| self.latest_schedule().clone());
         let schedule = Schedule {
@@ -178,7 +190,27 @@ impl CentralCore {
             followed,
             start
         );
-        vec![Output::Schedule(schedule)]
+        // The first cycle's trigger may be due at once (its start exactly
+        // a trigger lead away): send it now, not at the next event.
+        let mut out = vec![Output::Schedule(schedule)];
+        out.extend(self.tick(now));
+        out
+    }
+
+    /// Whether this site can fire `schedule`: some emission, every one by
+    /// a transmitter of the site, every cell of the site. A schedule that
+    /// names none (a forged one followed) is not taken over: the site's
+    /// own is, or the site would stay silent under the new epoch.
+    fn can_fire(&self, schedule: &Schedule) -> bool {
+        !schedule.emissions.is_empty()
+            && schedule
+                .emissions
+                .iter()
+                .all(|e| self.site.transmitter(e.tx_id).is_some())
+            && schedule
+                .active_cells
+                .iter()
+                .all(|c| self.site.cell(c).is_some())
     }
 
     /// Hears a newer epoch's schedule while active: another central unit
@@ -211,6 +243,37 @@ impl CentralCore {
             lease_end: trigger.start,
         });
         self.follow_trigger(trigger, now);
+    }
+}
+
+/// A copy of the whole state, e.g. a core built once (site, schedule,
+/// spacing table: milliseconds) and copied for each of many runs, as the
+/// fuzz target does. Written out rather than derived only because the
+/// struct's file was being changed on another branch when this was added:
+/// a `#[derive(Clone)]` on [`CentralCore`] may replace it.
+impl Clone for CentralCore {
+    fn clone(&self) -> Self {
+        Self {
+            config: self.config,
+            site: self.site.clone(),
+            site_toml: self.site_toml.clone(),
+            site_version: self.site_version,
+            schedules: self.schedules.clone(),
+            next_cycle: self.next_cycle,
+            next_start: self.next_start,
+            paused: self.paused,
+            cells: self.cells.clone(),
+            robots: self.robots.clone(),
+            unknown_robot_messages: self.unknown_robot_messages,
+            any_cell_seen: self.any_cell_seen,
+            epoch: self.epoch,
+            foreign_control: self.foreign_control,
+            sent_triggers: self.sent_triggers.clone(),
+            next_reannounce: self.next_reannounce,
+            standby: self.standby.clone(),
+            table: self.table.clone(),
+            last_trigger: self.last_trigger.clone(),
+        }
     }
 }
 

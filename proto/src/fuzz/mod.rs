@@ -5,8 +5,10 @@
 //!
 //! Fuzz targets are `proptest` properties named `fuzz_*`, run by the
 //! ordinary test runner: `ICKON_FUZZ_CASES` cases each ([`DEFAULT_CASES`]
-//! when unset), e.g. `ICKON_FUZZ_CASES=1000000 cargo nextest run --release
-//! --workspace fuzz_` (see the README, "Fuzzing").
+//! when unset), e.g. `ICKON_FUZZ_CASES=1000000 cargo nextest run
+//! --cargo-profile fuzz -p ickon-msu fuzz_` (the `fuzz` profile: release
+//! optimisation with overflow checks; the README's "Fuzzing" gives the
+//! commands for every crate).
 
 pub mod extreme;
 pub mod mutate;

@@ -167,3 +167,63 @@ fn a_central_unit_restarted_while_another_is_active_stands_by() {
     .unwrap();
     assert!(alone.is_active());
 }
+
+#[test]
+fn a_copy_behaves_as_the_original_and_apart_from_it() {
+    let mut a = active(Time(1_000));
+    let mut s = standby(Time(2_000));
+    run_both(&mut a, &mut s, 3);
+    let (mut a2, mut s2) = (a.clone(), s.clone());
+    // The same events give the same outputs: the copy holds the whole state.
+    let now = a.next_wake();
+    assert_eq!(a2.next_wake(), now);
+    let out = a.tick(now);
+    assert!(!triggers(&out).is_empty());
+    assert_eq!(a2.tick(now), out);
+    let gone = now + Duration::from_millis(1);
+    let took = s.handle(gone, Event::ActiveGone);
+    assert!(!took.is_empty(), "the standby takes over");
+    assert_eq!(s2.handle(gone, Event::ActiveGone), took);
+    assert_eq!(s2.epoch(), s.epoch());
+    // And the original's later events leave the copy as it was.
+    let mut a3 = a.clone();
+    a.set_paused(true);
+    let later = a.next_wake();
+    assert!(triggers(&a.tick(later)).is_empty(), "paused");
+    assert!(
+        !triggers(&a3.tick(later)).is_empty(),
+        "the copy was not paused"
+    );
+}
+
+#[test]
+fn a_forged_far_future_empty_schedule_is_not_taken_over() {
+    let now = Time::from_nanos(1_700_000_000_000_000_000);
+    let mut a = active(now);
+    let own = a.latest_schedule().clone();
+    let forged = Schedule {
+        epoch: u64::MAX,
+        version: 1,
+        emissions: Vec::new(),
+        active_cells: Vec::new(),
+        cycle_period: Duration::from_nanos(11),
+        slot_length: Duration::from_nanos(1),
+        ..own.clone()
+    };
+    // It stands by (a newer epoch), then its lease runs out.
+    assert!(a.handle(now, Event::ScheduleSeen(forged)).is_empty());
+    assert!(!a.is_active());
+    let later = a.next_wake();
+    let out = a.handle(later, Event::Tick);
+    assert!(a.is_active(), "it takes over when the lease ends");
+    // In an epoch the cells accept (near its clock, below the forged one),
+    // with the site's own schedule, and nothing left due.
+    assert!(epoch_start(a.epoch()).since(later) <= EPOCH_HORIZON);
+    assert!(a.epoch() < u64::MAX);
+    let Some(Output::Schedule(s)) = out.first() else {
+        panic!("a schedule first: {out:?}");
+    };
+    assert_eq!(s.epoch, a.epoch());
+    assert_eq!(s.emissions, own.emissions);
+    assert!(a.next_wake() > later);
+}

@@ -246,36 +246,5 @@ impl CentralCore {
     }
 }
 
-/// A copy of the whole state, e.g. a core built once (site, schedule,
-/// spacing table: milliseconds) and copied for each of many runs, as the
-/// fuzz target does. Written out rather than derived only because the
-/// struct's file was being changed on another branch when this was added:
-/// a `#[derive(Clone)]` on [`CentralCore`] may replace it.
-impl Clone for CentralCore {
-    fn clone(&self) -> Self {
-        Self {
-            config: self.config,
-            site: self.site.clone(),
-            site_toml: self.site_toml.clone(),
-            site_version: self.site_version,
-            schedules: self.schedules.clone(),
-            next_cycle: self.next_cycle,
-            next_start: self.next_start,
-            paused: self.paused,
-            cells: self.cells.clone(),
-            robots: self.robots.clone(),
-            unknown_robot_messages: self.unknown_robot_messages,
-            any_cell_seen: self.any_cell_seen,
-            epoch: self.epoch,
-            foreign_control: self.foreign_control,
-            sent_triggers: self.sent_triggers.clone(),
-            next_reannounce: self.next_reannounce,
-            standby: self.standby.clone(),
-            table: self.table.clone(),
-            last_trigger: self.last_trigger.clone(),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests;

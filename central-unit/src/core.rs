@@ -319,14 +319,14 @@ impl CentralCore {
                 Vec::new()
             }
             Event::ScheduleSeen(schedule) => {
-                if schedule.epoch > self.epoch {
+                if schedule.epoch > self.epoch && plausible_epoch(schedule.epoch, now) {
                     self.step_down(&schedule);
                     return Vec::new();
                 }
                 self.on_schedule_seen(schedule, now)
             }
             Event::TriggerSeen(trigger) => {
-                if trigger.epoch > self.epoch {
+                if trigger.epoch > self.epoch && plausible_epoch(trigger.epoch, now) {
                     self.step_down_for(trigger, now);
                     return Vec::new();
                 }
@@ -958,6 +958,14 @@ fn make_schedule(
 }
 
 /// Whether `table` holds the transmitters of exactly `cells`.
+/// Whether `epoch` can be another central unit's start as seen at `now`:
+/// not further ahead than [`standby::EPOCH_HORIZON`] (the cells' limit). A
+/// newer epoch further ahead was forged: it is counted as foreign control,
+/// and the active central unit does not stand by for it.
+fn plausible_epoch(epoch: u64, now: Time) -> bool {
+    ickon_proto::epoch::epoch_start(epoch).since(now) <= standby::EPOCH_HORIZON
+}
+
 fn same_cells(table: &SpacingTable, cells: &[String]) -> bool {
     let have: std::collections::BTreeSet<&String> = table.cells.iter().collect();
     have.len() == cells.len() && have.iter().all(|c| cells.contains(c))

@@ -548,6 +548,47 @@ fn a_forged_newer_trigger_stamped_far_ahead_stops_the_site_for_three_periods_at_
     assert!(schedule(&out).is_some());
 }
 
+/// An epoch is a central unit's start: a newer one an hour ahead of the
+/// clock was forged, and the active central unit does not stand by for it
+/// (it counts it as foreign control); one a second ahead (another central
+/// unit's clock) is followed.
+#[test]
+fn a_newer_epoch_far_ahead_of_the_clock_is_foreign_control_not_a_reason_to_stand_by() {
+    let mut c = all_alive();
+    let now = c.next_wake();
+    c.handle(now, Event::Tick);
+    let hour_ahead =
+        ickon_proto::time::Time::from_nanos((now + Duration::from_millis(3_600_000)).as_nanos());
+    let far = u64::try_from(hour_ahead.as_nanos()).unwrap();
+    let trigger = CycleTrigger {
+        cycle: 1,
+        start: now + Duration::from_millis(100),
+        schedule_version: 1,
+        epoch: far,
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
+    };
+    let before = c.foreign_control();
+    c.handle(now, Event::TriggerSeen(trigger.clone()));
+    let forged_schedule = Schedule {
+        epoch: far,
+        ..c.latest_schedule().clone()
+    };
+    c.handle(now, Event::ScheduleSeen(forged_schedule));
+    assert!(c.is_active());
+    assert_eq!(c.foreign_control(), before + 2);
+    // A second ahead: a real central unit whose clock runs a little ahead.
+    let near = u64::try_from((now + Duration::from_millis(1_000)).as_nanos()).unwrap();
+    c.handle(
+        now,
+        Event::TriggerSeen(CycleTrigger {
+            epoch: near,
+            ..trigger
+        }),
+    );
+    assert!(!c.is_active());
+}
+
 /// Found by `fuzz_central_core`: a forged schedule claiming the last
 /// version made the next membership schedule (or reload) overflow it.
 #[test]

@@ -199,8 +199,12 @@ fn a_copy_behaves_as_the_original_and_apart_from_it() {
 #[test]
 fn a_forged_far_future_empty_schedule_is_not_taken_over() {
     let now = Time::from_nanos(1_700_000_000_000_000_000);
-    let mut a = active(now);
-    let own = a.latest_schedule().clone();
+    // An active unit counts such a schedule as foreign control and does not
+    // stand by for it; a standby follows what it hears, and must not take
+    // it over.
+    let mut checked = active(now);
+    let mut a = standby(now);
+    let own = checked.latest_schedule().clone();
     let forged = Schedule {
         epoch: u64::MAX,
         version: 1,
@@ -210,7 +214,15 @@ fn a_forged_far_future_empty_schedule_is_not_taken_over() {
         slot_length: Duration::from_nanos(1),
         ..own.clone()
     };
-    // It stands by (a newer epoch), then its lease runs out.
+    assert!(
+        checked
+            .handle(now, Event::ScheduleSeen(forged.clone()))
+            .len()
+            <= 1
+    );
+    assert!(checked.is_active());
+    assert_eq!(checked.foreign_control(), 1);
+    // The standby follows it, then its lease runs out.
     assert!(a.handle(now, Event::ScheduleSeen(forged)).is_empty());
     assert!(!a.is_active());
     let later = a.next_wake();

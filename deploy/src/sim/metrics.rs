@@ -31,6 +31,35 @@ pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
     Some(sorted[rank.clamp(1, sorted.len()) - 1])
 }
 
+/// Events per second over the last [`RecentRate::WINDOW_S`] seconds, for
+/// the status line.
+#[derive(Debug, Default)]
+pub struct RecentRate {
+    times: VecDeque<Instant>,
+}
+
+impl RecentRate {
+    /// The window, seconds.
+    pub const WINDOW_S: f64 = 2.0;
+
+    /// Notes one event at `at`.
+    pub fn note(&mut self, at: Instant) {
+        self.times.push_back(at);
+        while self
+            .times
+            .front()
+            .is_some_and(|t| at.duration_since(*t).as_secs_f64() > Self::WINDOW_S)
+        {
+            self.times.pop_front();
+        }
+    }
+
+    /// Events per second over the window.
+    pub fn per_s(&self) -> f64 {
+        self.times.len() as f64 / Self::WINDOW_S
+    }
+}
+
 /// Measurements of one robot.
 #[derive(Debug, Default)]
 pub struct RobotStats {
@@ -50,7 +79,7 @@ pub struct RobotStats {
     latencies_us: Vec<f64>,
     /// Error of the newest scored pose, metres.
     pub current_error_m: Option<f64>,
-    fix_times: VecDeque<Instant>,
+    fix_rate: RecentRate,
     last_fix_at: Option<Instant>,
     longest_fix_gap_s: Option<f64>,
 }
@@ -81,19 +110,12 @@ impl RobotStats {
             self.longest_fix_gap_s = Some(self.longest_fix_gap_s.map_or(gap, |g| g.max(gap)));
         }
         self.last_fix_at = Some(at);
-        self.fix_times.push_back(at);
-        while self
-            .fix_times
-            .front()
-            .is_some_and(|t| at.duration_since(*t).as_secs_f64() > 2.0)
-        {
-            self.fix_times.pop_front();
-        }
+        self.fix_rate.note(at);
     }
 
     /// Fixes per second over the last two seconds.
     pub fn fixes_per_s(&self) -> f64 {
-        self.fix_times.len() as f64 / 2.0
+        self.fix_rate.per_s()
     }
 
     /// Records a pose received at `at`: scores it against the truth at its
@@ -284,8 +306,8 @@ pub struct RunStats {
     pub restarts: Vec<String>,
     /// Faults injected (`--faults`), as planned and when they were done, seconds.
     pub faults_done: Vec<(String, f64)>,
-    /// When the triggers of the last two seconds came, for the status line.
-    pub recent_triggers: VecDeque<Instant>,
+    /// Cycle triggers per second lately, for the status line.
+    pub trigger_rate: RecentRate,
     /// Transmitters the newest trigger named (`None`: the whole schedule).
     pub last_firing: Option<usize>,
 }
@@ -295,19 +317,12 @@ impl RunStats {
     pub fn on_trigger(&mut self, trigger: &ickon_proto::msg::control::CycleTrigger, at: Instant) {
         self.cycles_triggered.insert((trigger.epoch, trigger.cycle));
         self.last_firing = (!trigger.firing.is_empty()).then_some(trigger.firing.len());
-        self.recent_triggers.push_back(at);
-        while self
-            .recent_triggers
-            .front()
-            .is_some_and(|t| at.duration_since(*t).as_secs_f64() > 2.0)
-        {
-            self.recent_triggers.pop_front();
-        }
+        self.trigger_rate.note(at);
     }
 
     /// Cycles triggered per second over the last two seconds.
     pub fn cycles_per_s(&self) -> f64 {
-        self.recent_triggers.len() as f64 / 2.0
+        self.trigger_rate.per_s()
     }
 }
 

@@ -140,6 +140,16 @@ pub enum Output {
     Schedule(Schedule),
 }
 
+impl Output {
+    /// The epoch it belongs to.
+    pub fn epoch(&self) -> u64 {
+        match self {
+            Self::Trigger(t) => t.epoch,
+            Self::Schedule(s) => s.epoch,
+        }
+    }
+}
+
 /// The central unit's state (`Clone`: the fuzz target copies a built core
 /// per case instead of building the spacing table again).
 #[derive(Clone)]
@@ -286,7 +296,16 @@ impl CentralCore {
 
     /// Takes `event` at master time `now`, then emits whatever is due.
     pub fn handle(&mut self, now: Time, event: Event) -> Vec<Output> {
-        let stepped = self.notice_clock_step_back(now);
+        let mut out = self.notice_clock_step_back(now);
+        out.extend(self.handle_event(now, event));
+        // What an epoch superseded within this call said (a clock step back
+        // and then a takeover, say) every receiver would refuse: only the
+        // current epoch's outputs go.
+        out.retain(|o| o.epoch() == self.epoch);
+        out
+    }
+
+    fn handle_event(&mut self, now: Time, event: Event) -> Vec<Output> {
         let mut out = match event {
             Event::Tick => Vec::new(),
             Event::CellAlive { id, up } => self.cell_alive(&id, up, now),
@@ -348,11 +367,6 @@ impl CentralCore {
         if now >= self.next_wake() {
             out.extend(self.tick(now));
         }
-        if !stepped.is_empty() {
-            let mut all = stepped;
-            all.extend(out);
-            return all;
-        }
         out
     }
 
@@ -365,14 +379,17 @@ impl CentralCore {
     fn notice_clock_step_back(&mut self, now: Time) -> Vec<Output> {
         let period = self.schedule_for(self.next_cycle).cycle_period;
         let back = self.latest_now.since(now);
+        if self.standby.is_some() {
+            // A standby only follows: its time is whatever its clock says,
+            // and a takeover starts from there.
+            self.latest_now = now;
+            return Vec::new();
+        }
         if back <= period {
             self.latest_now = self.latest_now.max(now);
             return Vec::new();
         }
         self.latest_now = now;
-        if self.standby.is_some() {
-            return Vec::new();
-        }
         tracing::warn!(
             "the master clock stepped back by {:.3} s: cycles start again in a new epoch",
             back.as_secs_f64()

@@ -287,3 +287,25 @@ fn a_takeover_after_a_forged_far_future_epoch_keeps_every_check() {
     });
     run(0, false, &acts).expect("every check holds");
 }
+
+/// The minimal case the 10^6 run on the final code found (case 32 656): a
+/// standby whose clock stepped back 171 ms took over and, in the same
+/// call, its new schedule's shorter period made the same step count as one
+/// (a second new epoch): two epochs in one answer. A standby now adopts its
+/// clock as it is, and an answer carries only the current epoch.
+#[test]
+fn a_standby_whose_clock_stepped_back_takes_over_in_one_epoch() {
+    let act = |kind: u8, ns: i64, e: Vec<u8>| Act {
+        kind,
+        step: Duration::from_nanos(ns),
+        e,
+        x: f64::NAN,
+    };
+    let acts = vec![
+        act(0, 61_347_779, vec![]),
+        act(36, 472_798_762, vec![]),
+        act(86, -171_316_186, vec![48]),
+        act(250, 0, vec![]),
+    ];
+    run(0, true, &acts).expect("every check holds");
+}

@@ -431,10 +431,10 @@ impl CellCore {
     fn on_schedule(&mut self, s: Schedule, now: Time) {
         let before = self.gate.epoch();
         // An epoch is a central unit's start: one in the future is forged.
-        let future = self.sync.estimate().is_some_and(|e| {
-            ickon_proto::epoch::epoch_start(s.epoch).since(e.to_master(now))
-                > crate::trigger_gate::TRIGGER_HORIZON
-        });
+        let future = self
+            .sync
+            .estimate()
+            .is_some_and(|e| !ickon_proto::epoch::plausible_epoch(s.epoch, e.to_master(now)));
         if future || !self.gate.note_epoch(s.epoch) {
             self.counters.schedules_refused += 1;
             tracing::debug!(

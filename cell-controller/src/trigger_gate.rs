@@ -10,15 +10,15 @@
 //! until [`CONFIRMING_TRIGGERS`] of them agree among themselves; the count
 //! then starts again from them.
 
-use ickon_proto::epoch::epoch_start;
+use ickon_proto::epoch::plausible_epoch;
 use ickon_proto::msg::control::CycleTrigger;
 use ickon_proto::time::{Duration, Time};
 
 /// A trigger is taken only if its cycle starts within this long of now:
 /// the central unit sends it a few tens of milliseconds ahead, so anything
 /// further is forged or broken, and planning it would hold bursts (and
-/// memory) for a cycle that never comes. An epoch (a central unit's start)
-/// further than this in the future cannot be real either.
+/// memory) for a cycle that never comes. (An epoch is bounded the same way:
+/// [`ickon_proto::epoch::plausible_epoch`].)
 pub const TRIGGER_HORIZON: Duration = Duration::from_millis(10_000);
 
 /// Consecutive triggers that agree with each other but not with the count
@@ -146,7 +146,7 @@ impl TriggerGate {
                     ahead,
                 });
             }
-            if epoch_start(trigger.epoch).since(now) > TRIGGER_HORIZON {
+            if !plausible_epoch(trigger.epoch, now) {
                 return Err(TriggerRefused::FutureEpoch(trigger.epoch));
             }
         }

@@ -29,7 +29,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use ickon_proto::epoch::epoch_of;
+use ickon_proto::epoch::{epoch_of, plausible_epoch};
 use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::msg::robot::{PoseStatus, RobotPose};
@@ -337,6 +337,8 @@ impl CentralCore {
                 self.follow_trigger(trigger, now);
                 Vec::new()
             }
+            // A newer epoch beyond the horizon was forged: counted as
+            // foreign control below, not a reason to stand by.
             Event::ScheduleSeen(schedule) => {
                 if schedule.epoch > self.epoch && plausible_epoch(schedule.epoch, now) {
                     self.step_down(&schedule);
@@ -975,14 +977,6 @@ fn make_schedule(
 }
 
 /// Whether `table` holds the transmitters of exactly `cells`.
-/// Whether `epoch` can be another central unit's start as seen at `now`:
-/// not further ahead than [`standby::EPOCH_HORIZON`] (the cells' limit). A
-/// newer epoch further ahead was forged: it is counted as foreign control,
-/// and the active central unit does not stand by for it.
-fn plausible_epoch(epoch: u64, now: Time) -> bool {
-    ickon_proto::epoch::epoch_start(epoch).since(now) <= standby::EPOCH_HORIZON
-}
-
 fn same_cells(table: &SpacingTable, cells: &[String]) -> bool {
     let have: std::collections::BTreeSet<&String> = table.cells.iter().collect();
     have.len() == cells.len() && have.iter().all(|c| cells.contains(c))

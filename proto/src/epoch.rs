@@ -39,6 +39,18 @@ pub fn epoch_start(epoch: u64) -> Time {
     Time::from_nanos(i64::try_from(epoch).unwrap_or(i64::MAX))
 }
 
+/// How far ahead of the master clock an epoch may lie and be real: an
+/// epoch is a central unit's start, so one further ahead was forged (or is
+/// broken). The cells refuse it, and a central unit neither stands by for it
+/// nor takes it over.
+pub const EPOCH_HORIZON: Duration = Duration::from_millis(10_000);
+
+/// Whether `epoch` can be a central unit's start, seen at master time `now`
+/// (not beyond [`EPOCH_HORIZON`] ahead).
+pub fn plausible_epoch(epoch: u64, now: Time) -> bool {
+    epoch_start(epoch).since(now) <= EPOCH_HORIZON
+}
+
 /// The longest cycle period a schedule may have (a site fires at least once a minute).
 pub const MAX_CYCLE_PERIOD: Duration = Duration::from_millis(60_000);
 

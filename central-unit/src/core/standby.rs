@@ -19,7 +19,7 @@
 //!
 //! [`Event::ActiveGone`]: super::Event::ActiveGone
 
-use ickon_proto::epoch::{ScheduleBook, epoch_of, epoch_start};
+use ickon_proto::epoch::{ScheduleBook, epoch_of, plausible_epoch};
 use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::time::{Duration, Time};
 
@@ -30,11 +30,6 @@ use crate::schedule::ScheduleError;
 /// a hung active central unit (its liveliness token lives until the link
 /// lease ends, seconds later).
 pub const LEASE_CYCLES: i64 = 2;
-
-/// How far ahead of the master clock a followed epoch may lie, as for the
-/// cells (their trigger horizon): an epoch is a central unit's start, so
-/// one further ahead was forged and is not followed into a takeover.
-pub const EPOCH_HORIZON: Duration = Duration::from_millis(10_000);
 
 /// How long a standby started alone waits for an active one before it
 /// becomes active itself.
@@ -140,7 +135,7 @@ impl CentralCore {
         // clock than the cells accept was forged, and following it would
         // fence nothing (at `u64::MAX` no epoch is above it) and put this
         // one's epoch where the cells refuse it.
-        let real = |e: &u64| epoch_start(*e).since(now) <= EPOCH_HORIZON;
+        let real = |e: &u64| plausible_epoch(*e, now);
         let followed = f
             .last_trigger
             .as_ref()

@@ -102,4 +102,4 @@ impl RecentTriggers {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -3,7 +3,6 @@
 
 use super::tests::{C, TX, core_with};
 use crate::events::{Event, Output};
-use ickon_proto::msg::control::Firing;
 use ickon_proto::msg::robot::Arrival;
 use ickon_proto::time::{Duration, Time};
 
@@ -11,20 +10,8 @@ use super::*;
 
 /// A trigger of cycle `cycle` firing `(tx, offset ms)` in that order.
 fn trigger(cycle: u64, firing: &[(u32, i64)]) -> CycleTrigger {
-    CycleTrigger {
-        cycle,
-        start: Time::from_nanos(cycle as i64 * 100_000_000),
-        schedule_version: 1,
-        epoch: 1,
-        firing: firing
-            .iter()
-            .map(|&(tx_id, ms)| Firing {
-                tx_id,
-                offset: Duration::from_millis(ms),
-            })
-            .collect(),
-        cycle_period: Duration::from_millis(100),
-    }
+    // Epoch 1: the core fixture's schedule.
+    crate::cycle_match::tests::trigger_in(1, cycle, firing)
 }
 
 /// What a receiver at `p` hears when `firing` fires from a cycle start of

@@ -29,11 +29,17 @@ fn book() -> ScheduleBook {
 }
 
 fn trigger(cycle: u64, firing: &[(u32, i64)]) -> CycleTrigger {
+    trigger_in(EPOCH, cycle, firing)
+}
+
+/// A trigger of cycle `cycle` of `epoch` (cycles 100 ms apart) firing
+/// `(tx, offset ms)` in that order.
+pub(crate) fn trigger_in(epoch: u64, cycle: u64, firing: &[(u32, i64)]) -> CycleTrigger {
     CycleTrigger {
         cycle,
         start: Time::from_nanos(cycle as i64 * 100_000_000),
         schedule_version: 1,
-        epoch: EPOCH,
+        epoch,
         firing: firing
             .iter()
             .map(|&(tx_id, ms)| Firing {

@@ -130,3 +130,102 @@ fn occupancy_firing_gives_faster_cycles_and_every_robot_its_fixes() {
     }
     assert_eq!(doc["bad_messages"], 0, "{doc}");
 }
+
+/// A SIGTERM (what a service manager or `timeout` sends) stops `ickon sim`
+/// the way Ctrl-C does: every node is stopped, the report still comes, the
+/// exit code says the run was interrupted, and neither the agents'
+/// temporary configuration file nor the run file is left behind.
+#[test]
+fn a_sigterm_stops_the_sim_cleanly_and_leaves_no_file_behind() {
+    use std::io::Read;
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ickon"))
+        .args(["sim", "--robots", "1", "--json", "--duration", "120"])
+        .env("TMPDIR", tmp.path())
+        .env_remove("XDG_RUNTIME_DIR")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("ickon sim starts");
+    let files = |prefix: &str| -> Vec<String> {
+        walk(tmp.path())
+            .into_iter()
+            .filter(|name| name.starts_with(prefix))
+            .collect()
+    };
+    // The agents' file exists once the launcher has set them up; the signal
+    // may come before the mesh is up (it is then held until it is).
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while files("ickon-sim-msu-").is_empty() {
+        assert!(Instant::now() < deadline, "the agents' file never appeared");
+        assert!(child.try_wait().unwrap().is_none(), "ickon sim ended early");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_secs(3));
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .expect("signal sent");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "ickon sim did not stop on SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let (mut stdout, mut stderr) = (String::new(), String::new());
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut stdout)
+        .unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("interrupted (Ctrl-C or SIGTERM)"),
+        "{stderr}"
+    );
+    let doc: serde_json::Value = serde_json::from_str(&stdout)
+        .unwrap_or_else(|e| panic!("the report still comes ({e}):\n{stderr}"));
+    let endpoint = doc["central_endpoint"].as_str().expect("endpoint");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while !processes_mentioning(endpoint).is_empty() {
+        assert!(
+            Instant::now() < deadline,
+            "processes of the run still alive"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let left = walk(tmp.path());
+    assert!(
+        !left
+            .iter()
+            .any(|f| f.starts_with("ickon-sim-msu-") || f.ends_with(".json")),
+        "left behind: {left:?}"
+    );
+}
+
+/// The names of the files under `dir`, at any depth.
+fn walk(dir: &std::path::Path) -> Vec<String> {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            names.extend(walk(&path));
+        } else if let Some(name) = path.file_name().and_then(|n| n.to_str()) {
+            names.push(name.to_owned());
+        }
+    }
+    names
+}

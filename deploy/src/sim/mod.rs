@@ -283,6 +283,11 @@ pub async fn measure(
     site: &Site,
     profile: &ickon_sim::profile::NoiseProfile,
 ) -> anyhow::Result<Measured> {
+    // Installed first: a Ctrl-C or SIGTERM (a service manager, `timeout`)
+    // during start-up is held until the mesh is up, then stops it like one
+    // during the run, so the nodes are stopped and the run file and the
+    // agents' temporary files removed.
+    let mut shutdown = Box::pin(ickon_runtime::shutdown_signal(false));
     let keys = Keys::new(&site.name)?;
     let all_cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
     let update_rate_hz =
@@ -566,6 +571,7 @@ pub async fn measure(
         &mut sup,
         quiet,
         observer_credential.as_deref(),
+        &mut shutdown,
     )
     .await;
     let _ = run_dir.remove(&site.name, run.pid);

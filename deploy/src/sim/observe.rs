@@ -56,7 +56,7 @@ pub(super) fn decode_or_count<T: serde::de::DeserializeOwned>(
     }
 }
 
-/// Watches the running mesh until the duration is over, Ctrl-C, or a node dies.
+/// Watches the running mesh until the duration is over, Ctrl-C or SIGTERM, or a node dies.
 /// Returns what was measured and, if the run failed, why.
 #[allow(clippy::too_many_arguments)]
 pub(super) async fn observe(
@@ -69,6 +69,7 @@ pub(super) async fn observe(
     sup: &mut supervisor::Supervisor,
     quiet: bool,
     credential: Option<&std::path::Path>,
+    shutdown: &mut (impl std::future::Future<Output = ()> + Unpin),
 ) -> anyhow::Result<(RunStats, Option<String>)> {
     let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
     let bursts = session
@@ -133,9 +134,9 @@ pub(super) async fn observe(
     let failure = loop {
         tokio::select! {
             _ = tokio::time::sleep_until(end) => break None,
-            _ = tokio::signal::ctrl_c() => {
+            _ = &mut *shutdown => {
                 if !quiet { eprintln!("\nickon sim: interrupted, stopping every node"); }
-                break Some("interrupted by Ctrl-C".to_string());
+                break Some("interrupted (Ctrl-C or SIGTERM)".to_string());
             }
             Ok(s) = alive.recv_async() => {
                 if s.kind() == SampleKind::Delete {

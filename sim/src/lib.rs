@@ -28,6 +28,7 @@ pub mod fleet;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod profile;
+pub mod profile_file;
 pub mod realtime;
 pub mod rng;
 pub mod robot;

@@ -238,7 +238,7 @@ pub struct WorldArgs {
     /// Robots to simulate, comma-separated ids.
     #[arg(long, value_delimiter = ',', required = true)]
     pub robots: Vec<String>,
-    /// Noise profile: ideal, paper or harsh.
+    /// Noise profile: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Seed of every random draw.
@@ -253,7 +253,7 @@ pub struct WorldArgs {
 /// Runs the world as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
 /// arguments, 1 for a failure at run time.
 pub fn main_with(args: WorldArgs) -> ExitCode {
-    let profile = match NoiseProfile::by_name(&args.profile) {
+    let profile = match NoiseProfile::load(&args.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");

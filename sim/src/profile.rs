@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 
 /// The ultrasonic channel and the MSU's receivers (DESIGN section 7).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct UltrasoundNoise {
     /// Whether the robot moves while the sound flies and between the
     /// emissions of a cycle; `false` freezes it at the cycle's mean arrival time.
@@ -69,6 +70,7 @@ pub struct UltrasoundNoise {
 /// reports the earlier onset with the stronger burst's id (a wrong time for
 /// that id when the stronger came later).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CollisionModel {
     /// Air absorption at the carrier, dB per metre (40 kHz at 20 degC and
     /// 50 % humidity: about 1.3 dB/m).
@@ -109,6 +111,7 @@ impl CollisionModel {
 
 /// Wheel encoders of the differential drive.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct EncoderNoise {
     /// True left wheel radius relative to nominal, minus one.
     pub left_radius_error: f64,
@@ -124,6 +127,7 @@ pub struct EncoderNoise {
 
 /// Yaw-rate gyro.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GyroNoise {
     /// Standard deviation of the constant bias drawn at power-up, deg/s.
     pub bias_sigma_deg_s: f64,
@@ -139,6 +143,7 @@ pub struct GyroNoise {
 
 /// Obstacle sensors of seed 003.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ObstacleNoise {
     /// Standard deviation of the ultrasonic ranges, metres (1 cm resolution on top).
     pub ultrasonic_sigma_m: f64,
@@ -150,6 +155,7 @@ pub struct ObstacleNoise {
 
 /// Device clocks.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ClockNoise {
     /// Standard deviation of a cell clock's offset from the master at
     /// power-up, milliseconds (the cell's synchronisation removes it).
@@ -173,6 +179,7 @@ pub struct ClockNoise {
 
 /// One named noise profile.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct NoiseProfile {
     /// Profile name.
     pub name: String,
@@ -190,7 +197,9 @@ pub struct NoiseProfile {
 
 /// A profile name that is not one of [`NoiseProfile::names`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown noise profile `{0}` (known: ideal, paper, harsh)")]
+#[error(
+    "unknown noise profile `{0}` (known: ideal, paper, harsh, or a TOML file such as deploy/profiles/paper.toml)"
+)]
 pub struct UnknownProfile(pub String);
 
 impl NoiseProfile {

@@ -37,7 +37,7 @@ pub struct ScaleArgs {
     /// Estimator every MSU agent runs.
     #[arg(long, default_value = "tdoa-ekf")]
     pub estimator: String,
-    /// Noise profile of the simulated world.
+    /// Noise profile of the simulated world: ideal, paper, harsh, or a TOML file.
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Seed of every random draw.

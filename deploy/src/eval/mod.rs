@@ -38,7 +38,7 @@ pub struct EvalArgs {
     /// Tours per route.
     #[arg(long, default_value_t = 10)]
     pub tours: u32,
-    /// Noise profile: ideal, paper or harsh.
+    /// Noise profile: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Run seed: the same seed gives the same numbers.
@@ -78,7 +78,7 @@ pub fn run(args: EvalArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let profile = match NoiseProfile::by_name(&args.profile) {
+    let profile = match NoiseProfile::load(&args.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");

@@ -140,7 +140,7 @@ pub fn run(args: &McapArgs) -> ExitCode {
     let sim = rec.metadata.get(SIM_METADATA);
     let profile = sim
         .and_then(|m| m.get("profile"))
-        .and_then(|p| NoiseProfile::by_name(p).ok());
+        .and_then(|p| NoiseProfile::load(p).ok());
     let live_name = sim
         .and_then(|m| m.get("estimator"))
         .cloned()

@@ -59,7 +59,7 @@ pub struct SimArgs {
     /// Estimator every MSU agent runs (`tdoa-ekf`, ours, by default).
     #[arg(long, default_value = "tdoa-ekf")]
     pub estimator: String,
-    /// Noise profile of the simulated world: ideal, paper or harsh.
+    /// Noise profile of the simulated world: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Seed of every random draw (world noise, injected clock errors).
@@ -217,7 +217,7 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
         );
         return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
-    let profile = match ickon_sim::profile::NoiseProfile::by_name(&args.profile) {
+    let profile = match ickon_sim::profile::NoiseProfile::load(&args.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");

@@ -13,7 +13,8 @@ mod apply;
 mod raw;
 mod validate;
 
-#[cfg(test)]
+// The tests use the `[ros2]` block, which needs the Zenoh node.
+#[cfg(all(test, feature = "zenoh"))]
 mod tests;
 
 use std::path::Path;
@@ -100,7 +101,9 @@ pub struct MsuTuning {
     pub wheels: WheelGeometry,
     /// Values the chosen estimator has no use for (ignored), with where they are.
     pub warnings: Vec<ConfigIssue>,
-    /// The file's `[ros2]` block, when it has one.
+    /// The file's `[ros2]` block, when it has one (a build without the
+    /// Zenoh node has no ROS 2 link, and refuses the block as unknown).
+    #[cfg(feature = "zenoh")]
     pub ros2: Option<crate::ros2::Ros2Options>,
 }
 
@@ -113,6 +116,7 @@ impl MsuTuning {
             solver: SolverTuning::default(),
             wheels: pioneer_wheels(),
             warnings: Vec::new(),
+            #[cfg(feature = "zenoh")]
             ros2: None,
         })
     }

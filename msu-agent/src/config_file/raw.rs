@@ -88,5 +88,6 @@ pub(super) struct RawMsuFile {
     pub receiver_heading: Option<Spanned<RawReceiverHeading>>,
     /// `[ros2]`: the ROS 2 side, the fields of the `--ros2-*` flags (checked
     /// when the agent starts, like the flags).
+    #[cfg(feature = "zenoh")]
     pub ros2: Option<crate::ros2::Ros2Options>,
 }

@@ -422,6 +422,7 @@ fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
         },
         wheels,
         warnings: Vec::new(),
+        #[cfg(feature = "zenoh")]
         ros2: raw.ros2.clone(),
     })
 }

@@ -253,6 +253,7 @@ impl FixSolver {
         signals
             .windows(2)
             .map(|pair| RangeDifferenceSample {
+                a_t_s: Some(clock.to_fusion(pair[0].t_arrival)),
                 t_s: clock.to_fusion(pair[1].t_arrival),
                 a_m: pair[0].tx_m,
                 b_m: pair[1].tx_m,

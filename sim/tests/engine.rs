@@ -33,6 +33,29 @@ fn ideal_profile_gives_sub_millimetre_fixes() {
     assert!(fix_mean < 1.0, "fix mean {fix_mean} mm");
 }
 
+/// In an exact world the ground filter must be nearly exact too: before it
+/// counted the speed of sound's uncertainty (the air's temperature) as a
+/// model error, it trusted the 1 us stamps beyond its other model errors and
+/// ran 57-118 mm off on `lab` under `ideal`.
+#[test]
+fn the_ground_filter_is_within_centimetres_in_an_exact_world() {
+    let site = Site::default_site();
+    for route in ["route-1", "eight"] {
+        let out = run(
+            &site,
+            &config(route, "ideal", 1, &["tdoa-ekf"]),
+            &mut |_| {},
+        )
+        .unwrap();
+        let s = score(&out, site.speed_of_sound_m_s, site.msu.height_m);
+        assert!(
+            s[0].mean.mean_mm < 15.0,
+            "{route}: {} mm",
+            s[0].mean.mean_mm
+        );
+    }
+}
+
 #[test]
 fn same_seed_gives_bit_identical_results_and_another_seed_does_not() {
     let site = Site::default_site();

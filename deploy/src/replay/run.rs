@@ -259,6 +259,7 @@ fn sample(
             })
     };
     Ok(RangeDifferenceSample {
+        a_t_s: None,
         t_s: m.t_s,
         a_m: find(m.id_a)?,
         b_m: find(m.id_b)?,

@@ -78,6 +78,11 @@ pub struct RangeSample {
 pub struct RangeDifferenceSample {
     /// Time of the measurement (arrival of the later signal), in seconds.
     pub t_s: f64,
+    /// Arrival time of the earlier signal (transmitter A), in seconds, when
+    /// the source knows it (the MSU does). A filter relating each arrival to
+    /// the robot's position at its own time needs it for the first arrival
+    /// of a cycle; without it, that time is guessed from the usual spacing.
+    pub a_t_s: Option<f64>,
     /// Position of transmitter A in the world frame, metres.
     pub a_m: [f64; 3],
     /// Position of transmitter B in the world frame, metres.
@@ -102,6 +107,7 @@ impl RangeDifferenceSample {
     ) -> Self {
         Self {
             t_s,
+            a_t_s: None,
             a_m,
             b_m,
             d_m: dt_s * speed_m_s,

@@ -79,6 +79,7 @@ fn fly(
         };
         let (pa, pb) = (Vector3::from(anchors[ia]), Vector3::from(anchors[ib]));
         let m = RangeDifferenceSample {
+            a_t_s: None,
             t_s: clock(t),
             a_m: anchors[ia],
             b_m: anchors[ib],

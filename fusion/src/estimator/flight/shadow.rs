@@ -54,6 +54,7 @@ mod tests {
     #[test]
     fn only_the_transmitter_below_lengthens_its_path() {
         let m = RangeDifferenceSample {
+            a_t_s: None,
             t_s: 0.0,
             a_m: [0.0, 0.0, 3.0],
             b_m: [0.0, 0.0, 0.0],

@@ -36,6 +36,7 @@ fn range_difference(
     noise: f64,
 ) -> RangeDifferenceSample {
     RangeDifferenceSample {
+        a_t_s: None,
         t_s,
         a_m: a,
         b_m: b,

@@ -106,6 +106,7 @@ impl LateArrivals {
     /// filter's chained pseudo-ranges) rather than a pair.
     pub fn is_arrival_aside(&mut self, t_s: f64, at_m: [f64; 3]) -> bool {
         self.is_aside(&RangeDifferenceSample {
+            a_t_s: None,
             t_s,
             a_m: at_m,
             b_m: at_m,
@@ -183,6 +184,7 @@ mod tests {
 
     fn m(t_s: f64, a: f64, b: f64) -> RangeDifferenceSample {
         RangeDifferenceSample {
+            a_t_s: None,
             t_s,
             a_m: [a, 0.0, 0.0],
             b_m: [b, 0.0, 0.0],

@@ -78,6 +78,7 @@ fn fly(
         let (a, b) = (anchors[ia], anchors[ib]);
         let d = (p - Vector3::from(b)).norm() - (p - Vector3::from(a)).norm();
         let m = RangeDifferenceSample {
+            a_t_s: None,
             t_s: clock(t),
             a_m: a,
             b_m: b,
@@ -246,6 +247,7 @@ fn a_filter_stuck_far_away_is_declared_lost_and_replaced() {
         let (a, b) = (tx[k as usize % 8], tx[(k as usize + 1) % 8]);
         let d = (p - Vector3::from(b)).norm() - (p - Vector3::from(a)).norm();
         let m = RangeDifferenceSample {
+            a_t_s: None,
             t_s: t,
             a_m: a,
             b_m: b,

@@ -253,6 +253,7 @@ mod tests {
             let (a, b) = (anchors[k % 6], anchors[(k + 1) % 6]);
             let d = (p - Vector3::from(b)).norm() - (p - Vector3::from(a)).norm();
             w.push(RangeDifferenceSample {
+                a_t_s: None,
                 t_s: k as f64 * 0.002,
                 a_m: a,
                 b_m: b,
@@ -297,6 +298,7 @@ mod tests {
         let t = 0.06;
         for k in 0..30 {
             w.push(RangeDifferenceSample {
+                a_t_s: None,
                 t_s: t,
                 a_m: [0.0, 0.0, 1.5],
                 b_m: [6.0, 0.0, 1.5],

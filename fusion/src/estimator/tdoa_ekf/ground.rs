@@ -229,6 +229,8 @@ pub struct TdoaEkf {
     offset_ready: bool,
     /// Whether an arrival has agreed with the offset since it was set.
     offset_confirmed: bool,
+    /// Predicted range of the arrival that set the cycle's offset, metres.
+    offset_range_m: f64,
     /// Running mean of the squared normalised innovations, and how many
     /// went in since the last adaptation.
     nis_mean: f64,
@@ -302,6 +304,7 @@ impl TdoaEkf {
             unknown_heading_drift_m: 0.0,
             chain: Chain::default(),
             offset_ready: false,
+            offset_range_m: 0.0,
             offset_confirmed: false,
             nis_mean: 1.0,
             nis_seen: 0,
@@ -512,6 +515,7 @@ impl TdoaEkf {
         }
         self.offset_ready = true;
         self.offset_confirmed = false;
+        self.offset_range_m = pred;
         true
     }
 
@@ -550,7 +554,15 @@ impl TdoaEkf {
         };
         h[OFFSET] = 1.0;
         let nu = a.rho_m - pred - x[OFFSET];
-        let r = sigma_m * sigma_m;
+        // The speed of sound is known only as well as the air's temperature:
+        // a range error in proportion to the distance. The part common to
+        // the cycle goes into its offset; what is left is the error of the
+        // difference to the arrival that set it. Without it, an exact world
+        // (timing sigma 0.3 mm, the 1 us stamp) made the filter trust its
+        // arrivals beyond every other model error it has and fail (57-118
+        // mm on `lab` under `ideal`; 2-5 mm with it, see the README).
+        let speed = self.params.sensors.speed_of_sound_rel_sigma() * (pred - self.offset_range_m);
+        let r = sigma_m * sigma_m + speed * speed;
         let s = gs::innovation_variance(&p, &h, r);
         if !(s.is_finite() && s > 0.0) {
             return Outcome::Rejected(Rejection::Numerical);
@@ -615,7 +627,7 @@ impl TdoaEkf {
         if let Err(r @ (Rejection::NonFinite { .. } | Rejection::BadSigma { .. })) = physical {
             return Outcome::Rejected(r);
         }
-        let link = self.chain.add(m.a_m, m.b_m, m.d_m, m.t_s);
+        let link = self.chain.add(m.a_m, m.b_m, m.d_m, m.t_s, m.a_t_s);
         // One arrival's sigma: the pair's is that of two.
         let sigma = m.sigma_m / std::f64::consts::SQRT_2;
         if self.state.is_none() {

@@ -33,7 +33,8 @@ const MAX_ARRIVALS: usize = 32;
 pub(super) struct Chain {
     arrivals: Vec<Arrival>,
     /// Last time between two chained arrivals, seconds: the arrival time
-    /// of a chain's first signal is its successor's minus this.
+    /// of a chain's first signal, when the difference does not carry it, is
+    /// its successor's minus this.
     slot_s: f64,
 }
 
@@ -47,8 +48,16 @@ pub(super) enum Link {
 }
 
 impl Chain {
-    /// Adds the difference `rho_b - rho_a = d_m` stamped `t_s`.
-    pub fn add(&mut self, a_m: [f64; 3], b_m: [f64; 3], d_m: f64, t_s: f64) -> Link {
+    /// Adds the difference `rho_b - rho_a = d_m` stamped `t_s` (B's arrival),
+    /// with A's arrival time `a_t_s` when known (ignored when after `t_s`).
+    pub fn add(
+        &mut self,
+        a_m: [f64; 3],
+        b_m: [f64; 3],
+        d_m: f64,
+        t_s: f64,
+        a_t_s: Option<f64>,
+    ) -> Link {
         let continues = self.arrivals.last().is_some_and(|last| {
             last.tx_m == a_m
                 && t_s >= last.t_s
@@ -65,10 +74,16 @@ impl Chain {
             self.arrivals.push(b);
             return Link::Continued(b);
         }
+        // The first arrival's own time, exact when the difference carries
+        // it: guessed from the last spacing, it was off by up to the
+        // difference between two slots (milliseconds, millimetres of
+        // driving: far beyond the arrival noise of an exact world).
         let a = Arrival {
             tx_m: a_m,
             rho_m: 0.0,
-            t_s: t_s - self.slot_s,
+            t_s: a_t_s
+                .filter(|ta| ta.is_finite() && *ta <= t_s)
+                .unwrap_or(t_s - self.slot_s),
         };
         let b = Arrival {
             tx_m: b_m,
@@ -98,16 +113,29 @@ mod tests {
     #[test]
     fn consecutive_differences_sum_to_pseudo_ranges_and_a_repeat_starts_anew() {
         let mut c = Chain::default();
-        assert!(matches!(c.add(A, B, 1.0, 0.10), Link::Started(..)));
-        let Link::Continued(cc) = c.add(B, C, -0.5, 0.15) else {
+        assert!(matches!(c.add(A, B, 1.0, 0.10, None), Link::Started(..)));
+        let Link::Continued(cc) = c.add(B, C, -0.5, 0.15, None) else {
             panic!("not continued");
         };
         assert!((cc.rho_m - 0.5).abs() < 1e-12);
         // The next cycle starts with C again, then A: A is already in.
-        assert!(matches!(c.add(C, A, 0.2, 0.55), Link::Started(..)));
+        assert!(matches!(c.add(C, A, 0.2, 0.55, None), Link::Started(..)));
         let first = c.arrivals()[0];
         // Its time comes from the last slot seen.
         assert!((first.t_s - 0.50).abs() < 1e-12);
         assert_eq!(c.arrivals().len(), 2);
+        // A difference that carries A's time gives it exactly; one whose A
+        // came after B is not believed.
+        assert!(matches!(
+            c.add(B, C, 0.1, 1.0, Some(0.93)),
+            Link::Started(..)
+        ));
+        assert!((c.arrivals()[0].t_s - 0.93).abs() < 1e-12);
+        assert!(matches!(
+            c.add(A, C, 0.1, 2.0, Some(2.5)),
+            Link::Started(..)
+        ));
+        // (the last spacing seen, 0.05 s between B and C, stands in)
+        assert!((c.arrivals()[0].t_s - 1.95).abs() < 1e-12);
     }
 }

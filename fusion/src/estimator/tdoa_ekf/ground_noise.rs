@@ -50,6 +50,9 @@ pub struct GroundNoise {
     /// Prior standard deviation of the range scale error of absolute
     /// ranges (a fraction of the distance).
     pub range_scale_sigma: f64,
+    /// Standard deviation of the air temperature the MSU assumes (the
+    /// site's, or its thermometer's), degrees Celsius (sheet: 1).
+    pub temperature_sigma_c: f64,
 }
 
 impl Default for GroundNoise {
@@ -69,6 +72,7 @@ impl Default for GroundNoise {
             range_bias_sigma_m: 3.0,
             range_bias_walk_m_sqrt_s: 0.001,
             range_scale_sigma: 0.1,
+            temperature_sigma_c: 1.0,
         }
     }
 }
@@ -93,6 +97,13 @@ impl GroundNoise {
     pub(super) fn var_wheel_turn(&self, dtheta_rad: f64, d_m: f64) -> f64 {
         (self.wheel_heading_rad_per_m * d_m.abs()).powi(2)
             + (self.wheel_heading_rad_per_rad * dtheta_rad).powi(2)
+    }
+
+    /// Relative standard deviation of the speed of sound the MSU assumes:
+    /// the speed goes with the square root of the absolute temperature, so
+    /// `0.5 sigma_T / T` at 20 degC (0.17 % for the sheet's 1 degC).
+    pub(super) fn speed_of_sound_rel_sigma(&self) -> f64 {
+        0.5 * self.temperature_sigma_c / 293.15
     }
 
     /// Checks the domain; `Err((field, reason))`.
@@ -126,6 +137,7 @@ impl GroundNoise {
                 self.range_bias_walk_m_sqrt_s,
             ),
             ("sensors.range_scale_sigma", self.range_scale_sigma),
+            ("sensors.temperature_sigma_c", self.temperature_sigma_c),
         ];
         for (field, v) in fields {
             if !(v.is_finite() && v >= 0.0) {

@@ -178,6 +178,7 @@ fn run(duration_s: f64, trouble: Trouble, seed: u64) -> (Vec<Input>, Vec<(f64, f
         for pair in heard.windows(2) {
             let ((a, ra, _), (b, rb, tb)) = (pair[0], pair[1]);
             inputs.push(Input::RangeDifference(RangeDifferenceSample {
+                a_t_s: None,
                 t_s: tb,
                 a_m: a,
                 b_m: b,

@@ -87,6 +87,9 @@ pub(crate) fn check(s: &RangeDifferenceSample) -> Result<(), Rejection> {
             return Err(Rejection::NonFinite { field });
         }
     }
+    if s.a_t_s.is_some_and(|t| !t.is_finite()) {
+        return Err(Rejection::NonFinite { field: "a_t_s" });
+    }
     if !s.a_m.iter().all(|v| v.is_finite()) {
         return Err(Rejection::NonFinite { field: "a_m" });
     }
@@ -188,6 +191,7 @@ mod tests {
 
     fn sample(d_m: f64) -> RangeDifferenceSample {
         RangeDifferenceSample {
+            a_t_s: None,
             t_s: 0.0,
             a_m: [0.0, 0.0, 0.0],
             b_m: [4.0, 0.0, 0.0],
@@ -213,6 +217,9 @@ mod tests {
         let mut s = sample(1.0);
         s.b_m[2] = f64::NAN;
         assert_eq!(check(&s), Err(Rejection::NonFinite { field: "b_m" }));
+        let mut s = sample(1.0);
+        s.a_t_s = Some(f64::INFINITY);
+        assert_eq!(check(&s), Err(Rejection::NonFinite { field: "a_t_s" }));
         let mut s = sample(1.0);
         s.sigma_m = 0.0;
         assert!(matches!(check(&s), Err(Rejection::BadSigma { .. })));

@@ -23,6 +23,7 @@ fn corners() -> Vec<[f64; 3]> {
 fn measure(t_s: f64, p: [f64; 3], a: [f64; 3], b: [f64; 3], noise_m: f64) -> RangeDifferenceSample {
     let (p, va, vb) = (Vector3::from(p), Vector3::from(a), Vector3::from(b));
     RangeDifferenceSample {
+        a_t_s: None,
         t_s,
         a_m: a,
         b_m: b,

@@ -204,6 +204,7 @@ fn non_finite_inputs_are_rejected_and_change_nothing() {
             },
         }),
         Input::RangeDifference(crate::estimator::RangeDifferenceSample {
+            a_t_s: None,
             t_s: 1.0,
             a_m: [0.0, 0.0, 2.5],
             b_m: [10.0, 0.0, 2.5],

@@ -100,6 +100,7 @@ fn input(t_s: f64) -> BoxedStrategy<Input> {
         )
             .prop_map(move |(a_m, b_m, d_m, sigma_m)| {
                 Input::RangeDifference(RangeDifferenceSample {
+                    a_t_s: None,
                     t_s,
                     a_m,
                     b_m,

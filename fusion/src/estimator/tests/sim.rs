@@ -135,6 +135,7 @@ pub(super) fn circling_run(
                 events.push((
                     t + noise.fix_latency_s,
                     Input::RangeDifference(RangeDifferenceSample {
+                        a_t_s: None,
                         t_s: t,
                         a_m: TRANSMITTERS[0],
                         b_m: *b,

@@ -564,9 +564,10 @@ mod tests {
                     );
                 }
             }
-            // Placed at the second agreeing cycle (ickon-akf's start check)
-            // or the third (tdoa-ekf asks one more against a start pose).
-            let want = if name == "tdoa-ekf" { 2 } else { 1 };
+            // Placed at the second agreeing cycle (ickon-akf's start check);
+            // tdoa-ekf asks three against a start pose, spanning a second
+            // (cycles of 0.2 s here: the sixth).
+            let want = if name == "tdoa-ekf" { 5 } else { 1 };
             assert_eq!(placed, Some(want), "{name}");
         }
     }

@@ -101,10 +101,8 @@ impl ZenohArgs {
 fn explain_refusal(path: &std::path::Path, zenoh_reason: &str) -> String {
     // A client file is a few hundred bytes; a huge one is not worth parsing twice.
     const MAX_EXPLAINED_BYTES: u64 = 1 << 20;
-    let small = std::fs::metadata(path).is_ok_and(|m| m.len() <= MAX_EXPLAINED_BYTES);
-    let parsed = small
-        .then(|| std::fs::read_to_string(path).ok())
-        .flatten()
+    let parsed = ickon_proto::text_file::read_bounded(path, MAX_EXPLAINED_BYTES)
+        .ok()
         .and_then(|text| json5::from_str::<serde_json::Value>(&text).ok());
     if let Some(value) = parsed {
         let usrpwd = &value["transport"]["auth"]["usrpwd"];

@@ -9,19 +9,23 @@ use std::path::Path;
 
 use crate::profile::{NoiseProfile, UnknownProfile};
 
+/// Largest profile file read, bytes: a profile is a few kilobytes; a path
+/// to anything larger (a log, `/dev/zero`) is refused before it fills memory.
+pub const MAX_PROFILE_FILE_BYTES: u64 = 1 << 20;
+
 /// Why a profile could not be had.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
     /// Neither a built-in name nor a file.
     #[error(transparent)]
     Unknown(#[from] UnknownProfile),
-    /// The file could not be read.
-    #[error("{path}: {source}")]
+    /// The file could not be read (missing, too large for a profile, not UTF-8).
+    #[error("{path}: {reason}")]
     Read {
         /// The file.
         path: String,
-        /// What the system said.
-        source: std::io::Error,
+        /// Why.
+        reason: String,
     },
     /// Not TOML, a field missing or unknown, or a value of the wrong type
     /// (the text names the line, the column and the field).
@@ -56,10 +60,12 @@ impl NoiseProfile {
         if !path.exists() && !looks_like_a_file {
             return Err(UnknownProfile(name_or_path.to_owned()).into());
         }
-        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
-            path: name_or_path.to_owned(),
-            source,
-        })?;
+        let text = ickon_proto::text_file::read_bounded(path, MAX_PROFILE_FILE_BYTES).map_err(
+            |reason| ProfileError::Read {
+                path: name_or_path.to_owned(),
+                reason,
+            },
+        )?;
         let profile: Self = toml::from_str(&text).map_err(|e| ProfileError::Parse {
             path: name_or_path.to_owned(),
             message: e.to_string().trim_end().to_owned(),
@@ -274,6 +280,8 @@ mod tests {
         );
         let err = NoiseProfile::load(dir.path().to_str().unwrap()).unwrap_err();
         assert!(matches!(err, ProfileError::Read { .. }), "{err}");
+        let err = NoiseProfile::load("/dev/zero").unwrap_err().to_string();
+        assert!(err.contains("larger than"), "{err}");
         std::fs::write(dir.path().join("binary.toml"), [0xff, 0xfe, 0x00]).unwrap();
         let err = NoiseProfile::load(dir.path().join("binary.toml").to_str().unwrap()).unwrap_err();
         assert!(

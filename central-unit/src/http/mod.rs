@@ -83,11 +83,9 @@ pub fn read_token(path: &Path) -> Result<String, HttpError> {
         path: path.to_path_buf(),
         reason,
     };
-    let meta = std::fs::metadata(path).map_err(|e| err(e.to_string()))?;
-    if meta.len() > 4096 {
-        return Err(err("longer than 4096 bytes: not a token".into()));
-    }
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+    // Bounded while reading, not by the file's stated size: a device such
+    // as /dev/zero states none and never ends.
+    let text = ickon_proto::text_file::read_bounded(path, 4096).map_err(err)?;
     let token = text.trim();
     if token.is_empty() {
         return Err(err("empty".into()));

@@ -166,8 +166,10 @@ fn prepare(command: &AdminCommand) -> Result<(&Common, Request), String> {
         AdminCommand::Pause(c) => (c, Request::new("pause", None, false)),
         AdminCommand::Resume(c) => (c, Request::new("resume", None, false)),
         AdminCommand::Reload { file, common } => {
-            let site_toml = std::fs::read_to_string(file)
-                .map_err(|e| format!("cannot read site file {}: {e}", file.display()))?;
+            // Bounded like every site file: `reload /dev/zero` must not fill memory.
+            let site_toml =
+                ickon_proto::text_file::read_bounded(file, ickon_proto::site::MAX_SITE_FILE_BYTES)
+                    .map_err(|e| format!("cannot read site file {}: {e}", file.display()))?;
             let payload = ickon_proto::encode(&ReloadRequest {
                 file_name: file.display().to_string(),
                 site_toml,

@@ -87,7 +87,11 @@ pub fn router(file: &Path, config: &zenoh::Config) -> Result<(), SecureError> {
 /// The user names of a user/password dictionary (`<user>:<password>` per
 /// line, blank lines allowed), each line checked as Zenoh reads it.
 pub fn dictionary_users(file: &Path) -> Result<HashSet<String>, SecureError> {
-    let text = std::fs::read_to_string(file).map_err(|e| SecureError::io(file, e))?;
+    // A dictionary holds a line per node: a site of thousands is well
+    // under this; a path to anything endless is refused, not read.
+    const MAX_DICTIONARY_BYTES: u64 = 16 << 20;
+    let text = ickon_proto::text_file::read_bounded(file, MAX_DICTIONARY_BYTES)
+        .map_err(|reason| SecureError::io(file, std::io::Error::other(reason)))?;
     let mut users = HashSet::new();
     for (n, line) in text.lines().enumerate() {
         let line_error = |problem: &str| SecureError::Line {

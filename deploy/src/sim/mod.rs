@@ -232,6 +232,14 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
         eprintln!("error: --duration must be between 0 and 86400 seconds");
         return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
+    // Read here as the central unit will: a bad token file is the user's
+    // input, refused before a node starts, not a central dying at start-up.
+    if let Some(path) = &args.http_token_file {
+        if let Err(e) = ickon_central::http::read_token(path) {
+            eprintln!("error: --http-token-file: {e}");
+            return Err(ExitCode::from(EXIT_BAD_INPUT));
+        }
+    }
     if let Some(plan) = &args.faults {
         match faults::parse_plan(plan) {
             Err(e) => {

@@ -90,6 +90,29 @@ fn unknown_names_exit_with_code_two_and_list_the_valid_ones() {
     }
 }
 
+/// A flag that does not apply to the kind of run asked for is refused, not
+/// silently ignored (`--plot` with `--robots` used to draw nothing and say
+/// nothing).
+#[test]
+fn flags_of_the_other_kind_of_run_are_refused() {
+    let cases: [&[&str]; 6] = [
+        &["--robots", "2", "--plot", "/tmp/never-written"],
+        &["--robots", "2", "--tours", "3"],
+        &["--robots", "2", "--route", "route-1"],
+        &["--duration", "5"],
+        &["--firing", "all"],
+        &["--fire-range-m", "9"],
+    ];
+    for args in cases {
+        let out = ickon().arg("eval").args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--robots"), "{args:?}: {err}");
+        assert!(out.stdout.is_empty());
+    }
+    assert!(!std::path::Path::new("/tmp/never-written").exists());
+}
+
 #[test]
 fn plot_directory_gets_one_picture_per_estimator_route_and_tour_plus_the_comparison() {
     let dir = std::env::temp_dir().join(format!("ickon-eval-plot-{}", std::process::id()));

@@ -13,6 +13,9 @@ use ickon_sim::fleet::{FleetConfig, run_fleet};
 use super::EvalArgs;
 use crate::cli::{EXIT_BAD_INPUT, EXIT_FAILURE};
 
+/// Virtual seconds of a `--robots` run without `--duration`.
+const DEFAULT_DURATION_S: f64 = 60.0;
+
 /// Runs the fleet evaluation of `args` on `site`.
 pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -> ExitCode {
     let schedule = match args.schedule.as_str() {
@@ -23,7 +26,12 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    let occupancy = match args.firing.as_str() {
+    let firing = args.firing.as_deref().unwrap_or("occupancy");
+    let fire_range_m = args
+        .fire_range_m
+        .unwrap_or(FiringConfig::default().fire_range_m);
+    let duration = args.duration.unwrap_or(DEFAULT_DURATION_S);
+    let occupancy = match firing {
         "occupancy" => true,
         "all" => false,
         other => {
@@ -36,17 +44,17 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
     } else {
         args.estimator.clone()
     };
-    if !(args.fire_range_m > 0.0 && args.fire_range_m <= 100.0) {
+    if !(fire_range_m > 0.0 && fire_range_m <= 100.0) {
         eprintln!("error: --fire-range-m must be in (0, 100] m");
         return ExitCode::from(EXIT_BAD_INPUT);
     }
-    if !(args.duration > 3.0 && args.duration.is_finite()) {
+    if !(duration > 3.0 && duration.is_finite()) {
         eprintln!("error: --duration must be more than the 3 s warm-up");
         return ExitCode::from(EXIT_BAD_INPUT);
     }
     let config = FleetConfig {
         robots,
-        duration_s: args.duration,
+        duration_s: duration,
         warm_up_s: 3.0,
         profile,
         seed: args.seed,
@@ -55,7 +63,7 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
             schedule,
             firing: FiringConfig {
                 occupancy,
-                fire_range_m: args.fire_range_m,
+                fire_range_m,
                 ..FiringConfig::default()
             },
             ..CentralConfig::default()
@@ -76,9 +84,9 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
         let doc = serde_json::json!({
             "site": site.name,
             "robots": robots,
-            "duration_s": args.duration,
+            "duration_s": duration,
             "schedule": args.schedule,
-            "firing": args.firing,
+            "firing": firing,
             "estimator": config.estimator,
             "seed": args.seed,
             "profile": config.profile.name,
@@ -92,9 +100,9 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
         "{} robots on {} for {:.0} s (3 s warm-up), schedule {}, firing {}, {} ({}), seed {}",
         robots,
         site.name,
-        args.duration,
+        duration,
         args.schedule,
-        args.firing,
+        firing,
         config.estimator,
         config.profile.name,
         args.seed

@@ -32,11 +32,11 @@ pub struct EvalArgs {
     /// Estimator name, or `all`.
     #[arg(long, default_value = "all")]
     pub estimator: String,
-    /// Route name, or `all`.
-    #[arg(long, default_value = "all")]
+    /// Route name, or `all` (not with `--robots`: each robot drives its own).
+    #[arg(long, default_value = "all", conflicts_with = "robots")]
     pub route: String,
-    /// Tours per route.
-    #[arg(long, default_value_t = 10)]
+    /// Tours per route (not with `--robots`, which runs for `--duration`).
+    #[arg(long, default_value_t = 10, conflicts_with = "robots")]
     pub tours: u32,
     /// Noise profile: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
@@ -47,26 +47,28 @@ pub struct EvalArgs {
     /// Print one JSON document on stdout instead of the tables.
     #[arg(long)]
     pub json: bool,
-    /// Write PNG plots into this directory.
-    #[arg(long)]
+    /// Write PNG plots into this directory (per route and tour; not with `--robots`).
+    #[arg(long, conflicts_with = "robots")]
     pub plot: Option<PathBuf>,
     /// Run the first N robots of the site at once for `--duration` seconds
     /// instead of one robot per route, and report each robot's fix rate.
     #[arg(long)]
     pub robots: Option<usize>,
-    /// Virtual seconds of a `--robots` run.
-    #[arg(long, default_value_t = 60.0)]
-    pub duration: f64,
+    /// Virtual seconds of a `--robots` run [default: 60].
+    #[arg(long)]
+    pub duration: Option<f64>,
     /// The central unit's schedule: `tight` (from the geometry) or `uniform` (before issue 20).
     #[arg(long, default_value = "tight")]
     pub schedule: String,
-    /// Which transmitters fire in a `--robots` run: `occupancy` (where the robots are) or `all`.
-    #[arg(long, default_value = "occupancy")]
-    pub firing: String,
+    /// Which transmitters fire in a `--robots` run: `occupancy` (where the
+    /// robots are) or `all` [default: occupancy].
+    #[arg(long)]
+    pub firing: Option<String>,
     /// With `--firing occupancy`: a transmitter fires when it is this close
     /// to a robot's uncertainty region, metres.
-    #[arg(long, default_value_t = ickon_central::occupancy::FiringConfig::default().fire_range_m)]
-    pub fire_range_m: f64,
+    /// [default: the central unit's, 8.5]
+    #[arg(long)]
+    pub fire_range_m: Option<f64>,
 }
 
 /// Runs `ickon eval` and returns the exit code.
@@ -94,6 +96,20 @@ pub fn run(args: EvalArgs) -> ExitCode {
     }
     if let Some(robots) = args.robots {
         return fleet::run(&site, profile, robots, &args);
+    }
+    // Clap's `requires` does not hold for flags with defaults: checked here,
+    // so a flag of a `--robots` run is never silently ignored.
+    for (flag, given) in [
+        ("--duration", args.duration.is_some()),
+        ("--firing", args.firing.is_some()),
+        ("--fire-range-m", args.fire_range_m.is_some()),
+    ] {
+        if given {
+            eprintln!(
+                "error: {flag} belongs to a `--robots N` run; without --robots each route is driven for --tours"
+            );
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
     }
     let estimators: Vec<String> = match args.estimator.as_str() {
         "all" => estimator::names().iter().map(|s| s.to_string()).collect(),

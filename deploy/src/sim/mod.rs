@@ -634,11 +634,12 @@ pub async fn measure(
             .cells
             .iter()
             .map(|c| {
+                let due = stats.cycles_for_cell(&c.id, &completed);
                 stats
                     .cells
                     .get(&c.id)
-                    .map(|s| s.summary(&c.id, &completed))
-                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id, &completed))
+                    .map(|s| s.summary(&c.id, &due))
+                    .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id, &due))
             })
             .collect(),
         bad_messages: stats.bad_messages.values().sum(),

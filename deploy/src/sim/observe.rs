@@ -112,7 +112,14 @@ pub(super) async fn observe(
     let mut probes_sent: std::collections::HashMap<u64, Instant> = Default::default();
     let mut probe_seq = 0u64;
 
-    let mut stats = RunStats::default();
+    let mut stats = RunStats {
+        tx_cells: site
+            .transmitters
+            .iter()
+            .map(|t| (t.id, t.cell.clone()))
+            .collect(),
+        ..RunStats::default()
+    };
     for r in site.robots.iter().take(args.robots) {
         stats.robots.insert(r.id.clone(), Default::default());
     }

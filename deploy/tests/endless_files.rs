@@ -3,29 +3,22 @@
 //! code 2 and a reason, at once, never read into memory.
 
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-/// Runs `ickon args`, killing it after 30 s; (exit code, stderr).
+use ickon_tests::{ChildGuard, poll_until};
+
+/// Runs `ickon args`, killed if it has not ended within 30 s; (exit code,
+/// what it wrote).
 fn ickon(args: &[&str]) -> (Option<i32>, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ickon"))
-        .args(args)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("ickon starts");
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while child.try_wait().unwrap().is_none() {
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("ickon {args:?} still running after 30 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let logs = tempfile::tempdir().expect("log directory");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ickon"));
+    cmd.args(args);
+    let mut child = ChildGuard::spawn("ickon", cmd, logs.path()).expect("ickon starts");
+    let status = poll_until(Duration::from_secs(30), "ickon to exit", || {
+        child.exit_status()
+    })
+    .unwrap_or_else(|e| panic!("ickon {args:?}: {e}"));
+    (status.code(), child.log())
 }
 
 #[test]
@@ -46,8 +39,8 @@ fn an_endless_file_is_refused_everywhere_a_file_is_read() {
         &["admin", "reload", "/dev/zero"],
     ];
     for args in cases {
-        let (code, stderr) = ickon(args);
-        assert_eq!(code, Some(2), "ickon {args:?}: {stderr}");
-        assert!(stderr.contains("larger than"), "ickon {args:?}: {stderr}");
+        let (code, said) = ickon(args);
+        assert_eq!(code, Some(2), "ickon {args:?}: {said}");
+        assert!(said.contains("larger than"), "ickon {args:?}: {said}");
     }
 }

@@ -6,6 +6,8 @@
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use ickon_tests::{ChildGuard, poll_until};
+
 /// Mesh duration once every node is live, seconds.
 const DURATION_S: f64 = 15.0;
 
@@ -137,95 +139,59 @@ fn occupancy_firing_gives_faster_cycles_and_every_robot_its_fixes() {
 /// temporary configuration file nor the run file is left behind.
 #[test]
 fn a_sigterm_stops_the_sim_cleanly_and_leaves_no_file_behind() {
-    use std::io::Read;
     let tmp = tempfile::tempdir().expect("temporary directory");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ickon"))
-        .args(["sim", "--robots", "1", "--json", "--duration", "120"])
-        .env("TMPDIR", tmp.path())
-        .env_remove("XDG_RUNTIME_DIR")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("ickon sim starts");
-    let files = |prefix: &str| -> Vec<String> {
-        walk(tmp.path())
+    let (temp_dir, runtime_dir, logs) = (
+        tmp.path().join("tmp"),
+        tmp.path().join("run"),
+        tmp.path().join("logs"),
+    );
+    for dir in [&temp_dir, &runtime_dir, &logs] {
+        std::fs::create_dir(dir).expect("directory");
+    }
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ickon"));
+    cmd.args(["sim", "--robots", "1", "--duration", "120"])
+        .env("TMPDIR", &temp_dir)
+        .env("XDG_RUNTIME_DIR", &runtime_dir);
+    let mut sim = ChildGuard::spawn("sim", cmd, &logs).expect("ickon sim starts");
+    // The run file names the central endpoint once every node is live.
+    let run_dir = ickon_runtime::RunDir::from_env(
+        Some(runtime_dir.clone().into()),
+        nix::unistd::getuid().as_raw(),
+    );
+    let endpoint = poll_until(Duration::from_secs(60), "the run file", || {
+        assert!(
+            sim.exit_status().is_none(),
+            "ickon sim ended early:\n{}",
+            sim.log()
+        );
+        run_dir.read("lab").ok().map(|run| run.central[0].clone())
+    })
+    .unwrap_or_else(|e| panic!("{e}:\n{}", sim.log()));
+    let agents_files = || {
+        std::fs::read_dir(&temp_dir)
             .into_iter()
-            .filter(|name| name.starts_with(prefix))
-            .collect()
+            .flatten()
+            .flatten()
+            .filter(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with("ickon-sim-msu-")
+            })
+            .count()
     };
-    // The agents' file exists once the launcher has set them up; the signal
-    // may come before the mesh is up (it is then held until it is).
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while files("ickon-sim-msu-").is_empty() {
-        assert!(Instant::now() < deadline, "the agents' file never appeared");
-        assert!(child.try_wait().unwrap().is_none(), "ickon sim ended early");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    std::thread::sleep(Duration::from_secs(3));
-    nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(child.id() as i32),
-        nix::sys::signal::Signal::SIGTERM,
-    )
-    .expect("signal sent");
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "ickon sim did not stop on SIGTERM"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let (mut stdout, mut stderr) = (String::new(), String::new());
-    child
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut stdout)
-        .unwrap();
-    child
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut stderr)
-        .unwrap();
-    assert_eq!(status.code(), Some(1), "{stderr}");
+    assert_eq!(agents_files(), 1, "the agents' file is where TMPDIR says");
+    let status = sim.stop(Duration::from_secs(60)).expect("stopped");
+    let log = sim.log();
+    assert_eq!(status.code(), Some(1), "{log}");
+    assert!(log.contains("interrupted (Ctrl-C or SIGTERM)"), "{log}");
     assert!(
-        stderr.contains("interrupted (Ctrl-C or SIGTERM)"),
-        "{stderr}"
+        log.contains("robot   fixes"),
+        "the report still comes:\n{log}"
     );
-    let doc: serde_json::Value = serde_json::from_str(&stdout)
-        .unwrap_or_else(|e| panic!("the report still comes ({e}):\n{stderr}"));
-    let endpoint = doc["central_endpoint"].as_str().expect("endpoint");
-    let deadline = Instant::now() + Duration::from_secs(5);
-    while !processes_mentioning(endpoint).is_empty() {
-        assert!(
-            Instant::now() < deadline,
-            "processes of the run still alive"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let left = walk(tmp.path());
-    assert!(
-        !left
-            .iter()
-            .any(|f| f.starts_with("ickon-sim-msu-") || f.ends_with(".json")),
-        "left behind: {left:?}"
-    );
-}
-
-/// The names of the files under `dir`, at any depth.
-fn walk(dir: &std::path::Path) -> Vec<String> {
-    let mut names = Vec::new();
-    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-        let path = entry.path();
-        if path.is_dir() {
-            names.extend(walk(&path));
-        } else if let Some(name) = path.file_name().and_then(|n| n.to_str()) {
-            names.push(name.to_owned());
-        }
-    }
-    names
+    poll_until(Duration::from_secs(5), "the run's processes to end", || {
+        processes_mentioning(&endpoint).is_empty().then_some(())
+    })
+    .unwrap_or_else(|e| panic!("{e}: {:?}", processes_mentioning(&endpoint)));
+    assert_eq!(agents_files(), 0, "the agents' file is left behind");
+    assert!(run_dir.sites().is_empty(), "the run file is left behind");
 }

@@ -55,19 +55,19 @@ pub struct EvalArgs {
     #[arg(long)]
     pub robots: Option<usize>,
     /// Virtual seconds of a `--robots` run [default: 60].
-    #[arg(long)]
+    #[arg(long, requires = "robots")]
     pub duration: Option<f64>,
     /// The central unit's schedule: `tight` (from the geometry) or `uniform` (before issue 20).
     #[arg(long, default_value = "tight")]
     pub schedule: String,
     /// Which transmitters fire in a `--robots` run: `occupancy` (where the
     /// robots are) or `all` [default: occupancy].
-    #[arg(long)]
+    #[arg(long, requires = "robots")]
     pub firing: Option<String>,
     /// With `--firing occupancy`: a transmitter fires when it is this close
     /// to a robot's uncertainty region, metres.
     /// [default: the central unit's, 8.5]
-    #[arg(long)]
+    #[arg(long, requires = "robots")]
     pub fire_range_m: Option<f64>,
 }
 
@@ -96,20 +96,6 @@ pub fn run(args: EvalArgs) -> ExitCode {
     }
     if let Some(robots) = args.robots {
         return fleet::run(&site, profile, robots, &args);
-    }
-    // Clap's `requires` does not hold for flags with defaults: checked here,
-    // so a flag of a `--robots` run is never silently ignored.
-    for (flag, given) in [
-        ("--duration", args.duration.is_some()),
-        ("--firing", args.firing.is_some()),
-        ("--fire-range-m", args.fire_range_m.is_some()),
-    ] {
-        if given {
-            eprintln!(
-                "error: {flag} belongs to a `--robots N` run; without --robots each route is driven for --tours"
-            );
-            return ExitCode::from(EXIT_BAD_INPUT);
-        }
     }
     let estimators: Vec<String> = match args.estimator.as_str() {
         "all" => estimator::names().iter().map(|s| s.to_string()).collect(),

@@ -18,9 +18,13 @@ pub fn shutdown_signal(exit_with_parent: bool) -> impl Future<Output = ()> + Sen
     let terminate = signal(SignalKind::terminate()).ok();
     async move {
         let orphaned = async move {
+            if !exit_with_parent {
+                // Nothing to watch: no wake-up four times a second for it.
+                return std::future::pending::<()>().await;
+            }
             loop {
                 tokio::time::sleep(Duration::from_millis(250)).await;
-                if exit_with_parent && std::os::unix::process::parent_id() != parent {
+                if std::os::unix::process::parent_id() != parent {
                     return;
                 }
             }

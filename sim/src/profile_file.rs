@@ -165,7 +165,7 @@ impl NoiseProfile {
             ),
             (
                 "ultrasound.collisions.reverb_tail_db",
-                u.collisions.reverb_tail_db,
+                c.reverb_tail_db,
                 200.0,
             ),
             ("encoders.left_radius_error", e.left_radius_error, 0.5),

@@ -3,6 +3,8 @@
 //! output lists) and `solve` with Gauss-Newton, for 4, 8 and 16 signals, 2D
 //! (known height) and 3D. The pseudo-ranges carry a
 //! fixed 1 cm noise pattern so that the refinement has work to do.
+//! `solve_consensus_2d`: cycles with a wrong id and reflections, which only
+//! the consensus fallback cleans.
 
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -75,6 +77,31 @@ fn bench(c: &mut Criterion) {
                 |b, s| b.iter(|| solve(black_box(s), &config)),
             );
         }
+    }
+    // The consensus fallback's worst case: leave-one-out cannot clean the
+    // cycle (a wrong id heard far too early, and reflections).
+    let mode = Mode::TwoD { height_m: 0.4 };
+    for n in [8, 16] {
+        let mut s = signals(n, mode);
+        s[1].pseudo_range_m -= 40.0;
+        for (k, extra_m) in [(3, 0.4), (5, 1.1)] {
+            s[k].pseudo_range_m += extra_m;
+        }
+        if n == 16 {
+            for (k, extra_m) in [(8, 0.7), (12, 0.9), (14, 0.3)] {
+                s[k].pseudo_range_m += extra_m;
+            }
+        }
+        let config = SolverConfig {
+            mode,
+            sigma_range_m: 0.01,
+            ..SolverConfig::default()
+        };
+        let fix = solve(&s, &config).expect("the consensus finds the fix");
+        assert!(fix.rejected.len() >= 3, "{n}: {fix:?}");
+        group.bench_with_input(BenchmarkId::new("solve_consensus_2d", n), &s, |b, s| {
+            b.iter(|| solve(black_box(s), &config))
+        });
     }
     group.finish();
 }

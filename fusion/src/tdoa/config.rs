@@ -107,7 +107,10 @@ pub struct SolverConfig {
     /// Iteration cap of the refinement.
     pub max_iterations: u32,
     /// Most signals removed by the leave-one-out test per cycle (the
-    /// physical check is not counted).
+    /// physical check is not counted). Zero switches rejection off,
+    /// the consensus fallback included; otherwise the consensus (tried
+    /// when leave-one-out leaves a residual over the gate or no fix) may
+    /// set aside more, as long as two signals more than the minimum agree.
     pub max_rejections: u32,
     /// Only late arrivals (positive residual) are rejected by the
     /// leave-one-out test: a reflection can only lengthen a path.

@@ -38,6 +38,12 @@
 //!    arrivals that do not fit (reflections), one at a time, while some
 //!    residual exceeds the gate. Every removal is reported with its reason
 //!    in [`Fix::rejected`].
+//! 6. When that leaves a residual over the gate or no fix (more reflections
+//!    than it may remove; a wrong transmitter id heard far too early, which
+//!    the physical check, built for late arrivals, answers by dropping every
+//!    other signal), a consensus over small subsets looks for the largest
+//!    set agreeing on one position: at least two signals more than the
+//!    minimum and a majority of the cycle.
 //!
 //! [`solve_moving`] is the same pipeline for a receiver that moves during
 //! the cycle: each arrival is related to the position at its own arrival
@@ -68,6 +74,7 @@
 mod bound;
 mod closed_form;
 mod config;
+mod consensus;
 mod error;
 mod fix;
 mod heading;

@@ -15,10 +15,13 @@
 //!    otherwise the data cannot tell which signal is wrong and the fix
 //!    stays [`Quality::Suspect`].
 //! 3. Roots and refined fixes outside the allowed area are discarded.
+//! 4. If a residual is still over the gate, or no fix is left, the
+//!    consensus of [`super::consensus`] may replace the result.
 
 use nalgebra::{Matrix3, Vector3};
 
 use super::closed_form::closed_form_subset;
+use super::consensus;
 use super::refine::{linearise, refine_subset};
 use super::residuals::{self, Stats};
 use super::signal::{self, Signal, Subset};
@@ -51,6 +54,9 @@ pub fn solve(signals: &[Signal], config: &SolverConfig) -> Result<Fix, SolveErro
         &mut rejected,
     );
     if set.len() < need {
+        if let Some(fix) = consensus_fix(signals, config, &rejected, gate_m) {
+            return Ok(fix);
+        }
         return Err(SolveError::TooFewConsistent {
             got: set.len(),
             need,
@@ -77,7 +83,71 @@ pub fn solve(signals: &[Signal], config: &SolverConfig) -> Result<Fix, SolveErro
         current = Ok(est);
         removed += 1;
     }
+    let clean = matches!(&current, Ok(e) if e.stats.max_abs_m() <= gate_m);
+    if !clean && let Some(fix) = consensus_fix(signals, config, &rejected, gate_m) {
+        return Ok(fix);
+    }
     Ok(into_fix(signals, set, config, current?, rejected, gate_m))
+}
+
+/// The consensus fallback as a [`Fix`]: every signal outside the agreeing
+/// set is reported, with the physical check's reason where it had one, else
+/// with its residual against the consensus fix.
+fn consensus_fix(
+    signals: &[Signal],
+    config: &SolverConfig,
+    checked: &[Rejection],
+    gate_m: f64,
+) -> Option<Fix> {
+    if config.max_rejections == 0 {
+        return None;
+    }
+    let (agreeing, est) = by_consensus(signals, config, gate_m)?;
+    let outside = Subset::first(signals.len())
+        .iter()
+        .filter(|&i| !agreeing.iter().any(|k| k == i));
+    let rejected = outside
+        .map(|i| {
+            let tx_id = signals[i].tx_id;
+            let baseline = checked.iter().find(|r| {
+                r.tx_id == tx_id && matches!(r.reason, RejectReason::ExceedsBaseline { .. })
+            });
+            baseline.copied().unwrap_or(Rejection {
+                tx_id,
+                reason: RejectReason::Residual {
+                    residual_m: residuals::residual(&signals[i], &est.position_m, est.stats.bias_m),
+                },
+            })
+        })
+        .collect();
+    Some(into_fix(signals, agreeing, config, est, rejected, gate_m))
+}
+
+/// The fix of the largest set of signals that agree on one position
+/// ([`consensus::agreeing_set`]), solved as a whole, widened once by the
+/// signals that agree with that fix, and passing the gate.
+fn by_consensus(
+    signals: &[Signal],
+    config: &SolverConfig,
+    gate_m: f64,
+) -> Option<(Subset, Estimate)> {
+    let all = Subset::first(signals.len());
+    let mut set = consensus::agreeing_set(signals, all, config, gate_m)?;
+    let mut est = estimate(signals, set, config, gate_m).ok()?;
+    let widened = all
+        .iter()
+        .filter(|&i| {
+            residuals::residual(&signals[i], &est.position_m, est.stats.bias_m).abs() <= gate_m
+        })
+        .fold(Subset::empty(), Subset::with);
+    if widened != set && widened.len() > set.len() {
+        if let Ok(wider) = estimate(signals, widened, config, gate_m) {
+            if wider.stats.max_abs_m() <= gate_m {
+                (set, est) = (widened, wider);
+            }
+        }
+    }
+    (est.stats.max_abs_m() <= gate_m).then_some((set, est))
 }
 
 /// Drops the longer side of range differences longer than their baseline.

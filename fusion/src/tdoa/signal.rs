@@ -99,6 +99,16 @@ impl Subset {
         Self(if n >= 64 { u64::MAX } else { (1u64 << n) - 1 })
     }
 
+    /// No signal.
+    pub(crate) fn empty() -> Self {
+        Self(0)
+    }
+
+    /// This subset and signal `i` (`i < MAX_SIGNALS`).
+    pub(crate) fn with(self, i: usize) -> Self {
+        Self(self.0 | (1u64 << i))
+    }
+
     pub(crate) fn len(self) -> usize {
         self.0.count_ones() as usize
     }

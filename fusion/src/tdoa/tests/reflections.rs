@@ -109,24 +109,143 @@ fn keeps_a_suspect_fix_when_rejection_is_disabled() {
 }
 
 #[test]
-fn early_outliers_are_rejected_only_when_late_only_is_off() {
+fn an_early_outlier_is_left_to_the_consensus_when_only_late_ones_are_rejected_one_by_one() {
     let p = Vector3::new(2.5, 2.0, 0.4);
     let mut s = signals_at(&ceiling(8), p, 2.0);
     s[4].pseudo_range_m -= 0.2;
     let mode = Mode::TwoD { height_m: 0.4 };
-    let fix = solve(&s, &cfg(mode)).unwrap();
-    assert_eq!(fix.quality, Quality::Suspect);
+    // Leave-one-out alone (the consensus needs two spare signals; with
+    // `max_rejections` 0 and `late_only` it cannot act) keeps it Suspect...
     let fix = solve(
-        &s,
+        &s[..5],
         &SolverConfig {
-            late_only: false,
+            max_rejections: 0,
             ..cfg(mode)
         },
     )
     .unwrap();
-    assert_eq!(fix.rejected.len(), 1);
-    assert_eq!(fix.rejected[0].tx_id, s[4].tx_id);
-    assert_eq!(fix.quality, Quality::Good);
+    assert_eq!(fix.quality, Quality::Suspect);
+    // ...while both the consensus (late_only) and leave-one-out (not
+    // late_only) find it among eight.
+    for late_only in [true, false] {
+        let fix = solve(
+            &s,
+            &SolverConfig {
+                late_only,
+                ..cfg(mode)
+            },
+        )
+        .unwrap();
+        assert_eq!(fix.rejected.len(), 1, "late_only {late_only}: {fix:?}");
+        assert_eq!(fix.rejected[0].tx_id, s[4].tx_id);
+        assert_eq!(fix.quality, Quality::Good);
+        assert!((fix.position_m - p).norm() < 1e-6);
+    }
+}
+
+#[test]
+fn a_wrong_id_heard_early_no_longer_throws_the_whole_cycle_away() {
+    // A burst decoded with another transmitter's id is placed at that
+    // transmitter's slot: tens of metres early. Every other signal then
+    // exceeds its baseline against it, and the physical check (which drops
+    // the later side) used to leave one signal.
+    let p = Vector3::new(2.5, 2.0, 0.4);
+    let mut s = signals_at(&ceiling(10), p, 2.0);
+    s[6].pseudo_range_m -= 48.7;
+    let fix = solve(&s, &cfg(Mode::TwoD { height_m: 0.4 })).unwrap();
+    assert_eq!(fix.quality, Quality::Good, "{fix:?}");
+    assert!((fix.position_m - p).norm() < 1e-6, "{fix:?}");
+    assert_eq!(fix.used_tx_ids.len(), 9);
+    assert_eq!(
+        fix.rejected.iter().map(|r| r.tx_id).collect::<Vec<_>>(),
+        [s[6].tx_id]
+    );
+}
+
+#[test]
+fn four_reflections_are_more_than_leave_one_out_removes_but_not_more_than_the_consensus_finds() {
+    let p = Vector3::new(3.2, 1.7, 0.4);
+    let mut s = signals_at(&ceiling(12), p, -3.0);
+    for (k, extra_m) in [(1, 0.35), (4, 1.2), (7, 0.6), (10, 0.9)] {
+        s[k].pseudo_range_m += extra_m;
+    }
+    let mode = Mode::TwoD { height_m: 0.4 };
+    let fix = solve(&s, &cfg(mode)).unwrap();
+    assert_eq!(fix.quality, Quality::Good, "{fix:?}");
+    assert!((fix.position_m - p).norm() < 1e-6, "{fix:?}");
+    let mut ids: Vec<_> = fix.rejected.iter().map(|r| r.tx_id).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, [s[1].tx_id, s[4].tx_id, s[7].tx_id, s[10].tx_id]);
+}
+
+#[test]
+fn up_to_four_reflections_and_a_wrong_id_among_twelve_noisy_signals() {
+    let mut rng = ChaCha8Rng::seed_from_u64(19);
+    let sigma = 0.01;
+    let noise = Normal::new(0.0, sigma).unwrap();
+    let tx = ceiling(12);
+    let mode = Mode::TwoD { height_m: 0.3 };
+    let draws = 300;
+    let (mut good, mut wrong) = (0, 0);
+    for _ in 0..draws {
+        let p = Vector3::new(rng.random_range(0.5..5.5), rng.random_range(0.5..4.5), 0.3);
+        let mut s = signals_at(&tx, p, rng.random_range(-20.0..20.0));
+        s.iter_mut()
+            .for_each(|x| x.pseudo_range_m += noise.sample(&mut rng));
+        let mut bad = std::collections::BTreeSet::new();
+        for _ in 0..rng.random_range(0..=4) {
+            let k = rng.random_range(0..s.len());
+            if bad.insert(k) {
+                s[k].pseudo_range_m += rng.random_range(0.2..1.5);
+            }
+        }
+        if rng.random_bool(0.5) {
+            let k = rng.random_range(0..s.len());
+            if bad.insert(k) {
+                s[k].pseudo_range_m += rng.random_range(-40.0..40.0);
+            }
+        }
+        let Ok(fix) = solve(&s, &cfg(mode)) else {
+            continue;
+        };
+        if fix.quality == Quality::Good {
+            good += 1;
+            if (fix.position_m - p).norm() > 0.1 {
+                wrong += 1;
+            }
+        }
+    }
+    // A Good fix is a right one; nearly every cycle gives one.
+    assert_eq!(wrong, 0, "{wrong} wrong of {good} good");
+    assert!(good * 100 >= draws * 97, "{good} of {draws}");
+}
+
+#[test]
+fn the_consensus_does_not_make_a_fix_out_of_noise() {
+    // Ten pseudo-ranges drawn at random. Four of them fitting one point by
+    // chance happens now and then, with or without the consensus (one spare
+    // signal is weak evidence); the consensus wants a majority, six of ten,
+    // and six never agree by chance (none in 3000 draws when this was
+    // written).
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let tx = ceiling(10);
+    let mode = Mode::TwoD { height_m: 0.3 };
+    for _ in 0..1000 {
+        let s: Vec<Signal> = tx
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| Signal {
+                tx_id: i as u32,
+                tx_m: t,
+                pseudo_range_m: rng.random_range(0.0..8.0),
+                t_s: 0.0,
+            })
+            .collect();
+        if let Ok(fix) = solve(&s, &cfg(mode)) {
+            let agreed = fix.used_tx_ids.len();
+            assert!(fix.quality != Quality::Good || agreed < 6, "{fix:?}");
+        }
+    }
 }
 
 #[test]

@@ -94,6 +94,9 @@ pub struct RefSample {
     pub truth: TruthSample,
     /// Per estimator (in [`RunConfig::estimators`] order): `x, y, theta`, or `None` before initialisation.
     pub estimates: Vec<Option<[f64; 3]>>,
+    /// Per estimator, the position covariance it published with that
+    /// estimate: `xx, xy, yy`, m^2.
+    pub covariances: Vec<Option<[f64; 3]>>,
 }
 
 /// A raw fix with the truth at its own measurement time.
@@ -349,6 +352,12 @@ pub fn run(
                         truth: world.truth(t),
                         estimates: (0..n_est)
                             .map(|i| core.pose_of(i).map(|p| [p.x_m, p.y_m, p.theta_rad]))
+                            .collect(),
+                        covariances: (0..n_est)
+                            .map(|i| {
+                                core.pose_of(i)
+                                    .map(|p| [p.covariance[0], p.covariance[1], p.covariance[4]])
+                            })
                             .collect(),
                     });
                     next_ref += 1;

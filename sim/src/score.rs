@@ -70,6 +70,29 @@ pub struct Score {
     /// Mean CRLB of the raw fixes, mm.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crlb_mm: Option<f64>,
+    /// Share of the scored points whose true position lies inside the 95 %
+    /// ellipse of the covariance the estimator published, percent: 95 for
+    /// an honest covariance, less for an overconfident one, more for a
+    /// timid one. `None` when the estimator published no usable covariance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inside_95_pct: Option<f64>,
+}
+
+/// The chi-square quantile of 95 % with two degrees of freedom:
+/// `-2 ln 0.05`.
+const CHI2_2D_95: f64 = 5.991_464_547_107_979;
+
+/// Whether the error `e` (metres) lies inside the 95 % ellipse of the
+/// covariance `xx, xy, yy` (m^2); `None` when it is not positive definite.
+pub fn inside_95_ellipse(e: [f64; 2], c: [f64; 3]) -> Option<bool> {
+    let [xx, xy, yy] = c;
+    let det = xx * yy - xy * xy;
+    if !(xx > 0.0 && det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    // e^T C^-1 e with C^-1 = [yy, -xy; -xy, xx] / det.
+    let d2 = (yy * e[0] * e[0] - 2.0 * xy * e[0] * e[1] + xx * e[1] * e[1]) / det;
+    Some(d2 <= CHI2_2D_95)
 }
 
 /// The row of one tour (or of any set of scored points): position errors
@@ -156,6 +179,7 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
         .map(|(k, name)| {
             let mut all_pos = Vec::new();
             let mut all_head = Vec::new();
+            let mut ellipse: Vec<Option<bool>> = Vec::new();
             let mut tours = Vec::new();
             for tour in 1..=out.config.tours {
                 let mut pos = Vec::new();
@@ -166,6 +190,11 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                     if let Some(e) = r.estimates[k] {
                         pos.push((e[0] - r.truth.x_m).hypot(e[1] - r.truth.y_m));
                         head.push(ickon_fusion::angle::diff(e[2], r.truth.theta_rad));
+                        let c = r.covariances.get(k).copied().flatten();
+                        let inside = c.and_then(|c| {
+                            inside_95_ellipse([e[0] - r.truth.x_m, e[1] - r.truth.y_m], c)
+                        });
+                        ellipse.push(inside);
                     }
                 }
                 tours.push(row(Some(tour), &pos, &head));
@@ -184,6 +213,13 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                 under_100: avg(|r| r.under_100),
                 ..overall
             };
+            // Only when every scored point had a covariance: a share over
+            // some of them would hide the rest.
+            let inside_95_pct =
+                (!ellipse.is_empty() && ellipse.iter().all(Option::is_some)).then(|| {
+                    let n = ellipse.iter().filter(|v| **v == Some(true)).count();
+                    100.0 * n as f64 / ellipse.len() as f64
+                });
             let raw = name == "msu-raw";
             let uses_fixes = !matches!(name.as_str(), "odometry" | "cda");
             Score {
@@ -222,6 +258,7 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                 } else {
                     None
                 },
+                inside_95_pct,
             }
         })
         .collect()

@@ -49,6 +49,9 @@ pub fn print(scores: &[&Score], profile: &str, seed: u64, wall: Duration) {
         if let (Some(r), Some(c)) = (s.crlb_ratio, s.crlb_mm) {
             extra.push(format!("mean/CRLB {r:.2} (CRLB {c:.1} mm)"));
         }
+        if let Some(v) = s.inside_95_pct {
+            extra.push(format!("truth inside the 95 % ellipse {v:.0} %"));
+        }
         if !extra.is_empty() {
             println!("      {}", extra.join(", "));
         }

@@ -510,6 +510,7 @@ fn print_text(
                     fix_latency_ms: None,
                     crlb_ratio: None,
                     crlb_mm: None,
+                    inside_95_pct: None,
                 })
             })
         })

@@ -61,6 +61,7 @@ use super::ground_state::{
 };
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
+use super::systematic::HeardLately;
 use crate::angle;
 use crate::estimator::dead_reckoning::IncrementTracker;
 use crate::estimator::guard::{LateArrivals, LateParams};
@@ -248,6 +249,9 @@ pub struct TdoaEkf {
     late: LateArrivals,
     /// Whether the last arrival gated was late (not early).
     gated_late: bool,
+    /// Transmitters of the arrivals fused lately: the survey's share of the
+    /// published covariance.
+    heard_lately: HeardLately,
 }
 
 /// A fix of one cycle waiting for the next cycle to confirm it.
@@ -331,6 +335,7 @@ impl TdoaEkf {
             reinits: Vec::new(),
             late: LateArrivals::new(params.late),
             gated_late: false,
+            heard_lately: HeardLately::default(),
         }
     }
 
@@ -1065,7 +1070,12 @@ impl Core for TdoaEkf {
             Input::Gyro(g) => self.gyro_sample(g.t_s, g.rate_rad_s),
             Input::Odometry(_) | Input::Encoders(_) => self.relative(input),
             Input::RangeDifference(m) => {
-                self.last_outcome = Some(self.range_difference(m));
+                let outcome = self.range_difference(m);
+                if outcome.is_accepted() {
+                    self.heard_lately.note(m.t_s, m.a_m);
+                    self.heard_lately.note(m.t_s, m.b_m);
+                }
+                self.last_outcome = Some(outcome);
             }
             Input::Fix(f) => self.fix(f),
             Input::Range(_) => return,
@@ -1078,12 +1088,18 @@ impl Core for TdoaEkf {
         // The position moved on to the newest input's time (the last step
         // may be a wheel period older).
         let at = self.position_at(&x, self.t_s);
+        let mut covariance = p.fixed_view::<3, 3>(0, 0).into_owned();
+        let survey_sigma_m = self.params.sensors.survey_sigma_m;
+        if let Some(c) = self.heard_lately.covariance(self.t_s, at, survey_sigma_m) {
+            let mut xy = covariance.fixed_view_mut::<2, 2>(0, 0);
+            xy += c;
+        }
         Some(PoseEstimate {
             t_s: self.t_s,
             x_m: at.x,
             y_m: at.y,
             theta_rad: angle::wrap_pi(x[TH]),
-            covariance: p.fixed_view::<3, 3>(0, 0).into_owned(),
+            covariance,
         })
     }
 }

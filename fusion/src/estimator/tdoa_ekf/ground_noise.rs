@@ -53,6 +53,13 @@ pub struct GroundNoise {
     /// Standard deviation of the air temperature the MSU assumes (the
     /// site's, or its thermometer's), degrees Celsius (sheet: 1).
     pub temperature_sigma_c: f64,
+    /// Standard deviation of each transmitter's surveyed position along any
+    /// direction, metres (sheet: 0.01, the accuracy `paper`'s site survey
+    /// states). Constant over a run, so fusing more cycles does not average
+    /// it away: it is added to the published covariance as the position
+    /// error it gives through the geometry heard (`systematic.rs`), not to
+    /// each arrival's noise. Zero leaves it out.
+    pub survey_sigma_m: f64,
 }
 
 impl Default for GroundNoise {
@@ -73,6 +80,7 @@ impl Default for GroundNoise {
             range_bias_walk_m_sqrt_s: 0.001,
             range_scale_sigma: 0.1,
             temperature_sigma_c: 1.0,
+            survey_sigma_m: 0.01,
         }
     }
 }
@@ -138,6 +146,7 @@ impl GroundNoise {
             ),
             ("sensors.range_scale_sigma", self.range_scale_sigma),
             ("sensors.temperature_sigma_c", self.temperature_sigma_c),
+            ("sensors.survey_sigma_m", self.survey_sigma_m),
         ];
         for (field, v) in fields {
             if !(v.is_finite() && v >= 0.0) {

@@ -38,6 +38,7 @@ mod ground_state;
 mod ground_tests;
 mod observation;
 mod recovery;
+mod systematic;
 #[cfg(test)]
 mod tests;
 

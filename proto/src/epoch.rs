@@ -54,6 +54,13 @@ pub fn plausible_epoch(epoch: u64, now: Time) -> bool {
 /// The longest cycle period a schedule may have (a site fires at least once a minute).
 pub const MAX_CYCLE_PERIOD: Duration = Duration::from_millis(60_000);
 
+/// The shortest cycle period a schedule may have: a cycle carries at least
+/// one ultrasonic burst (2 ms by default, `burst_length_ms` of the site
+/// file) and its flight. Below it a schedule is garbage or forged; taken,
+/// a period of nanoseconds would make a standby's lease of a few cycles
+/// run out at once.
+pub const MIN_CYCLE_PERIOD: Duration = Duration::from_millis(1);
+
 /// More emissions per cycle than any site has (a cell has a handful of
 /// transmitters; 4096 would be a site of a thousand cells).
 pub const MAX_EMISSIONS: usize = 4096;
@@ -117,8 +124,8 @@ pub fn check_schedule(s: &Schedule) -> Result<(), ScheduleRefused> {
         version: s.version,
         why,
     };
-    if s.cycle_period <= Duration::ZERO || s.cycle_period > MAX_CYCLE_PERIOD {
-        return Err(invalid("cycle period out of range"));
+    if s.cycle_period < MIN_CYCLE_PERIOD || s.cycle_period > MAX_CYCLE_PERIOD {
+        return Err(invalid("cycle period out of range (1 ms to 60 s)"));
     }
     if s.slot_length <= Duration::ZERO || s.slot_length > s.cycle_period {
         return Err(invalid("slot length out of range"));

@@ -93,7 +93,20 @@ fn impossible_numbers_are_refused_before_anything_else() {
         book.offer(s),
         Err(ScheduleRefused::Invalid { .. })
     ));
+    // A cycle of a nanosecond with a slot of a nanosecond and nothing to
+    // fire: consistent with itself, but no burst fits in it.
+    let mut s = schedule(1, 1, 0);
+    s.cycle_period = Duration::from_nanos(1);
+    s.slot_length = Duration::from_nanos(1);
+    assert!(matches!(
+        book.offer(s),
+        Err(ScheduleRefused::Invalid { .. })
+    ));
     assert_eq!(book.epoch(), None, "nothing was taken");
+    let mut s = schedule(1, 1, 0);
+    s.cycle_period = MIN_CYCLE_PERIOD;
+    s.slot_length = MIN_CYCLE_PERIOD;
+    assert_eq!(book.offer(s), Ok(ScheduleOffer::NewEpoch));
 }
 
 #[test]

@@ -472,3 +472,51 @@ fn cycles_that_agree_for_less_than_a_second_do_not_replace_a_right_start() {
     let (mean, _) = mean_max(&e, 15.0, 30.0);
     assert!(mean < 0.05, "mean {mean} m after the bias ended");
 }
+
+#[test]
+fn a_start_the_filter_tracks_from_for_two_seconds_is_confirmed_without_a_clean_cycle() {
+    // A start counts as lost until something confirms it. Clean cycles that
+    // agree with the filter do; where reflections leave none (racks), the
+    // filter stayed "lost" from its start for as long as that lasted, and
+    // three biased cycles could then replace a start it had tracked from
+    // for seconds. Candidate cycles are switched off here (no cycle has
+    // the arrivals they ask for), so only the tracking can confirm.
+    let (inputs, truth) = run(6.0, Trouble::default(), 5);
+    let no_candidates = TdoaEkfParams {
+        reinit_arrivals: 1000,
+        ..params()
+    };
+    let tracked_until = |params: &TdoaEkfParams, until_s: f64| {
+        let mut f = TdoaEkf::new(params);
+        for input in inputs.iter().filter(|i| i.t_s() < until_s) {
+            f.step(input);
+        }
+        f
+    };
+    assert!(
+        tracked_until(&no_candidates, 1.0).is_lost(),
+        "confirmed too early"
+    );
+    let f = tracked_until(&no_candidates, 6.0);
+    assert!(
+        !f.is_lost(),
+        "two seconds of tracking did not confirm the start"
+    );
+    let (_, e) = errors(&inputs, &truth);
+    assert!(mean_max(&e, 0.0, 6.0).1 < 0.1);
+    // A start 1.5 m off makes arrivals early: it is not confirmed so.
+    let (x, y, th, _) = on_loop(0.0);
+    let wrong = TdoaEkfParams {
+        initial_pose: Some(InitialPose {
+            x_m: x,
+            y_m: y + 1.5,
+            theta_rad: th,
+            ..InitialPose::default()
+        }),
+        ..no_candidates
+    };
+    assert!(
+        tracked_until(&wrong, 6.0).is_lost(),
+        "a wrong start was confirmed"
+    );
+}

@@ -346,16 +346,19 @@ pub fn run(
                     if world.robot.progress_m < s_ref {
                         break;
                     }
+                    let poses: Vec<_> = (0..n_est).map(|i| core.pose_of(i)).collect();
                     out.refs.push(RefSample {
                         tour: u32::try_from(tour + 1).unwrap_or(u32::MAX),
                         index: idx,
                         truth: world.truth(t),
-                        estimates: (0..n_est)
-                            .map(|i| core.pose_of(i).map(|p| [p.x_m, p.y_m, p.theta_rad]))
+                        estimates: poses
+                            .iter()
+                            .map(|p| p.as_ref().map(|p| [p.x_m, p.y_m, p.theta_rad]))
                             .collect(),
-                        covariances: (0..n_est)
-                            .map(|i| {
-                                core.pose_of(i)
+                        covariances: poses
+                            .iter()
+                            .map(|p| {
+                                p.as_ref()
                                     .map(|p| [p.covariance[0], p.covariance[1], p.covariance[4]])
                             })
                             .collect(),

@@ -105,7 +105,7 @@ fn consensus_fix(
     let (agreeing, est) = by_consensus(signals, config, gate_m)?;
     let outside = Subset::first(signals.len())
         .iter()
-        .filter(|&i| !agreeing.iter().any(|k| k == i));
+        .filter(|&i| !agreeing.contains(i));
     let rejected = outside
         .map(|i| {
             let tx_id = signals[i].tx_id;
@@ -140,12 +140,11 @@ fn by_consensus(
             residuals::residual(&signals[i], &est.position_m, est.stats.bias_m).abs() <= gate_m
         })
         .fold(Subset::empty(), Subset::with);
-    if widened != set && widened.len() > set.len() {
-        if let Ok(wider) = estimate(signals, widened, config, gate_m) {
-            if wider.stats.max_abs_m() <= gate_m {
-                (set, est) = (widened, wider);
-            }
-        }
+    if widened.len() > set.len()
+        && let Ok(wider) = estimate(signals, widened, config, gate_m)
+        && wider.stats.max_abs_m() <= gate_m
+    {
+        (set, est) = (widened, wider);
     }
     (est.stats.max_abs_m() <= gate_m).then_some((set, est))
 }

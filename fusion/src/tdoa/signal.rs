@@ -109,6 +109,11 @@ impl Subset {
         Self(self.0 | (1u64 << i))
     }
 
+    /// Whether signal `i` is in the subset.
+    pub(crate) fn contains(self, i: usize) -> bool {
+        i < MAX_SIGNALS && self.0 & (1u64 << i) != 0
+    }
+
     pub(crate) fn len(self) -> usize {
         self.0.count_ones() as usize
     }

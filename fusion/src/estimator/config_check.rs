@@ -235,4 +235,35 @@ mod tests {
         let err = EstimatorConfig::IckonAkf(p).validate().unwrap_err();
         assert_eq!(err.field, "position.c_pos");
     }
+
+    #[test]
+    fn an_absurd_but_finite_survey_sigma_is_refused_by_name() {
+        let with_survey = |sigma_m: f64| {
+            let mut p = TdoaEkfParams::default();
+            p.sensors.survey_sigma_m = sigma_m;
+            EstimatorConfig::TdoaEkf(p).validate()
+        };
+        // 1e300 used to pass: its CRLB overflowed and the survey term was
+        // then silently left out of the published covariance.
+        for bad in [1e300, 1.01, -0.01, f64::INFINITY, f64::NAN] {
+            let err = with_survey(bad).unwrap_err();
+            assert_eq!(err.field, "sensors.survey_sigma_m", "{bad}");
+            assert!(err.to_string().contains("at most 1 m"), "{err}");
+        }
+        for fine in [0.0, 0.01, 1.0] {
+            with_survey(fine).unwrap();
+        }
+    }
+
+    #[test]
+    fn every_sensor_sheet_value_has_an_upper_bound() {
+        let mut p = TdoaEkfParams::default();
+        p.sensors.gyro_rate_hz = 1e12;
+        let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
+        assert_eq!(err.field, "sensors.gyro_rate_hz");
+        let mut p = TdoaEkfParams::default();
+        p.sensors.temperature_sigma_c = 1e200;
+        let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
+        assert_eq!(err.field, "sensors.temperature_sigma_c");
+    }
 }

@@ -159,6 +159,16 @@ fn unknown_estimators_keys_and_parameters_are_named() {
         .unwrap_err();
     assert!(issues[0].message.contains("history_s"), "{issues:?}");
 
+    let issues = parse(
+        "[filter]\nestimator = \"tdoa-ekf\"\n[filter.params]\nsensors = { survey_sigma_m = 1e300 }\n",
+    )
+    .unwrap_err();
+    assert!(
+        issues[0].message.contains("sensors.survey_sigma_m")
+            && issues[0].message.contains("at most 1 m"),
+        "{issues:?}"
+    );
+
     let issues = parse("[fix]\ntiming_sigma_us = 20.0\n").unwrap_err();
     assert!(issues[0].message.contains("filter"), "{issues:?}");
 

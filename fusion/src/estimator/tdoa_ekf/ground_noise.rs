@@ -114,47 +114,113 @@ impl GroundNoise {
         0.5 * self.temperature_sigma_c / 293.15
     }
 
-    /// Checks the domain; `Err((field, reason))`.
+    /// Checks the domain; `Err((field, reason))`. Each value also has an
+    /// upper bound far beyond any real sensor's sheet, so that a typo such
+    /// as `1e300` is refused by name instead of overflowing a variance and
+    /// silently dropping a term later.
     pub(crate) fn check(&self) -> Result<(), (&'static str, &'static str)> {
         let fields = [
-            ("sensors.gyro_white_deg_s", self.gyro_white_deg_s),
-            ("sensors.gyro_bias_sigma_deg_s", self.gyro_bias_sigma_deg_s),
+            (
+                "sensors.gyro_white_deg_s",
+                self.gyro_white_deg_s,
+                100.0,
+                "must be finite, non-negative and at most 100 deg/s",
+            ),
+            (
+                "sensors.gyro_bias_sigma_deg_s",
+                self.gyro_bias_sigma_deg_s,
+                100.0,
+                "must be finite, non-negative and at most 100 deg/s",
+            ),
             (
                 "sensors.gyro_bias_walk_deg_s_sqrt_s",
                 self.gyro_bias_walk_deg_s_sqrt_s,
+                10.0,
+                "must be finite, non-negative and at most 10 deg/s per sqrt(s)",
             ),
-            ("sensors.gyro_scale_error", self.gyro_scale_error),
-            ("sensors.wheel_slip_fraction", self.wheel_slip_fraction),
-            ("sensors.wheel_slip_per_rad_s", self.wheel_slip_per_rad_s),
+            (
+                "sensors.gyro_scale_error",
+                self.gyro_scale_error,
+                1.0,
+                "must be finite, non-negative and at most 1 (100 %)",
+            ),
+            (
+                "sensors.wheel_slip_fraction",
+                self.wheel_slip_fraction,
+                1.0,
+                "must be finite, non-negative and at most 1 (100 %)",
+            ),
+            (
+                "sensors.wheel_slip_per_rad_s",
+                self.wheel_slip_per_rad_s,
+                1.0,
+                "must be finite, non-negative and at most 1 per rad/s",
+            ),
             (
                 "sensors.wheel_heading_rad_per_m",
                 self.wheel_heading_rad_per_m,
+                10.0,
+                "must be finite, non-negative and at most 10 rad/m",
             ),
             (
                 "sensors.wheel_heading_rad_per_rad",
                 self.wheel_heading_rad_per_rad,
+                1.0,
+                "must be finite, non-negative and at most 1 rad/rad",
             ),
             (
                 "sensors.wheel_bias_walk_deg_s_sqrt_s",
                 self.wheel_bias_walk_deg_s_sqrt_s,
+                10.0,
+                "must be finite, non-negative and at most 10 deg/s per sqrt(s)",
             ),
-            ("sensors.distance_scale_sigma", self.distance_scale_sigma),
-            ("sensors.range_bias_sigma_m", self.range_bias_sigma_m),
+            (
+                "sensors.distance_scale_sigma",
+                self.distance_scale_sigma,
+                1.0,
+                "must be finite, non-negative and at most 1 (100 %)",
+            ),
+            (
+                "sensors.range_bias_sigma_m",
+                self.range_bias_sigma_m,
+                1000.0,
+                "must be finite, non-negative and at most 1000 m",
+            ),
             (
                 "sensors.range_bias_walk_m_sqrt_s",
                 self.range_bias_walk_m_sqrt_s,
+                10.0,
+                "must be finite, non-negative and at most 10 m per sqrt(s)",
             ),
-            ("sensors.range_scale_sigma", self.range_scale_sigma),
-            ("sensors.temperature_sigma_c", self.temperature_sigma_c),
-            ("sensors.survey_sigma_m", self.survey_sigma_m),
+            (
+                "sensors.range_scale_sigma",
+                self.range_scale_sigma,
+                1.0,
+                "must be finite, non-negative and at most 1 (100 %)",
+            ),
+            (
+                "sensors.temperature_sigma_c",
+                self.temperature_sigma_c,
+                50.0,
+                "must be finite, non-negative and at most 50 degC",
+            ),
+            (
+                "sensors.survey_sigma_m",
+                self.survey_sigma_m,
+                1.0,
+                "must be finite, non-negative and at most 1 m",
+            ),
         ];
-        for (field, v) in fields {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err((field, "must be finite and non-negative"));
+        for (field, v, max, reason) in fields {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return Err((field, reason));
             }
         }
-        if !(self.gyro_rate_hz.is_finite() && self.gyro_rate_hz > 0.0) {
-            return Err(("sensors.gyro_rate_hz", "must be finite and positive"));
+        if !(self.gyro_rate_hz.is_finite() && self.gyro_rate_hz > 0.0 && self.gyro_rate_hz <= 1e5) {
+            return Err((
+                "sensors.gyro_rate_hz",
+                "must be finite, positive and at most 100 kHz",
+            ));
         }
         Ok(())
     }

@@ -25,6 +25,10 @@ pub struct Signal {
     pub offset_s: f64,
     /// Arrival time on the MSU clock.
     pub t_arrival: Time,
+    /// The clock the transmitter fires by: its cell, named by the index of
+    /// the cell's first transmitter in the table (arrivals of one cell
+    /// share its sync error).
+    pub clock: u32,
 }
 
 /// The signals of one cycle.
@@ -93,6 +97,7 @@ pub fn assemble(
             receiver_id: a.receiver_id,
             offset_s,
             t_arrival: a.t_arrival,
+            clock: clock_of(transmitters, t),
         });
     }
     signals.sort_by(|a, b| a.offset_s.total_cmp(&b.offset_s));
@@ -101,6 +106,16 @@ pub fn assemble(
         rejected,
         stamp: Time::from_nanos(i64::try_from(mean_ns).unwrap_or(i64::MAX)),
     })
+}
+
+/// The clock of transmitter `t`: the index of the first transmitter of its
+/// cell in `transmitters`.
+fn clock_of(transmitters: &[TransmitterEntry], t: &TransmitterEntry) -> u32 {
+    let first = transmitters
+        .iter()
+        .position(|x| x.cell_id == t.cell_id)
+        .unwrap_or(0);
+    u32::try_from(first).unwrap_or(u32::MAX)
 }
 
 #[cfg(test)]
@@ -176,6 +191,34 @@ mod tests {
         assert_eq!(c.signals.len(), 2);
         assert!((c.signals[1].pseudo_range_m - 340.0 * 0.002).abs() < 1e-9);
         assert_eq!(c.rejected, vec![9, 2]);
+    }
+
+    #[test]
+    fn transmitters_of_one_cell_share_a_clock_and_other_cells_do_not() {
+        let table = [
+            entry(7),
+            TransmitterEntry {
+                cell_id: "b".into(),
+                ..entry(1)
+            },
+            entry(2),
+        ];
+        assert_eq!(clock_of(&table, &table[0]), 0);
+        assert_eq!(clock_of(&table, &table[2]), 0);
+        assert_eq!(clock_of(&table, &table[1]), 1);
+        let msg = UltrasoundArrivals {
+            seq: 1,
+            arrivals: [1, 2]
+                .map(|tx_id| Arrival {
+                    tx_id,
+                    receiver_id: 0,
+                    t_arrival: Time::from_nanos(1_000_000_000 + i64::from(tx_id) * 50_000_000),
+                })
+                .to_vec(),
+        };
+        let c = assemble(&msg, &schedule(), &table, 340.0).unwrap();
+        let clocks: Vec<u32> = c.signals.iter().map(|s| s.clock).collect();
+        assert_eq!(clocks, vec![1, 0]);
     }
 
     #[test]

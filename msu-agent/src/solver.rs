@@ -259,6 +259,7 @@ impl FixSolver {
                 b_m: pair[1].tx_m,
                 d_m: pair[1].pseudo_range_m - pair[0].pseudo_range_m,
                 sigma_m,
+                clocks: Some([pair[0].clock, pair[1].clock]),
             })
             .collect()
     }

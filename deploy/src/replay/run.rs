@@ -265,6 +265,7 @@ fn sample(
         b_m: find(m.id_b)?,
         d_m: m.d_m,
         sigma_m: MEASUREMENT_SIGMA_M,
+        clocks: None,
     })
 }
 

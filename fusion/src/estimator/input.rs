@@ -91,6 +91,11 @@ pub struct RangeDifferenceSample {
     pub d_m: f64,
     /// Standard deviation of `d_m`, in metres.
     pub sigma_m: f64,
+    /// The clocks transmitters A and B fire by (for ultrasound: their
+    /// cells), when the source knows them. Arrivals of one clock share its
+    /// residual synchronisation error, which `tdoa-ekf` estimates per clock;
+    /// `None` when not known (or not applicable: radio anchors).
+    pub clocks: Option<[u32; 2]>,
 }
 
 impl RangeDifferenceSample {
@@ -112,6 +117,7 @@ impl RangeDifferenceSample {
             b_m,
             d_m: dt_s * speed_m_s,
             sigma_m: sigma_s * speed_m_s,
+            clocks: None,
         }
     }
 

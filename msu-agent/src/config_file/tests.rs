@@ -169,6 +169,15 @@ fn unknown_estimators_keys_and_parameters_are_named() {
         "{issues:?}"
     );
 
+    let issues = parse(
+        "[filter]\nestimator = \"tdoa-ekf\"\n[filter.params]\nsensors = { cell_sync_sigma_us = -1.0 }\n",
+    )
+    .unwrap_err();
+    assert!(
+        issues[0].message.contains("sensors.cell_sync_sigma_us"),
+        "{issues:?}"
+    );
+
     let issues = parse("[fix]\ntiming_sigma_us = 20.0\n").unwrap_err();
     assert!(issues[0].message.contains("filter"), "{issues:?}");
 

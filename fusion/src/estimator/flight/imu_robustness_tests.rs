@@ -85,6 +85,7 @@ fn fly(
             b_m: anchors[ib],
             d_m: (p - pb).norm() - (p - pa).norm() + range_noise.sample(&mut rng) + extra,
             sigma_m: 0.05,
+            clocks: None,
         };
         out.fed += 1;
         if let Some(e) = guard.step(&m).published_m {

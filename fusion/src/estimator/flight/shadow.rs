@@ -60,6 +60,7 @@ mod tests {
             b_m: [0.0, 0.0, 0.0],
             d_m: 0.0,
             sigma_m: 0.1,
+            clocks: None,
         };
         let p = Vector3::new(0.0, 0.0, 1.0);
         let l = linearise(&p, &m, 0.1).unwrap();

@@ -42,6 +42,7 @@ fn range_difference(
         b_m: b,
         d_m: (p - Vector3::from(b)).norm() - (p - Vector3::from(a)).norm() + noise,
         sigma_m: 0.05,
+        clocks: None,
     }
 }
 

@@ -112,6 +112,7 @@ impl LateArrivals {
             b_m: at_m,
             d_m: 0.0,
             sigma_m: 1.0,
+            clocks: None,
         })
     }
 
@@ -190,6 +191,7 @@ mod tests {
             b_m: [b, 0.0, 0.0],
             d_m: 0.0,
             sigma_m: 0.1,
+            clocks: None,
         }
     }
 

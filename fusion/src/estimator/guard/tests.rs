@@ -84,6 +84,7 @@ fn fly(
             b_m: b,
             d_m: d + noise.sample(&mut rng) + extra,
             sigma_m: 0.05,
+            clocks: None,
         };
         out.fed += 1;
         if let Some(e) = guard.step(&m).published_m {
@@ -253,6 +254,7 @@ fn a_filter_stuck_far_away_is_declared_lost_and_replaced() {
             b_m: b,
             d_m: d + noise.sample(&mut rng),
             sigma_m: 0.05,
+            clocks: None,
         };
         match g.step(&m).published_m {
             Some(e) if (Vector3::from(e) - p).norm() > 0.2 => lost_for += 1,

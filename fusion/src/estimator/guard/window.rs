@@ -259,6 +259,7 @@ mod tests {
                 b_m: b,
                 d_m: d,
                 sigma_m: 0.05,
+                clocks: None,
             });
         }
         w
@@ -304,6 +305,7 @@ mod tests {
                 b_m: [6.0, 0.0, 1.5],
                 d_m: if k % 2 == 0 { 1.0 } else { -1.0 },
                 sigma_m: 0.05,
+                clocks: None,
             });
         }
         assert_eq!(w.solve(&room, None), WindowFix::Inconsistent);

@@ -53,10 +53,11 @@ use std::f64::consts::PI;
 
 use nalgebra::Vector3;
 
+use super::clock_slots::ClockSlots;
 use super::ground_chain::{Arrival, Chain, Link};
 use super::ground_noise::GroundNoise;
 use super::ground_state::{
-    self as gs, BIAS, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH,
+    self as gs, BIAS, CLOCK, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, Row, SCALE, State, Step, TH,
     TURN_SCALE, X, Y,
 };
 use super::observation::{self, Outcome, Rejection};
@@ -255,6 +256,8 @@ pub struct TdoaEkf {
     /// Transmitters of the arrivals fused lately: the survey's share of the
     /// published covariance.
     heard_lately: HeardLately,
+    /// The cells whose clock bias the state holds.
+    clocks: ClockSlots,
 }
 
 /// A fix of one cycle waiting for the next cycle to confirm it.
@@ -353,6 +356,7 @@ impl TdoaEkf {
             late: LateArrivals::new(params.late),
             gated_late: false,
             heard_lately: HeardLately::default(),
+            clocks: ClockSlots::default(),
         }
     }
 
@@ -501,6 +505,9 @@ impl TdoaEkf {
         };
         if let Some((nx, mut np)) = gs::predict(x, p, &step) {
             np[(RANGE_BIAS, RANGE_BIAS)] += n.range_bias_walk_m_sqrt_s.powi(2) * dt;
+            for c in self.clocks.used() {
+                np[(c, c)] += n.var_clock_walk(dt);
+            }
             *x = nx;
             *p = np;
             self.project_on_floor();
@@ -521,8 +528,8 @@ impl TdoaEkf {
     }
 
     /// Predicted pseudo-range of an arrival without the offset, and its
-    /// row (position columns only).
-    fn arrival_model(&self, x: &State, a: &Arrival) -> Option<(f64, Row)> {
+    /// row (position columns, and its cell's clock bias in `clock`).
+    fn arrival_model(&self, x: &State, a: &Arrival, clock: Option<usize>) -> Option<(f64, Row)> {
         let p = self.position_at(x, a.t_s);
         let r = p - Vector3::from(a.tx_m);
         let d = r.norm();
@@ -532,15 +539,28 @@ impl TdoaEkf {
         let mut h = Row::zeros();
         h[X] = r.x / d;
         h[Y] = r.y / d;
-        Some((d, h))
+        let bias = clock.map_or(0.0, |c| {
+            h[c] = 1.0;
+            x[c]
+        });
+        Some((d + bias, h))
+    }
+
+    /// The state column of the clock bias of `a`'s cell (giving the cell a
+    /// slot when it has none).
+    fn clock_column(&mut self, a: &Arrival) -> Option<usize> {
+        let sigma_m = self.params.sensors.clock_bias_sigma_m();
+        let (x, p) = self.state.as_mut()?;
+        self.clocks.column(a.clock, a.t_s, sigma_m, x, p)
     }
 
     /// Initialises the cycle's offset from arrival `a`.
     fn offset_from(&mut self, a: &Arrival, sigma_m: f64) -> bool {
+        let clock = self.clock_column(a);
         let Some((x, _)) = self.state else {
             return false;
         };
-        let Some((pred, h)) = self.arrival_model(&x, a) else {
+        let Some((pred, h)) = self.arrival_model(&x, a, clock) else {
             return false;
         };
         if let Some((x, p)) = &mut self.state {
@@ -579,10 +599,11 @@ impl TdoaEkf {
 
     /// Fuses one arrival of the chain (offset already initialised).
     fn arrival(&mut self, a: &Arrival, sigma_m: f64) -> Outcome {
+        let clock = self.clock_column(a);
         let Some((x, p)) = self.state else {
             return Outcome::Rejected(Rejection::NotInitialised);
         };
-        let Some((pred, mut h)) = self.arrival_model(&x, a) else {
+        let Some((pred, mut h)) = self.arrival_model(&x, a, clock) else {
             return Outcome::Rejected(Rejection::Numerical);
         };
         h[OFFSET] = 1.0;
@@ -688,7 +709,9 @@ impl TdoaEkf {
         if let Err(r @ (Rejection::NonFinite { .. } | Rejection::BadSigma { .. })) = physical {
             return Outcome::Rejected(r);
         }
-        let link = self.chain.add(m.a_m, m.b_m, m.d_m, m.t_s, m.a_t_s);
+        let link = self
+            .chain
+            .add(m.a_m, m.b_m, m.d_m, m.t_s, m.a_t_s, m.clocks);
         // One arrival's sigma: the pair's is that of two.
         let sigma = m.sigma_m / std::f64::consts::SQRT_2;
         if self.state.is_none() {
@@ -879,6 +902,7 @@ impl TdoaEkf {
                 let mut p = prior(&self.params, 1.0, PI);
                 gs::reset_position(&mut x, &mut p, [fx, fy], cov, 0.0);
                 self.state = Some((x, p));
+                self.clocks.clear();
                 self.heading_from_track = Some(None);
                 self.heard.clear();
             }
@@ -893,6 +917,7 @@ impl TdoaEkf {
             tx_m: [0.0; 3],
             rho_m: 0.0,
             t_s,
+            clock: None,
         });
         self.offset_from(&last, config.sigma_range_m);
         self.last_outcome = Some(Outcome::Accepted {
@@ -919,6 +944,7 @@ impl TdoaEkf {
         x[X] = cx;
         x[Y] = cy;
         self.state = Some((x, prior(&self.params, sxy, PI)));
+        self.clocks.clear();
         self.heading_from_track = Some(None);
         self.heard.clear();
     }
@@ -1092,6 +1118,12 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
     d[RANGE_BIAS] = n.range_bias_sigma_m.powi(2);
     d[RANGE_SCALE] = n.range_scale_sigma.powi(2);
     d[TURN_SCALE] = turn_scale_sigma(params).powi(2);
+    // A slot not in use is uncorrelated with everything (one, like the
+    // offset's, keeps the covariance positive definite).
+    let clock = n.clock_bias_sigma_m();
+    for c in CLOCK..gs::N {
+        d[c] = if clock > 0.0 { clock * clock } else { 1.0 };
+    }
     Cov::from_diagonal(&d)
 }
 

@@ -23,6 +23,8 @@ pub(super) struct Arrival {
     pub rho_m: f64,
     /// Arrival time, seconds.
     pub t_s: f64,
+    /// The clock the transmitter fires by, when known.
+    pub clock: Option<u32>,
 }
 
 /// Most arrivals kept per chain (more than any cycle hears).
@@ -57,6 +59,7 @@ impl Chain {
         d_m: f64,
         t_s: f64,
         a_t_s: Option<f64>,
+        clocks: Option<[u32; 2]>,
     ) -> Link {
         let continues = self.arrivals.last().is_some_and(|last| {
             last.tx_m == a_m
@@ -70,6 +73,7 @@ impl Chain {
                 tx_m: b_m,
                 rho_m: last.rho_m + d_m,
                 t_s,
+                clock: clocks.map(|c| c[1]),
             };
             self.arrivals.push(b);
             return Link::Continued(b);
@@ -84,11 +88,13 @@ impl Chain {
             t_s: a_t_s
                 .filter(|ta| ta.is_finite() && *ta <= t_s)
                 .unwrap_or(t_s - self.slot_s),
+            clock: clocks.map(|c| c[0]),
         };
         let b = Arrival {
             tx_m: b_m,
             rho_m: d_m,
             t_s,
+            clock: clocks.map(|c| c[1]),
         };
         self.arrivals.clear();
         self.arrivals.push(a);
@@ -113,13 +119,19 @@ mod tests {
     #[test]
     fn consecutive_differences_sum_to_pseudo_ranges_and_a_repeat_starts_anew() {
         let mut c = Chain::default();
-        assert!(matches!(c.add(A, B, 1.0, 0.10, None), Link::Started(..)));
-        let Link::Continued(cc) = c.add(B, C, -0.5, 0.15, None) else {
+        assert!(matches!(
+            c.add(A, B, 1.0, 0.10, None, None),
+            Link::Started(..)
+        ));
+        let Link::Continued(cc) = c.add(B, C, -0.5, 0.15, None, None) else {
             panic!("not continued");
         };
         assert!((cc.rho_m - 0.5).abs() < 1e-12);
         // The next cycle starts with C again, then A: A is already in.
-        assert!(matches!(c.add(C, A, 0.2, 0.55, None), Link::Started(..)));
+        assert!(matches!(
+            c.add(C, A, 0.2, 0.55, None, None),
+            Link::Started(..)
+        ));
         let first = c.arrivals()[0];
         // Its time comes from the last slot seen.
         assert!((first.t_s - 0.50).abs() < 1e-12);
@@ -127,12 +139,12 @@ mod tests {
         // A difference that carries A's time gives it exactly; one whose A
         // came after B is not believed.
         assert!(matches!(
-            c.add(B, C, 0.1, 1.0, Some(0.93)),
+            c.add(B, C, 0.1, 1.0, Some(0.93), None),
             Link::Started(..)
         ));
         assert!((c.arrivals()[0].t_s - 0.93).abs() < 1e-12);
         assert!(matches!(
-            c.add(A, C, 0.1, 2.0, Some(2.5)),
+            c.add(A, C, 0.1, 2.0, Some(2.5), None),
             Link::Started(..)
         ));
         // (the last spacing seen, 0.05 s between B and C, stands in)

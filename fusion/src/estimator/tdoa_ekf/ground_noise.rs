@@ -60,7 +60,25 @@ pub struct GroundNoise {
     /// error it gives through the geometry heard (`systematic.rs`), not to
     /// each arrival's noise. Zero leaves it out.
     pub survey_sigma_m: f64,
+    /// Standard deviation of a cell's residual sync error against the
+    /// central unit, microseconds; zero (the default) leaves the states
+    /// out. Every arrival of a cell is late or early by the same amount, so
+    /// it is a state per cell heard lately (`clock_slots.rs`), learnt from
+    /// the range differences between cells, not noise. Set it to what the
+    /// cells report (`ickon admin sync`) on a site whose sync is poor (a
+    /// congested network: hundreds of microseconds); where the sync is as
+    /// good as the `paper` profile's (5-25 us rms) a prior of 100 us cost
+    /// 2-6 mm on `warehouse`'s routes, so it is off by default.
+    pub cell_sync_sigma_us: f64,
+    /// Random walk of a cell's sync error, microseconds per sqrt(s) (10: a
+    /// cell's offset fit moves by tens of microseconds over the ten seconds
+    /// its window of exchanges spans).
+    pub cell_sync_walk_us_sqrt_s: f64,
 }
+
+/// The speed of sound the sync error's microseconds are turned into metres
+/// with (20 degC): only a variance depends on it.
+const NOMINAL_SPEED_OF_SOUND_M_S: f64 = 343.0;
 
 impl Default for GroundNoise {
     fn default() -> Self {
@@ -81,6 +99,8 @@ impl Default for GroundNoise {
             range_scale_sigma: 0.1,
             temperature_sigma_c: 1.0,
             survey_sigma_m: 0.01,
+            cell_sync_sigma_us: 0.0,
+            cell_sync_walk_us_sqrt_s: 10.0,
         }
     }
 }
@@ -105,6 +125,16 @@ impl GroundNoise {
     pub(super) fn var_wheel_turn(&self, dtheta_rad: f64, d_m: f64) -> f64 {
         (self.wheel_heading_rad_per_m * d_m.abs()).powi(2)
             + (self.wheel_heading_rad_per_rad * dtheta_rad).powi(2)
+    }
+
+    /// Standard deviation of a cell's clock bias, metres of path.
+    pub(super) fn clock_bias_sigma_m(&self) -> f64 {
+        self.cell_sync_sigma_us * 1e-6 * NOMINAL_SPEED_OF_SOUND_M_S
+    }
+
+    /// Variance a cell's clock bias gains over `dt_s`, m^2.
+    pub(super) fn var_clock_walk(&self, dt_s: f64) -> f64 {
+        (self.cell_sync_walk_us_sqrt_s * 1e-6 * NOMINAL_SPEED_OF_SOUND_M_S).powi(2) * dt_s.abs()
     }
 
     /// Relative standard deviation of the speed of sound the MSU assumes:
@@ -209,6 +239,18 @@ impl GroundNoise {
                 self.survey_sigma_m,
                 1.0,
                 "must be finite, non-negative and at most 1 m",
+            ),
+            (
+                "sensors.cell_sync_sigma_us",
+                self.cell_sync_sigma_us,
+                100_000.0,
+                "must be finite, non-negative and at most 100000 us",
+            ),
+            (
+                "sensors.cell_sync_walk_us_sqrt_s",
+                self.cell_sync_walk_us_sqrt_s,
+                10_000.0,
+                "must be finite, non-negative and at most 10000 us per sqrt(s)",
             ),
         ];
         for (field, v, max, reason) in fields {

@@ -22,14 +22,23 @@
 //! largest error left (diagnosed by switching the simulated scale error off:
 //! 23.4 -> 15.6 mm mean). As a state with the sheet's prior it is learnt from
 //! the arrivals while the robot turns.
+//!
+//! Last, [`CLOCK_SLOTS`] clock biases (m): the residual sync error of each
+//! cell heard lately, as the extra path it adds to every arrival of that
+//! cell (see `ClockSlots` in `ground.rs`).
 
 use nalgebra::{SMatrix, SVector};
 
 use crate::estimator::dead_reckoning::arc_step;
 use crate::estimator::kf;
 
+/// Cells whose clock bias the state holds at once (a robot hears two or
+/// three cells at a time on `warehouse`, all four on `lab`).
+pub(super) const CLOCK_SLOTS: usize = 4;
+/// Index of the first clock bias.
+pub(super) const CLOCK: usize = 9;
 /// Number of state components.
-pub(super) const N: usize = 9;
+pub(super) const N: usize = CLOCK + CLOCK_SLOTS;
 /// State vector.
 pub(super) type State = SVector<f64, N>;
 /// Covariance of the state.

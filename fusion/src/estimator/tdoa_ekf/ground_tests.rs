@@ -98,6 +98,18 @@ struct Trouble {
     /// robot stood that far across the corridor (a bias all the cycles at
     /// one place share, as from one reflecting surface).
     biased_start: Option<(f64, f64)>,
+    /// Metres: the transmitters fire in cells of four along the corridor,
+    /// each cell late by this times its own factor (its sync error), and
+    /// the range differences name each transmitter's cell.
+    cell_sync_error_m: Option<f64>,
+}
+
+/// The cell of transmitter `i` ([`transmitters`]: four per cell, 4 m of
+/// corridor each) and how many times the sync error it fires late.
+fn cell_of(i: usize) -> (u32, f64) {
+    let cell = i / 4;
+    let factor = [1.0, -1.0, 0.5, -0.5, 0.0][cell % 5];
+    (cell as u32, factor)
 }
 
 /// Inputs in time order and the truth `(t, x, y)` every 0.1 s.
@@ -169,7 +181,7 @@ fn run_with_cycle(
     let slot_s = cycle_s / 20.0;
     for c in 0..cycles {
         let start = c as f64 * cycle_s;
-        let mut heard: Vec<([f64; 3], f64, f64)> = Vec::new();
+        let mut heard: Vec<([f64; 3], f64, f64, u32)> = Vec::new();
         for (i, s_m) in tx.iter().enumerate() {
             let emit = start + slot_s * i as f64;
             let mut p = at(emit);
@@ -191,11 +203,13 @@ fn run_with_cycle(
                 0.0
             };
             let t_arr = emit + d / SOUND_M_S;
-            let rho = d + extra + SIGMA_ARRIVAL_M * unit.sample(&mut rng);
-            heard.push((*s_m, rho, t_arr));
+            let (cell, factor) = cell_of(i);
+            let sync = trouble.cell_sync_error_m.map_or(0.0, |e| e * factor);
+            let rho = d + extra + sync + SIGMA_ARRIVAL_M * unit.sample(&mut rng);
+            heard.push((*s_m, rho, t_arr, cell));
         }
         for pair in heard.windows(2) {
-            let ((a, ra, _), (b, rb, tb)) = (pair[0], pair[1]);
+            let ((a, ra, _, ca), (b, rb, tb, cb)) = (pair[0], pair[1]);
             inputs.push(Input::RangeDifference(RangeDifferenceSample {
                 a_t_s: None,
                 t_s: tb,
@@ -203,6 +217,7 @@ fn run_with_cycle(
                 b_m: b,
                 d_m: rb - ra,
                 sigma_m: std::f64::consts::SQRT_2 * SIGMA_ARRIVAL_M,
+                clocks: trouble.cell_sync_error_m.map(|_| [ca, cb]),
             }));
         }
     }
@@ -228,7 +243,16 @@ fn params() -> TdoaEkfParams {
 /// Runs the filter; returns it and the errors `(t, metres)` at the truth
 /// samples, with every pose checked to be on the floor.
 fn errors(inputs: &[Input], truth: &[(f64, f64, f64)]) -> (TdoaEkf, Vec<(f64, f64)>) {
-    let mut f = TdoaEkf::new(&params());
+    errors_with(&params(), inputs, truth)
+}
+
+/// [`errors`] with the filter's parameters `params`.
+fn errors_with(
+    params: &TdoaEkfParams,
+    inputs: &[Input],
+    truth: &[(f64, f64, f64)],
+) -> (TdoaEkf, Vec<(f64, f64)>) {
+    let mut f = TdoaEkf::new(params);
     let mut out = Vec::new();
     let mut next = 0;
     for input in inputs {
@@ -518,5 +542,41 @@ fn a_start_the_filter_tracks_from_for_two_seconds_is_confirmed_without_a_clean_c
     assert!(
         tracked_until(&wrong, 6.0).is_lost(),
         "a wrong start was confirmed"
+    );
+}
+
+#[test]
+fn the_sync_error_of_each_cell_is_learnt_when_its_states_are_on() {
+    // 300 us of sync error (10 cm of path) on a congested network: cells
+    // late by +10, -10, +5, -5 and 0 cm. As white noise (the states off)
+    // the differences between cells pull the robot along and across the
+    // corridor; with a state per cell at that prior they are learnt.
+    let error_m = 300e-6 * SOUND_M_S;
+    let sync = Trouble {
+        cell_sync_error_m: Some(error_m),
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(120.0, sync, 6);
+    let with_sigma = |us: f64| {
+        let mut p = params();
+        p.sensors.cell_sync_sigma_us = us;
+        let (_, e) = errors_with(&p, &inputs, &truth);
+        mean_max(&e, 20.0, 120.0)
+    };
+    let (off_mean, off_max) = with_sigma(0.0);
+    let (on_mean, on_max) = with_sigma(300.0);
+    assert!(
+        on_mean < 0.5 * off_mean && on_mean < 0.03 && on_max < off_max,
+        "states off: mean {off_mean} max {off_max}; on: mean {on_mean} max {on_max}"
+    );
+    // Without a sync error the states cost little.
+    let (inputs, truth) = run(120.0, Trouble::default(), 6);
+    let mut p = params();
+    p.sensors.cell_sync_sigma_us = 300.0;
+    let (_, e) = errors_with(&p, &inputs, &truth);
+    let (clean_mean, _) = mean_max(&e, 20.0, 120.0);
+    assert!(
+        clean_mean < 0.03,
+        "clean corridor with the states on: {clean_mean}"
     );
 }

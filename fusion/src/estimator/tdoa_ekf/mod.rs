@@ -29,6 +29,7 @@
 //! differences are converted at the propagation speed, a parameter (speed
 //! of sound for ultrasound, of light for radio).
 
+mod clock_slots;
 mod cv3d;
 mod ground;
 mod ground_chain;

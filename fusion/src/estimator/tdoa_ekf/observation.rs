@@ -197,6 +197,7 @@ mod tests {
             b_m: [4.0, 0.0, 0.0],
             d_m,
             sigma_m: 0.1,
+            clocks: None,
         }
     }
 

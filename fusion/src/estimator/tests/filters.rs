@@ -210,6 +210,7 @@ fn non_finite_inputs_are_rejected_and_change_nothing() {
             b_m: [10.0, 0.0, 2.5],
             d_m: f64::NAN,
             sigma_m: 0.02,
+            clocks: None,
         }),
     ];
     for name in names() {

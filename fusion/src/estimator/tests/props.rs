@@ -106,6 +106,7 @@ fn input(t_s: f64) -> BoxedStrategy<Input> {
                     b_m,
                     d_m,
                     sigma_m,
+                    clocks: None,
                 })
             }),
     ]

@@ -141,6 +141,7 @@ pub(super) fn circling_run(
                         b_m: *b,
                         d_m: range(*b) - range(TRANSMITTERS[0]) + sigma * unit.sample(&mut rng),
                         sigma_m: sigma.max(0.001),
+                        clocks: None,
                     }),
                 ));
             }

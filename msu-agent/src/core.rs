@@ -8,7 +8,7 @@ use ickon_fusion::estimator::{
     EncoderSample, Estimator, EstimatorError, GyroSample, Input, RangeSample, WheelGeometry,
 };
 use ickon_fusion::tdoa;
-use ickon_proto::msg::control::{CycleTrigger, Schedule, TransmitterEntry};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, TransmitterEntry};
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
 };
@@ -63,6 +63,14 @@ pub enum MsuError {
     /// The schedule was refused (see [`ickon_proto::epoch`]).
     #[error(transparent)]
     Schedule(#[from] ickon_proto::epoch::ScheduleRefused),
+    /// A cell status that cannot be used.
+    #[error("status of cell {cell:?}: {reason}")]
+    CellStatus {
+        /// The cell it names.
+        cell: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
     #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
     FromTheFuture {
@@ -70,6 +78,9 @@ pub enum MsuError {
         ahead_s: f64,
     },
 }
+
+/// Largest sync sigma a cell status may report: 10 ms, 3.4 m of sound.
+pub const MAX_CELL_SYNC_SIGMA: Duration = Duration::from_millis(10);
 
 /// An input stream silent for longer than this (by the stamps of the
 /// others) makes the pose stale: a few cycles of the slowest site (1.6
@@ -159,6 +170,35 @@ impl MsuCore {
     /// when): arrivals are solved with the trigger that explains them.
     pub fn on_trigger(&mut self, trigger: CycleTrigger) {
         self.solver.note_trigger(trigger);
+    }
+
+    /// A cell's status: the sync sigma it reports becomes the prior of its
+    /// clock bias in `tdoa-ekf` (see `ickon_fusion`'s `clock_slots.rs`). A
+    /// sigma that is negative or over [`MAX_CELL_SYNC_SIGMA`] (no cell
+    /// that far off fires usefully), or a cell not of this site, is refused.
+    ///
+    /// A status before the robot's first input is ignored: a recording's
+    /// replay starts at the first input the agent took, and the statuses it
+    /// had heard before that cannot be told from those it had not (each
+    /// cell reports every second, so the next one comes soon).
+    pub fn on_cell_status(&mut self, status: &CellStatus) -> Result<(), MsuError> {
+        let refuse = |reason| MsuError::CellStatus {
+            cell: status.cell_id.clone(),
+            reason,
+        };
+        let sigma_ns = status.offset_sigma_ns;
+        if !(0..=MAX_CELL_SYNC_SIGMA.as_nanos()).contains(&sigma_ns) {
+            return Err(refuse("sync sigma negative or over 10 ms"));
+        }
+        let table = &self.solver.config().transmitters;
+        if !table.iter().any(|t| t.cell_id == status.cell_id) {
+            return Err(refuse("not a cell of this site"));
+        }
+        if self.first_input.is_some() {
+            self.solver
+                .set_cell_sync_sigma(&status.cell_id, sigma_ns as f64 * 1e-9);
+        }
+        Ok(())
     }
 
     /// The primary estimator's name.
@@ -373,6 +413,8 @@ impl MsuCore {
 mod firing_tests;
 #[cfg(test)]
 mod stale_tests;
+#[cfg(test)]
+mod sync_tests;
 
 #[cfg(test)]
 mod tests {

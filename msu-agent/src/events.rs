@@ -7,7 +7,7 @@
 //! each odometry sample (the robot's own rate); gyro and obstacle samples
 //! move the estimate without a publication of their own.
 
-use ickon_proto::msg::control::{CycleTrigger, Schedule};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
 
 use crate::core::{MsuCore, MsuError};
@@ -27,6 +27,8 @@ pub enum Event {
     Imu(Imu),
     /// The robot's obstacle sensors.
     Range(ObstacleRanges),
+    /// A cell's status (its sync sigma: how far its bursts may be off).
+    CellStatus(CellStatus),
 }
 
 /// Which kind of input an [`Output::Refused`] concerns.
@@ -42,6 +44,8 @@ pub enum InputKind {
     Range,
     /// A schedule.
     Schedule,
+    /// A cell's status.
+    CellStatus,
 }
 
 /// What the core asks its adapter to do.
@@ -92,6 +96,11 @@ impl MsuCore {
             Event::Range(msg) => {
                 if let Err(e) = self.on_range(&msg) {
                     out.push(refused(InputKind::Range, e));
+                }
+            }
+            Event::CellStatus(status) => {
+                if let Err(e) = self.on_cell_status(&status) {
+                    out.push(refused(InputKind::CellStatus, e));
                 }
             }
         }

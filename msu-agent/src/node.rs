@@ -14,7 +14,7 @@ use clap::Args;
 
 use ickon_fusion::estimator;
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::control::{CycleTrigger, Schedule, SiteInfo};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::{DecodeError, decode};
@@ -130,6 +130,11 @@ pub async fn run(
     // fires only where robots are; the core matches arrivals to them.
     let trigger_sub = session
         .declare_subscriber(keys.central_cycle())
+        .await
+        .map_err(zerr)?;
+    // Each cell's sync sigma: the prior of its clock bias in `tdoa-ekf`.
+    let status_sub = session
+        .declare_subscriber(keys.cell_status_all())
         .await
         .map_err(zerr)?;
     let Some(schedule) = fetch::<Schedule>(
@@ -251,6 +256,16 @@ pub async fn run(
                 Event::Schedule(schedule)
             }),
             Ok(s) = trigger_sub.recv_async() => decoded!(s, CycleTrigger, "undecodable cycle trigger").map(Event::Trigger),
+            Ok(s) = status_sub.recv_async() => decoded!(s, CellStatus, "undecodable cell status").and_then(|status| {
+                // A cell may publish only under its own key (the router's
+                // access control): a status naming another cell is forged.
+                if keys.cell_status(&status.cell_id).is_ok_and(|k| k == s.key_expr().as_str()) {
+                    Some(Event::CellStatus(status))
+                } else {
+                    bad(&mut n, "cell status", format!("{} names cell {:?}", s.key_expr(), status.cell_id));
+                    None
+                }
+            }),
             Some(input) = inputs.recv() => match input.into_event() {
                 Ok(event) => {
                     if matches!(event, Event::Arrivals(_)) {

@@ -8,7 +8,7 @@
 //! choose between two roots that fit equally, so every valid fix is the
 //! same whatever fuses it.
 
-use ickon_fusion::estimator::{Input, RangeDifferenceSample};
+use ickon_fusion::estimator::{Input, RangeDifferenceSample, TransmitterClock};
 use ickon_fusion::tdoa;
 use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
 use ickon_proto::msg::control::{CycleTrigger, Schedule};
@@ -49,6 +49,9 @@ pub struct FixSolver {
     recent_triggers: RecentTriggers,
     last_fix: Option<(Time, Vector2<f64>)>,
     motion: CycleMotion,
+    /// The sync sigma each cell last reported, seconds, by clock id (see
+    /// [`crate::assembly::Signal::clock`]).
+    cell_sync_sigma_s: std::collections::BTreeMap<u32, f64>,
 }
 
 impl FixSolver {
@@ -61,6 +64,30 @@ impl FixSolver {
             recent_triggers: RecentTriggers::default(),
             last_fix: None,
             motion: CycleMotion::new(),
+            cell_sync_sigma_s: std::collections::BTreeMap::new(),
+        }
+    }
+
+    /// Takes the sync sigma cell `cell_id` reports, seconds; returns
+    /// whether the cell is one of this site's (others are ignored, so the
+    /// table never grows beyond the site's cells).
+    pub fn set_cell_sync_sigma(&mut self, cell_id: &str, sigma_s: f64) -> bool {
+        let table = &self.config.transmitters;
+        let Some(first) = table.iter().position(|t| t.cell_id == cell_id) else {
+            return false;
+        };
+        let clock = u32::try_from(first).unwrap_or(u32::MAX);
+        self.cell_sync_sigma_s.insert(clock, sigma_s);
+        true
+    }
+
+    /// The clock of signal `s` as the filters take it: its cell and the
+    /// sync sigma that cell reported (0 before any report), metres of path.
+    fn transmitter_clock(&self, s: &Signal) -> TransmitterClock {
+        let sigma_s = self.cell_sync_sigma_s.get(&s.clock).copied().unwrap_or(0.0);
+        TransmitterClock {
+            id: s.clock,
+            sync_sigma_m: sigma_s * self.config.speed_of_sound_m_s,
         }
     }
 
@@ -259,7 +286,10 @@ impl FixSolver {
                 b_m: pair[1].tx_m,
                 d_m: pair[1].pseudo_range_m - pair[0].pseudo_range_m,
                 sigma_m,
-                clocks: Some([pair[0].clock, pair[1].clock]),
+                clocks: Some([
+                    self.transmitter_clock(&pair[0]),
+                    self.transmitter_clock(&pair[1]),
+                ]),
             })
             .collect()
     }

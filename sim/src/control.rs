@@ -164,6 +164,7 @@ pub struct ControlPlane {
     net_rng: ChaCha8Rng,
     fired: Vec<FiredBurst>,
     triggers: Vec<CycleTrigger>,
+    statuses: Vec<ickon_proto::msg::control::CellStatus>,
 }
 
 impl ControlPlane {
@@ -218,6 +219,7 @@ impl ControlPlane {
             net_rng: rng::stream(seed, "network"),
             fired: Vec::new(),
             triggers: Vec::new(),
+            statuses: Vec::new(),
         };
         for i in 0..cp.cells.len() {
             cp.start_cell(i);
@@ -244,6 +246,12 @@ impl ControlPlane {
     /// Cycle triggers the central unit published since the last call.
     pub fn take_triggers(&mut self) -> Vec<CycleTrigger> {
         std::mem::take(&mut self.triggers)
+    }
+
+    /// Cell statuses published since the last call (the MSUs hear them as
+    /// the central unit does).
+    pub fn take_statuses(&mut self) -> Vec<ickon_proto::msg::control::CellStatus> {
+        std::mem::take(&mut self.statuses)
     }
 
     /// What each cell's core counted and how well it kept time.
@@ -452,6 +460,7 @@ impl ControlPlane {
                 self.schedule_central_wake();
             }
             Pending::ToCentralStatus(s) => {
+                self.statuses.push(s.clone());
                 let out = self
                     .central
                     .handle(Time::from_nanos(t_ns), CentralEvent::CellStatus(s));

@@ -318,6 +318,9 @@ pub fn run(
 
     while let Some((t, ev)) = q.pop() {
         control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
+        for status in control.take_statuses() {
+            let _ = core.on_cell_status(&status);
+        }
         for trigger in control.take_triggers() {
             // Every burst of the cycle has been heard by then.
             let period_s = trigger

@@ -148,6 +148,11 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
     for step in 1..=steps {
         let t = step as f64 * PHYSICS_DT_S;
         control.advance_to(Time::from_secs_f64(t));
+        for status in control.take_statuses() {
+            for m in &mut members {
+                let _ = m.core.on_cell_status(&status);
+            }
+        }
         for trigger in control.take_triggers() {
             let schedule = control.schedule_for(trigger.cycle);
             let end =

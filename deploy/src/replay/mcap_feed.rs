@@ -17,7 +17,7 @@ use ickon_proto::decode;
 use ickon_proto::keys::{Key, RobotTopic};
 use std::sync::Arc;
 
-use ickon_proto::msg::control::{CycleTrigger, Schedule};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{
     Imu, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
 };
@@ -51,6 +51,8 @@ pub enum Input {
     Imu(Imu),
     /// Obstacle sensors.
     Range(ObstacleRanges),
+    /// A cell's status (to every robot; shared like a trigger).
+    CellStatus(Arc<CellStatus>),
 }
 
 /// Everything recorded of one robot.
@@ -96,6 +98,15 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
             Key::CentralCycle => decode::<CycleTrigger>(&m.data)
                 .map(|c| control.push((i, Input::Trigger(Arc::new(c)))))
                 .is_ok(),
+            // The agent takes a status only from the cell's own key.
+            Key::CellStatus(cell) => match decode::<CellStatus>(&m.data) {
+                Ok(s) if s.cell_id == *cell => {
+                    control.push((i, Input::CellStatus(Arc::new(s))));
+                    true
+                }
+                Ok(_) => true,
+                Err(_) => false,
+            },
             Key::SimTruth(id) => decode::<Truth>(&m.data)
                 .map(|v| robot(&mut robots, id).truth.push(v))
                 .is_ok(),
@@ -205,6 +216,11 @@ pub fn run(
                 core.on_trigger((**c).clone());
                 false
             }
+            Input::CellStatus(s) => {
+                // A status refused here was refused by the live agent too.
+                let _ = core.on_cell_status(s);
+                false
+            }
             Input::Arrivals(m) => matches!(core.on_arrivals(m), Ok(Some(_))),
             Input::Odometry(m) => core.on_odometry(m).is_ok(),
             Input::Imu(_) if late_imu > 0 => {
@@ -312,7 +328,11 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         .iter()
         .enumerate()
         .filter(|(_, (t, i))| {
-            *t <= first_live_t && !matches!(i, Input::Schedule(_) | Input::Trigger(_))
+            *t <= first_live_t
+                && !matches!(
+                    i,
+                    Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_)
+                )
         })
         .map(|(k, _)| k)
         .take(MAX_JOIN_CANDIDATES);
@@ -330,7 +350,12 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         let limit = best.map_or(f64::INFINITY, |b| b.probe_difference);
         let skipped_inputs = stream.inputs[..from]
             .iter()
-            .filter(|(_, i)| !matches!(i, Input::Schedule(_) | Input::Trigger(_)))
+            .filter(|(_, i)| {
+                !matches!(
+                    i,
+                    Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_)
+                )
+            })
             .count();
         let mut join = Join {
             from,

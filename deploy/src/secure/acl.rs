@@ -140,6 +140,8 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
                     keys.central_schedule(),
                     // Which transmitters fire each cycle (occupancy firing).
                     keys.central_cycle(),
+                    // Each cell's sync sigma (the prior of its clock bias).
+                    keys.cell_status_all(),
                     format!("{d}/{id}/**"),
                 ],
             ),
@@ -321,6 +323,7 @@ mod tests {
             reads,
             [
                 "7/r1/**",
+                "ickon/lab/cell/*/status",
                 "ickon/lab/central/cycle",
                 "ickon/lab/central/schedule",
                 "ickon/lab/robot/r1/**"

@@ -95,7 +95,18 @@ pub struct RangeDifferenceSample {
     /// cells), when the source knows them. Arrivals of one clock share its
     /// residual synchronisation error, which `tdoa-ekf` estimates per clock;
     /// `None` when not known (or not applicable: radio anchors).
-    pub clocks: Option<[u32; 2]>,
+    pub clocks: Option<[TransmitterClock; 2]>,
+}
+
+/// The clock a transmitter fires by, and how well that clock is said to be
+/// synchronised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TransmitterClock {
+    /// Names the clock (transmitters with the same id share it).
+    pub id: u32,
+    /// One-sigma sync error the clock's owner reports, as metres of path
+    /// (its time error times the propagation speed); 0 when not reported.
+    pub sync_sigma_m: f64,
 }
 
 impl RangeDifferenceSample {

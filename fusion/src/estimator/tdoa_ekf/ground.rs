@@ -145,6 +145,13 @@ pub struct TdoaEkfParams {
     /// When a transmitter whose arrivals keep coming late is set aside
     /// (the watch's [`LateArrivals`], shared with the 3D filters).
     pub late: LateParams,
+    /// Whether each cell's sync error is learnt as a state (its prior: the
+    /// sync sigma the cell reports, at least `sensors.cell_sync_sigma_us`;
+    /// see `clock_slots.rs`). Off by default: it helps where the cells'
+    /// sync is poor (a congested network: hundreds of microseconds), is
+    /// neutral where it is good (`paper`), and on `lab`'s corridors under the
+    /// `harsh` profile it cost 20-35 mm (see the README).
+    pub learn_cell_sync: bool,
 }
 
 /// [`LateParams`] for ultrasound: each transmitter is heard once per cycle
@@ -184,6 +191,7 @@ impl Default for TdoaEkfParams {
             track_heading_sigma_deg: 10.0,
             history_s: crate::estimator::registry::default_history_s(),
             late: ultrasound_late_params(),
+            learn_cell_sync: false,
         }
     }
 }
@@ -505,8 +513,8 @@ impl TdoaEkf {
         };
         if let Some((nx, mut np)) = gs::predict(x, p, &step) {
             np[(RANGE_BIAS, RANGE_BIAS)] += n.range_bias_walk_m_sqrt_s.powi(2) * dt;
-            for c in self.clocks.used() {
-                np[(c, c)] += n.var_clock_walk(dt);
+            for (c, sigma_m) in self.clocks.used() {
+                np[(c, c)] += n.var_clock_walk(sigma_m, dt);
             }
             *x = nx;
             *p = np;
@@ -549,6 +557,9 @@ impl TdoaEkf {
     /// The state column of the clock bias of `a`'s cell (giving the cell a
     /// slot when it has none).
     fn clock_column(&mut self, a: &Arrival) -> Option<usize> {
+        if !self.params.learn_cell_sync {
+            return None;
+        }
         let sigma_m = self.params.sensors.clock_bias_sigma_m();
         let (x, p) = self.state.as_mut()?;
         self.clocks.column(a.clock, a.t_s, sigma_m, x, p)

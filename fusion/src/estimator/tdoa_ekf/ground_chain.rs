@@ -14,6 +14,8 @@
 //! names a transmitter already in it (each transmitter fires once per
 //! cycle, so the same one again is the next cycle).
 
+use crate::estimator::TransmitterClock;
+
 /// One arrival of the chain.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Arrival {
@@ -24,7 +26,7 @@ pub(super) struct Arrival {
     /// Arrival time, seconds.
     pub t_s: f64,
     /// The clock the transmitter fires by, when known.
-    pub clock: Option<u32>,
+    pub clock: Option<TransmitterClock>,
 }
 
 /// Most arrivals kept per chain (more than any cycle hears).
@@ -59,7 +61,7 @@ impl Chain {
         d_m: f64,
         t_s: f64,
         a_t_s: Option<f64>,
-        clocks: Option<[u32; 2]>,
+        clocks: Option<[TransmitterClock; 2]>,
     ) -> Link {
         let continues = self.arrivals.last().is_some_and(|last| {
             last.tx_m == a_m

@@ -60,20 +60,22 @@ pub struct GroundNoise {
     /// error it gives through the geometry heard (`systematic.rs`), not to
     /// each arrival's noise. Zero leaves it out.
     pub survey_sigma_m: f64,
-    /// Standard deviation of a cell's residual sync error against the
-    /// central unit, microseconds; zero (the default) leaves the states
-    /// out. Every arrival of a cell is late or early by the same amount, so
-    /// it is a state per cell heard lately (`clock_slots.rs`), learnt from
-    /// the range differences between cells, not noise. Set it to what the
-    /// cells report (`ickon admin sync`) on a site whose sync is poor (a
-    /// congested network: hundreds of microseconds); where the sync is as
-    /// good as the `paper` profile's (5-25 us rms) a prior of 100 us cost
-    /// 2-6 mm on `warehouse`'s routes, so it is off by default.
+    /// Least standard deviation of a cell's residual sync error against
+    /// the central unit, microseconds (0: only what the cells report).
+    /// Every arrival of a cell is late or early by the same amount, so it
+    /// is a state per cell heard lately (`clock_slots.rs`), learnt from the
+    /// range differences between cells, not noise; its prior is the sigma
+    /// the cell reports in its status, at least this.
     pub cell_sync_sigma_us: f64,
-    /// Random walk of a cell's sync error, microseconds per sqrt(s) (10: a
-    /// cell's offset fit moves by tens of microseconds over the ten seconds
-    /// its window of exchanges spans).
-    pub cell_sync_walk_us_sqrt_s: f64,
+    /// Random walk of a cell's sync error, as a share of its sigma per
+    /// sqrt(s) (0.28). A cell's offset is the mean of the best exchanges of
+    /// 12 stretches of a 25 s window (`cell-controller/src/sync.rs`): every
+    /// 2.1 s one of them is replaced, which moves the mean by
+    /// `sigma sqrt(2/12)`, a variance of `0.08 sigma^2` per second. So the
+    /// error is not constant (as a fixed walk of a few microseconds per
+    /// sqrt(s) made it, and the filter then trusted a bias the cell had
+    /// moved on from) but forgotten over the cell's window.
+    pub cell_sync_walk_per_sqrt_s: f64,
 }
 
 /// The speed of sound the sync error's microseconds are turned into metres
@@ -100,7 +102,7 @@ impl Default for GroundNoise {
             temperature_sigma_c: 1.0,
             survey_sigma_m: 0.01,
             cell_sync_sigma_us: 0.0,
-            cell_sync_walk_us_sqrt_s: 10.0,
+            cell_sync_walk_per_sqrt_s: 0.28,
         }
     }
 }
@@ -132,9 +134,9 @@ impl GroundNoise {
         self.cell_sync_sigma_us * 1e-6 * NOMINAL_SPEED_OF_SOUND_M_S
     }
 
-    /// Variance a cell's clock bias gains over `dt_s`, m^2.
-    pub(super) fn var_clock_walk(&self, dt_s: f64) -> f64 {
-        (self.cell_sync_walk_us_sqrt_s * 1e-6 * NOMINAL_SPEED_OF_SOUND_M_S).powi(2) * dt_s.abs()
+    /// Variance a cell's clock bias of sigma `sigma_m` gains over `dt_s`, m^2.
+    pub(super) fn var_clock_walk(&self, sigma_m: f64, dt_s: f64) -> f64 {
+        (self.cell_sync_walk_per_sqrt_s * sigma_m).powi(2) * dt_s.abs()
     }
 
     /// Relative standard deviation of the speed of sound the MSU assumes:
@@ -247,10 +249,10 @@ impl GroundNoise {
                 "must be finite, non-negative and at most 100000 us",
             ),
             (
-                "sensors.cell_sync_walk_us_sqrt_s",
-                self.cell_sync_walk_us_sqrt_s,
-                10_000.0,
-                "must be finite, non-negative and at most 10000 us per sqrt(s)",
+                "sensors.cell_sync_walk_per_sqrt_s",
+                self.cell_sync_walk_per_sqrt_s,
+                100.0,
+                "must be finite, non-negative and at most 100 per sqrt(s)",
             ),
         ];
         for (field, v, max, reason) in fields {

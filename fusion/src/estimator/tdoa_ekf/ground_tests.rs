@@ -13,7 +13,8 @@ use rand_distr::{Distribution, Normal};
 use super::*;
 use crate::estimator::replay::Core;
 use crate::estimator::{
-    EncoderSample, GyroSample, InitialPose, Input, RangeDifferenceSample, WheelGeometry,
+    EncoderSample, GyroSample, InitialPose, Input, RangeDifferenceSample, TransmitterClock,
+    WheelGeometry,
 };
 
 const SPEED_M_S: f64 = 0.3;
@@ -102,6 +103,8 @@ struct Trouble {
     /// each cell late by this times its own factor (its sync error), and
     /// the range differences name each transmitter's cell.
     cell_sync_error_m: Option<f64>,
+    /// The sync sigma each cell reports with its arrivals, metres.
+    reported_sync_sigma_m: f64,
 }
 
 /// The cell of transmitter `i` ([`transmitters`]: four per cell, 4 m of
@@ -217,7 +220,12 @@ fn run_with_cycle(
                 b_m: b,
                 d_m: rb - ra,
                 sigma_m: std::f64::consts::SQRT_2 * SIGMA_ARRIVAL_M,
-                clocks: trouble.cell_sync_error_m.map(|_| [ca, cb]),
+                clocks: trouble.cell_sync_error_m.map(|_| {
+                    [ca, cb].map(|id| TransmitterClock {
+                        id,
+                        sync_sigma_m: trouble.reported_sync_sigma_m,
+                    })
+                }),
             }));
         }
     }
@@ -546,37 +554,57 @@ fn a_start_the_filter_tracks_from_for_two_seconds_is_confirmed_without_a_clean_c
 }
 
 #[test]
-fn the_sync_error_of_each_cell_is_learnt_when_its_states_are_on() {
+fn the_sync_error_of_each_cell_is_learnt_from_the_sigma_the_cells_report() {
     // 300 us of sync error (10 cm of path) on a congested network: cells
-    // late by +10, -10, +5, -5 and 0 cm. As white noise (the states off)
-    // the differences between cells pull the robot along and across the
-    // corridor; with a state per cell at that prior they are learnt.
+    // late by +10, -10, +5, -5 and 0 cm, each reporting a sigma of 300 us.
+    // As white noise (the states off) the differences between cells pull
+    // the robot along and across the corridor; as states they are learnt.
     let error_m = 300e-6 * SOUND_M_S;
     let sync = Trouble {
         cell_sync_error_m: Some(error_m),
+        reported_sync_sigma_m: error_m,
         ..Trouble::default()
     };
     let (inputs, truth) = run(120.0, sync, 6);
-    let with_sigma = |us: f64| {
+    let run_with = |learn: bool| {
         let mut p = params();
-        p.sensors.cell_sync_sigma_us = us;
+        p.learn_cell_sync = learn;
         let (_, e) = errors_with(&p, &inputs, &truth);
         mean_max(&e, 20.0, 120.0)
     };
-    let (off_mean, off_max) = with_sigma(0.0);
-    let (on_mean, on_max) = with_sigma(300.0);
+    let (off_mean, off_max) = run_with(false);
+    let (on_mean, on_max) = run_with(true);
     assert!(
         on_mean < 0.5 * off_mean && on_mean < 0.03 && on_max < off_max,
         "states off: mean {off_mean} max {off_max}; on: mean {on_mean} max {on_max}"
     );
-    // Without a sync error the states cost little.
-    let (inputs, truth) = run(120.0, Trouble::default(), 6);
+    // The floor alone does the same when the cells report nothing.
+    let quiet = Trouble {
+        reported_sync_sigma_m: 0.0,
+        ..sync
+    };
+    let (inputs, truth) = run(120.0, quiet, 6);
     let mut p = params();
+    p.learn_cell_sync = true;
     p.sensors.cell_sync_sigma_us = 300.0;
     let (_, e) = errors_with(&p, &inputs, &truth);
+    let (floor_mean, _) = mean_max(&e, 20.0, 120.0);
+    assert!(floor_mean < 0.5 * off_mean, "floor only: {floor_mean}");
+    // Without a sync error, reported as 50 us, the states cost little.
+    let clean = Trouble {
+        cell_sync_error_m: Some(0.0),
+        reported_sync_sigma_m: 50e-6 * SOUND_M_S,
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(120.0, clean, 6);
+    let mut p = params();
+    p.learn_cell_sync = true;
+    let (_, e) = errors_with(&p, &inputs, &truth);
     let (clean_mean, _) = mean_max(&e, 20.0, 120.0);
+    let (_, e) = errors(&run(120.0, Trouble::default(), 6).0, &truth);
+    let (plain_mean, _) = mean_max(&e, 20.0, 120.0);
     assert!(
-        clean_mean < 0.03,
-        "clean corridor with the states on: {clean_mean}"
+        clean_mean < 0.03 && clean_mean < plain_mean + 0.003,
+        "clean corridor: {clean_mean} with the states, {plain_mean} without clocks"
     );
 }

@@ -13,7 +13,7 @@ use std::time::Duration;
 use clap::Args;
 
 use ickon_fusion::estimator;
-use ickon_proto::keys::{Keys, RobotTopic};
+use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
@@ -259,7 +259,8 @@ pub async fn run(
             Ok(s) = status_sub.recv_async() => decoded!(s, CellStatus, "undecodable cell status").and_then(|status| {
                 // A cell may publish only under its own key (the router's
                 // access control): a status naming another cell is forged.
-                if keys.cell_status(&status.cell_id).is_ok_and(|k| k == s.key_expr().as_str()) {
+                let own_key = matches!(keys.parse(s.key_expr().as_str()), Ok(Key::CellStatus(cell)) if cell == status.cell_id);
+                if own_key {
                     Some(Event::CellStatus(status))
                 } else {
                     bad(&mut n, "cell status", format!("{} names cell {:?}", s.key_expr(), status.cell_id));

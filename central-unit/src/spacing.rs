@@ -14,11 +14,10 @@
 //! emission. Transmitters on different channels, or never heard together,
 //! may fire at the same instant.
 //!
-//! [`SpacingTable::pack`] places a set of transmitters greedily (each at
-//! the earliest time that keeps every spacing with those placed) in
-//! several orders (most conflicts first, nearest first, sweeps, seeded
-//! shuffles) and keeps the order whose cycle period, the least that keeps
-//! the spacings into the next cycle too, is shortest. Deterministic: the
+//! [`SpacingTable::pack`] places a set of transmitters greedily (most
+//! conflicts first, then site order; each at the earliest time that keeps
+//! every spacing with those placed), and the cycle period is the least
+//! that keeps the spacings into the next cycle too. Deterministic: the
 //! same site and set give the same offsets on every machine.
 
 use ickon_proto::site::Site;
@@ -170,21 +169,15 @@ impl SpacingTable {
         self.pack_with(set, &self.need, &|_| 0.0)
     }
 
-    /// Packs `set` under the spacings `need`: the greedy placement in
-    /// several orders, the shortest period kept. First the most constrained
-    /// transmitters (among equals, those with the smaller `order` key:
-    /// nearest first), then `order` alone, sweeps along x and y, and
-    /// [`SHUFFLED_ORDERS`] shuffles drawn from the set itself (the same set
-    /// always gives the same packing). Greedy placement is order-sensitive:
-    /// on `warehouse` with 16 robots the best of these orders is
-    /// measurably shorter than the first alone (see the README).
+    /// Packs `set` under the spacings `need`; among equally constrained
+    /// transmitters, those with the smaller `order` key go first.
     pub fn pack_with(
         &self,
         set: &[usize],
         need: &NeedMatrix,
         order: &dyn Fn(usize) -> f64,
     ) -> Packing {
-        let need_of_pair = |i: usize, j: usize| need_of(need, i, j);
+        let need = |i: usize, j: usize| need_of(need, i, j);
         let mut set: Vec<usize> = set
             .iter()
             .copied()
@@ -194,113 +187,62 @@ impl SpacingTable {
         set.dedup();
         let degree = |i: usize| {
             set.iter()
-                .filter(|&&j| j != i && need_of_pair(i, j).is_some())
+                .filter(|&&j| j != i && need(i, j).is_some())
                 .count()
         };
-        let by = |key: &dyn Fn(usize) -> (std::cmp::Reverse<usize>, f64)| {
-            let mut v = set.clone();
-            v.sort_by(|&a, &b| {
-                let (ka, kb) = (key(a), key(b));
-                ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1)).then(a.cmp(&b))
-            });
-            v
-        };
-        let none = std::cmp::Reverse(0);
-        let mut orders = vec![
-            by(&|i| (std::cmp::Reverse(degree(i)), order(i))),
-            by(&|i| (none, order(i))),
-            by(&|i| (none, self.position(i)[0] + 1e-3 * self.position(i)[1])),
-            by(&|i| (none, self.position(i)[1] + 1e-3 * self.position(i)[0])),
-        ];
-        let mut rng = set
+        let mut ranked: Vec<(std::cmp::Reverse<usize>, f64, usize)> = set
             .iter()
-            .fold(0x9E37_79B9_7F4A_7C15u64, |h, &i| splitmix(h ^ i as u64));
-        for _ in 0..SHUFFLED_ORDERS {
-            let mut v = set.clone();
-            // Fisher-Yates with the set's own generator.
-            for k in (1..v.len()).rev() {
-                rng = splitmix(rng);
-                v.swap(k, (rng % (k as u64 + 1)) as usize);
-            }
-            orders.push(v);
+            .map(|&i| (std::cmp::Reverse(degree(i)), order(i), i))
+            .collect();
+        ranked.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let mut placed: Vec<(usize, Duration)> = Vec::with_capacity(set.len());
+        for &(_, _, i) in &ranked {
+            let fits = |t: Duration| {
+                placed
+                    .iter()
+                    .all(|&(j, tj)| match (need(j, i), need(i, j)) {
+                        (Some(after), Some(before)) => t >= tj + after || t + before <= tj,
+                        _ => true,
+                    })
+            };
+            let mut candidates: Vec<Duration> = std::iter::once(Duration::ZERO)
+                .chain(
+                    placed
+                        .iter()
+                        .filter_map(|&(j, tj)| need(j, i).map(|n| tj + n)),
+                )
+                .collect();
+            candidates.sort();
+            let t = candidates
+                .into_iter()
+                .find(|&t| fits(t))
+                .unwrap_or(Duration::ZERO);
+            placed.push((i, t));
         }
-        let mut best: Option<Packing> = None;
-        for ordered in &orders {
-            let p = place_in_order(ordered, &need_of_pair);
-            if best.as_ref().is_none_or(|b| p.period < b.period) {
-                best = Some(p);
+        let mut period = Duration::ZERO;
+        for &(i, ti) in &placed {
+            if let Some(own) = need(i, i) {
+                period = period.max(ti + own);
+            }
+            for &(j, tj) in &placed {
+                // j fires no earlier than i: i of the next cycle must follow j.
+                if i != j && tj >= ti {
+                    if let Some(n) = need(j, i) {
+                        period = period.max(tj - ti + n);
+                    }
+                }
             }
         }
-        best.unwrap_or(Packing {
-            offsets: Vec::new(),
-            period: Duration::ZERO,
-        })
+        placed.sort_by_key(|&(i, t)| (t, i));
+        Packing {
+            offsets: placed,
+            period,
+        }
     }
 
     /// Every transmitter of the table, packed.
     pub fn pack_all(&self) -> Packing {
         self.pack(&(0..self.tx_ids.len()).collect::<Vec<_>>())
-    }
-}
-
-/// Shuffled orders the packing tries besides the four fixed ones.
-pub const SHUFFLED_ORDERS: usize = 12;
-
-/// One step of SplitMix64: a fixed, portable generator (the same packing
-/// on every machine).
-fn splitmix(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Places `ordered` one by one, each at the earliest time that keeps every
-/// spacing with those placed, and the least period that keeps the
-/// spacings into the next cycle.
-fn place_in_order(ordered: &[usize], need: &dyn Fn(usize, usize) -> Option<Duration>) -> Packing {
-    let mut placed: Vec<(usize, Duration)> = Vec::with_capacity(ordered.len());
-    for &i in ordered {
-        let fits = |t: Duration| {
-            placed
-                .iter()
-                .all(|&(j, tj)| match (need(j, i), need(i, j)) {
-                    (Some(after), Some(before)) => t >= tj + after || t + before <= tj,
-                    _ => true,
-                })
-        };
-        let mut candidates: Vec<Duration> = std::iter::once(Duration::ZERO)
-            .chain(
-                placed
-                    .iter()
-                    .filter_map(|&(j, tj)| need(j, i).map(|n| tj + n)),
-            )
-            .collect();
-        candidates.sort();
-        let t = candidates
-            .into_iter()
-            .find(|&t| fits(t))
-            .unwrap_or(Duration::ZERO);
-        placed.push((i, t));
-    }
-    let mut period = Duration::ZERO;
-    for &(i, ti) in &placed {
-        if let Some(own) = need(i, i) {
-            period = period.max(ti + own);
-        }
-        for &(j, tj) in &placed {
-            // j fires no earlier than i: i of the next cycle must follow j.
-            if i != j && tj >= ti {
-                if let Some(n) = need(j, i) {
-                    period = period.max(tj - ti + n);
-                }
-            }
-        }
-    }
-    placed.sort_by_key(|&(i, t)| (t, i));
-    Packing {
-        offsets: placed,
-        period,
     }
 }
 

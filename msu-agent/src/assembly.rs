@@ -97,7 +97,7 @@ pub fn assemble(
             receiver_id: a.receiver_id,
             offset_s,
             t_arrival: a.t_arrival,
-            clock: clock_of(transmitters, t),
+            clock: clock_of_cell(transmitters, &t.cell_id).unwrap_or(0),
         });
     }
     signals.sort_by(|a, b| a.offset_s.total_cmp(&b.offset_s));
@@ -108,14 +108,11 @@ pub fn assemble(
     })
 }
 
-/// The clock of transmitter `t`: the index of the first transmitter of its
-/// cell in `transmitters`.
-fn clock_of(transmitters: &[TransmitterEntry], t: &TransmitterEntry) -> u32 {
-    let first = transmitters
-        .iter()
-        .position(|x| x.cell_id == t.cell_id)
-        .unwrap_or(0);
-    u32::try_from(first).unwrap_or(u32::MAX)
+/// The clock of cell `cell_id`: the index of its first transmitter in
+/// `transmitters` (`None`: no transmitter of the table is in that cell).
+pub(crate) fn clock_of_cell(transmitters: &[TransmitterEntry], cell_id: &str) -> Option<u32> {
+    let first = transmitters.iter().position(|x| x.cell_id == cell_id)?;
+    Some(u32::try_from(first).unwrap_or(u32::MAX))
 }
 
 #[cfg(test)]
@@ -203,9 +200,9 @@ mod tests {
             },
             entry(2),
         ];
-        assert_eq!(clock_of(&table, &table[0]), 0);
-        assert_eq!(clock_of(&table, &table[2]), 0);
-        assert_eq!(clock_of(&table, &table[1]), 1);
+        assert_eq!(clock_of_cell(&table, "a"), Some(0));
+        assert_eq!(clock_of_cell(&table, "b"), Some(1));
+        assert_eq!(clock_of_cell(&table, "c"), None);
         let msg = UltrasoundArrivals {
             seq: 1,
             arrivals: [1, 2]

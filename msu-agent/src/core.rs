@@ -190,13 +190,12 @@ impl MsuCore {
         if !(0..=MAX_CELL_SYNC_SIGMA.as_nanos()).contains(&sigma_ns) {
             return Err(refuse("sync sigma negative or over 10 ms"));
         }
-        let table = &self.solver.config().transmitters;
-        if !table.iter().any(|t| t.cell_id == status.cell_id) {
+        let Some(clock) = self.solver.clock_of_cell(&status.cell_id) else {
             return Err(refuse("not a cell of this site"));
-        }
+        };
         if self.first_input.is_some() {
             self.solver
-                .set_cell_sync_sigma(&status.cell_id, sigma_ns as f64 * 1e-9);
+                .set_clock_sync_sigma(clock, sigma_ns as f64 * 1e-9);
         }
         Ok(())
     }

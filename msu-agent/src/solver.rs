@@ -16,7 +16,7 @@ use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
 use ickon_proto::time::{Duration, Time};
 use nalgebra::{Vector2, Vector3};
 
-use crate::assembly::{Signal, assemble};
+use crate::assembly::{Signal, assemble, clock_of_cell};
 use crate::core::{MsuConfig, MsuError};
 use crate::cycle_match::RecentTriggers;
 use crate::fusion_clock::FusionClock;
@@ -68,17 +68,17 @@ impl FixSolver {
         }
     }
 
-    /// Takes the sync sigma cell `cell_id` reports, seconds; returns
-    /// whether the cell is one of this site's (others are ignored, so the
-    /// table never grows beyond the site's cells).
-    pub fn set_cell_sync_sigma(&mut self, cell_id: &str, sigma_s: f64) -> bool {
-        let table = &self.config.transmitters;
-        let Some(first) = table.iter().position(|t| t.cell_id == cell_id) else {
-            return false;
-        };
-        let clock = u32::try_from(first).unwrap_or(u32::MAX);
+    /// The clock of cell `cell_id` ([`Signal::clock`]), `None` when the
+    /// cell is not one of this site's.
+    pub fn clock_of_cell(&self, cell_id: &str) -> Option<u32> {
+        clock_of_cell(&self.config.transmitters, cell_id)
+    }
+
+    /// Takes the sync sigma the cell of `clock` reports, seconds (clocks
+    /// come from [`Self::clock_of_cell`], so the table never grows beyond
+    /// the site's cells).
+    pub fn set_clock_sync_sigma(&mut self, clock: u32, sigma_s: f64) {
         self.cell_sync_sigma_s.insert(clock, sigma_s);
-        true
     }
 
     /// The clock of signal `s` as the filters take it: its cell and the

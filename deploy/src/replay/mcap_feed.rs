@@ -55,6 +55,17 @@ pub enum Input {
     CellStatus(Arc<CellStatus>),
 }
 
+impl Input {
+    /// Whether it comes from the central unit or a cell to every robot
+    /// (not the robot's own input): never a joining point.
+    fn is_control(&self) -> bool {
+        matches!(
+            self,
+            Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_)
+        )
+    }
+}
+
 /// Everything recorded of one robot.
 #[derive(Debug, Clone, Default)]
 pub struct RobotStream {
@@ -327,13 +338,7 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         .inputs
         .iter()
         .enumerate()
-        .filter(|(_, (t, i))| {
-            *t <= first_live_t
-                && !matches!(
-                    i,
-                    Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_)
-                )
-        })
+        .filter(|(_, (t, i))| *t <= first_live_t && !i.is_control())
         .map(|(k, _)| k)
         .take(MAX_JOIN_CANDIDATES);
     let mut best: Option<Join> = None;
@@ -350,12 +355,7 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         let limit = best.map_or(f64::INFINITY, |b| b.probe_difference);
         let skipped_inputs = stream.inputs[..from]
             .iter()
-            .filter(|(_, i)| {
-                !matches!(
-                    i,
-                    Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_)
-                )
-            })
+            .filter(|(_, i)| !i.is_control())
             .count();
         let mut join = Join {
             from,

@@ -113,6 +113,33 @@ fn flags_of_the_other_kind_of_run_are_refused() {
     assert!(!std::path::Path::new("/tmp/never-written").exists());
 }
 
+/// `--learn-cell-sync` is an option of `tdoa-ekf`: with another estimator
+/// it is refused by name (exit 2), not silently dropped.
+#[test]
+fn learning_the_cells_sync_is_refused_for_an_estimator_without_it() {
+    for args in [
+        &["eval", "--estimator", "ickon-akf", "--learn-cell-sync"][..],
+        &[
+            "eval",
+            "--estimator",
+            "gyro-ckf",
+            "--robots",
+            "2",
+            "--learn-cell-sync",
+        ],
+        &["sim", "--estimator", "msu-raw", "--learn-cell-sync"],
+    ] {
+        let out = ickon().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--learn-cell-sync") && err.contains("tdoa-ekf"),
+            "{args:?}: {err}"
+        );
+        assert!(out.stdout.is_empty());
+    }
+}
+
 #[test]
 fn plot_directory_gets_one_picture_per_estimator_route_and_tour_plus_the_comparison() {
     let dir = std::env::temp_dir().join(format!("ickon-eval-plot-{}", std::process::id()));

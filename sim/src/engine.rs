@@ -45,6 +45,30 @@ pub struct RunConfig {
     /// The central unit's tuning (which schedule; every transmitter fires
     /// unless it says otherwise).
     pub central: ickon_central::core::CentralConfig,
+    /// Filter options a user sets in the MSU configuration.
+    pub filter: FilterOptions,
+}
+
+/// Options of the MSU's filter that a user turns on in its configuration
+/// file, for the runs of `ickon eval`, `ickon sim` and `ickon bench scale`.
+/// Default: the estimators' own defaults.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FilterOptions {
+    /// `tdoa-ekf` learns each cell's sync error as a state
+    /// (`[filter.params] learn_cell_sync = true`).
+    pub learn_cell_sync: bool,
+}
+
+impl FilterOptions {
+    /// Why these options cannot go with estimator `name`, if they cannot.
+    pub fn check_for(&self, name: &str) -> Result<(), String> {
+        if self.learn_cell_sync && name != "tdoa-ekf" {
+            return Err(format!(
+                "--learn-cell-sync is an option of `tdoa-ekf`, not of `{name}`"
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Why a run could not start.
@@ -184,12 +208,15 @@ impl Queue {
 /// then the gyro noise of the profile's data sheet for `gyro-ckf` and
 /// `tdoa-ekf` (as a user configures a filter to the sensor on the robot;
 /// small floors keep `ideal` valid), and the seed-003 curvature thresholds
-/// rescaled from their 10 Hz steps to [`ENCODER_HZ`].
+/// rescaled from their 10 Hz steps to [`ENCODER_HZ`]; last, `options`
+/// (those that do not apply to `name` are left out: check them with
+/// [`FilterOptions::check_for`]).
 pub fn estimator_config(
     name: &str,
     start: [f64; 3],
     site: &Site,
     profile: &NoiseProfile,
+    options: FilterOptions,
 ) -> Result<EstimatorConfig, RunError> {
     let mut c = ickon_msu::estimator_for_site(name, site, start)?;
     let per_step = 10.0 / ENCODER_HZ;
@@ -218,6 +245,7 @@ pub fn estimator_config(
             s.gyro_bias_sigma_deg_s = g.bias_sigma_deg_s.max(0.05);
             s.gyro_bias_walk_deg_s_sqrt_s = g.bias_walk_deg_s_sqrt_s.max(0.001);
             s.gyro_scale_error = g.scale_error.max(0.001);
+            p.learn_cell_sync = options.learn_cell_sync;
         }
     }
     Ok(c)
@@ -276,6 +304,7 @@ pub fn run(
             start,
             site,
             &config.profile,
+            config.filter,
         )?)?);
     }
     let n_est = estimators.len();

@@ -18,7 +18,9 @@ use serde::Serialize;
 
 use crate::collision::CollisionCounts;
 use crate::control::ControlPlane;
-use crate::engine::{ENCODER_HZ, PHYSICS_DT_S, REST_S, RunError, estimator_config, msu_config};
+use crate::engine::{
+    ENCODER_HZ, FilterOptions, PHYSICS_DT_S, REST_S, RunError, estimator_config, msu_config,
+};
 use crate::profile::NoiseProfile;
 use crate::world::World;
 
@@ -42,6 +44,8 @@ pub struct FleetConfig {
     pub estimator: String,
     /// The central unit's tuning (schedule, firing).
     pub central: CentralConfig,
+    /// Filter options a user sets in the MSU configuration.
+    pub filter: FilterOptions,
 }
 
 /// One robot's results.
@@ -112,6 +116,7 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             start,
             site,
             &config.profile,
+            config.filter,
         )?)?;
         let msu = msu_config(site, &config.profile, world.drive.geometry());
         let mut core = MsuCore::with_estimators(msu, vec![est]);

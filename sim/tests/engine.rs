@@ -11,6 +11,7 @@ fn config(route: &str, profile: &str, seed: u64, estimators: &[&str]) -> RunConf
         seed,
         estimators: estimators.iter().map(|s| s.to_string()).collect(),
         central: Default::default(),
+        filter: Default::default(),
     }
 }
 

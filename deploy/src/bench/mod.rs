@@ -56,6 +56,10 @@ pub struct ScaleArgs {
     /// Which transmitters fire each cycle (`ickon sim --firing`).
     #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::All)]
     pub firing: ickon_central::node::Firing,
+    /// Every agent's `tdoa-ekf` learns each cell's sync error as a state
+    /// (`ickon sim --learn-cell-sync`).
+    #[arg(long)]
+    pub learn_cell_sync: bool,
 }
 
 /// One size of the benchmark in the JSON document.
@@ -96,6 +100,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             restart: false,
             standby: false,
             faults: None,
+            learn_cell_sync: args.learn_cell_sync,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

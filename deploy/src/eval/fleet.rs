@@ -68,6 +68,9 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
             },
             ..CentralConfig::default()
         },
+        filter: ickon_sim::engine::FilterOptions {
+            learn_cell_sync: args.learn_cell_sync,
+        },
     };
     let out = match run_fleet(site, &config) {
         Ok(o) => o,

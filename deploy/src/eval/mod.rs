@@ -69,6 +69,19 @@ pub struct EvalArgs {
     /// [default: the central unit's, 8.5]
     #[arg(long, requires = "robots")]
     pub fire_range_m: Option<f64>,
+    /// `tdoa-ekf` learns each cell's sync error as a state, as
+    /// `[filter.params] learn_cell_sync = true` in an MSU configuration does
+    /// (with `--estimator all`: `tdoa-ekf` only).
+    #[arg(long)]
+    pub learn_cell_sync: bool,
+}
+
+/// The filter options of `args` (with `--estimator all` they reach
+/// `tdoa-ekf` only).
+fn filter_options(args: &EvalArgs) -> ickon_sim::engine::FilterOptions {
+    ickon_sim::engine::FilterOptions {
+        learn_cell_sync: args.learn_cell_sync,
+    }
 }
 
 /// Runs `ickon eval` and returns the exit code.
@@ -93,6 +106,12 @@ pub fn run(args: EvalArgs) -> ExitCode {
             args.schedule
         );
         return ExitCode::from(EXIT_BAD_INPUT);
+    }
+    if args.estimator != "all" {
+        if let Err(e) = filter_options(&args).check_for(&args.estimator) {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
     }
     if let Some(robots) = args.robots {
         return fleet::run(&site, profile, robots, &args);
@@ -223,6 +242,7 @@ fn simulate(
                         schedule: policy,
                         ..Default::default()
                     },
+                    filter: filter_options(args),
                 };
                 scope.spawn(move || {
                     let mut done = 0u64;

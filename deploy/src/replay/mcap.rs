@@ -310,7 +310,14 @@ fn config_for(
         }
     }
     match profile {
-        Some(p) => ickon_sim::engine::estimator_config(name, setup.start, site, p).ok(),
+        Some(p) => ickon_sim::engine::estimator_config(
+            name,
+            setup.start,
+            site,
+            p,
+            ickon_sim::engine::FilterOptions::default(),
+        )
+        .ok(),
         None => ickon_msu::estimator_for_site(name, site, setup.start).ok(),
     }
 }

@@ -111,6 +111,19 @@ pub struct SimArgs {
     /// (times from the moment every node is live; see `deploy/src/sim/faults.rs`).
     #[arg(long, value_name = "PLAN")]
     pub faults: Option<String>,
+    /// Every agent's `tdoa-ekf` learns each cell's sync error as a state
+    /// (`learn_cell_sync = true` in the configuration file they are given).
+    #[arg(long)]
+    pub learn_cell_sync: bool,
+}
+
+impl SimArgs {
+    /// The filter options every agent's configuration file gets.
+    pub fn filter_options(&self) -> ickon_sim::engine::FilterOptions {
+        ickon_sim::engine::FilterOptions {
+            learn_cell_sync: self.learn_cell_sync,
+        }
+    }
 }
 
 /// How long the nodes get to come up and announce themselves.
@@ -225,6 +238,10 @@ pub fn check_args(args: &SimArgs) -> Result<(Site, ickon_sim::profile::NoiseProf
         }
     };
     if let Err(e) = ickon_fusion::estimator::EstimatorConfig::default_for(&args.estimator) {
+        eprintln!("error: {e}");
+        return Err(ExitCode::from(EXIT_BAD_INPUT));
+    }
+    if let Err(e) = args.filter_options().check_for(&args.estimator) {
         eprintln!("error: {e}");
         return Err(ExitCode::from(EXIT_BAD_INPUT));
     }
@@ -473,7 +490,13 @@ pub async fn measure(
     // site gives each agent its robot's start pose).
     let drive = ickon_sim::robot::DriveSpec::default();
     let msu_file = msu_file::write_temp(&msu_file::render(
-        &ickon_sim::engine::estimator_config(&args.estimator, [0.0; 3], site, profile)?,
+        &ickon_sim::engine::estimator_config(
+            &args.estimator,
+            [0.0; 3],
+            site,
+            profile,
+            args.filter_options(),
+        )?,
         ickon_sim::engine::timing_sigma_s(profile),
         drive.geometry(),
         args.ros2,
@@ -676,8 +699,13 @@ fn msu_starts(
                 .iter()
                 .find(|r| &r.id == robot)
                 .map_or([0.0; 3], |r| r.start);
-            let config =
-                ickon_sim::engine::estimator_config(&args.estimator, start, site, profile)?;
+            let config = ickon_sim::engine::estimator_config(
+                &args.estimator,
+                start,
+                site,
+                profile,
+                args.filter_options(),
+            )?;
             // The value the agent's configuration file holds (`msu_file`):
             // a float written in full, so the replay uses the agent's value.
             let timing_sigma_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;

@@ -58,6 +58,42 @@ mod tests {
 
     /// What the sim writes is what the agent reads back: the same estimator
     /// configuration, bit for bit, for every estimator.
+    /// `ickon sim --learn-cell-sync` reaches the agents through their file.
+    #[test]
+    fn the_cell_sync_option_reaches_the_agents_file() {
+        let site = ickon_proto::site::Site::default_site();
+        let profile = ickon_sim::profile::NoiseProfile::by_name("paper").unwrap();
+        let start = site.robots[0].start;
+        let wheels = ickon_msu::config_file::pioneer_wheels();
+        let options = ickon_sim::engine::FilterOptions {
+            learn_cell_sync: true,
+        };
+        let config =
+            ickon_sim::engine::estimator_config("tdoa-ekf", start, &site, &profile, options)
+                .unwrap();
+        let ickon_fusion::estimator::EstimatorConfig::TdoaEkf(p) = &config else {
+            panic!("{config:?}");
+        };
+        assert!(p.learn_cell_sync);
+        let text = render(&config, 42e-6, wheels, false).unwrap();
+        assert!(text.contains("learn_cell_sync = true"), "{text}");
+        let tuning = ickon_msu::MsuTuning::from_toml(&text, "sim").unwrap();
+        assert_eq!(tuning.estimator_for(&site, start), config);
+        // Off by default, as the filter's own default.
+        let plain = ickon_sim::engine::estimator_config(
+            "tdoa-ekf",
+            start,
+            &site,
+            &profile,
+            Default::default(),
+        )
+        .unwrap();
+        let ickon_fusion::estimator::EstimatorConfig::TdoaEkf(p) = &plain else {
+            panic!("{plain:?}");
+        };
+        assert!(!p.learn_cell_sync);
+    }
+
     #[test]
     fn the_agents_read_back_exactly_the_configuration_the_sim_wrote() {
         let site = ickon_proto::site::Site::default_site();
@@ -65,7 +101,14 @@ mod tests {
         let start = site.robots[0].start;
         let wheels = ickon_msu::config_file::pioneer_wheels();
         for name in ickon_fusion::estimator::names() {
-            let config = ickon_sim::engine::estimator_config(name, start, &site, &profile).unwrap();
+            let config = ickon_sim::engine::estimator_config(
+                name,
+                start,
+                &site,
+                &profile,
+                ickon_sim::engine::FilterOptions::default(),
+            )
+            .unwrap();
             let text = render(&config, 42e-6, wheels, *name == "tdoa-ekf").unwrap();
             let tuning = ickon_msu::MsuTuning::from_toml(&text, "sim").unwrap();
             assert!(tuning.warnings.is_empty(), "{name}: {:?}", tuning.warnings);

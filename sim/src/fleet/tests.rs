@@ -16,6 +16,7 @@ fn config(robots: usize, occupancy: bool) -> FleetConfig {
             },
             ..CentralConfig::default()
         },
+        filter: FilterOptions::default(),
     }
 }
 

@@ -508,7 +508,7 @@ impl CentralCore {
                 // A pose no fix has confirmed may be far from the robot
                 // (a restarted MSU): as good as none, so everything fires.
                 Some((pose, at)) if pose.status != PoseStatus::Localising => {
-                    Some(RobotView::Seen(pose, at))
+                    Some(RobotView::Seen(pose, at, r.velocity()))
                 }
                 _ => r.alive.then_some(RobotView::New),
             })

@@ -16,6 +16,8 @@ use ickon_proto::msg::control::{Burst, CellStatus};
 use ickon_proto::msg::robot::{PoseStatus, RobotPose};
 use ickon_proto::time::{Duration, Time};
 
+use crate::pose_track::{PoseTrack, Velocity};
+
 /// Fired cycles remembered per cell, to count missed ones.
 const FIRED_MEMORY: usize = 64;
 /// A live cell that fired nothing in this many scheduled cycles in a row is
@@ -140,11 +142,13 @@ pub struct RobotTracker {
     /// When the last pose arrived (central unit's clock).
     pose_at: Option<Time>,
     fix_times: VecDeque<Time>,
+    track: PoseTrack,
 }
 
 impl RobotTracker {
     /// A pose it published, received at `now`.
     pub fn on_pose(&mut self, pose: RobotPose, now: Time) {
+        self.track.push(&pose);
         self.pose = Some(pose);
         self.pose_at = Some(now);
     }
@@ -176,6 +180,11 @@ impl RobotTracker {
     /// The last pose and when it was received.
     pub fn last_pose(&self) -> Option<(&RobotPose, Time)> {
         Some((self.pose.as_ref()?, self.pose_at?))
+    }
+
+    /// Its mean velocity over its last poses, when they span enough time.
+    pub fn velocity(&self) -> Option<Velocity> {
+        self.track.velocity()
     }
 
     /// A fix it published, received at `now`.

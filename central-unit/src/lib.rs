@@ -25,6 +25,7 @@ pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod occupancy;
+pub mod pose_track;
 pub mod schedule;
 pub mod spacing;
 

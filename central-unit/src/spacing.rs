@@ -144,6 +144,16 @@ impl SpacingTable {
             .collect()
     }
 
+    /// The sample point nearest to `at` and its distance, metres (`None`
+    /// on a site without floor).
+    pub fn nearest_point(&self, at: [f64; 2]) -> Option<(usize, f64)> {
+        self.points
+            .iter()
+            .enumerate()
+            .map(|(k, p)| (k, (p[0] - at[0]).hypot(p[1] - at[1])))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// The transmitters audible at sample point `point` and their distance, metres.
     pub fn heard_at(&self, point: usize) -> &[(usize, f64)] {
         self.heard.get(point).map_or(&[], Vec::as_slice)

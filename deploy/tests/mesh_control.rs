@@ -16,7 +16,7 @@
 //! drops, whatever happens.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
@@ -236,18 +236,6 @@ struct Mesh {
     rec: Recorder,
 }
 
-/// The built-in site under a name of this test's own.
-fn site_file(dir: &Path, site: &str) -> PathBuf {
-    let text = ickon_proto::site::DEFAULT_SITE_TOML.replacen(
-        "name = \"lab\"",
-        &format!("name = \"{site}\""),
-        1,
-    );
-    let file = dir.join(format!("{site}.toml"));
-    std::fs::write(&file, text).expect("site file");
-    file
-}
-
 /// Starts `ickon node central` for `site` (its file in `dir`) listening on
 /// `endpoint`, and waits until it accepts connections.
 fn spawn_central(dir: &Path, site: &str, endpoint: &str) -> ChildGuard {
@@ -274,7 +262,7 @@ impl Mesh {
     fn start(tag: &str) -> Mesh {
         let dir = tempfile::tempdir().expect("temp dir");
         let site = format!("{tag}-{}", std::process::id());
-        site_file(dir.path(), &site);
+        ickon_tests::lab_site_file(dir.path(), &site);
         let endpoint = ickon_tests::loopback_endpoint().expect("free port");
         let central = spawn_central(dir.path(), &site, &endpoint);
         let observer = Observer::open(std::slice::from_ref(&endpoint)).expect("observer session");

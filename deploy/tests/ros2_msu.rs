@@ -6,7 +6,6 @@
 //! (truncated, without attachment, of the wrong type, NaN covariance,
 //! stamps going backwards) change nothing and stop nothing.
 
-use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
@@ -29,17 +28,6 @@ const SAMPLES: usize = 100;
 /// Forward speed and turn rate the robot reports.
 const V_M_S: f64 = 0.5;
 const W_RAD_S: f64 = 0.2;
-
-fn site_file(dir: &Path, site: &str) -> std::path::PathBuf {
-    let text = ickon_proto::site::DEFAULT_SITE_TOML.replacen(
-        "name = \"lab\"",
-        &format!("name = \"{site}\""),
-        1,
-    );
-    let file = dir.join(format!("{site}.toml"));
-    std::fs::write(&file, text).expect("site file");
-    file
-}
 
 fn hex_samples(rosbags: &Rosbags, kind: &str, samples: &serde_json::Value) -> Vec<Vec<u8>> {
     let out = rosbags.run(&[kind], &samples.to_string());
@@ -77,7 +65,7 @@ fn msu_pose_follows_ros2_odometry_and_imu_made_by_rosbags() {
 
     let dir = tempfile::tempdir().expect("temp dir");
     let site = format!("ros2-{}", std::process::id());
-    let file = site_file(dir.path(), &site);
+    let file = ickon_tests::lab_site_file(dir.path(), &site);
     let central_endpoint = ickon_tests::loopback_endpoint().expect("port");
     let mut cmd = Command::new(ICKON);
     cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])

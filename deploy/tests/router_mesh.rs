@@ -22,18 +22,6 @@ const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 const ROBOTS: [&str; 2] = ["r1", "r2"];
 
-/// The built-in site under a name of this test's own.
-fn site_file(dir: &Path, site: &str) -> std::path::PathBuf {
-    let text = ickon_proto::site::DEFAULT_SITE_TOML.replacen(
-        "name = \"lab\"",
-        &format!("name = \"{site}\""),
-        1,
-    );
-    let file = dir.join(format!("{site}.toml"));
-    std::fs::write(&file, text).expect("site file");
-    file
-}
-
 /// `ickon router` listening on `listen`, linked to the routers `link`.
 fn spawn_router(dir: &Path, name: &str, listen: &str, link: &[&str]) -> ChildGuard {
     let mut cmd = Command::new(ICKON);
@@ -106,7 +94,7 @@ fn poses_flow(sub: &Sub, keys: &Keys, count: usize, nodes: &mut [ChildGuard], wh
 fn two_linked_routers_carry_the_site_and_clients_reconnect_to_a_router_that_returns() {
     let dir = tempfile::tempdir().expect("temp dir");
     let site = format!("routers-{}", std::process::id());
-    let file = site_file(dir.path(), &site);
+    let file = ickon_tests::lab_site_file(dir.path(), &site);
     let keys = Keys::new(&site).unwrap();
     let floor_1 = ickon_tests::loopback_endpoint().expect("port");
     let floor_2 = ickon_tests::loopback_endpoint().expect("port");

@@ -22,18 +22,6 @@ const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Generous but bounded: a loaded two-core machine starts a process slowly.
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 
-/// The built-in site under a name of this test's own.
-fn site_file(dir: &Path, site: &str) -> PathBuf {
-    let text = ickon_proto::site::DEFAULT_SITE_TOML.replacen(
-        "name = \"lab\"",
-        &format!("name = \"{site}\""),
-        1,
-    );
-    let file = dir.join(format!("{site}.toml"));
-    std::fs::write(&file, text).expect("site file");
-    file
-}
-
 /// `ickon site secure` of `site` into `out`, the router on `endpoint`.
 fn secure(site: &Path, out: &Path, endpoint: &str, more: &[&str]) {
     let output = Command::new(ICKON)
@@ -120,7 +108,7 @@ fn drain(sub: &Sub) -> Vec<Vec<u8>> {
 fn the_router_keeps_forgers_out_and_admin_needs_the_admin_identity() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let site = format!("secure-{}", std::process::id());
-    let file = site_file(tmp.path(), &site);
+    let file = ickon_tests::lab_site_file(tmp.path(), &site);
     let keys = Keys::new(&site).unwrap();
     let endpoint = ickon_tests::loopback_endpoint().expect("port");
     let dir = tmp.path().join("secure");
@@ -283,7 +271,7 @@ fn ickon_sim_secure_gives_fixes() {
 fn two_secured_routers_carry_the_site_between_floors() {
     let tmp = tempfile::tempdir().expect("temp dir");
     let site = format!("secure2-{}", std::process::id());
-    let file = site_file(tmp.path(), &site);
+    let file = ickon_tests::lab_site_file(tmp.path(), &site);
     let keys = Keys::new(&site).unwrap();
     let floor_1 = ickon_tests::loopback_endpoint().expect("port");
     let floor_2 = ickon_tests::loopback_endpoint().expect("port");

@@ -200,6 +200,25 @@ impl MsuCore {
         Ok(())
     }
 
+    /// A status heard under the key of cell `key_cell` (`None`: a key that
+    /// is not a cell's status key), if it names that cell. A cell may
+    /// publish only under its own key (the router's access control); a
+    /// status naming another cell is forged, and is refused by the live
+    /// agent and the recording's replay alike.
+    pub fn status_under_key(
+        key_cell: Option<&str>,
+        status: CellStatus,
+    ) -> Result<CellStatus, MsuError> {
+        if key_cell == Some(status.cell_id.as_str()) {
+            Ok(status)
+        } else {
+            Err(MsuError::CellStatus {
+                cell: status.cell_id,
+                reason: "heard under another cell's key",
+            })
+        }
+    }
+
     /// The primary estimator's name.
     pub fn estimator_name(&self) -> &'static str {
         self.host.name(0).unwrap_or("none")

@@ -257,14 +257,16 @@ pub async fn run(
             }),
             Ok(s) = trigger_sub.recv_async() => decoded!(s, CycleTrigger, "undecodable cycle trigger").map(Event::Trigger),
             Ok(s) = status_sub.recv_async() => decoded!(s, CellStatus, "undecodable cell status").and_then(|status| {
-                // A cell may publish only under its own key (the router's
-                // access control): a status naming another cell is forged.
-                let own_key = matches!(keys.parse(s.key_expr().as_str()), Ok(Key::CellStatus(cell)) if cell == status.cell_id);
-                if own_key {
-                    Some(Event::CellStatus(status))
-                } else {
-                    bad(&mut n, "cell status", format!("{} names cell {:?}", s.key_expr(), status.cell_id));
-                    None
+                let key_cell = match keys.parse(s.key_expr().as_str()) {
+                    Ok(Key::CellStatus(cell)) => Some(cell),
+                    _ => None,
+                };
+                match MsuCore::status_under_key(key_cell.as_deref(), status) {
+                    Ok(status) => Some(Event::CellStatus(status)),
+                    Err(e) => {
+                        bad(&mut n, "cell status", format!("{}: {e}", s.key_expr()));
+                        None
+                    }
                 }
             }),
             Some(input) = inputs.recv() => match input.into_event() {

@@ -12,7 +12,8 @@
 //!   listening on `tcp/127.0.0.1:0` with multicast scouting off, its bound
 //!   locators read back;
 //! - [`rosbags`]: [`Rosbags`], the independent ROS 2 CDR decoder and
-//!   encoder (PyPI `rosbags`) the ROS 2 tests check against.
+//!   encoder (PyPI `rosbags`) the ROS 2 tests check against;
+//! - [`site`]: [`lab_site_file`], the built-in site under a test's own name.
 //!
 //! The test binaries themselves live with the crates they test (e.g.
 //! `deploy/tests/mesh_control.rs` for the `ickon` binary).
@@ -21,10 +22,12 @@ pub mod child;
 pub mod observer;
 pub mod port;
 pub mod rosbags;
+pub mod site;
 pub mod wait;
 
 pub use child::ChildGuard;
 pub use observer::Observer;
 pub use port::{free_tcp_port, loopback_endpoint};
 pub use rosbags::Rosbags;
+pub use site::lab_site_file;
 pub use wait::{TimedOut, poll_until};

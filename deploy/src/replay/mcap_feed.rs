@@ -111,11 +111,12 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
                 .is_ok(),
             // The agent takes a status only from the cell's own key.
             Key::CellStatus(cell) => match decode::<CellStatus>(&m.data) {
-                Ok(s) if s.cell_id == *cell => {
-                    control.push((i, Input::CellStatus(Arc::new(s))));
+                Ok(s) => {
+                    if let Ok(s) = MsuCore::status_under_key(Some(cell.as_str()), s) {
+                        control.push((i, Input::CellStatus(Arc::new(s))));
+                    }
                     true
                 }
-                Ok(_) => true,
                 Err(_) => false,
             },
             Key::SimTruth(id) => decode::<Truth>(&m.data)

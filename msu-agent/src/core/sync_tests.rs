@@ -98,3 +98,20 @@ fn a_status_of_no_cell_of_the_site_or_an_impossible_sigma_is_refused() {
         "status of cell \"zz\": not a cell of this site"
     );
 }
+
+/// The live agent and the replay take a status only under its own cell's
+/// key: another cell's name under a key (forged, or a misconfigured cell)
+/// and a key that is no cell's are refused, naming the cell.
+#[test]
+fn a_status_under_another_cells_key_is_refused() {
+    let own = MsuCore::status_under_key(Some("a"), status("a", 1_000)).unwrap();
+    assert_eq!(own.cell_id, "a");
+    for key in [Some("b"), Some(""), None] {
+        let err = MsuCore::status_under_key(key, status("a", 1_000)).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "status of cell \"a\": heard under another cell's key",
+            "{key:?}"
+        );
+    }
+}

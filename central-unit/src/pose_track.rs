@@ -50,9 +50,10 @@ pub struct PoseTrack {
 
 impl PoseTrack {
     /// Takes a published pose. A pose no fix has confirmed, one with a
-    /// position that is not a number, or a stamp far after the last starts
-    /// the track again; a stamp not after the last is ignored (a repeated or
-    /// reordered message).
+    /// position that is not a number, or a stamp far after or far before
+    /// the last (an MSU that stalled, or whose clock was stepped) starts the
+    /// track again; a stamp a little before the last, or equal to it, is
+    /// ignored (a repeated or reordered message).
     pub fn push(&mut self, pose: &RobotPose) {
         let xy = [pose.x_m, pose.y_m];
         if pose.status == PoseStatus::Localising || !xy.iter().all(|v| v.is_finite()) {
@@ -60,11 +61,10 @@ impl PoseTrack {
             return;
         }
         if let Some(&(last, _)) = self.poses.back() {
-            if pose.stamp <= last {
-                return;
-            }
-            if pose.stamp.since(last) > MAX_GAP {
+            if pose.stamp.since(last) > MAX_GAP || last.since(pose.stamp) > MAX_GAP {
                 self.poses.clear();
+            } else if pose.stamp <= last {
+                return;
             }
         }
         self.poses.push_back((pose.stamp, xy));
@@ -162,6 +162,13 @@ mod tests {
         // A stalled MSU: after a gap the track starts again.
         track.push(&pose(3_000, 40.0, 0.0));
         assert_eq!(track.velocity(), None);
+        // An MSU clock stepped back by seconds: the track starts again from
+        // the new stamps instead of ignoring them for good.
+        for k in 0..=25 {
+            track.push(&pose(k * 20, 40.0 + k as f64 * 0.01, 0.0));
+        }
+        let back = track.velocity().unwrap();
+        assert!((back.v_m_s[0] - 0.5).abs() < 1e-9, "{back:?}");
         // Not a number, or not confirmed by a fix: nothing is kept.
         for k in 1..=25 {
             track.push(&pose(3_000 + k * 20, 40.0 + k as f64 * 0.02, 0.0));

@@ -68,6 +68,8 @@ impl MsuConfig {
                 Some([lo, hi])
             },
             max_fix_sigma_m: DEFAULT_MAX_FIX_SIGMA_M,
+            walls: site.walls.clone(),
+            columns: site.columns.clone(),
         }
     }
 }

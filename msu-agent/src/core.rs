@@ -12,6 +12,7 @@ use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, TransmitterE
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
 };
+use ickon_proto::site::{Column, Wall};
 use ickon_proto::time::{Duration, Time};
 
 use crate::assembly::AssemblyError;
@@ -43,6 +44,11 @@ pub struct MsuConfig {
     /// Largest acceptable one-sigma position uncertainty of a fix, metres
     /// (larger: degenerate geometry, reported as no fix).
     pub max_fix_sigma_m: f64,
+    /// The site's walls and columns: a transmitter they hide from where the
+    /// robot is can only be heard by a reflection (empty: nothing blocks).
+    pub walls: Vec<Wall>,
+    /// See `walls`.
+    pub columns: Vec<Column>,
 }
 
 /// Why a message could not be used.
@@ -430,6 +436,8 @@ impl MsuCore {
 #[cfg(test)]
 mod firing_tests;
 #[cfg(test)]
+mod hidden_tests;
+#[cfg(test)]
 mod stale_tests;
 #[cfg(test)]
 mod sync_tests;
@@ -479,6 +487,8 @@ mod tests {
             residual_gate_m: 0.05,
             floor_bounds_m: Some([[0.0, 0.0], [5.0, 4.0]]),
             max_fix_sigma_m: 0.5,
+            walls: Vec::new(),
+            columns: Vec::new(),
         };
         let mut core = MsuCore::new(config, build_by_name(estimator).unwrap());
         core.set_schedule(schedule()).unwrap();

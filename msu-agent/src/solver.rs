@@ -7,12 +7,21 @@
 //! It knows nothing of the estimators: a position hint is passed in only to
 //! choose between two roots that fit equally, so every valid fix is the
 //! same whatever fuses it.
+//!
+//! A cycle that gives no fix, or a suspect one, gets a second attempt
+//! (kept when it is not suspect) without the
+//! transmitters the site's walls and columns hide from everywhere the
+//! receiver may be (by the solver's own last good fix and the odometry
+//! since): those can only have been heard by a reflection. Behind racks
+//! a cycle can carry as many reflections as direct signals, and the
+//! consensus then (rightly) finds no majority.
 
 use ickon_fusion::estimator::{Input, RangeDifferenceSample, TransmitterClock};
 use ickon_fusion::tdoa;
 use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
 use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
+use ickon_proto::site::line_of_sight;
 use ickon_proto::time::{Duration, Time};
 use nalgebra::{Vector2, Vector3};
 
@@ -24,6 +33,15 @@ use crate::motion::CycleMotion;
 
 /// The solver's own last fix serves as the root hint for this long.
 const OWN_HINT_MAX_AGE: Duration = Duration::from_millis(2_000);
+/// The last good fix places the receiver for the second attempt this long,
+/// seconds (a few cycles).
+const HIDDEN_CHECK_MAX_AGE_S: f64 = 1.0;
+/// Added to the region the receiver may be in for the second attempt,
+/// metres: the odometry's own error over a second, and the receivers'
+/// spread on the robot.
+const HIDDEN_CHECK_MARGIN_M: f64 = 0.1;
+/// A region wider than this says too little to hide anything, metres.
+const HIDDEN_CHECK_MAX_RADIUS_M: f64 = 1.0;
 
 /// What one cycle gave.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,6 +66,9 @@ pub struct FixSolver {
     /// The triggers heard from the central unit, when the MSU follows them.
     recent_triggers: RecentTriggers,
     last_fix: Option<(Time, Vector2<f64>)>,
+    /// The last fix whose every signal was checked (`Quality::Good`): its
+    /// fusion time, position and one-sigma uncertainty, metres.
+    last_good: Option<(f64, [f64; 2], f64)>,
     motion: CycleMotion,
     /// The sync sigma each cell last reported, seconds, by clock id (see
     /// [`crate::assembly::Signal::clock`]).
@@ -63,6 +84,7 @@ impl FixSolver {
             cycle_trigger: None,
             recent_triggers: RecentTriggers::default(),
             last_fix: None,
+            last_good: None,
             motion: CycleMotion::new(),
             cell_sync_sigma_s: std::collections::BTreeMap::new(),
         }
@@ -203,30 +225,42 @@ impl FixSolver {
             .motion
             .displacements(&arrival_times_s, reference_s)
             .unwrap_or_else(|| vec![Vector3::zeros(); signals.len()]);
-        let mut sol = match tdoa::solve_moving(&signals, &displacements, &self.solver_config()) {
-            Ok(sol) => sol,
-            Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
-            Err(_) => return no_fix(range_differences),
-        };
         let own = self
             .last_fix
             .filter(|(t, _)| cycle.stamp.since(*t) <= OWN_HINT_MAX_AGE)
             .map(|(_, p)| p);
         let hint = own.or(hint.map(Vector2::from));
-        if let (tdoa::Quality::Ambiguous, Some(other), Some(h)) =
-            (sol.quality, sol.alternative_m, hint)
+        let mut unmatched = cycle.rejected.clone();
+        let first = self.attempt(&signals, &displacements, hint)?;
+        let second = if first
+            .as_ref()
+            .is_none_or(|s| s.quality == tdoa::Quality::Suspect)
         {
-            let here = Vector3::new(h[0], h[1], self.config.height_m);
-            if (other - here).norm() < (sol.position_m - here).norm() {
-                sol.alternative_m = Some(sol.position_m);
-                sol.position_m = other;
+            let hidden = self.hidden(&cycle.signals, reference_s);
+            let keep = |k: &usize| !hidden.contains(k);
+            let (signals, displacements): (Vec<_>, Vec<_>) = (0..signals.len())
+                .filter(keep)
+                .map(|k| (signals[k], displacements[k]))
+                .unzip();
+            match hidden.is_empty() {
+                true => None,
+                false => self
+                    .attempt(&signals, &displacements, hint)?
+                    .filter(|s| s.quality != tdoa::Quality::Suspect)
+                    .map(|s| (s, hidden)),
             }
-        }
-        let cov = sol.covariance_xy_m2();
-        let sigma_m = cov.trace().max(0.0).sqrt();
-        if !(sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m) {
-            return no_fix(range_differences);
-        }
+        } else {
+            None
+        };
+        let mut sol = match (first, second) {
+            (_, Some((sol, hidden))) => {
+                unmatched.extend(hidden.iter().map(|&k| cycle.signals[k].tx_id));
+                sol
+            }
+            (Some(sol), None) => sol,
+            (None, None) => return no_fix(range_differences),
+        };
+        let sigma_m = sol.covariance_xy_m2().trace().max(0.0).sqrt();
         // The fix is stamped with the cycle's mean arrival time over every
         // arrival (exact in nanoseconds); its fusion time is that instant's
         // exact image, so the wire stamp and the estimators agree.
@@ -250,18 +284,76 @@ impl FixSolver {
             // odometry: a wrong root would turn the motion the wrong way.
             self.motion
                 .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
+            self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
         }
-        let wire = wire_fix(
-            &sol,
-            cycle.stamp,
-            msg.seq,
-            self.config.height_m,
-            &cycle.rejected,
-        );
+        let wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
         Ok(SolvedCycle {
             fix: Some((sol, wire)),
             range_differences,
         })
+    }
+
+    /// One solve of `signals`: the fix when it is valid (a root chosen by
+    /// `hint` when two fit, uncertainty within the configured bound),
+    /// `None` when it is not; `Err` for input no solve can use.
+    fn attempt(
+        &self,
+        signals: &[tdoa::Signal],
+        displacements: &[Vector3<f64>],
+        hint: Option<Vector2<f64>>,
+    ) -> Result<Option<tdoa::Fix>, MsuError> {
+        let mut sol = match tdoa::solve_moving(signals, displacements, &self.solver_config()) {
+            Ok(sol) => sol,
+            Err(e) if e.is_bad_input() => return Err(MsuError::Solve(e)),
+            Err(_) => return Ok(None),
+        };
+        if let (tdoa::Quality::Ambiguous, Some(other), Some(h)) =
+            (sol.quality, sol.alternative_m, hint)
+        {
+            let here = Vector3::new(h[0], h[1], self.config.height_m);
+            if (other - here).norm() < (sol.position_m - here).norm() {
+                sol.alternative_m = Some(sol.position_m);
+                sol.position_m = other;
+            }
+        }
+        let sigma_m = sol.covariance_xy_m2().trace().max(0.0).sqrt();
+        Ok((sigma_m.is_finite() && sigma_m <= self.config.max_fix_sigma_m).then_some(sol))
+    }
+
+    /// Indices of `signals` whose transmitter the site's walls and columns
+    /// hide from every place the receiver may be at fusion time `now_s`:
+    /// within three sigma of the last good fix plus the odometry's
+    /// displacement since (and [`HIDDEN_CHECK_MARGIN_M`]), tried at its
+    /// centre and four points on its rim. Empty when that place is not
+    /// known well enough (no good fix for [`HIDDEN_CHECK_MAX_AGE_S`], no
+    /// odometry, a region over [`HIDDEN_CHECK_MAX_RADIUS_M`]).
+    fn hidden(&self, signals: &[Signal], now_s: f64) -> Vec<usize> {
+        let c = &self.config;
+        if c.walls.is_empty() && c.columns.is_empty() {
+            return Vec::new();
+        }
+        let Some((t_s, xy, sigma_m)) = self.last_good else {
+            return Vec::new();
+        };
+        if !(now_s >= t_s && now_s - t_s <= HIDDEN_CHECK_MAX_AGE_S) {
+            return Vec::new();
+        }
+        let Some(driven_m) = self.motion.travelled_m(t_s, now_s) else {
+            return Vec::new();
+        };
+        let r = 3.0 * sigma_m + 1.1 * driven_m + HIDDEN_CHECK_MARGIN_M;
+        if !(r.is_finite() && r <= HIDDEN_CHECK_MAX_RADIUS_M) {
+            return Vec::new();
+        }
+        let places = [[0.0, 0.0], [r, 0.0], [-r, 0.0], [0.0, r], [0.0, -r]]
+            .map(|d| [xy[0] + d[0], xy[1] + d[1], c.height_m]);
+        (0..signals.len())
+            .filter(|&k| {
+                !places
+                    .iter()
+                    .any(|&at| line_of_sight(&c.walls, &c.columns, signals[k].tx_m, at))
+            })
+            .collect()
     }
 
     /// The cycle's arrivals as time differences, for tightly coupled

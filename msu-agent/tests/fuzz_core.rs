@@ -51,6 +51,8 @@ fn msu_config() -> MsuConfig {
         residual_gate_m: 0.05,
         floor_bounds_m: Some([[0.0, 0.0], [5.0, 4.0]]),
         max_fix_sigma_m: 0.5,
+        walls: Vec::new(),
+        columns: Vec::new(),
     }
 }
 

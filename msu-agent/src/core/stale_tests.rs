@@ -19,6 +19,8 @@ fn config() -> MsuConfig {
         residual_gate_m: 0.1,
         floor_bounds_m: None,
         max_fix_sigma_m: 0.5,
+        walls: Vec::new(),
+        columns: Vec::new(),
     }
 }
 

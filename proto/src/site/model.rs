@@ -241,28 +241,7 @@ impl Site {
     /// and column: an obstacle blocks it where the line passes over its footprint
     /// lower than its height.
     pub fn line_of_sight(&self, a: [f64; 3], b: [f64; 3]) -> bool {
-        let (pa, pb) = ([a[0], a[1]], [b[0], b[1]]);
-        let height_at = |t: f64| a[2] + t * (b[2] - a[2]);
-        for w in &self.walls {
-            if let Some(t) = geometry::segment_crossing(pa, pb, w.from, w.to) {
-                if height_at(t) < w.height_m {
-                    return false;
-                }
-            }
-        }
-        for c in &self.columns {
-            let n = c.polygon.len();
-            for i in 0..n {
-                if let Some(t) =
-                    geometry::segment_crossing(pa, pb, c.polygon[i], c.polygon[(i + 1) % n])
-                {
-                    if height_at(t) < c.height_m {
-                        return false;
-                    }
-                }
-            }
-        }
-        true
+        line_of_sight(&self.walls, &self.columns, a, b)
     }
 
     /// Whether a robot can drive straight from `a` to `b` (no wall or column in between).
@@ -279,4 +258,32 @@ impl Site {
         });
         !hits_wall && !hits_column
     }
+}
+
+/// Whether the straight line from `a` to `b` (3D, metres) clears every one
+/// of `walls` and `columns`: an obstacle blocks it where the line passes
+/// over its footprint lower than its height.
+pub fn line_of_sight(walls: &[Wall], columns: &[Column], a: [f64; 3], b: [f64; 3]) -> bool {
+    let (pa, pb) = ([a[0], a[1]], [b[0], b[1]]);
+    let height_at = |t: f64| a[2] + t * (b[2] - a[2]);
+    for w in walls {
+        if let Some(t) = geometry::segment_crossing(pa, pb, w.from, w.to) {
+            if height_at(t) < w.height_m {
+                return false;
+            }
+        }
+    }
+    for c in columns {
+        let n = c.polygon.len();
+        for i in 0..n {
+            if let Some(t) =
+                geometry::segment_crossing(pa, pb, c.polygon[i], c.polygon[(i + 1) % n])
+            {
+                if height_at(t) < c.height_m {
+                    return false;
+                }
+            }
+        }
+    }
+    true
 }

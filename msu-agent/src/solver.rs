@@ -232,25 +232,24 @@ impl FixSolver {
         let hint = own.or(hint.map(Vector2::from));
         let mut unmatched = cycle.rejected.clone();
         let first = self.attempt(&signals, &displacements, hint)?;
-        let second = if first
+        let hidden = if first
             .as_ref()
             .is_none_or(|s| s.quality == tdoa::Quality::Suspect)
         {
-            let hidden = self.hidden(&cycle.signals, reference_s);
-            let keep = |k: &usize| !hidden.contains(k);
+            self.hidden(&cycle.signals, reference_s)
+        } else {
+            Vec::new()
+        };
+        let second = if hidden.is_empty() {
+            None
+        } else {
             let (signals, displacements): (Vec<_>, Vec<_>) = (0..signals.len())
-                .filter(keep)
+                .filter(|k| !hidden.contains(k))
                 .map(|k| (signals[k], displacements[k]))
                 .unzip();
-            match hidden.is_empty() {
-                true => None,
-                false => self
-                    .attempt(&signals, &displacements, hint)?
-                    .filter(|s| s.quality != tdoa::Quality::Suspect)
-                    .map(|s| (s, hidden)),
-            }
-        } else {
-            None
+            self.attempt(&signals, &displacements, hint)?
+                .filter(|s| s.quality != tdoa::Quality::Suspect)
+                .map(|s| (s, hidden))
         };
         let mut sol = match (first, second) {
             (_, Some((sol, hidden))) => {

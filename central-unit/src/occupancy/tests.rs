@@ -30,14 +30,19 @@ fn on() -> FiringConfig {
 const NOW: Time = Time(10_000_000_000);
 const CYCLE: Duration = Duration::from_millis(100);
 
+/// The plan at `NOW` for one robot last seen at `p`, received at
+/// `received`, no velocity known, occupancy on.
+fn plan(t: &SpacingTable, p: &RobotPose, received: Time) -> Option<(Packing, NeedMatrix)> {
+    firing_plan(t, &[RobotView::Seen(p, received, None)], &on(), NOW, CYCLE)
+}
+
 #[test]
 fn a_tracked_robot_fires_only_what_it_can_hear_and_the_cycle_is_short() {
     let (site, _) = Site::builtin("warehouse").unwrap();
     let t = table(&site);
     // In the middle of aisle 1.
     let p = pose(20.0, 1.5, 0.05);
-    let (packing, _) =
-        firing_plan(&t, &[RobotView::Seen(&p, NOW, None)], &on(), NOW, CYCLE).unwrap();
+    let (packing, _) = plan(&t, &p, NOW).unwrap();
     let n = packing.offsets.len();
     // Four or more: enough for a 2D fix with the height known, and a redundant one.
     assert!((4..20).contains(&n), "{n} transmitters fire");
@@ -79,13 +84,7 @@ fn new_robots_make_everything_fire_and_stale_or_lost_ones_get_a_sweep() {
     let off = FiringConfig::default();
     assert!(firing_plan(&t, &[RobotView::Seen(&fresh, NOW, None)], &off, NOW, CYCLE).is_none());
 
-    let firing = |p: &RobotPose, received: Time| {
-        firing_plan(&t, &[RobotView::Seen(p, received, None)], &on(), NOW, CYCLE)
-            .unwrap()
-            .0
-            .offsets
-            .len()
-    };
+    let firing = |p: &RobotPose, received: Time| plan(&t, p, received).unwrap().0.offsets.len();
     let tracked = firing(&fresh, NOW);
     let stale = firing(&fresh, Time(NOW.as_nanos() - 5_000_000_000));
     let lost = firing(&pose(20.0, 1.5, 3.0), NOW);
@@ -100,37 +99,19 @@ fn garbage_poses_make_everything_fire() {
     let (site, _) = Site::builtin("lab").unwrap();
     let t = table(&site);
     let nan = pose(f64::NAN, 1.0, 0.05);
-    assert!(firing_plan(&t, &[RobotView::Seen(&nan, NOW, None)], &on(), NOW, CYCLE).is_none());
+    assert!(plan(&t, &nan, NOW).is_none());
     let mut bad_cov = pose(4.0, 1.0, 0.05);
     bad_cov.covariance[0] = f64::INFINITY;
     assert!(largest_sigma_m(&bad_cov).is_infinite());
     // An infinite sigma is a lost robot: a sweep, not a panic.
-    assert!(
-        firing_plan(
-            &t,
-            &[RobotView::Seen(&bad_cov, NOW, None)],
-            &on(),
-            NOW,
-            CYCLE
-        )
-        .is_some()
-    );
+    assert!(plan(&t, &bad_cov, NOW).is_some());
     // Far off the floor: a sweep of nothing there, so everything fires.
     let away = pose(1e6, -1e6, 0.05);
-    assert!(firing_plan(&t, &[RobotView::Seen(&away, NOW, None)], &on(), NOW, CYCLE).is_none());
+    assert!(plan(&t, &away, NOW).is_none());
     // A pose from the future counts as fresh.
     let fresh = pose(4.0, 1.0, 0.05);
     let future = Time(NOW.as_nanos() + 3_600_000_000_000);
-    assert!(
-        firing_plan(
-            &t,
-            &[RobotView::Seen(&fresh, future, None)],
-            &on(),
-            NOW,
-            CYCLE
-        )
-        .is_some()
-    );
+    assert!(plan(&t, &fresh, future).is_some());
 }
 
 #[test]
@@ -271,9 +252,7 @@ fn a_region_between_sample_points_takes_the_nearest_one() {
     let p = pose(20.11, 1.61, 0.001);
     let (packing, _) =
         firing_plan(&t, &[RobotView::Seen(&p, NOW, None)], &tight, NOW, CYCLE).unwrap();
-    let usual = firing_plan(&t, &[RobotView::Seen(&p, NOW, None)], &on(), NOW, CYCLE)
-        .unwrap()
-        .0;
+    let usual = plan(&t, &p, NOW).unwrap().0;
     assert!(
         (4..=usual.offsets.len()).contains(&packing.offsets.len()),
         "{} of usual {}",

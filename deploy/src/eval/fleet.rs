@@ -68,9 +68,7 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
             },
             ..CentralConfig::default()
         },
-        filter: ickon_sim::engine::FilterOptions {
-            learn_cell_sync: args.learn_cell_sync,
-        },
+        filter: super::filter_options(args),
     };
     let out = match run_fleet(site, &config) {
         Ok(o) => o,

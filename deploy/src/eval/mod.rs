@@ -78,7 +78,7 @@ pub struct EvalArgs {
 
 /// The filter options of `args` (with `--estimator all` they reach
 /// `tdoa-ekf` only).
-fn filter_options(args: &EvalArgs) -> ickon_sim::engine::FilterOptions {
+pub(super) fn filter_options(args: &EvalArgs) -> ickon_sim::engine::FilterOptions {
     ickon_sim::engine::FilterOptions {
         learn_cell_sync: args.learn_cell_sync,
     }

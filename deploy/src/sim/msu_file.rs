@@ -56,8 +56,6 @@ pub(super) fn write_temp(text: &str) -> std::io::Result<tempfile::NamedTempFile>
 mod tests {
     use super::*;
 
-    /// What the sim writes is what the agent reads back: the same estimator
-    /// configuration, bit for bit, for every estimator.
     /// `ickon sim --learn-cell-sync` reaches the agents through their file.
     #[test]
     fn the_cell_sync_option_reaches_the_agents_file() {
@@ -94,6 +92,8 @@ mod tests {
         assert!(!p.learn_cell_sync);
     }
 
+    /// What the sim writes is what the agent reads back: the same estimator
+    /// configuration, bit for bit, for every estimator.
     #[test]
     fn the_agents_read_back_exactly_the_configuration_the_sim_wrote() {
         let site = ickon_proto::site::Site::default_site();

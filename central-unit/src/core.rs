@@ -31,8 +31,10 @@ use std::collections::{BTreeMap, VecDeque};
 
 use ickon_proto::epoch::{epoch_of, plausible_epoch};
 use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
-use ickon_proto::msg::control::{Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo};
-use ickon_proto::msg::robot::{PoseStatus, RobotPose};
+use ickon_proto::msg::control::{
+    Burst, CellStatus, ClockReply, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
+};
+use ickon_proto::msg::robot::{Fix, PoseStatus, RobotPose};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
@@ -40,6 +42,7 @@ use crate::health::{CellTracker, RobotTracker};
 use crate::occupancy::{FiringConfig, RobotView, firing_plan};
 use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
 use crate::spacing::SpacingTable;
+use crate::survey_calibration::{CalibrationConfig, SurveyPublisher};
 use ickon_proto::msg::control::Firing;
 
 /// Which schedule the central unit computes.
@@ -71,6 +74,9 @@ pub struct CentralConfig {
     pub schedule: SchedulePolicy,
     /// Which transmitters fire each cycle.
     pub firing: FiringConfig,
+    /// The fleet's calibration of the transmitters' positions
+    /// ([`crate::survey_calibration`]); `None`: not learnt, not published.
+    pub survey: Option<CalibrationConfig>,
 }
 
 impl Default for CentralConfig {
@@ -82,6 +88,7 @@ impl Default for CentralConfig {
             schedule_reannounce: Duration::from_millis(1_000),
             schedule: SchedulePolicy::default(),
             firing: FiringConfig::default(),
+            survey: Some(CalibrationConfig::default()),
         }
     }
 }
@@ -122,6 +129,8 @@ pub enum Event {
     Fix {
         /// The robot.
         robot: String,
+        /// The fix (boxed: the other events are small).
+        fix: Box<Fix>,
     },
     /// A schedule was published on `central/schedule` (its own included).
     ScheduleSeen(Schedule),
@@ -138,6 +147,8 @@ pub enum Output {
     Trigger(CycleTrigger),
     /// A new schedule on `central/schedule`.
     Schedule(Schedule),
+    /// The fleet's survey calibration on `central/survey`.
+    Survey(SurveyCalibration),
 }
 
 impl Output {
@@ -146,6 +157,7 @@ impl Output {
         match self {
             Self::Trigger(t) => t.epoch,
             Self::Schedule(s) => s.epoch,
+            Self::Survey(s) => s.epoch,
         }
     }
 }
@@ -179,6 +191,11 @@ pub struct CentralCore {
     last_trigger: Option<CycleTrigger>,
     /// The latest `now` seen, to notice the master clock stepping back.
     latest_now: Time,
+    /// The fleet's survey calibration, when the configuration asks for it.
+    survey: Option<SurveyPublisher>,
+    /// Fixes the survey calibration could not take, by reason (debugging
+    /// a calibration that does not move).
+    survey_skipped: BTreeMap<&'static str, u64>,
 }
 
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
@@ -196,6 +213,7 @@ impl CentralCore {
         now: Time,
     ) -> Result<Self, ScheduleError> {
         let epoch = epoch_of(now, None);
+        let site_for_survey = site.clone();
         let all: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
         let schedule = Schedule {
             epoch,
@@ -226,6 +244,10 @@ impl CentralCore {
             table: None,
             last_trigger: None,
             latest_now: now,
+            survey: config
+                .survey
+                .map(|c| SurveyPublisher::new(&site_for_survey, c)),
+            survey_skipped: BTreeMap::new(),
         })
     }
 
@@ -325,8 +347,9 @@ impl CentralCore {
                 self.on_pose(&robot, pose, now);
                 Vec::new()
             }
-            Event::Fix { robot } => {
+            Event::Fix { robot, fix } => {
                 self.on_fix(&robot, now);
+                self.survey_fix(&fix);
                 Vec::new()
             }
             Event::ScheduleSeen(schedule) if self.standby.is_some() => {
@@ -444,9 +467,34 @@ impl CentralCore {
             self.next_reannounce = now + self.config.schedule_reannounce;
             out.push(Output::Schedule(self.latest_schedule().clone()));
         }
+        if let Some(survey) = self.survey.as_mut().and_then(|p| p.due(now, self.epoch)) {
+            out.push(Output::Survey(survey));
+        }
         out.extend(self.reconcile_membership(now));
         self.update_states();
         out
+    }
+
+    /// Gives a robot's fix to the survey calibration (a fix of a robot not
+    /// on the site is counted by the health books, and still a fix of
+    /// the site's transmitters).
+    fn survey_fix(&mut self, fix: &Fix) {
+        let Some(publisher) = self.survey.as_mut() else {
+            return;
+        };
+        if let Err(skipped) = publisher.take_fix(fix) {
+            *self.survey_skipped.entry(skipped.label()).or_default() += 1;
+        }
+    }
+
+    /// The survey calibration learnt so far, `None` when it is off.
+    pub fn survey(&self) -> Option<&SurveyPublisher> {
+        self.survey.as_ref()
+    }
+
+    /// Fixes the survey calibration did not take, by reason.
+    pub fn survey_skipped(&self) -> &BTreeMap<&'static str, u64> {
+        &self.survey_skipped
     }
 
     /// After a forward clock jump (or a process that was stopped), skips
@@ -940,6 +988,10 @@ impl CentralCore {
         self.cells.retain(|id, _| site.cell(id).is_some());
         self.robots
             .retain(|id, _| site.robots.iter().any(|r| &r.id == id));
+        if let Some(c) = self.config.survey {
+            // Other transmitters, or the same ones moved: start again.
+            self.survey = Some(SurveyPublisher::new(&site, c));
+        }
         self.site = site;
         self.table = None;
         self.site_toml = toml_text.to_string();

@@ -28,5 +28,6 @@ pub mod occupancy;
 pub mod pose_track;
 pub mod schedule;
 pub mod spacing;
+pub mod survey_calibration;
 
 pub use schedule::{ScheduleError, compute_schedule, update_rate_hz};

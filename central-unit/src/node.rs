@@ -12,7 +12,7 @@ use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::{AdminAck, CoverageRequest, ReloadRequest};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
-use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::msg::robot::{Fix, RobotPose};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
@@ -44,6 +44,24 @@ pub struct CentralArgs {
     /// follow the cycle triggers' firing sets).
     #[arg(long, value_enum, default_value_t = Firing::All)]
     pub firing: Firing,
+    /// Do not learn the transmitters' survey errors from the robots' fixes
+    /// (nor publish them on `central/survey`).
+    #[arg(long)]
+    pub no_survey_calibration: bool,
+    /// One-sigma timing noise of one arrival, microseconds: what the MSUs'
+    /// data sheet states (their `timing_sigma_us`); weighs each fix in the
+    /// survey calibration.
+    #[arg(long, default_value_t = 50.0, value_parser = timing_sigma_us)]
+    pub timing_sigma_us: f64,
+}
+
+/// `--timing-sigma-us`: a positive number of microseconds up to a second.
+fn timing_sigma_us(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
+        Ok(v) => Err(format!("{v} is not in (0, 1000000] us")),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 /// The central unit's firing policy, as a flag.
@@ -56,10 +74,15 @@ pub enum Firing {
 }
 
 impl CentralArgs {
-    /// The core's configuration these flags ask for.
-    pub fn core_config(&self) -> CentralConfig {
+    /// The core's configuration these flags ask for on `site`.
+    pub fn core_config(&self, site: &Site) -> CentralConfig {
         let mut config = CentralConfig::default();
         config.firing.occupancy = self.firing == Firing::Occupancy;
+        config.survey =
+            (!self.no_survey_calibration).then(|| crate::survey_calibration::CalibrationConfig {
+                range_sigma_m: self.timing_sigma_us * 1e-6 * site.speed_of_sound_m_s,
+                ..Default::default()
+            });
         config
     }
 }
@@ -87,6 +110,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             .map_err(|e| NodeError::Setup(e.to_string()))?;
         let clock = args.node.clock();
         args.node.listen_for_clock_steps(clock)?;
+        let config = args.core_config(&site);
         let r = run(
             &session,
             site,
@@ -94,7 +118,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             clock,
             web.as_ref(),
             args.standby,
-            args.core_config(),
+            config,
             args.node.shutdown(),
         )
         .await;
@@ -203,6 +227,10 @@ pub async fn run(
         .congestion_control(CongestionControl::Block)
         .await
         .map_err(zerr)?;
+    let survey_pub = session
+        .declare_publisher(keys.central_survey())
+        .await
+        .map_err(zerr)?;
     let alive = session
         .liveliness()
         .declare_subscriber(keys.alive_all())
@@ -269,7 +297,7 @@ pub async fn run(
             }
             Ok(q) = admin_q.recv_async() => {
                 let outputs = answer_admin(&keys, &mut core, &q, clock.now()).await;
-                failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
+                failed_puts += publish([&cycle_pub, &schedule_pub, &survey_pub], outputs).await;
                 continue;
             }
             Ok(s) = alive.recv_async() => {
@@ -305,10 +333,16 @@ pub async fn run(
                     _ => continue,
                 }
             }
-            Ok(s) = fix_sub.recv_async() => match keys.parse(s.key_expr().as_str()) {
-                Ok(Key::Robot(robot, _)) => Event::Fix { robot },
-                _ => continue,
-            },
+            Ok(s) = fix_sub.recv_async() => {
+                match (keys.parse(s.key_expr().as_str()), decode::<Fix>(&s.payload().to_bytes())) {
+                    (Ok(Key::Robot(robot, _)), Ok(fix)) => Event::Fix { robot, fix: Box::new(fix) },
+                    (_, Err(_)) => {
+                        undecodable += 1;
+                        continue;
+                    }
+                    _ => continue,
+                }
+            }
             Ok(s) = cycle_sub.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
                 Ok(t) => Event::TriggerSeen(t),
                 Err(_) => {
@@ -340,7 +374,7 @@ pub async fn run(
                 None
             };
         }
-        failed_puts += publish(&cycle_pub, &schedule_pub, outputs).await;
+        failed_puts += publish([&cycle_pub, &schedule_pub, &survey_pub], outputs).await;
     }
     if failed_puts + undecodable > 0 {
         tracing::info!(
@@ -352,8 +386,7 @@ pub async fn run(
 
 /// Publishes the core's outputs; returns how many puts failed.
 async fn publish(
-    cycle_pub: &Publisher<'_>,
-    schedule_pub: &Publisher<'_>,
+    [cycle_pub, schedule_pub, survey_pub]: [&Publisher<'_>; 3],
     outputs: Vec<Output>,
 ) -> u64 {
     let mut failed = 0;
@@ -361,6 +394,7 @@ async fn publish(
         let sent = match o {
             Output::Trigger(t) => put_counted(cycle_pub, &t).await,
             Output::Schedule(s) => put_counted(schedule_pub, &s).await,
+            Output::Survey(s) => put_counted(survey_pub, &s).await,
         };
         failed += u64::from(!sent);
     }

@@ -13,7 +13,7 @@ use ickon_proto::fuzz::extreme::{clock_step, float};
 use ickon_proto::fuzz::values::draw;
 use ickon_proto::fuzz::{config_for, entropy};
 use ickon_proto::msg::control::{Burst, CellStatus, CycleTrigger, Schedule};
-use ickon_proto::msg::robot::RobotPose;
+use ickon_proto::msg::robot::{Fix, FixQuality, RobotPose};
 use ickon_proto::site::{BUILTIN_SITES, Site};
 use ickon_proto::time::{Duration, Time};
 use proptest::prelude::*;
@@ -49,6 +49,16 @@ fn id(e: &[u8]) -> String {
 /// A message near what the core expects: drawn, then (often) stamped
 /// with its epoch, near its cycle and near `now`, so the checks past the
 /// first are reached.
+/// A residual drawn from the entropy's bytes: mostly centimetres, sometimes
+/// metres or not a number.
+fn float_at(e: &[u8], i: usize) -> f64 {
+    match e.get(i).copied().unwrap_or(0) {
+        0 => f64::NAN,
+        1 => 1e300,
+        b => (f64::from(b) - 128.0) * 1e-4,
+    }
+}
+
 fn near<T>(mut m: T, e: &[u8], fix: impl FnOnce(&mut T, u8)) -> T {
     let b = e.get(1).copied().unwrap_or(0);
     if b < 200 {
@@ -85,7 +95,27 @@ fn event(core: &CentralCore, now: Time, a: &Act) -> Option<Event> {
             robot: id(e),
             pose: near(draw::<RobotPose>(e)?, e, |p, _| p.stamp = now),
         },
-        7 => Event::Fix { robot: id(e) },
+        7 => Event::Fix {
+            robot: id(e),
+            // Half of them good fixes of the site's own transmitters, with
+            // drawn (extreme) positions and residuals: the survey
+            // calibration must take them or say why, never fail.
+            fix: Box::new(near(draw::<Fix>(e)?, e, |f, k| {
+                let take = 4 + usize::from(k % 5);
+                f.used = core
+                    .site()
+                    .transmitters
+                    .iter()
+                    .take(take)
+                    .map(|t| t.id)
+                    .collect();
+                f.residuals_m.resize(f.used.len(), float_at(e, 2));
+                f.quality = FixQuality::Good;
+                if k % 3 == 0 {
+                    f.survey_version = 0;
+                }
+            })),
+        },
         8 => Event::ScheduleSeen(near(draw::<Schedule>(e)?, e, |s, k| {
             let own = core.latest_schedule();
             s.epoch = epoch;
@@ -152,6 +182,22 @@ fn check_outputs(core: &CentralCore, now: Time, out: &[Output]) -> Result<(), Te
             Output::Schedule(s) => {
                 prop_assert!(ickon_proto::epoch::check_schedule(s).is_ok(), "{s:?}");
                 prop_assert_eq!(s.epoch, core.epoch());
+            }
+            Output::Survey(s) => {
+                prop_assert_eq!(s.epoch, core.epoch());
+                prop_assert_eq!(s.offsets.len(), core.site().transmitters.len());
+                for o in &s.offsets {
+                    prop_assert!(
+                        o.offset_m
+                            .iter()
+                            .all(|v| v.abs() <= ickon_proto::msg::control::MAX_SURVEY_OFFSET_M),
+                        "{o:?}"
+                    );
+                    prop_assert!(
+                        o.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0),
+                        "{o:?}"
+                    );
+                }
             }
             Output::Trigger(t) => {
                 prop_assert_eq!(t.epoch, core.epoch());

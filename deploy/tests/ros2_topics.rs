@@ -59,6 +59,7 @@ fn fix() -> Fix {
         rejected: vec![],
         residuals_m: vec![0.0; 4],
         quality: FixQuality::Good,
+        survey_version: 0,
     }
 }
 

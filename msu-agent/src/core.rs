@@ -8,7 +8,9 @@ use ickon_fusion::estimator::{
     EncoderSample, Estimator, EstimatorError, GyroSample, Input, RangeSample, WheelGeometry,
 };
 use ickon_fusion::tdoa;
-use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, TransmitterEntry};
+use ickon_proto::msg::control::{
+    CellStatus, CycleTrigger, MAX_SURVEY_OFFSET_M, Schedule, SurveyCalibration, TransmitterEntry,
+};
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
 };
@@ -76,6 +78,16 @@ pub enum MsuError {
         cell: String,
         /// What is wrong with it.
         reason: &'static str,
+    },
+    /// A survey calibration that cannot be used.
+    #[error("survey calibration {version} of epoch {epoch}: {reason}")]
+    Survey {
+        /// Its epoch.
+        epoch: u64,
+        /// Its version.
+        version: u32,
+        /// What is wrong with it.
+        reason: String,
     },
     /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
     #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
@@ -352,6 +364,79 @@ impl MsuCore {
         Ok(Some(wire))
     }
 
+    /// Takes the fleet's survey calibration (`central/survey`): the fix
+    /// solver uses its corrected transmitter positions from the next cycle.
+    /// `Ok(true)`: applied; `Ok(false)`: not newer than the one applied
+    /// (the central unit repeats it), or no schedule yet to tell the
+    /// central unit in charge. Refused, and nothing changes: a
+    /// calibration of another epoch than the schedules followed, an
+    /// unknown or repeated transmitter, an offset or sigma that is not a
+    /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`].
+    pub fn on_survey_calibration(&mut self, c: &SurveyCalibration) -> Result<bool, MsuError> {
+        let refuse = |reason: String| MsuError::Survey {
+            epoch: c.epoch,
+            version: c.version,
+            reason,
+        };
+        match self.solver.schedule_epoch() {
+            // Before the first schedule: the next repeat will do.
+            None => return Ok(false),
+            Some(epoch) if epoch != c.epoch => {
+                return Err(refuse(
+                    "not of the central unit whose schedules are followed".into(),
+                ));
+            }
+            Some(_) => {}
+        }
+        if self
+            .solver
+            .survey_calibration()
+            .is_some_and(|applied| applied >= (c.epoch, c.version))
+        {
+            return Ok(false);
+        }
+        if c.version == 0 {
+            return Err(refuse("version 0 names the surveyed positions".into()));
+        }
+        let known = &self.solver.config().transmitters;
+        let mut seen = std::collections::BTreeSet::new();
+        for o in &c.offsets {
+            if !known.iter().any(|t| t.tx_id == o.tx_id) {
+                return Err(refuse(format!(
+                    "transmitter {} is not in the table",
+                    o.tx_id
+                )));
+            }
+            if !seen.insert(o.tx_id) {
+                return Err(refuse(format!("transmitter {} appears twice", o.tx_id)));
+            }
+            if !o
+                .offset_m
+                .iter()
+                .all(|v| v.is_finite() && v.abs() <= MAX_SURVEY_OFFSET_M)
+            {
+                return Err(refuse(format!(
+                    "transmitter {}: offset {:?} m is not a number or beyond {MAX_SURVEY_OFFSET_M} m",
+                    o.tx_id, o.offset_m
+                )));
+            }
+            if !o.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                return Err(refuse(format!(
+                    "transmitter {}: sigma {:?} m is not a number or negative",
+                    o.tx_id, o.sigma_m
+                )));
+            }
+        }
+        self.solver.set_survey_calibration(Some(c));
+        Ok(true)
+    }
+
+    /// `(epoch, version)` of the survey calibration the fixes are solved
+    /// with; `None`: the surveyed positions.
+    pub fn survey_calibration(&self) -> Option<(u64, u32)> {
+        self.solver.survey_calibration()
+    }
+
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
     pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
         self.gate(odom.stamp)?;
@@ -440,6 +525,8 @@ mod hidden_tests;
 #[cfg(test)]
 mod stale_tests;
 #[cfg(test)]
+mod survey_tests;
+#[cfg(test)]
 mod sync_tests;
 
 #[cfg(test)]
@@ -495,7 +582,7 @@ mod tests {
         core
     }
 
-    fn schedule() -> Schedule {
+    pub(super) fn schedule() -> Schedule {
         Schedule {
             version: 1,
             effective_cycle: 0,
@@ -517,8 +604,18 @@ mod tests {
     }
 
     pub(super) fn arrivals(p: [f64; 3], late_m: &[(u32, f64)]) -> UltrasoundArrivals {
+        arrivals_from(&TX, p, late_m)
+    }
+
+    /// The arrivals at `p` from transmitters hanging at `tx` (the table's
+    /// positions, or where a wrong survey put them).
+    pub(super) fn arrivals_from(
+        tx: &[(u32, [f64; 3])],
+        p: [f64; 3],
+        late_m: &[(u32, f64)],
+    ) -> UltrasoundArrivals {
         let start_s = 10.0;
-        let arrivals = TX
+        let arrivals = tx
             .iter()
             .enumerate()
             .map(|(i, (id, t))| {

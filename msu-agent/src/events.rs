@@ -7,7 +7,7 @@
 //! each odometry sample (the robot's own rate); gyro and obstacle samples
 //! move the estimate without a publication of their own.
 
-use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
 
 use crate::core::{MsuCore, MsuError};
@@ -29,6 +29,8 @@ pub enum Event {
     Range(ObstacleRanges),
     /// A cell's status (its sync sigma: how far its bursts may be off).
     CellStatus(CellStatus),
+    /// The fleet's survey calibration from the central unit.
+    Survey(SurveyCalibration),
 }
 
 /// Which kind of input an [`Output::Refused`] concerns.
@@ -46,6 +48,8 @@ pub enum InputKind {
     Schedule,
     /// A cell's status.
     CellStatus,
+    /// A survey calibration.
+    Survey,
 }
 
 /// What the core asks its adapter to do.
@@ -101,6 +105,11 @@ impl MsuCore {
             Event::CellStatus(status) => {
                 if let Err(e) = self.on_cell_status(&status) {
                     out.push(refused(InputKind::CellStatus, e));
+                }
+            }
+            Event::Survey(survey) => {
+                if let Err(e) = self.on_survey_calibration(&survey) {
+                    out.push(refused(InputKind::Survey, e));
                 }
             }
         }

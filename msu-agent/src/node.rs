@@ -14,7 +14,7 @@ use clap::Args;
 
 use ickon_fusion::estimator;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SiteInfo};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::{DecodeError, decode};
@@ -135,6 +135,11 @@ pub async fn run(
     // Each cell's sync sigma: the prior of its clock bias in `tdoa-ekf`.
     let status_sub = session
         .declare_subscriber(keys.cell_status_all())
+        .await
+        .map_err(zerr)?;
+    // The fleet's survey calibration: the transmitters' corrected positions.
+    let survey_sub = session
+        .declare_subscriber(keys.central_survey())
         .await
         .map_err(zerr)?;
     let Some(schedule) = fetch::<Schedule>(
@@ -269,6 +274,7 @@ pub async fn run(
                     }
                 }
             }),
+            Ok(s) = survey_sub.recv_async() => decoded!(s, SurveyCalibration, "undecodable survey calibration").map(Event::Survey),
             Some(input) = inputs.recv() => match input.into_event() {
                 Ok(event) => {
                     if matches!(event, Event::Arrivals(_)) {
@@ -293,7 +299,22 @@ pub async fn run(
             r.note_odometry(odom);
         }
         let mut ros_fix = None;
-        for output in core.handle(event) {
+        let survey_before = core.survey_calibration();
+        let survey_fixes = match &event {
+            Event::Survey(c) => Some(c.fixes_taken),
+            _ => None,
+        };
+        let outputs = core.handle(event);
+        if let (Some(fixes), Some((epoch, version))) = (survey_fixes, core.survey_calibration()) {
+            if survey_before.is_none_or(|(e, _)| e != epoch) {
+                tracing::info!(
+                    "robot {robot}: solving with the fleet's survey calibration (v{version}, from {fixes} fixes; newer ones follow silently)"
+                );
+            } else if survey_before != Some((epoch, version)) {
+                tracing::debug!("robot {robot}: survey calibration v{version} ({fixes} fixes)");
+            }
+        }
+        for output in outputs {
             match output {
                 Output::Fix(fix) => {
                     if !put_counted(&fix_pub, &fix).await {

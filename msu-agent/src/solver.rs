@@ -19,7 +19,7 @@
 use ickon_fusion::estimator::{Input, RangeDifferenceSample, TransmitterClock};
 use ickon_fusion::tdoa;
 use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
-use ickon_proto::msg::control::{CycleTrigger, Schedule};
+use ickon_proto::msg::control::{CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
 use ickon_proto::site::line_of_sight;
 use ickon_proto::time::{Duration, Time};
@@ -73,12 +73,24 @@ pub struct FixSolver {
     /// The sync sigma each cell last reported, seconds, by clock id (see
     /// [`crate::assembly::Signal::clock`]).
     cell_sync_sigma_s: std::collections::BTreeMap<u32, f64>,
+    /// The surveyed positions of the table, metres, by transmitter id (the
+    /// table's own positions carry the fleet's calibration when one applies).
+    surveyed_m: std::collections::BTreeMap<u32, [f64; 3]>,
+    /// `(epoch, version)` of the survey calibration the table carries.
+    survey: Option<(u64, u32)>,
 }
 
 impl FixSolver {
     /// A solver for an MSU configured as `config`, with no schedule yet.
     pub fn new(config: MsuConfig) -> Self {
+        let surveyed_m = config
+            .transmitters
+            .iter()
+            .map(|t| (t.tx_id, [t.x_m, t.y_m, t.z_m]))
+            .collect();
         Self {
+            surveyed_m,
+            survey: None,
             config,
             schedules: ScheduleBook::new(),
             cycle_trigger: None,
@@ -120,6 +132,34 @@ impl FixSolver {
         self.motion.odometry(input);
     }
 
+    /// Solves from now on with each transmitter at its surveyed position
+    /// plus its offset in `calibration` (a transmitter it does not name:
+    /// the surveyed position); `None`: the surveyed positions. The caller
+    /// checks the calibration ([`crate::MsuCore::on_survey_calibration`]).
+    pub fn set_survey_calibration(&mut self, calibration: Option<&SurveyCalibration>) {
+        let offsets: std::collections::BTreeMap<u32, [f64; 3]> = calibration
+            .map(|c| c.offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect())
+            .unwrap_or_default();
+        for t in &mut self.config.transmitters {
+            if let Some(&[x, y, z]) = self.surveyed_m.get(&t.tx_id) {
+                let [dx, dy, dz] = offsets.get(&t.tx_id).copied().unwrap_or([0.0; 3]);
+                (t.x_m, t.y_m, t.z_m) = (x + dx, y + dy, z + dz);
+            }
+        }
+        self.survey = calibration.map(|c| (c.epoch, c.version));
+    }
+
+    /// `(epoch, version)` of the survey calibration solved with, `None`:
+    /// the surveyed positions.
+    pub fn survey_calibration(&self) -> Option<(u64, u32)> {
+        self.survey
+    }
+
+    /// The epoch of the schedules followed.
+    pub fn schedule_epoch(&self) -> Option<u64> {
+        self.schedules.epoch()
+    }
+
     /// The configuration.
     pub fn config(&self) -> &MsuConfig {
         &self.config
@@ -134,7 +174,15 @@ impl FixSolver {
     /// Takes the schedule the arrivals are matched against (the newest
     /// the rules of [`ickon_proto::epoch`] allow; a refused one changes nothing).
     pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), ScheduleRefused> {
-        self.schedules.offer(schedule).map(|_| ())
+        self.schedules.offer(schedule)?;
+        // A calibration is its central unit's: a new one starts from the
+        // survey (its fixes' versions would otherwise name the old one's).
+        if let Some((epoch, _)) = self.survey {
+            if self.schedules.epoch() != Some(epoch) {
+                self.set_survey_calibration(None);
+            }
+        }
+        Ok(())
     }
 
     /// The trigger of the next cycle to solve: its firings and period
@@ -285,7 +333,8 @@ impl FixSolver {
                 .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
             self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
         }
-        let wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
+        let mut wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
+        wire.survey_version = self.survey.map_or(0, |(_, version)| version);
         Ok(SolvedCycle {
             fix: Some((sol, wire)),
             range_differences,
@@ -422,6 +471,7 @@ pub fn wire_fix(
         used: fix.used_tx_ids.clone(),
         rejected,
         residuals_m: fix.residuals_m.clone(),
+        survey_version: 0,
         quality: match fix.quality {
             tdoa::Quality::Good => FixQuality::Good,
             tdoa::Quality::Minimal => FixQuality::Minimal,

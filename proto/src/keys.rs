@@ -109,6 +109,8 @@ pub enum Key {
     CentralCycle,
     /// `central/clock`
     CentralClock,
+    /// `central/survey`
+    CentralSurvey,
     /// `central/admin/<command>`
     CentralAdmin(String),
     /// `alive/central`
@@ -169,6 +171,11 @@ impl Keys {
     /// `ickon/<site>/central/cycle`: [`CycleTrigger`](crate::msg::control::CycleTrigger) puts.
     pub fn central_cycle(&self) -> String {
         format!("{}/central/cycle", self.prefix)
+    }
+
+    /// `ickon/<site>/central/survey`: [`SurveyCalibration`](crate::msg::control::SurveyCalibration) puts.
+    pub fn central_survey(&self) -> String {
+        format!("{}/central/survey", self.prefix)
     }
 
     /// `ickon/<site>/central/clock`: queryable, [`ClockRequest`](crate::msg::control::ClockRequest)
@@ -282,6 +289,7 @@ impl Keys {
             ["central", "schedule"] => Ok(Key::CentralSchedule),
             ["central", "cycle"] => Ok(Key::CentralCycle),
             ["central", "clock"] => Ok(Key::CentralClock),
+            ["central", "survey"] => Ok(Key::CentralSurvey),
             ["central", "admin", cmd] => Ok(Key::CentralAdmin(id(cmd)?)),
             ["alive", "central"] => Ok(Key::AliveCentral),
             ["alive", "world"] => Ok(Key::AliveWorld),
@@ -315,6 +323,7 @@ mod tests {
             (k.central_schedule(), Key::CentralSchedule),
             (k.central_cycle(), Key::CentralCycle),
             (k.central_clock(), Key::CentralClock),
+            (k.central_survey(), Key::CentralSurvey),
             (
                 k.central_admin("status").unwrap(),
                 Key::CentralAdmin("status".into()),

@@ -7,7 +7,8 @@
 use std::collections::BTreeSet;
 
 use ickon_proto::msg::control::{
-    Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo,
+    Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo, SurveyCalibration,
+    TransmitterOffset,
 };
 use ickon_proto::msg::robot::{
     Arrival, Fix, FixQuality, Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
@@ -260,6 +261,7 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
                 rejected: vec![14],
                 residuals_m: vec![0.001, -0.002, 0.0005],
                 quality,
+                survey_version: 1_764_000_000,
             },
             &mut checked,
         );
@@ -361,6 +363,28 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             slots_skipped: 1,
             faults: vec!["central unit silent".into()],
             inputs_refused: 4,
+        },
+        &mut checked,
+    );
+    let offset = TransmitterOffset {
+        tx_id: 31,
+        offset_m: [0.004, -0.002, 0.011],
+        sigma_m: [0.006, 0.007, 0.003],
+    };
+    check("TransmitterOffset", &offset, &mut checked);
+    check(
+        "SurveyCalibration",
+        &SurveyCalibration {
+            epoch: 99,
+            version: 1_764_000_001,
+            fixes_taken: 2_021,
+            offsets: vec![
+                offset,
+                TransmitterOffset {
+                    tx_id: 32,
+                    ..offset
+                },
+            ],
         },
         &mut checked,
     );

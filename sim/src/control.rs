@@ -165,6 +165,7 @@ pub struct ControlPlane {
     fired: Vec<FiredBurst>,
     triggers: Vec<CycleTrigger>,
     statuses: Vec<ickon_proto::msg::control::CellStatus>,
+    surveys: Vec<ickon_proto::msg::control::SurveyCalibration>,
 }
 
 impl ControlPlane {
@@ -220,6 +221,7 @@ impl ControlPlane {
             fired: Vec::new(),
             triggers: Vec::new(),
             statuses: Vec::new(),
+            surveys: Vec::new(),
         };
         for i in 0..cp.cells.len() {
             cp.start_cell(i);
@@ -252,6 +254,12 @@ impl ControlPlane {
     /// the central unit does).
     pub fn take_statuses(&mut self) -> Vec<ickon_proto::msg::control::CellStatus> {
         std::mem::take(&mut self.statuses)
+    }
+
+    /// Survey calibrations the central unit published since the last call
+    /// (for the MSUs; the cells do not hear them).
+    pub fn take_surveys(&mut self) -> Vec<ickon_proto::msg::control::SurveyCalibration> {
+        std::mem::take(&mut self.surveys)
     }
 
     /// What each cell's core counted and how well it kept time.
@@ -478,6 +486,10 @@ impl ControlPlane {
                     CellEvent::Trigger(t)
                 }
                 CentralOutput::Schedule(s) => CellEvent::Schedule(s),
+                CentralOutput::Survey(s) => {
+                    self.surveys.push(s);
+                    continue;
+                }
             };
             for i in 0..self.cells.len() {
                 if self.cells[i].core.is_some() {

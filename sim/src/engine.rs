@@ -8,6 +8,7 @@
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BinaryHeap};
 
+use ickon_central::survey_calibration::CalibrationConfig;
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
 use ickon_msu::{MsuConfig, MsuCore};
 use ickon_proto::msg::control::Schedule;
@@ -256,6 +257,21 @@ pub fn msu_config(site: &Site, profile: &NoiseProfile, wheels: WheelGeometry) ->
     MsuConfig::for_site(site, timing_sigma_s(profile), wheels)
 }
 
+/// The id a route run's one robot has towards the central unit (its
+/// fixes feed the survey calibration).
+const ROBOT_ID: &str = "robot";
+
+/// The central unit's survey calibration on `site` under `profile`: the
+/// defaults of [`CalibrationConfig`], with the arrivals' timing noise the
+/// MSU's data sheet states ([`timing_sigma_s`]) at the site's speed of
+/// sound.
+pub fn survey_calibration(site: &Site, profile: &NoiseProfile) -> CalibrationConfig {
+    CalibrationConfig {
+        range_sigma_m: timing_sigma_s(profile) * site.speed_of_sound_m_s,
+        ..CalibrationConfig::default()
+    }
+}
+
 /// The one-sigma timing noise of one arrival under `profile` (jitter and
 /// quantisation), as the MSU's data sheet would state it; at least 1 us.
 pub fn timing_sigma_s(profile: &NoiseProfile) -> f64 {
@@ -350,6 +366,9 @@ pub fn run(
         for status in control.take_statuses() {
             let _ = core.on_cell_status(&status);
         }
+        for survey in control.take_surveys() {
+            let _ = core.on_survey_calibration(&survey);
+        }
         for trigger in control.take_triggers() {
             // Every burst of the cycle has been heard by then.
             let period_s = trigger
@@ -442,6 +461,10 @@ pub fn run(
                 let _ = core.set_schedule(control.schedule_for(k).clone());
                 core.set_cycle_trigger(trigger);
                 if let Ok(Some(fix)) = core.on_arrivals(&msg) {
+                    control.send_to_central(ickon_central::core::Event::Fix {
+                        robot: ROBOT_ID.into(),
+                        fix: Box::new(fix.clone()),
+                    });
                     let t_true = world.msu_clock.true_s(fix.stamp.as_secs_f64());
                     let used_tx_m = fix
                         .used

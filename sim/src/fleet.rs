@@ -63,6 +63,9 @@ pub struct RobotResult {
     pub p95_err_mm: f64,
     /// What collisions and reverberation did to its detections.
     pub collisions: CollisionCounts,
+    /// Of its fixes after the warm-up, those solved with the central unit's
+    /// survey calibration.
+    pub calibrated_fixes: u64,
 }
 
 /// A fleet run's results.
@@ -78,6 +81,9 @@ pub struct FleetOutput {
     pub transmitters: usize,
     /// Every robot's collisions added up.
     pub collisions: CollisionCounts,
+    /// Fixes the central unit's survey calibration learnt from (`None`:
+    /// the calibration was off).
+    pub survey_fixes_taken: Option<u64>,
 }
 
 struct Member {
@@ -86,6 +92,7 @@ struct Member {
     world: World,
     core: MsuCore,
     fixes: u64,
+    calibrated_fixes: u64,
     errors_mm: Vec<f64>,
 }
 
@@ -132,6 +139,7 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             world,
             core,
             fixes: 0,
+            calibrated_fixes: 0,
             errors_mm: Vec::new(),
         });
     }
@@ -156,6 +164,11 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
         for status in control.take_statuses() {
             for m in &mut members {
                 let _ = m.core.on_cell_status(&status);
+            }
+        }
+        for survey in control.take_surveys() {
+            for m in &mut members {
+                let _ = m.core.on_survey_calibration(&survey);
             }
         }
         for trigger in control.take_triggers() {
@@ -201,14 +214,20 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
                 if fired.is_empty() {
                     continue;
                 }
-                let schedule = control.schedule_for(k);
+                let schedule = control.schedule_for(k).clone();
                 for m in &mut members {
                     let msg = m.world.arrivals_from_emissions(&fired);
                     let _ = m.core.set_schedule(schedule.clone());
                     m.core.set_cycle_trigger(Some(trigger.clone()));
-                    if let Ok(Some(_)) = m.core.on_arrivals(&msg) {
+                    if let Ok(Some(fix)) = m.core.on_arrivals(&msg) {
+                        let calibrated = fix.survey_version != 0;
+                        control.send_to_central(CentralEvent::Fix {
+                            robot: m.id.clone(),
+                            fix: Box::new(fix),
+                        });
                         if scoring {
                             m.fixes += 1;
+                            m.calibrated_fixes += u64::from(calibrated);
                         }
                     }
                 }
@@ -263,6 +282,7 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
                     m.errors_mm[((n as f64 * 0.95) as usize).min(n - 1)]
                 },
                 collisions: c,
+                calibrated_fixes: m.calibrated_fixes,
             }
         })
         .collect();
@@ -276,6 +296,10 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
         },
         transmitters: control.central().latest_schedule().emissions.len(),
         collisions: total,
+        survey_fixes_taken: control
+            .central()
+            .survey()
+            .map(|p| p.calibration().fixes_taken()),
     })
 }
 

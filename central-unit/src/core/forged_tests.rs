@@ -27,6 +27,7 @@ fn everything_published_carries_the_epoch_of_the_start() {
     assert!(out.iter().all(|o| match o {
         Output::Trigger(t) => t.epoch == 5_000,
         Output::Schedule(s) => s.epoch == 5_000,
+        Output::Survey(s) => s.epoch == 5_000,
     }));
     assert_eq!(
         CentralCore::clock_reply(c.epoch(), Time(1), Time(2), Time(3)).epoch,
@@ -44,6 +45,7 @@ fn its_own_schedule_and_triggers_coming_back_are_not_foreign() {
         let back = match o {
             Output::Trigger(t) => Event::TriggerSeen(t),
             Output::Schedule(s) => Event::ScheduleSeen(s),
+            Output::Survey(_) => continue,
         };
         c.handle(now, back);
     }

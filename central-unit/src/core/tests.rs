@@ -1,4 +1,5 @@
 use super::*;
+use ickon_proto::msg::robot::FixQuality;
 
 fn core() -> CentralCore {
     let site = Site::default_site();
@@ -13,6 +14,28 @@ fn all_alive() -> CentralCore {
     }
     assert_eq!(c.latest_schedule().active_cells.len(), 4);
     c
+}
+
+/// A fix of `robot` that says nothing of the survey (no signals used).
+pub(super) fn fix_of(robot: &str) -> Event {
+    Event::Fix {
+        robot: robot.into(),
+        fix: Box::new(Fix {
+            stamp: Time(0),
+            arrivals_seq: 0,
+            x_m: 1.0,
+            y_m: 1.0,
+            z_m: 0.3,
+            covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 0.0],
+            heading_rad: 0.0,
+            heading_valid: false,
+            used: Vec::new(),
+            rejected: Vec::new(),
+            residuals_m: Vec::new(),
+            quality: FixQuality::Minimal,
+            survey_version: 0,
+        }),
+    }
 }
 
 fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
@@ -306,7 +329,7 @@ fn events_reach_the_same_state_as_the_methods_and_due_triggers_come_with_them() 
     assert!(!s.active_cells.contains(&"c3".to_string()));
     // Any event at or past the wake-up time also emits the due trigger.
     let due = c.next_wake();
-    let out = c.handle(due, Event::Fix { robot: "r1".into() });
+    let out = c.handle(due, fix_of("r1"));
     assert_eq!(triggers(&out).len(), 1);
     assert!(c.status(due).robots.iter().any(|r| r.id == "r1"));
     // Before it, nothing is emitted.
@@ -318,12 +341,7 @@ fn events_reach_the_same_state_as_the_methods_and_due_triggers_come_with_them() 
 fn robots_the_site_does_not_know_are_counted_not_tracked() {
     let mut c = core();
     for k in 0..10_000 {
-        c.handle(
-            Time(k),
-            Event::Fix {
-                robot: format!("x{k}"),
-            },
-        );
+        c.handle(Time(k), fix_of(&format!("x{k}")));
     }
     c.handle(
         Time(0),
@@ -332,7 +350,7 @@ fn robots_the_site_does_not_know_are_counted_not_tracked() {
             up: true,
         },
     );
-    c.handle(Time(1), Event::Fix { robot: "r1".into() });
+    c.handle(Time(1), fix_of("r1"));
     let ids: Vec<String> = c.status(Time(2)).robots.into_iter().map(|r| r.id).collect();
     assert_eq!(ids, vec!["r1".to_string()]);
     assert_eq!(c.unknown_robot_messages(), 10_001);
@@ -612,4 +630,78 @@ fn a_forged_last_version_does_not_overflow_the_next_schedule() {
     c.handle(now + Duration::from_millis(500), Event::Tick);
     let (ack, _) = c.reload(ickon_proto::site::DEFAULT_SITE_TOML, "lab.toml", now);
     assert!(ack.ok || !ack.messages.is_empty());
+}
+
+#[test]
+fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes() {
+    let mut c = core();
+    let now = c.next_wake();
+    let out = c.tick(now);
+    let first = out
+        .iter()
+        .find_map(|o| match o {
+            Output::Survey(s) => Some(s.clone()),
+            _ => None,
+        })
+        .expect("a calibration with the first trigger");
+    assert_eq!(first.epoch, c.epoch());
+    assert_eq!(first.fixes_taken, 0);
+    assert_eq!(first.offsets.len(), c.site().transmitters.len());
+    let Event::Fix { fix, .. } = fix_of("r1") else {
+        unreachable!()
+    };
+    let good = Fix {
+        x_m: 4.0,
+        y_m: 1.25,
+        used: vec![11, 12, 13, 14],
+        residuals_m: vec![0.002, -0.001, 0.001, -0.002],
+        quality: FixQuality::Good,
+        ..*fix
+    };
+    c.handle(
+        now,
+        Event::Fix {
+            robot: "r1".into(),
+            fix: Box::new(good.clone()),
+        },
+    );
+    // A version it never published: not read.
+    let unknown = Fix {
+        survey_version: first.version + 5,
+        ..good.clone()
+    };
+    c.handle(
+        now,
+        Event::Fix {
+            robot: "r1".into(),
+            fix: Box::new(unknown),
+        },
+    );
+    assert_eq!(c.survey().unwrap().calibration().fixes_taken(), 1);
+    assert_eq!(c.survey_skipped().get("unknown calibration"), Some(&1));
+    let later = now + Duration::from_millis(1_500);
+    let next = c
+        .handle(later, Event::Tick)
+        .into_iter()
+        .find_map(|o| match o {
+            Output::Survey(s) => Some(s),
+            _ => None,
+        })
+        .expect("again a second later");
+    assert!(next.version > first.version);
+    assert_eq!(next.fixes_taken, 1);
+    // Off: nothing learnt, nothing published.
+    let mut off = CentralCore::new(
+        Site::default_site(),
+        String::new(),
+        CentralConfig {
+            survey: None,
+            ..CentralConfig::default()
+        },
+        Time(0),
+    )
+    .unwrap();
+    let now = off.next_wake();
+    assert!(!off.tick(now).iter().any(|o| matches!(o, Output::Survey(_))));
+    assert!(off.survey().is_none());
 }

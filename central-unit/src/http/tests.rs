@@ -315,6 +315,7 @@ fn forged_and_broken_messages_are_counted_not_kept() {
         rejected: vec![],
         residuals_m: vec![],
         quality: FixQuality::Suspect,
+        survey_version: 0,
     };
     v.on_fix(&id, fix, Time(0));
     // A forged far-future pose still compares without overflow.

@@ -60,6 +60,10 @@ pub struct ScaleArgs {
     /// (`ickon sim --learn-cell-sync`).
     #[arg(long)]
     pub learn_cell_sync: bool,
+    /// The central unit does not learn the transmitters' survey errors
+    /// (`ickon sim --no-survey-calibration`).
+    #[arg(long)]
+    pub no_survey_calibration: bool,
 }
 
 /// One size of the benchmark in the JSON document.
@@ -101,6 +105,7 @@ pub fn run(command: BenchCommand) -> ExitCode {
             standby: false,
             faults: None,
             learn_cell_sync: args.learn_cell_sync,
+            no_survey_calibration: args.no_survey_calibration,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

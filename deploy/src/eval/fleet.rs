@@ -52,6 +52,7 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
         eprintln!("error: --duration must be more than the 3 s warm-up");
         return ExitCode::from(EXIT_BAD_INPUT);
     }
+    let survey = super::survey_calibration(args, site, &profile);
     let config = FleetConfig {
         robots,
         duration_s: duration,
@@ -66,6 +67,7 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
                 fire_range_m,
                 ..FiringConfig::default()
             },
+            survey,
             ..CentralConfig::default()
         },
         filter: super::filter_options(args),
@@ -112,6 +114,10 @@ pub fn run(site: &Site, profile: NoiseProfile, robots: usize, args: &EvalArgs) -
         "cycles: {:.2}/s, {:.1} of {} transmitters fired per cycle on average",
         out.cycles_per_s, out.mean_firing, out.transmitters
     );
+    match out.survey_fixes_taken {
+        Some(n) => println!("survey calibration: learnt from {n} of the fleet's fixes"),
+        None => println!("survey calibration: off"),
+    }
     println!(
         "{:>6} {:>9} {:>8} {:>10} {:>10} {:>9}",
         "robot", "route", "fixes/s", "mean mm", "p95 mm", "lost %"

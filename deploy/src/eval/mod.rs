@@ -74,6 +74,21 @@ pub struct EvalArgs {
     /// (with `--estimator all`: `tdoa-ekf` only).
     #[arg(long)]
     pub learn_cell_sync: bool,
+    /// The central unit does not learn the transmitters' survey errors
+    /// from the fleet's fixes (on by default; see
+    /// `ickon_central::survey_calibration`).
+    #[arg(long)]
+    pub no_survey_calibration: bool,
+}
+
+/// The central unit's survey calibration for `args` on `site` under
+/// `profile` (`None` with `--no-survey-calibration`).
+pub(super) fn survey_calibration(
+    args: &EvalArgs,
+    site: &Site,
+    profile: &ickon_sim::NoiseProfile,
+) -> Option<ickon_central::survey_calibration::CalibrationConfig> {
+    (!args.no_survey_calibration).then(|| ickon_sim::engine::survey_calibration(site, profile))
 }
 
 /// The filter options of `args` (with `--estimator all` they reach
@@ -240,6 +255,7 @@ fn simulate(
                     estimators: estimators.to_vec(),
                     central: ickon_central::core::CentralConfig {
                         schedule: policy,
+                        survey: survey_calibration(args, site, profile),
                         ..Default::default()
                     },
                     filter: filter_options(args),

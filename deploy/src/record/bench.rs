@@ -301,6 +301,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
                         .map(|_| noise(&mut rng, 0.01))
                         .collect(),
                     quality: FixQuality::Good,
+                    survey_version: 0,
                 };
                 put(recorder, &k[5], &fix, now)?;
                 let pose = RobotPose {

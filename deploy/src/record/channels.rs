@@ -5,7 +5,9 @@
 use std::collections::BTreeMap;
 
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::control::{Burst, CellStatus, CycleTrigger, Schedule, SiteInfo};
+use ickon_proto::msg::control::{
+    Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
+};
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
 };
@@ -101,6 +103,10 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
             own(None)
         }
         Key::CentralCycle => own(Some(decode::<CycleTrigger>(payload)?.start)),
+        Key::CentralSurvey => {
+            decode::<SurveyCalibration>(payload)?;
+            own(None)
+        }
         Key::CellBurst(_) => own(Some(decode::<Burst>(payload)?.actual)),
         Key::CellStatus(_) => own(Some(decode::<CellStatus>(payload)?.stamp)),
         Key::SimTruth(_) => own(Some(decode::<Truth>(payload)?.stamp)),

@@ -17,7 +17,7 @@ use ickon_proto::decode;
 use ickon_proto::keys::{Key, RobotTopic};
 use std::sync::Arc;
 
-use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{
     Imu, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
 };
@@ -53,6 +53,8 @@ pub enum Input {
     Range(ObstacleRanges),
     /// A cell's status (to every robot; shared like a trigger).
     CellStatus(Arc<CellStatus>),
+    /// The fleet's survey calibration (to every robot; shared).
+    Survey(Arc<SurveyCalibration>),
 }
 
 impl Input {
@@ -61,7 +63,7 @@ impl Input {
     fn is_control(&self) -> bool {
         matches!(
             self,
-            Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_)
+            Input::Schedule(_) | Input::Trigger(_) | Input::CellStatus(_) | Input::Survey(_)
         )
     }
 }
@@ -119,6 +121,9 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
                 }
                 Err(_) => false,
             },
+            Key::CentralSurvey => decode::<SurveyCalibration>(&m.data)
+                .map(|c| control.push((i, Input::Survey(Arc::new(c)))))
+                .is_ok(),
             Key::SimTruth(id) => decode::<Truth>(&m.data)
                 .map(|v| robot(&mut robots, id).truth.push(v))
                 .is_ok(),
@@ -231,6 +236,11 @@ pub fn run(
             Input::CellStatus(s) => {
                 // A status refused here was refused by the live agent too.
                 let _ = core.on_cell_status(s);
+                false
+            }
+            Input::Survey(c) => {
+                // Refused here, refused by the live agent too.
+                let _ = core.on_survey_calibration(c);
                 false
             }
             Input::Arrivals(m) => matches!(core.on_arrivals(m), Ok(Some(_))),

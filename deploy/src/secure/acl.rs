@@ -142,6 +142,8 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
                     keys.central_cycle(),
                     // Each cell's sync sigma (the prior of its clock bias).
                     keys.cell_status_all(),
+                    // The transmitters' positions as the fleet calibrated them.
+                    keys.central_survey(),
                     format!("{d}/{id}/**"),
                 ],
             ),
@@ -326,6 +328,7 @@ mod tests {
                 "ickon/lab/cell/*/status",
                 "ickon/lab/central/cycle",
                 "ickon/lab/central/schedule",
+                "ickon/lab/central/survey",
                 "ickon/lab/robot/r1/**"
             ]
         );

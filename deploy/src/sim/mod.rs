@@ -115,6 +115,10 @@ pub struct SimArgs {
     /// (`learn_cell_sync = true` in the configuration file they are given).
     #[arg(long)]
     pub learn_cell_sync: bool,
+    /// The central unit does not learn the transmitters' survey errors
+    /// from the robots' fixes (on by default).
+    #[arg(long)]
+    pub no_survey_calibration: bool,
 }
 
 impl SimArgs {
@@ -369,7 +373,13 @@ pub async fn measure(
     let firing = clap::ValueEnum::to_possible_value(&args.firing)
         .map(|v| v.get_name().to_string())
         .unwrap_or_default();
-    central_cmd.args(["--firing", &firing]);
+    let timing_sigma_us = format!("{}", ickon_sim::engine::timing_sigma_s(profile) * 1e6);
+    let survey_flags: Vec<&str> = if args.no_survey_calibration {
+        vec!["--no-survey-calibration"]
+    } else {
+        vec!["--timing-sigma-us", &timing_sigma_us]
+    };
+    central_cmd.args(["--firing", &firing]).args(&survey_flags);
     credential(&mut central_cmd, &crate::secure::Identity::Central);
     let web = launch::http_flags(args, &mut central_cmd)?;
     clock_steps(&mut central_cmd, "central");
@@ -380,7 +390,9 @@ pub async fn measure(
             Mesh::Router => node_command(args, site, "central", &hub, "")?,
             Mesh::Peer => node_command(args, site, "central", "", &hub)?,
         };
-        standby.args(["--standby", "--firing", &firing]);
+        standby
+            .args(["--standby", "--firing", &firing])
+            .args(&survey_flags);
         clock_steps(&mut standby, "central standby");
         credential(&mut standby, &crate::secure::Identity::Central);
         sup.spawn("central standby", standby)?;

@@ -275,6 +275,7 @@ fn fix_without_heading_says_its_yaw_is_unobserved() {
         rejected: vec![],
         residuals_m: vec![0.0; 3],
         quality: FixQuality::Minimal,
+        survey_version: 0,
     };
     let m = fix_message(&fix, "map").unwrap();
     assert_eq!(m.pose.pose.position.z, 0.3);

@@ -77,6 +77,7 @@ targets! {
     fuzz_decode_clock_reply: control::ClockReply,
     fuzz_decode_burst: control::Burst,
     fuzz_decode_cell_status: control::CellStatus,
+    fuzz_decode_survey_calibration: control::SurveyCalibration,
     fuzz_decode_ultrasound_arrivals: robot::UltrasoundArrivals,
     fuzz_decode_odometry: robot::Odometry,
     fuzz_decode_imu: robot::Imu,

@@ -20,6 +20,40 @@ pub struct TransmitterEntry {
     pub z_m: f64,
 }
 
+/// Largest correction of a surveyed coordinate a calibration may make,
+/// metres: the fleet's calibration refines a survey; a transmitter several
+/// decimetres off needs surveying again, and a calibration that says so
+/// is broken or forged (the MSU refuses it; the central unit leaves such a
+/// transmitter at its surveyed position and says so).
+pub const MAX_SURVEY_OFFSET_M: f64 = 0.25;
+
+/// One transmitter's survey correction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TransmitterOffset {
+    /// Transmitter id.
+    pub tx_id: u32,
+    /// What to add to its surveyed position (x, y, z), metres.
+    pub offset_m: [f64; 3],
+    /// One-sigma uncertainty of each corrected coordinate, metres.
+    pub sigma_m: [f64; 3],
+}
+
+/// `central/survey`: the fleet's calibration of the transmitters' surveyed
+/// positions, learnt by the central unit from every robot's fixes
+/// (`ickon_central::survey_calibration`); the MSUs solve with it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurveyCalibration {
+    /// The epoch of the central unit that made it; `(epoch, version)` names
+    /// a calibration.
+    pub epoch: u64,
+    /// Increases with every calibration of that epoch (from 1).
+    pub version: u32,
+    /// Fixes of the fleet behind it.
+    pub fixes_taken: u64,
+    /// One per transmitter of the site.
+    pub offsets: Vec<TransmitterOffset>,
+}
+
 /// `central/site`: the site model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SiteInfo {

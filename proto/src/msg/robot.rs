@@ -115,6 +115,11 @@ pub struct Fix {
     pub residuals_m: Vec<f64>,
     /// Quality flag.
     pub quality: FixQuality,
+    /// The version of the survey calibration the transmitters' positions
+    /// were corrected by ([`crate::msg::control::SurveyCalibration`]; 0:
+    /// the surveyed positions), so that the central unit reads the
+    /// residuals against the table they were solved with.
+    pub survey_version: u32,
 }
 
 /// Whether a pose is tracked by the inputs it needs, and if not, which one stalled.

@@ -39,6 +39,14 @@ pub const MSG_FILES: &[(&str, &str)] = &[
     ("CycleTrigger", include_str!("../../msg/CycleTrigger.msg")),
     ("Burst", include_str!("../../msg/Burst.msg")),
     ("CellStatus", include_str!("../../msg/CellStatus.msg")),
+    (
+        "TransmitterOffset",
+        include_str!("../../msg/TransmitterOffset.msg"),
+    ),
+    (
+        "SurveyCalibration",
+        include_str!("../../msg/SurveyCalibration.msg"),
+    ),
 ];
 
 /// The full name (`pkg/msg/Type`) of the standard pose type.
@@ -106,6 +114,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CentralSite => own("SiteInfo"),
         Key::CentralSchedule => own("Schedule"),
         Key::CentralCycle => own("CycleTrigger"),
+        Key::CentralSurvey => own("SurveyCalibration"),
         Key::CellBurst(_) => own("Burst"),
         Key::CellStatus(_) => own("CellStatus"),
         Key::SimTruth(_) => own("Truth"),

@@ -154,6 +154,7 @@ fn robot_messages_round_trip() {
         rejected: vec![14],
         residuals_m: vec![0.001, -0.002, 0.0005],
         quality: FixQuality::Suspect,
+        survey_version: 0,
     });
     round_trip(RobotPose {
         stamp: Time(5),
@@ -491,10 +492,12 @@ fn garbage_is_an_error_not_a_panic() {
         rejected: vec![],
         residuals_m: vec![],
         quality: FixQuality::Good,
+        survey_version: 0,
     })
     .unwrap();
     let n = fix.len();
-    fix[n - 4..].copy_from_slice(&77u32.to_le_bytes());
+    // The quality, before the survey version.
+    fix[n - 8..n - 4].copy_from_slice(&77u32.to_le_bytes());
     assert!(matches!(
         decode::<Fix>(&fix),
         Err(DecodeError::Malformed(_))

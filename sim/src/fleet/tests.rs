@@ -54,3 +54,21 @@ fn a_fleet_larger_than_the_site_is_refused() {
         Err(RunError::FleetSize { .. })
     ));
 }
+
+#[test]
+fn the_fleets_fixes_teach_the_central_unit_and_its_calibration_reaches_every_msu() {
+    let site = Site::default_site();
+    let on = run_fleet(&site, &config(2, true)).unwrap();
+    assert!(on.survey_fixes_taken.unwrap() > 10, "{on:?}");
+    for r in &on.robots {
+        assert!(r.calibrated_fixes > 0, "{r:?}");
+    }
+    let mut off_config = config(2, true);
+    off_config.central.survey = None;
+    let off = run_fleet(&site, &off_config).unwrap();
+    assert_eq!(off.survey_fixes_taken, None);
+    assert!(
+        off.robots.iter().all(|r| r.calibrated_fixes == 0),
+        "{off:?}"
+    );
+}

@@ -1,0 +1,403 @@
+use super::*;
+use ickon_fusion::tdoa;
+use ickon_proto::site::Wall;
+use nalgebra::Vector3;
+
+/// A deterministic normal draw (xorshift and Box-Muller): the tests' noise.
+struct Noise(u64);
+
+impl Noise {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn normal(&mut self, sigma: f64) -> f64 {
+        let (u, v) = (self.uniform().max(1e-300), self.uniform());
+        sigma * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+const RANGE_SIGMA_M: f64 = 0.01;
+const NOISE_M: f64 = RANGE_SIGMA_M;
+
+fn config() -> CalibrationConfig {
+    CalibrationConfig {
+        range_sigma_m: RANGE_SIGMA_M,
+        ..CalibrationConfig::default()
+    }
+}
+
+/// Where the lab's transmitters really hang: each height off by up to
+/// 1.5 cm (a fixed pattern), and, with `horizontal`, x and y off by up to
+/// 1 cm: errors of the size the prior (1 cm per axis) expects.
+fn true_offsets(site: &Site, horizontal: bool) -> Applied {
+    site.transmitters
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let k = i as f64;
+            let h = if horizontal { 0.01 } else { 0.0 };
+            (
+                t.id,
+                [
+                    h * (k * 1.3).sin(),
+                    h * (k * 0.7).cos(),
+                    0.015 * (k * 2.1).sin(),
+                ],
+            )
+        })
+        .collect()
+}
+
+/// The fix an MSU at `at` solves from arrivals of the transmitters really
+/// at `truth`, with its table moved by `applied`; only transmitters in
+/// sight and within 8 m are heard.
+fn fix_at(
+    site: &Site,
+    at: [f64; 2],
+    truth: &Applied,
+    applied: &Applied,
+    version: u32,
+    noise: &mut Noise,
+) -> Option<Fix> {
+    let height_m = site.msu.height_m;
+    let p = Vector3::new(at[0], at[1], height_m);
+    let signals: Vec<tdoa::Signal> = site
+        .transmitters
+        .iter()
+        .filter(|t| site.line_of_sight(p.into(), t.position_m))
+        .filter_map(|t| {
+            let surveyed = Vector3::from(t.position_m);
+            let real = surveyed + Vector3::from(truth[&t.id]);
+            let range = (real - p).norm();
+            (range < 8.0).then(|| tdoa::Signal {
+                tx_id: t.id,
+                tx_m: surveyed + Vector3::from(applied.get(&t.id).copied().unwrap_or([0.0; 3])),
+                pseudo_range_m: range + 1.5 + noise.normal(NOISE_M),
+                t_s: 0.0,
+            })
+        })
+        .collect();
+    if signals.len() < 5 {
+        return None;
+    }
+    let solved = tdoa::solve(
+        &signals,
+        &tdoa::SolverConfig {
+            mode: tdoa::Mode::TwoD { height_m },
+            sigma_range_m: RANGE_SIGMA_M,
+            ..tdoa::SolverConfig::default()
+        },
+    )
+    .ok()?;
+    let c = solved.covariance_xy_m2();
+    Some(Fix {
+        stamp: ickon_proto::time::Time(0),
+        arrivals_seq: 0,
+        x_m: solved.position_m.x,
+        y_m: solved.position_m.y,
+        z_m: height_m,
+        covariance: [
+            c[(0, 0)],
+            c[(0, 1)],
+            0.0,
+            c[(1, 0)],
+            c[(1, 1)],
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        ],
+        heading_rad: 0.0,
+        heading_valid: false,
+        used: solved.used_tx_ids.clone(),
+        rejected: Vec::new(),
+        residuals_m: solved.residuals_m.clone(),
+        quality: match solved.quality {
+            tdoa::Quality::Good => FixQuality::Good,
+            _ => FixQuality::Suspect,
+        },
+        survey_version: version,
+    })
+}
+
+/// Places on the lab's floor, spread over its cells (rectangles), 0.3 m
+/// from their edges.
+fn places(n: usize, noise: &mut Noise) -> Vec<[f64; 2]> {
+    let site = Site::default_site();
+    (0..n)
+        .map(|_| {
+            let cell = &site.cells[(noise.uniform() * site.cells.len() as f64) as usize];
+            let lo = |k: usize| cell.polygon.iter().map(|p| p[k]).fold(f64::MAX, f64::min);
+            let hi = |k: usize| cell.polygon.iter().map(|p| p[k]).fold(f64::MIN, f64::max);
+            [0, 1].map(|k| lo(k) + 0.3 + (hi(k) - lo(k) - 0.6) * noise.uniform())
+        })
+        .collect()
+}
+
+/// RMS of (estimate - truth) and of the truth, over the heights: as they
+/// are, and with each cell's mean taken out of both (a cell's common
+/// height error looks like its sync error to every fix, and the
+/// calibration cannot tell the two apart).
+fn rms_height_errors(site: &Site, c: &SurveyCalibration, truth: &Applied) -> [(f64, f64); 2] {
+    let learnt = c.corrections();
+    assert_eq!(learnt.len(), site.transmitters.len());
+    let error = |k: &TransmitterCorrection| k.offset_m[2] - truth[&k.tx_id][2];
+    let height = |k: &TransmitterCorrection| truth[&k.tx_id][2];
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let within_cells = |f: &dyn Fn(&TransmitterCorrection) -> f64| -> Vec<f64> {
+        site.cells
+            .iter()
+            .flat_map(|cell| {
+                let of_cell: Vec<f64> = learnt
+                    .iter()
+                    .filter(|k| site.transmitter(k.tx_id).is_some_and(|t| t.cell == cell.id))
+                    .map(f)
+                    .collect();
+                let mean = of_cell.iter().sum::<f64>() / of_cell.len().max(1) as f64;
+                of_cell.into_iter().map(move |v| v - mean)
+            })
+            .collect()
+    };
+    let errors: Vec<f64> = learnt.iter().map(error).collect();
+    let heights: Vec<f64> = learnt.iter().map(height).collect();
+    [
+        (rms(&errors), rms(&heights)),
+        (rms(&within_cells(&error)), rms(&within_cells(&height))),
+    ]
+}
+
+#[test]
+fn a_fleet_learns_where_the_transmitters_hang_from_its_fixes() {
+    let site = Site::default_site();
+    let truth = true_offsets(&site, true);
+    let mut noise = Noise(0x9e37_79b9_7f4a_7c15);
+    let mut c = SurveyCalibration::new(&site, config());
+    let none = Applied::new();
+    for at in places(8_000, &mut noise) {
+        if let Some(fix) = fix_at(&site, at, &truth, &none, 0, &mut noise) {
+            let _ = c.take_fix(&fix, &none);
+        }
+    }
+    assert!(c.fixes_taken() > 1_000, "{}", c.fixes_taken());
+    let [(after, before), (after_in_cells, before_in_cells)] = rms_height_errors(&site, &c, &truth);
+    assert!(after < 0.6 * before, "rms {after} m against {before} m");
+    assert!(
+        after_in_cells < 0.3 * before_in_cells,
+        "within cells: rms {after_in_cells} m against {before_in_cells} m"
+    );
+}
+
+#[test]
+fn fixes_solved_with_a_calibration_still_estimate_the_whole_error() {
+    let site = Site::default_site();
+    let truth = true_offsets(&site, false);
+    // The MSUs already corrected half of each error.
+    let half: Applied = truth
+        .iter()
+        .map(|(&id, o)| (id, o.map(|v| v / 2.0)))
+        .collect();
+    let mut noise = Noise(77);
+    let mut c = SurveyCalibration::new(&site, config());
+    for at in places(4_000, &mut noise) {
+        if let Some(fix) = fix_at(&site, at, &truth, &half, 3, &mut noise) {
+            let _ = c.take_fix(&fix, &half);
+        }
+    }
+    let [_, (after, before)] = rms_height_errors(&site, &c, &truth);
+    // Read as increments, the estimate would sit near half the truth
+    // (rms error about half of it).
+    assert!(
+        after < 0.3 * before,
+        "within cells: rms {after} m against {before} m"
+    );
+}
+
+#[test]
+fn a_fix_that_may_have_used_a_reflection_is_not_taken() {
+    let mut site = Site::default_site();
+    let t = site.transmitters[0].position_m;
+    // A wall between the robot and the first transmitter, 2 cm from the
+    // line: the robot may be on either side of it.
+    let at = [t[0] + 2.0, t[1] + 1.0];
+    site.walls.push(Wall {
+        from: [t[0] + 1.0, t[1] + 0.52],
+        to: [t[0] + 1.0, t[1] + 3.0],
+        height_m: 3.0,
+    });
+    let c = SurveyCalibration::new(&site, config());
+    let mut fix = fix_at(
+        &Site::default_site(),
+        at,
+        &true_offsets(&site, false),
+        &Applied::new(),
+        0,
+        &mut Noise(5),
+    )
+    .expect("a fix");
+    if !fix.used.contains(&site.transmitters[0].id) {
+        fix.used[0] = site.transmitters[0].id;
+    }
+    fix.quality = FixQuality::Good;
+    let mut c2 = c.clone();
+    assert_eq!(
+        c2.take_fix(&fix, &Applied::new()),
+        Err(FixSkipped::MaybeReflected)
+    );
+    assert_eq!(c2.fixes_taken(), 0);
+}
+
+#[test]
+fn malformed_fixes_are_refused_and_teach_nothing() {
+    let site = Site::default_site();
+    let truth = true_offsets(&site, false);
+    let mut noise = Noise(11);
+    let good = places(200, &mut noise)
+        .into_iter()
+        .find_map(|at| fix_at(&site, at, &truth, &Applied::new(), 0, &mut noise))
+        .expect("a good fix");
+    let mut c = SurveyCalibration::new(&site, config());
+    let before = c.corrections();
+    let cases: Vec<(Fix, FixSkipped)> = vec![
+        (
+            Fix {
+                quality: FixQuality::Suspect,
+                ..good.clone()
+            },
+            FixSkipped::NotGood,
+        ),
+        (
+            Fix {
+                used: good.used[..3].to_vec(),
+                residuals_m: good.residuals_m[..3].to_vec(),
+                ..good.clone()
+            },
+            FixSkipped::TooFewSignals,
+        ),
+        (
+            Fix {
+                residuals_m: good.residuals_m[1..].to_vec(),
+                ..good.clone()
+            },
+            FixSkipped::Malformed,
+        ),
+        (
+            Fix {
+                residuals_m: vec![f64::NAN; good.used.len()],
+                ..good.clone()
+            },
+            FixSkipped::Malformed,
+        ),
+        (
+            Fix {
+                residuals_m: vec![1e300; good.used.len()],
+                ..good.clone()
+            },
+            FixSkipped::Malformed,
+        ),
+        (
+            Fix {
+                x_m: 1e300,
+                ..good.clone()
+            },
+            FixSkipped::Malformed,
+        ),
+        (
+            Fix {
+                x_m: f64::INFINITY,
+                ..good.clone()
+            },
+            FixSkipped::Malformed,
+        ),
+        (
+            Fix {
+                covariance: [f64::NAN; 9],
+                ..good.clone()
+            },
+            FixSkipped::Malformed,
+        ),
+        (
+            Fix {
+                used: [vec![9_999], good.used[1..].to_vec()].concat(),
+                ..good.clone()
+            },
+            FixSkipped::UnknownTransmitter,
+        ),
+    ];
+    for (fix, why) in cases {
+        assert_eq!(c.take_fix(&fix, &Applied::new()), Err(why), "{fix:?}");
+    }
+    assert_eq!(c.fixes_taken(), 0);
+    assert_eq!(c.corrections(), before);
+    // The good one is taken.
+    assert_eq!(c.take_fix(&good, &Applied::new()), Ok(()));
+}
+
+#[test]
+fn the_publisher_reads_each_fix_against_the_version_it_was_solved_with() {
+    let site = Site::default_site();
+    let mut p = SurveyPublisher::new(&site, config());
+    let start = ickon_proto::time::Time::from_secs_f64(1_000.0);
+    let first = p.due(start, 9).expect("published at once");
+    assert_eq!((first.epoch, first.version), (9, 1_000));
+    assert_eq!(first.offsets.len(), site.transmitters.len());
+    assert!(p.due(start + Duration::from_millis(500), 9).is_none());
+    // Published faster than the clock's seconds, versions still grow.
+    let second = p.due(start + Duration::from_millis(1_000), 9).unwrap();
+    let third = p.due(start + Duration::from_millis(2_000), 9).unwrap();
+    assert!(first.version < second.version && second.version < third.version);
+    let truth = true_offsets(&site, false);
+    let mut noise = Noise(3);
+    let fix = places(200, &mut noise)
+        .into_iter()
+        .find_map(|at| fix_at(&site, at, &truth, &Applied::new(), 0, &mut noise))
+        .unwrap();
+    assert_eq!(p.take_fix(&fix), Ok(()));
+    let solved_with = |v| Fix {
+        survey_version: v,
+        ..fix.clone()
+    };
+    assert_eq!(p.take_fix(&solved_with(second.version)), Ok(()));
+    assert_eq!(
+        p.take_fix(&solved_with(third.version + 1)),
+        Err(FixSkipped::UnknownCalibration)
+    );
+    // Only the last HISTORY_KEPT versions are remembered.
+    for k in 0..HISTORY_KEPT as i64 {
+        p.due(start + Duration::from_millis(3_000 + 1_000 * k), 9)
+            .unwrap();
+    }
+    assert_eq!(
+        p.take_fix(&solved_with(first.version)),
+        Err(FixSkipped::UnknownCalibration)
+    );
+    assert_eq!(p.calibration().fixes_taken(), 2);
+}
+
+#[test]
+fn a_transmitter_beyond_a_calibrations_reach_is_published_at_its_survey() {
+    let learnt = |offset_m, sigma_m| TransmitterCorrection {
+        tx_id: 7,
+        offset_m,
+        sigma_m,
+    };
+    let (o, ok) = publishable(learnt([0.01, -0.02, 0.2], [0.004; 3]), 0.01);
+    assert!(ok);
+    assert_eq!(o.offset_m, [0.01, -0.02, 0.2]);
+    // Under two sigmas: not shown by the fleet, not published.
+    let (o, ok) = publishable(learnt([0.007, -0.02, 0.002], [0.004; 3]), 0.01);
+    assert!(ok);
+    assert_eq!(o.offset_m, [0.0, -0.02, 0.0]);
+    for (offset, sigma) in [
+        ([0.0, 0.0, -0.4], [0.004; 3]),
+        ([f64::NAN, 0.0, 0.0], [0.004; 3]),
+        ([0.0, 0.0, 0.01], [f64::INFINITY, 0.0, 0.0]),
+    ] {
+        let (o, ok) = publishable(learnt(offset, sigma), 0.01);
+        assert!(!ok, "{offset:?} {sigma:?}");
+        assert_eq!((o.tx_id, o.offset_m, o.sigma_m), (7, [0.0; 3], [0.01; 3]));
+    }
+}

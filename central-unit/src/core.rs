@@ -42,7 +42,9 @@ use crate::health::{CellTracker, RobotTracker};
 use crate::occupancy::{FiringConfig, RobotView, firing_plan};
 use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
 use crate::spacing::SpacingTable;
-use crate::survey_calibration::{CalibrationConfig, SurveyPublisher};
+use crate::survey_calibration::{
+    CalibrationConfig, SavedCalibration, SavedMismatch, SurveyPublisher,
+};
 use ickon_proto::msg::control::Firing;
 
 /// Which schedule the central unit computes.
@@ -490,6 +492,23 @@ impl CentralCore {
     /// The survey calibration learnt so far, `None` when it is off.
     pub fn survey(&self) -> Option<&SurveyPublisher> {
         self.survey.as_ref()
+    }
+
+    /// What to keep of the survey calibration across a restart (`None`
+    /// when it is off).
+    pub fn survey_saved(&self) -> Option<SavedCalibration> {
+        self.survey
+            .as_ref()
+            .map(|p| p.calibration().saved(&self.site))
+    }
+
+    /// Goes on from a survey calibration kept across a restart; `Ok(false)`
+    /// when the calibration is off.
+    pub fn restore_survey(&mut self, saved: &SavedCalibration) -> Result<bool, SavedMismatch> {
+        match self.survey.as_mut() {
+            Some(p) => p.restore(&self.site, saved).map(|()| true),
+            None => Ok(false),
+        }
     }
 
     /// Fixes the survey calibration did not take, by reason.

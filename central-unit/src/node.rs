@@ -13,6 +13,8 @@ use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::{AdminAck, CoverageRequest, ReloadRequest};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, RobotPose};
+
+use crate::survey_calibration::SavedCalibration;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
@@ -53,6 +55,70 @@ pub struct CentralArgs {
     /// survey calibration.
     #[arg(long, default_value_t = 50.0, value_parser = timing_sigma_us)]
     pub timing_sigma_us: f64,
+    /// Keep the survey calibration in this file (JSON), so that a restart
+    /// goes on from what the fleet taught it: read at start when it
+    /// exists (a file of another site or transmitter table is set aside
+    /// with a warning; an unreadable or broken one stops the start, exit
+    /// 2), written every minute and at shutdown.
+    #[arg(long)]
+    pub survey_file: Option<std::path::PathBuf>,
+}
+
+/// Largest survey calibration file read, bytes (a site of 1000
+/// transmitters keeps about 9 million numbers; this is far above any site
+/// this unit can serve, and below what would exhaust memory).
+const MAX_SURVEY_FILE_BYTES: u64 = 256 << 20;
+
+/// How often the survey calibration file is written.
+const SURVEY_SAVE_PERIOD: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// Reads the survey calibration kept in `path` for `site`: `Ok(None)` when
+/// there is no file or it is of another site or table (said in a
+/// warning); `Err` with the file and the reason when it cannot be read or
+/// its numbers are broken.
+pub fn load_survey_file(
+    path: &std::path::Path,
+    site: &Site,
+    config: crate::survey_calibration::CalibrationConfig,
+) -> Result<Option<SavedCalibration>, String> {
+    use crate::survey_calibration::{SavedMismatch, SurveyCalibration};
+    let shown = path.display();
+    let size = match std::fs::metadata(path) {
+        Ok(m) => m.len(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("{shown}: {e}")),
+    };
+    if size > MAX_SURVEY_FILE_BYTES {
+        return Err(format!(
+            "{shown}: {size} bytes, more than a survey calibration ({MAX_SURVEY_FILE_BYTES} at most)"
+        ));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{shown}: {e}"))?;
+    let saved: SavedCalibration = serde_json::from_str(&text)
+        .map_err(|e| format!("{shown}: not a survey calibration: {e}"))?;
+    match SurveyCalibration::restored(site, config, &saved) {
+        Ok(_) => Ok(Some(saved)),
+        Err(SavedMismatch::OtherSite) => {
+            tracing::warn!(
+                "{shown}: the calibration is of another site or transmitter table: starting from the survey (the file is overwritten)"
+            );
+            Ok(None)
+        }
+        Err(e @ SavedMismatch::Broken(_)) => Err(format!("{shown}: {e}")),
+    }
+}
+
+/// Writes `saved` to `path` through a temporary file beside it, so that a
+/// crash mid-write leaves the previous file whole.
+fn save_survey_file(path: &std::path::Path, saved: &SavedCalibration) {
+    let tmp = path.with_extension("tmp");
+    let written = serde_json::to_vec(saved)
+        .map_err(std::io::Error::other)
+        .and_then(|bytes| std::fs::write(&tmp, bytes))
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(e) = written {
+        tracing::warn!("survey calibration not saved to {}: {e}", path.display());
+    }
 }
 
 /// `--timing-sigma-us`: a positive number of microseconds up to a second.
@@ -97,6 +163,17 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let config = args.core_config(&site);
+    let saved = match (&args.survey_file, config.survey) {
+        (Some(path), Some(survey)) => match load_survey_file(path, &site, survey) {
+            Ok(saved) => saved,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        },
+        _ => None,
+    };
     ickon_runtime::run_node(2, async {
         let session = args.node.open().await?;
         tracing::info!(
@@ -110,7 +187,6 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             .map_err(|e| NodeError::Setup(e.to_string()))?;
         let clock = args.node.clock();
         args.node.listen_for_clock_steps(clock)?;
-        let config = args.core_config(&site);
         let r = run(
             &session,
             site,
@@ -119,6 +195,10 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             web.as_ref(),
             args.standby,
             config,
+            SurveyFile {
+                path: args.survey_file.clone(),
+                saved,
+            },
             args.node.shutdown(),
         )
         .await;
@@ -163,6 +243,7 @@ pub async fn run(
     web: Option<&crate::http::WebMap>,
     standby: bool,
     config: CentralConfig,
+    survey_file: SurveyFile,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
@@ -178,6 +259,17 @@ pub async fn run(
     let mut core =
         CentralCore::starting(site, site_toml, config, clock.now(), standby, active_seen)
             .map_err(|e| NodeError::Setup(e.to_string()))?;
+    if let Some(saved) = &survey_file.saved {
+        // Checked against this site when the file was read.
+        if core.restore_survey(saved).is_ok() {
+            tracing::info!(
+                "survey calibration goes on from {} fixes kept in the file",
+                saved.fixes_taken
+            );
+        }
+    }
+    let mut survey_saves = tokio::time::interval(SURVEY_SAVE_PERIOD);
+    survey_saves.tick().await;
     let s = core.latest_schedule();
     tracing::info!(
         "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",
@@ -284,6 +376,10 @@ pub async fn run(
         let event = tokio::select! {
             _ = &mut shutdown => break,
             _ = tokio::time::sleep(wake) => Event::Tick,
+            _ = survey_saves.tick(), if survey_file.path.is_some() => {
+                survey_file.save(&core);
+                continue;
+            }
             _ = web_ticks.tick(), if web.is_some() => {
                 if let Some(w) = web { w.publish(core.status(clock.now())); }
                 continue;
@@ -376,12 +472,30 @@ pub async fn run(
         }
         failed_puts += publish([&cycle_pub, &schedule_pub, &survey_pub], outputs).await;
     }
+    survey_file.save(&core);
     if failed_puts + undecodable > 0 {
         tracing::info!(
             "central unit stopped; {failed_puts} triggers or schedules not sent, {undecodable} undecodable reports"
         );
     }
     Ok(())
+}
+
+/// Where the survey calibration is kept, and what was read from it.
+#[derive(Debug, Clone, Default)]
+pub struct SurveyFile {
+    /// The file (`--survey-file`); `None`: not kept.
+    pub path: Option<std::path::PathBuf>,
+    /// What it held for this site, checked.
+    pub saved: Option<SavedCalibration>,
+}
+
+impl SurveyFile {
+    fn save(&self, core: &CentralCore) {
+        if let (Some(path), Some(saved)) = (&self.path, core.survey_saved()) {
+            save_survey_file(path, &saved);
+        }
+    }
 }
 
 /// Publishes the core's outputs; returns how many puts failed.
@@ -463,3 +577,6 @@ async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time)
     }
     outputs
 }
+
+#[cfg(test)]
+mod survey_file_tests;

@@ -191,6 +191,38 @@ impl FixSkipped {
     }
 }
 
+/// What a central unit keeps of its calibration across restarts: the
+/// information gathered, and the table it was gathered for.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SavedCalibration {
+    /// Site name.
+    pub site: String,
+    /// The surveyed table it is of: `(id, [x, y, z])` in the site's order.
+    pub transmitters: Vec<(u32, [f64; 3])>,
+    /// The site's cells, in order.
+    pub cells: Vec<String>,
+    /// Fixes behind it.
+    pub fixes_taken: u64,
+    /// The information matrix, row-major.
+    pub information: Vec<f64>,
+    /// The information-weighted estimate.
+    pub weighted: Vec<f64>,
+}
+
+/// Why a saved calibration cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SavedMismatch {
+    /// It is of another site, or of another table or cells of this one
+    /// (a transmitter moved, added or removed): what it learnt is not of
+    /// these transmitters.
+    #[error("it is of another site or transmitter table than this site's")]
+    OtherSite,
+    /// Its numbers cannot be a calibration (sizes, not numbers, not
+    /// positive definite).
+    #[error("its numbers are not a calibration: {0}")]
+    Broken(&'static str),
+}
+
 /// The fleet's survey calibration: the information gathered so far.
 #[derive(Debug, Clone)]
 pub struct SurveyCalibration {
@@ -256,6 +288,59 @@ impl SurveyCalibration {
     /// Fixes that have added to the calibration.
     pub fn fixes_taken(&self) -> u64 {
         self.fixes_taken
+    }
+
+    /// What to keep across a restart (`site` is the site it serves).
+    pub fn saved(&self, site: &Site) -> SavedCalibration {
+        SavedCalibration {
+            site: site.name.clone(),
+            transmitters: table_of(site),
+            cells: site.cells.iter().map(|c| c.id.clone()).collect(),
+            fixes_taken: self.fixes_taken,
+            information: self.information.transpose().as_slice().to_vec(),
+            weighted: self.weighted.as_slice().to_vec(),
+        }
+    }
+
+    /// The calibration of `site` that `saved` kept, to go on learning.
+    pub fn restored(
+        site: &Site,
+        config: CalibrationConfig,
+        saved: &SavedCalibration,
+    ) -> Result<Self, SavedMismatch> {
+        let cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
+        if saved.site != site.name || saved.transmitters != table_of(site) || saved.cells != cells {
+            return Err(SavedMismatch::OtherSite);
+        }
+        let mut c = Self::new(site, config);
+        let n = c.weighted.len();
+        if saved.information.len() != n * n || saved.weighted.len() != n {
+            return Err(SavedMismatch::Broken("sizes do not match the site"));
+        }
+        if !saved
+            .information
+            .iter()
+            .chain(&saved.weighted)
+            .all(|v| v.is_finite())
+        {
+            return Err(SavedMismatch::Broken("a value is not a number"));
+        }
+        let information = DMatrix::from_row_slice(n, n, &saved.information);
+        let asymmetric = (0..n).any(|i| {
+            (0..i).any(|k| {
+                let (a, b) = (information[(i, k)], information[(k, i)]);
+                (a - b).abs() > 1e-9 * (a.abs() + b.abs() + 1.0)
+            })
+        });
+        if asymmetric || information.clone().cholesky().is_none() {
+            return Err(SavedMismatch::Broken(
+                "the information is not positive definite",
+            ));
+        }
+        c.information = information;
+        c.weighted = DVector::from_column_slice(&saved.weighted);
+        c.fixes_taken = saved.fixes_taken;
+        Ok(c)
     }
 
     /// Takes one robot's fix, solved with the positions corrected by
@@ -438,6 +523,14 @@ fn publishable(c: TransmitterCorrection, survey_sigma_m: f64) -> (TransmitterOff
     (offset, plausible)
 }
 
+/// The surveyed table of `site`, as a saved calibration names it.
+fn table_of(site: &Site) -> Vec<(u32, [f64; 3])> {
+    site.transmitters
+        .iter()
+        .map(|t| (t.id, t.position_m))
+        .collect()
+}
+
 /// One used signal of a fix.
 struct Row {
     /// Index of its transmitter.
@@ -481,6 +574,12 @@ impl SurveyPublisher {
     /// The calibration learnt so far.
     pub fn calibration(&self) -> &SurveyCalibration {
         &self.calibration
+    }
+
+    /// Goes on from a calibration kept across a restart.
+    pub fn restore(&mut self, site: &Site, saved: &SavedCalibration) -> Result<(), SavedMismatch> {
+        self.calibration = SurveyCalibration::restored(site, self.calibration.config, saved)?;
+        Ok(())
     }
 
     /// Takes a robot's fix, read against the calibration it names.

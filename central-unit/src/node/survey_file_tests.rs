@@ -1,0 +1,119 @@
+//! The survey calibration file: what a restart reads, and what it refuses.
+
+use super::*;
+use crate::survey_calibration::{CalibrationConfig, SurveyCalibration};
+
+fn dir(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("ickon-survey-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A calibration of the lab that has learnt something (a prior changed by
+/// hand is enough to tell it from a fresh one).
+fn learnt(site: &Site) -> SavedCalibration {
+    let mut saved = SurveyCalibration::new(site, CalibrationConfig::default()).saved(site);
+    let n = saved.weighted.len();
+    saved.weighted[2] = 50.0;
+    saved.information[0] *= 2.0;
+    saved.fixes_taken = 1234;
+    assert_eq!(saved.information.len(), n * n);
+    saved
+}
+
+#[test]
+fn a_kept_calibration_comes_back_as_it_was_saved() {
+    let site = Site::default_site();
+    let path = dir("round").join("survey.json");
+    let saved = learnt(&site);
+    save_survey_file(&path, &saved);
+    let back = load_survey_file(&path, &site, CalibrationConfig::default())
+        .unwrap()
+        .unwrap();
+    assert_eq!(back, saved);
+    let restored = SurveyCalibration::restored(&site, CalibrationConfig::default(), &back).unwrap();
+    assert_eq!(restored.fixes_taken(), 1234);
+    assert!(restored.corrections()[0].offset_m[2] != 0.0);
+    assert!(!path.with_extension("tmp").exists());
+}
+
+#[test]
+fn no_file_is_a_fresh_start_and_another_sites_file_is_set_aside() {
+    let site = Site::default_site();
+    let d = dir("other");
+    assert_eq!(
+        load_survey_file(&d.join("none.json"), &site, CalibrationConfig::default()),
+        Ok(None)
+    );
+    let path = d.join("survey.json");
+    let mut moved = learnt(&site);
+    moved.transmitters[3].1[2] += 0.1;
+    save_survey_file(&path, &moved);
+    assert_eq!(
+        load_survey_file(&path, &site, CalibrationConfig::default()),
+        Ok(None)
+    );
+    let (warehouse, _) = Site::builtin("warehouse").unwrap();
+    save_survey_file(&path, &learnt(&site));
+    assert_eq!(
+        load_survey_file(&path, &warehouse, CalibrationConfig::default()),
+        Ok(None)
+    );
+}
+
+#[test]
+fn a_broken_file_stops_the_start_with_the_file_and_the_reason() {
+    let site = Site::default_site();
+    let d = dir("broken");
+    let path = d.join("survey.json");
+    let cases: Vec<(String, &str)> = vec![
+        ("{ not json".into(), "not a survey calibration"),
+        ("{}".into(), "not a survey calibration"),
+        (
+            serde_json::to_string(&SavedCalibration {
+                information: vec![1.0; 3],
+                ..learnt(&site)
+            })
+            .unwrap(),
+            "sizes",
+        ),
+        (
+            serde_json::to_string(&learnt(&site))
+                .unwrap()
+                .replacen("50.0", "1e999", 1),
+            "not a survey calibration",
+        ),
+        (
+            serde_json::to_string(&SavedCalibration {
+                information: {
+                    let mut m = learnt(&site).information;
+                    m[0] = -5.0;
+                    m
+                },
+                ..learnt(&site)
+            })
+            .unwrap(),
+            "positive definite",
+        ),
+        (
+            serde_json::to_string(&SavedCalibration {
+                information: {
+                    let mut m = learnt(&site).information;
+                    m[1] = 7.0;
+                    m
+                },
+                ..learnt(&site)
+            })
+            .unwrap(),
+            "positive definite",
+        ),
+    ];
+    for (text, reason) in cases {
+        std::fs::write(&path, &text).unwrap();
+        let e = load_survey_file(&path, &site, CalibrationConfig::default()).unwrap_err();
+        assert!(e.contains("survey.json") && e.contains(reason), "{e}");
+    }
+    // A directory where the file should be.
+    let e = load_survey_file(&d, &site, CalibrationConfig::default()).unwrap_err();
+    assert!(e.contains(&d.display().to_string()), "{e}");
+}

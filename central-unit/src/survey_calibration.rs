@@ -592,8 +592,8 @@ impl SurveyPublisher {
             .iter()
             .find(|(v, _)| *v == fix.survey_version)
             .ok_or(FixSkipped::UnknownCalibration)?;
-        let applied = applied.clone();
-        self.calibration.take_fix(fix, &applied)
+        // Disjoint fields: the version's offsets are read in place.
+        self.calibration.take_fix(fix, applied)
     }
 
     /// The calibration to publish at `now` in `epoch`, if one is due.

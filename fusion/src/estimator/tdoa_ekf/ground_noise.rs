@@ -57,8 +57,9 @@ pub struct GroundNoise {
     /// direction, metres (sheet: 0.01, the accuracy `paper`'s site survey
     /// states). Constant over a run, so fusing more cycles does not average
     /// it away: it is added to the published covariance as the position
-    /// error it gives through the geometry heard (`systematic.rs`), not to
-    /// each arrival's noise. Zero leaves it out.
+    /// error it gives through the geometry heard (`systematic.rs`), and no
+    /// arrival's sigma is taken as less than it (finer stamps do not place
+    /// a transmitter better than its survey). Zero leaves it out.
     pub survey_sigma_m: f64,
     /// Least standard deviation of a cell's residual sync error against
     /// the central unit, microseconds (0: only what the cells report).

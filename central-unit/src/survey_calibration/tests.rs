@@ -387,10 +387,11 @@ fn a_transmitter_beyond_a_calibrations_reach_is_published_at_its_survey() {
     let (o, ok) = publishable(learnt([0.01, -0.02, 0.2], [0.004; 3]), 0.01);
     assert!(ok);
     assert_eq!(o.offset_m, [0.01, -0.02, 0.2]);
-    // Under two sigmas: not shown by the fleet, not published.
+    // Small against its sigma: published as learnt (the prior has shrunk it).
     let (o, ok) = publishable(learnt([0.007, -0.02, 0.002], [0.004; 3]), 0.01);
     assert!(ok);
-    assert_eq!(o.offset_m, [0.0, -0.02, 0.0]);
+    assert_eq!(o.offset_m, [0.007, -0.02, 0.002]);
+    assert_eq!(o.sigma_m, [0.004; 3]);
     for (offset, sigma) in [
         ([0.0, 0.0, -0.4], [0.004; 3]),
         ([f64::NAN, 0.0, 0.0], [0.004; 3]),

@@ -167,3 +167,36 @@ fn not_good(fix: Option<Fix>) -> bool {
         f.quality == ickon_proto::msg::robot::FixQuality::Suspect && f.rejected.is_empty()
     })
 }
+
+#[test]
+fn the_tight_filter_never_gets_a_hidden_transmitters_arrival() {
+    // The same cycle of half reflections, as range differences: with the
+    // wall known, the hidden transmitters' arrivals are left out (the
+    // direct ones are paired among themselves); without it, all are there.
+    let hidden_m: Vec<[f64; 3]> = HIDDEN.iter().map(|&(_, p, _)| p).collect();
+    for (with_wall, pairs) in [(true, DIRECT.len() - 1), (false, all().len() - 1)] {
+        let mut core = core(with_wall);
+        assert!(core.on_arrivals(&cycle(1, 10.0, false)).unwrap().is_some());
+        let solved = core
+            .solver
+            .solve(&cycle(2, 10.5, true), None, &mut core.clock)
+            .unwrap();
+        let differences = &solved.range_differences;
+        assert_eq!(differences.len(), pairs, "wall known: {with_wall}");
+        let any_hidden = differences
+            .iter()
+            .any(|d| hidden_m.contains(&d.a_m) || hidden_m.contains(&d.b_m));
+        assert_eq!(any_hidden, !with_wall);
+        // Each difference is still exact for the direct pairs.
+        for d in differences.iter().filter(|_| with_wall) {
+            let range = |t: [f64; 3]| {
+                ((ROBOT[0] - t[0]).powi(2) + (ROBOT[1] - t[1]).powi(2) + (ROBOT[2] - t[2]).powi(2))
+                    .sqrt()
+            };
+            assert!(
+                (d.d_m - (range(d.b_m) - range(d.a_m))).abs() < 1e-6,
+                "{d:?}"
+            );
+        }
+    }
+}

@@ -103,6 +103,11 @@ fn core(with_wall: bool) -> MsuCore {
     core
 }
 
+/// Distance from the robot's receiver to transmitter `t`, metres.
+fn range_m(t: [f64; 3]) -> f64 {
+    ((ROBOT[0] - t[0]).powi(2) + (ROBOT[1] - t[1]).powi(2) + (ROBOT[2] - t[2]).powi(2)).sqrt()
+}
+
 /// The cycle starting at `start_s`: the direct signals, and the hidden
 /// transmitters' reflections when `reflections`.
 fn cycle(seq: u64, start_s: f64, reflections: bool) -> UltrasoundArrivals {
@@ -115,9 +120,7 @@ fn cycle(seq: u64, start_s: f64, reflections: bool) -> UltrasoundArrivals {
     let arrivals = late
         .iter()
         .map(|&(id, t, extra)| {
-            let d =
-                ((ROBOT[0] - t[0]).powi(2) + (ROBOT[1] - t[1]).powi(2) + (ROBOT[2] - t[2]).powi(2))
-                    .sqrt();
+            let d = range_m(t);
             Arrival {
                 tx_id: id,
                 receiver_id: 0,
@@ -189,12 +192,8 @@ fn the_tight_filter_never_gets_a_hidden_transmitters_arrival() {
         assert_eq!(any_hidden, !with_wall);
         // Each difference is still exact for the direct pairs.
         for d in differences.iter().filter(|_| with_wall) {
-            let range = |t: [f64; 3]| {
-                ((ROBOT[0] - t[0]).powi(2) + (ROBOT[1] - t[1]).powi(2) + (ROBOT[2] - t[2]).powi(2))
-                    .sqrt()
-            };
             assert!(
-                (d.d_m - (range(d.b_m) - range(d.a_m))).abs() < 1e-6,
+                (d.d_m - (range_m(d.b_m) - range_m(d.a_m))).abs() < 1e-6,
                 "{d:?}"
             );
         }

@@ -105,8 +105,10 @@ pub enum RobotView<'a> {
 /// it is audible (within `fire_range_m`, in line of sight) at a sample
 /// point of some robot's region, and two transmitters need to be spaced
 /// only as far as their arrivals at those points require (bursts that
-/// never meet at an occupied point do not conflict). Nearest transmitters
-/// go first, so that arrivals come in the order of emission.
+/// never meet at an occupied point do not conflict). Among equally
+/// constrained transmitters the nearest to a robot go first; the packer
+/// keeps that ranking unless a sweep across the floor gives a shorter
+/// cycle ([`SpacingTable::pack_with`]).
 pub fn firing_plan(
     table: &SpacingTable,
     robots: &[RobotView],

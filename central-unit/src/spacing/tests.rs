@@ -7,6 +7,11 @@ fn all_cells(site: &Site) -> Vec<String> {
 
 /// Every conflicting pair keeps its spacing, within the cycle and into the next.
 fn assert_spacings_kept(table: &SpacingTable, p: &Packing) {
+    assert_spacings_kept_under(table, &table.need, p);
+}
+
+/// Every pair conflicting under `need` keeps its spacing, within the cycle and into the next.
+fn assert_spacings_kept_under(table: &SpacingTable, need: &NeedMatrix, p: &Packing) {
     for &(i, ti) in &p.offsets {
         assert!(
             ti < p.period,
@@ -14,7 +19,9 @@ fn assert_spacings_kept(table: &SpacingTable, p: &Packing) {
             p.period
         );
         for &(j, tj) in &p.offsets {
-            let Some(n) = table.need(i, j) else { continue };
+            let Some(n) = need_of(need, i, j) else {
+                continue;
+            };
             // j after i, in this cycle or the next.
             let gap = if tj > ti || (tj == ti && i != j) {
                 tj - ti
@@ -120,4 +127,71 @@ fn unknown_and_repeated_indices_are_ignored() {
     let p = table.pack(&[0, 0, 999, 1]);
     assert_eq!(p.offsets.len(), 2);
     assert_eq!(table.pack(&[]).period, Duration::ZERO);
+}
+
+/// The transmitters audible within 8.5 m of the floor within 1.5 m of
+/// each of `robots`, and the spacings those points need.
+fn occupied(table: &SpacingTable, robots: &[[f64; 2]]) -> (Vec<usize>, NeedMatrix) {
+    let mut region: Vec<usize> = robots
+        .iter()
+        .flat_map(|&c| table.points_within(c, 1.5))
+        .collect();
+    region.sort_unstable();
+    region.dedup();
+    let mut set: Vec<usize> = region
+        .iter()
+        .flat_map(|&p| table.heard_at(p).iter())
+        .filter(|&&(_, d)| d <= 8.5)
+        .map(|&(k, _)| k)
+        .collect();
+    set.sort_unstable();
+    set.dedup();
+    (set, table.needs_over(region.into_iter()))
+}
+
+/// The greedy ranking alone, as the packer placed it before the sweeps.
+fn greedy_only(table: &SpacingTable, set: &[usize], need: &NeedMatrix) -> Packing {
+    let n = |i: usize, j: usize| need_of(need, i, j);
+    let degree = |i: usize| set.iter().filter(|&&j| j != i && n(i, j).is_some()).count();
+    let mut ranked = set.to_vec();
+    ranked.sort_by_key(|&i| (std::cmp::Reverse(degree(i)), i));
+    assert!(ranked.iter().all(|&i| i < table.tx_ids.len()));
+    place(&ranked, &n, None).unwrap()
+}
+
+#[test]
+fn sweeping_the_floor_never_lengthens_a_cycle_and_shortens_a_fleets() {
+    let (site, _) = Site::builtin("warehouse").unwrap();
+    let table = SpacingTable::new(&site, &all_cells(&site));
+    // Robots in the four aisles (y = 1.5, 5.7, 9.9, 14.1 m) and between them.
+    let aisles = [1.5, 5.7, 9.9, 14.1];
+    let fleets: Vec<Vec<[f64; 2]>> = vec![
+        vec![[20.0, 1.5]],
+        vec![[5.0, 1.5], [35.0, 14.1]],
+        aisles.iter().map(|&y| [8.0 + 6.0 * y, y]).collect(),
+        aisles
+            .iter()
+            .flat_map(|&y| [[4.0, y], [16.0, y], [28.0, y], [38.0, y]])
+            .collect(),
+    ];
+    let mut shorter = 0;
+    for robots in &fleets {
+        let (set, need) = occupied(&table, robots);
+        let packed = table.pack_with(&set, &need, &|_| 0.0);
+        let greedy = greedy_only(&table, &set, &need);
+        assert_eq!(packed.offsets.len(), set.len());
+        assert_spacings_kept_under(&table, &need, &packed);
+        assert!(
+            packed.period <= greedy.period,
+            "{robots:?}: {:?} > {:?}",
+            packed.period,
+            greedy.period
+        );
+        if packed.period < greedy.period {
+            shorter += 1;
+        }
+    }
+    assert!(shorter >= 1, "no fleet's cycle got shorter");
+    // The whole warehouse: the sweeps keep every spacing across the floor too.
+    assert_spacings_kept(&table, &table.pack_all());
 }

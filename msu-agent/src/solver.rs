@@ -31,6 +31,7 @@ use nalgebra::{Vector2, Vector3};
 use crate::assembly::{Signal, assemble, clock_of_cell};
 use crate::core::{MsuConfig, MsuError};
 use crate::cycle_match::RecentTriggers;
+use crate::cycle_match::{Matched, cycle_start_ns};
 use crate::fusion_clock::FusionClock;
 use crate::motion::CycleMotion;
 
@@ -234,10 +235,17 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
-        let trigger = self
-            .cycle_trigger
-            .as_ref()
-            .or_else(|| self.recent_triggers.best_for(msg, &self.schedules));
+        let flight_ns = self.expected_flights(msg, hint);
+        let matched = match &self.cycle_trigger {
+            Some(t) => Some(Matched {
+                trigger: t.clone(),
+                clear: true,
+            }),
+            None => self
+                .recent_triggers
+                .best_for(msg, &self.schedules, &flight_ns),
+        };
+        let trigger = matched.as_ref().map(|m| &m.trigger);
         let published = match trigger {
             Some(t) => self.schedules.get(t.schedule_version),
             None => self.schedules.latest(),
@@ -331,6 +339,16 @@ impl FixSolver {
             self.motion
                 .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
             self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
+            if let Some(Matched {
+                trigger,
+                clear: true,
+            }) = &matched
+            {
+                let from_fix = self.flights_from(Some([sol.position_m[0], sol.position_m[1]]));
+                if let Some(start_ns) = cycle_start_ns(msg, &schedule.emissions, &from_fix) {
+                    self.recent_triggers.learn_clock(trigger, start_ns);
+                }
+            }
         }
         let mut wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
         wire.survey_version = self.survey.map_or(0, |(_, version)| version);
@@ -338,6 +356,53 @@ impl FixSolver {
             fix: Some((sol, wire)),
             range_differences,
         })
+    }
+
+    /// The flight time of each transmitter's burst to where the receiver
+    /// probably is when `msg` was heard (its own fix of the last
+    /// [`OWN_HINT_MAX_AGE`], else `hint`), nanoseconds; `None` when neither
+    /// is known, or for a transmitter not in the site.
+    fn expected_flights(
+        &self,
+        msg: &UltrasoundArrivals,
+        hint: Option<[f64; 2]>,
+    ) -> impl Fn(u32) -> Option<i64> + use<> {
+        let heard_at = msg.arrivals.iter().map(|a| a.t_arrival).min();
+        let own = self
+            .last_fix
+            .filter(|(t, _)| heard_at.is_some_and(|h| h.since(*t) <= OWN_HINT_MAX_AGE))
+            .map(|(_, p)| [p.x, p.y]);
+        self.flights_from(own.or(hint))
+    }
+
+    /// The flight time of each transmitter's burst to the receiver at
+    /// `at` (metres; at the MSU's height), nanoseconds; `None` for every
+    /// transmitter when `at` is `None` or not finite, or for one not in the site.
+    fn flights_from(&self, at: Option<[f64; 2]>) -> impl Fn(u32) -> Option<i64> + use<> {
+        let at = at.filter(|p| p[0].is_finite() && p[1].is_finite());
+        let c = self.config.speed_of_sound_m_s;
+        let flights: Vec<(u32, i64)> = match at {
+            Some([x, y]) if c > 0.0 => self
+                .config
+                .transmitters
+                .iter()
+                .map(|t| {
+                    let d = ((t.x_m - x).powi(2)
+                        + (t.y_m - y).powi(2)
+                        + (t.z_m - self.config.height_m).powi(2))
+                    .sqrt();
+                    // Bounded: a site file's coordinates are untrusted.
+                    (t.tx_id, (d / c * 1e9).clamp(0.0, 1e9) as i64)
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
+        move |tx_id| {
+            flights
+                .iter()
+                .find(|(id, _)| *id == tx_id)
+                .map(|&(_, ns)| ns)
+        }
     }
 
     /// One solve of `signals`: the fix when it is valid (a root chosen by

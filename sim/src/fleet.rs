@@ -182,6 +182,11 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             due.entry((end * 1e9) as i64)
                 .or_default()
                 .push(trigger.cycle);
+            // As on the mesh: every MSU hears every trigger and matches its
+            // arrivals to one itself (`ickon_msu::cycle_match`).
+            for m in &mut members {
+                m.core.on_trigger(trigger.clone());
+            }
             triggers.insert(trigger.cycle, trigger);
         }
         for b in control.take_fired() {
@@ -208,9 +213,9 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
         for key in ready {
             for k in due.remove(&key).unwrap_or_default() {
                 let fired = emissions.remove(&k).unwrap_or_default();
-                let Some(trigger) = triggers.remove(&k) else {
+                if triggers.remove(&k).is_none() {
                     continue;
-                };
+                }
                 if fired.is_empty() {
                     continue;
                 }
@@ -218,7 +223,6 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
                 for m in &mut members {
                     let msg = m.world.arrivals_from_emissions(&fired);
                     let _ = m.core.set_schedule(schedule.clone());
-                    m.core.set_cycle_trigger(Some(trigger.clone()));
                     if let Ok(Some(fix)) = m.core.on_arrivals(&msg) {
                         let calibrated = fix.survey_version != 0;
                         control.send_to_central(CentralEvent::Fix {

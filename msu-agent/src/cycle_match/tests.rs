@@ -73,7 +73,12 @@ fn the_trigger_naming_the_heard_transmitters_wins_over_a_newer_one() {
     recent.note(trigger(10, &[(1, 0), (2, 30), (3, 60)]));
     recent.note(trigger(11, &[(2, 0), (4, 30)]));
     let msg = heard(5_000, &[(1, 0, 4_000), (2, 30, 9_000), (3, 60, 6_000)]);
-    assert_eq!(recent.best_for(&msg, &book()).map(|t| t.cycle), Some(10));
+    assert_eq!(
+        recent
+            .best_for(&msg, &book(), &|_| None)
+            .map(|m| m.trigger.cycle),
+        Some(10)
+    );
 }
 
 #[test]
@@ -83,9 +88,19 @@ fn among_triggers_naming_the_same_set_the_offsets_that_explain_the_times_win() {
     recent.note(trigger(21, &[(2, 0), (1, 30)]));
     // Heard as cycle 20 fired: 1 first, 2 thirty milliseconds later.
     let msg = heard(9_000, &[(1, 0, 5_000), (2, 30, 7_000)]);
-    assert_eq!(recent.best_for(&msg, &book()).map(|t| t.cycle), Some(20));
+    assert_eq!(
+        recent
+            .best_for(&msg, &book(), &|_| None)
+            .map(|m| m.trigger.cycle),
+        Some(20)
+    );
     let msg = heard(9_000, &[(2, 0, 5_000), (1, 30, 7_000)]);
-    assert_eq!(recent.best_for(&msg, &book()).map(|t| t.cycle), Some(21));
+    assert_eq!(
+        recent
+            .best_for(&msg, &book(), &|_| None)
+            .map(|m| m.trigger.cycle),
+        Some(21)
+    );
 }
 
 #[test]
@@ -95,7 +110,7 @@ fn triggers_without_their_schedule_older_epochs_and_oversized_ones_are_not_used(
     unknown.schedule_version = 9;
     recent.note(unknown);
     let msg = heard(0, &[(1, 0, 1_000)]);
-    assert!(recent.best_for(&msg, &book()).is_none());
+    assert!(recent.best_for(&msg, &book(), &|_| None).is_none());
     let mut huge = trigger(31, &[(1, 0)]);
     huge.firing = vec![
         Firing {
@@ -105,17 +120,17 @@ fn triggers_without_their_schedule_older_epochs_and_oversized_ones_are_not_used(
         5
     ];
     recent.note(huge);
-    assert!(recent.best_for(&msg, &book()).is_none());
+    assert!(recent.best_for(&msg, &book(), &|_| None).is_none());
     let mut old = trigger(40, &[(1, 0)]);
     old.epoch = EPOCH - 1;
     recent.note(old);
     assert!(
-        recent.best_for(&msg, &book()).is_none(),
+        recent.best_for(&msg, &book(), &|_| None).is_none(),
         "an older epoch is ignored"
     );
     recent.note(trigger(31, &[(1, 0)]));
     assert!(
-        recent.best_for(&msg, &book()).is_none(),
+        recent.best_for(&msg, &book(), &|_| None).is_none(),
         "a repeated cycle is ignored"
     );
 }
@@ -141,4 +156,89 @@ fn a_trigger_of_the_whole_schedule_forgets_the_others() {
     plain.cycle_period = Duration::ZERO;
     recent.note(plain);
     assert!(recent.is_empty());
+}
+
+/// Flight times of transmitters 1-3 from where the receiver is, microseconds.
+const FLIGHTS_US: [(u32, i64); 3] = [(1, 4_000), (2, 9_000), (3, 6_000)];
+
+fn flights(tx_id: u32) -> Option<i64> {
+    FLIGHTS_US
+        .iter()
+        .find(|(id, _)| *id == tx_id)
+        .map(|&(_, us)| us * 1_000)
+}
+
+/// The arrivals of cycle `cycle` (start `cycle * 100` ms on the central
+/// clock) on an MSU clock `clock_ms` ahead, bursts at 0, 30 and 60 ms.
+fn heard_in_cycle(cycle: i64, clock_ms: i64) -> UltrasoundArrivals {
+    heard(
+        cycle * 100 + clock_ms,
+        &[(1, 0, 4_000), (2, 30, 9_000), (3, 60, 6_000)],
+    )
+}
+
+const SAME: [(u32, i64); 3] = [(1, 0), (2, 30), (3, 60)];
+
+#[test]
+fn a_learnt_clock_offset_picks_the_cycle_heard_among_triggers_of_identical_offsets() {
+    let mut recent = RecentTriggers::default();
+    for cycle in 40..44 {
+        recent.note(trigger(cycle, &SAME));
+    }
+    let msg = heard_in_cycle(41, 37);
+    // Nothing tells them apart but their starts: the newest wins, and the
+    // choice is not clear enough to learn from.
+    let m = recent.best_for(&msg, &book(), &flights).unwrap();
+    assert_eq!((m.trigger.cycle, m.clear), (43, false));
+    // A clock offset learnt (37 ms) from a cycle solved before.
+    recent.learn_clock(&trigger(39, &SAME), (39 * 100 + 37) * 1_000_000);
+    assert_eq!(recent.clock_offset_ns(), Some(37_000_000));
+    for cycle in 40..44 {
+        let m = recent
+            .best_for(&heard_in_cycle(cycle, 37), &book(), &flights)
+            .unwrap();
+        assert_eq!((m.trigger.cycle, m.clear), (cycle as u64, true));
+    }
+    // Without a position the starts include the flight times: the offset is not used.
+    let m = recent.best_for(&msg, &book(), &|_| None).unwrap();
+    assert_eq!(m.trigger.cycle, 43);
+}
+
+#[test]
+fn a_clear_choice_is_one_the_others_explain_more_than_twice_as_badly() {
+    let mut recent = RecentTriggers::default();
+    recent.note(trigger(60, &SAME));
+    recent.note(trigger(61, &[(1, 0), (2, 33), (3, 60)]));
+    let m = recent
+        .best_for(&heard_in_cycle(60, 5), &book(), &flights)
+        .unwrap();
+    assert_eq!((m.trigger.cycle, m.clear), (60, true));
+    // Without positions, the flight times hide a 3 ms difference no better.
+    let m = recent
+        .best_for(&heard_in_cycle(60, 5), &book(), &|_| None)
+        .unwrap();
+    assert!(!m.clear);
+}
+
+#[test]
+fn after_a_clock_step_the_offset_is_learnt_again() {
+    let mut recent = RecentTriggers::default();
+    for cycle in 70..74 {
+        recent.note(trigger(cycle, &SAME));
+    }
+    recent.learn_clock(&trigger(69, &SAME), (69 * 100 + 20) * 1_000_000);
+    // The MSU clock steps 250 ms: no trigger fits the offset learnt.
+    for _ in 0..MISFITS_BEFORE_RELEARN {
+        let m = recent
+            .best_for(&heard_in_cycle(71, 270), &book(), &flights)
+            .unwrap();
+        assert!(!m.clear, "a misfit is not learnt from");
+    }
+    // A cycle solved after the step (a clear choice, below) replaces what was learnt.
+    recent.learn_clock(&trigger(72, &SAME), (72 * 100 + 270) * 1_000_000);
+    assert_eq!(recent.clock_offset_ns(), Some(270_000_000));
+    let m = recent
+        .best_for(&heard_in_cycle(71, 270), &book(), &flights)
+        .unwrap();
+    assert_eq!((m.trigger.cycle, m.clear), (71, true));
 }

@@ -205,17 +205,7 @@ impl SpacingTable {
             .collect();
         set.sort_unstable();
         set.dedup();
-        let degree = |i: usize| {
-            set.iter()
-                .filter(|&&j| j != i && need(i, j).is_some())
-                .count()
-        };
-        let mut ranked: Vec<(std::cmp::Reverse<usize>, f64, usize)> = set
-            .iter()
-            .map(|&i| (std::cmp::Reverse(degree(i)), order(i), i))
-            .collect();
-        ranked.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let greedy: Vec<usize> = ranked.iter().map(|r| r.2).collect();
+        let greedy = greedy_ranking(&set, &need, order);
         let Some(mut best) = place(&greedy, &need, None) else {
             return Packing {
                 offsets: Vec::new(),
@@ -247,6 +237,25 @@ impl SpacingTable {
 /// the same cycle rate within 1 %, at up to 20 % more of the evaluation's
 /// time).
 pub const SWEEP_DIRECTIONS: usize = 8;
+
+/// `set` (no duplicates) most conflicts first, then by `order`, then by index.
+fn greedy_ranking(
+    set: &[usize],
+    need: &dyn Fn(usize, usize) -> Option<Duration>,
+    order: &dyn Fn(usize) -> f64,
+) -> Vec<usize> {
+    let degree = |i: usize| {
+        set.iter()
+            .filter(|&&j| j != i && need(i, j).is_some())
+            .count()
+    };
+    let mut ranked: Vec<(std::cmp::Reverse<usize>, f64, usize)> = set
+        .iter()
+        .map(|&i| (std::cmp::Reverse(degree(i)), order(i), i))
+        .collect();
+    ranked.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+    ranked.into_iter().map(|r| r.2).collect()
+}
 
 /// Places `ranked` in turn, each at the earliest time that keeps every
 /// spacing with those placed, and finds the least period. `None` when

@@ -29,7 +29,7 @@ use std::collections::VecDeque;
 
 use ickon_proto::epoch::ScheduleBook;
 use ickon_proto::msg::control::{CycleTrigger, Emission};
-use ickon_proto::msg::robot::UltrasoundArrivals;
+use ickon_proto::msg::robot::{Arrival, UltrasoundArrivals};
 use ickon_proto::time::Duration;
 
 /// Triggers kept to be matched: a cycle's arrivals reach the MSU within a
@@ -148,18 +148,10 @@ impl RecentTriggers {
             }
             let emissions = trigger.emissions(schedule);
             let mut starts_ns: Vec<i64> = Vec::with_capacity(msg.arrivals.len());
-            for a in &msg.arrivals {
-                let Some(e) = emissions.iter().find(|e| e.tx_id == a.tx_id) else {
-                    continue;
-                };
+            for (a, e) in named(msg, &emissions) {
                 let flight = flight_ns(a.tx_id);
                 flights_known &= flight.is_some();
-                starts_ns.push(
-                    a.t_arrival
-                        .as_nanos()
-                        .saturating_sub(e.offset.as_nanos())
-                        .saturating_sub(flight.unwrap_or(0)),
-                );
+                starts_ns.push(start_ns(a, e, flight.unwrap_or(0)));
             }
             if starts_ns.is_empty() {
                 continue;
@@ -235,23 +227,33 @@ pub fn cycle_start_ns(
     emissions: &[Emission],
     flight_ns: &dyn Fn(u32) -> Option<i64>,
 ) -> Option<i64> {
-    let mut starts_ns: Vec<i64> = msg
-        .arrivals
-        .iter()
-        .filter_map(|a| {
-            let e = emissions.iter().find(|e| e.tx_id == a.tx_id)?;
-            Some(
-                a.t_arrival
-                    .as_nanos()
-                    .saturating_sub(e.offset.as_nanos())
-                    .saturating_sub(flight_ns(a.tx_id)?),
-            )
-        })
+    let mut starts_ns: Vec<i64> = named(msg, emissions)
+        .filter_map(|(a, e)| Some(start_ns(a, e, flight_ns(a.tx_id)?)))
         .collect();
     if starts_ns.is_empty() {
         return None;
     }
     Some(median_and_deviation_ns(&mut starts_ns).0)
+}
+
+/// The arrivals of `msg` from transmitters `emissions` names, each with its emission.
+fn named<'a>(
+    msg: &'a UltrasoundArrivals,
+    emissions: &'a [Emission],
+) -> impl Iterator<Item = (&'a Arrival, &'a Emission)> {
+    msg.arrivals
+        .iter()
+        .filter_map(|a| Some((a, emissions.iter().find(|e| e.tx_id == a.tx_id)?)))
+}
+
+/// Where `arrival` puts the cycle's start on the MSU clock, nanoseconds:
+/// its time less its emission's offset and its flight time.
+fn start_ns(arrival: &Arrival, emission: &Emission, flight_ns: i64) -> i64 {
+    arrival
+        .t_arrival
+        .as_nanos()
+        .saturating_sub(emission.offset.as_nanos())
+        .saturating_sub(flight_ns)
 }
 
 /// The median of `starts_ns` and how far they lie from it, summed,

@@ -30,8 +30,7 @@ use nalgebra::{Vector2, Vector3};
 
 use crate::assembly::{Signal, assemble, clock_of_cell};
 use crate::core::{MsuConfig, MsuError};
-use crate::cycle_match::RecentTriggers;
-use crate::cycle_match::{Matched, cycle_start_ns};
+use crate::cycle_match::{Matched, RecentTriggers, cycle_start_ns};
 use crate::fusion_clock::FusionClock;
 use crate::motion::CycleMotion;
 
@@ -235,15 +234,18 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
-        let flight_ns = self.expected_flights(msg, hint);
         let matched = match &self.cycle_trigger {
             Some(t) => Some(Matched {
                 trigger: t.clone(),
                 clear: true,
             }),
-            None => self
-                .recent_triggers
-                .best_for(msg, &self.schedules, &flight_ns),
+            // The whole schedule fires: nothing to match, no flight to work out.
+            None if self.recent_triggers.is_empty() => None,
+            None => {
+                let flight_ns = self.expected_flights(msg, hint);
+                self.recent_triggers
+                    .best_for(msg, &self.schedules, &flight_ns)
+            }
         };
         let trigger = matched.as_ref().map(|m| &m.trigger);
         let published = match trigger {
@@ -339,10 +341,15 @@ impl FixSolver {
             self.motion
                 .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
             self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
-            if let Some(Matched {
-                trigger,
-                clear: true,
-            }) = &matched
+            // The clock offset serves only matching: a trigger handed in
+            // (`set_cycle_trigger`) needs none.
+            if let (
+                None,
+                Some(Matched {
+                    trigger,
+                    clear: true,
+                }),
+            ) = (&self.cycle_trigger, &matched)
             {
                 let from_fix = self.flights_from(Some([sol.position_m[0], sol.position_m[1]]));
                 if let Some(start_ns) = cycle_start_ns(msg, &schedule.emissions, &from_fix) {

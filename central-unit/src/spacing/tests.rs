@@ -152,11 +152,8 @@ fn occupied(table: &SpacingTable, robots: &[[f64; 2]]) -> (Vec<usize>, NeedMatri
 /// The greedy ranking alone, as the packer placed it before the sweeps.
 fn greedy_only(table: &SpacingTable, set: &[usize], need: &NeedMatrix) -> Packing {
     let n = |i: usize, j: usize| need_of(need, i, j);
-    let degree = |i: usize| set.iter().filter(|&&j| j != i && n(i, j).is_some()).count();
-    let mut ranked = set.to_vec();
-    ranked.sort_by_key(|&i| (std::cmp::Reverse(degree(i)), i));
-    assert!(ranked.iter().all(|&i| i < table.tx_ids.len()));
-    place(&ranked, &n, None).unwrap()
+    assert!(set.iter().all(|&i| i < table.tx_ids.len()));
+    place(&greedy_ranking(set, &n, &|_| 0.0), &n, None).unwrap()
 }
 
 #[test]

@@ -242,3 +242,47 @@ fn after_a_clock_step_the_offset_is_learnt_again() {
         .unwrap();
     assert_eq!((m.trigger.cycle, m.clear), (71, true));
 }
+
+#[test]
+fn forged_start_times_and_extreme_stamps_neither_panic_nor_displace_the_cycle_heard() {
+    let mut recent = RecentTriggers::default();
+    for cycle in 80..83 {
+        recent.note(trigger(cycle, &SAME));
+    }
+    recent.learn_clock(&trigger(79, &SAME), (79 * 100 + 37) * 1_000_000);
+    // Newer triggers naming the same transmitters, stamped at the ends of time.
+    for (cycle, start) in [(83, i64::MAX), (84, i64::MIN)] {
+        let mut forged = trigger(cycle, &SAME);
+        forged.start = Time::from_nanos(start);
+        recent.note(forged);
+    }
+    let m = recent
+        .best_for(&heard_in_cycle(81, 37), &book(), &flights)
+        .unwrap();
+    assert_eq!((m.trigger.cycle, m.clear), (81, true));
+    // Arrival stamps at the ends of time match something or nothing, without overflow.
+    for t in [i64::MIN, i64::MAX] {
+        let msg = UltrasoundArrivals {
+            seq: 2,
+            arrivals: (1..=3)
+                .map(|tx_id| Arrival {
+                    tx_id,
+                    receiver_id: 0,
+                    t_arrival: Time::from_nanos(t),
+                })
+                .collect(),
+        };
+        let _ = recent.best_for(&msg, &book(), &flights);
+        let _ = recent.best_for(&msg, &book(), &|_| Some(i64::MAX));
+        assert!(
+            cycle_start_ns(
+                &msg,
+                &trigger(81, &SAME).emissions(&book().latest().unwrap().clone()),
+                &flights
+            )
+            .is_some()
+        );
+    }
+    // The learnt offset is still the real one.
+    assert_eq!(recent.clock_offset_ns(), Some(37_000_000));
+}

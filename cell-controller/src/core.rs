@@ -398,6 +398,8 @@ impl CellCore {
         if s.delay_ns() < 0.0 {
             return true;
         }
+        // Compared as the estimate sees it: sent when requests typically leave.
+        let s = &self.sync.adjusted(s);
         let mid = s.local_mid();
         let predicted_ns = est.to_master(mid).since(mid).as_nanos() as f64;
         let slack_ns = s.delay_ns() / 2.0 + 4.0 * est.sigma_ns + STEP_TOLERANCE.as_nanos() as f64;

@@ -12,7 +12,6 @@ use std::time::Duration as StdDuration;
 use clap::{Args, ValueEnum};
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::control::{ClockReply, ClockRequest, CycleTrigger, Schedule};
-use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{
     NodeArgs, NodeError, SimulatedClock, Stamped, put_counted, query_once, query_stamped, zerr,
@@ -101,15 +100,15 @@ async fn exchange(
         wanted,
     )
     .await?;
-    // The request left some time between the call and Zenoh having queued
-    // it; that takes a few hundred microseconds on a busy machine, which
-    // counted whole would make the outward leg look longer than it is.
+    // The request left some time between the call and Zenoh having taken
+    // it; the sync slave allows for the typical time (see `crate::sync`).
     Ok(reply.filter(|r| r.value.t1 == t1).map(|r| ClockSample {
-        t1: Time::from_nanos(t1.as_nanos() + r.sent.since(t1).as_nanos() / 2),
+        t1,
         t2: r.value.t2,
         t3: r.value.t3,
         t4: r.received,
         epoch: r.value.epoch,
+        queued_ns: r.sent.since(t1).as_nanos(),
     }))
 }
 

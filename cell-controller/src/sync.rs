@@ -16,6 +16,21 @@
 //! make the drift, and every extrapolation, fragile. A straight line through them,
 //! `offset(local) = a + b (local - t_ref)`, gives offset and drift.
 //!
+//! The request does not leave at `t1`: Zenoh takes it some time after the
+//! call (a few tens to hundreds of microseconds on a busy machine), and
+//! counted whole that time makes the outward leg look longer than the way
+//! back. Each exchange notes when Zenoh had taken it
+//! ([`ClockSample::queued_ns`]), and `t1` is moved by half the **median** of
+//! those times over the window, not by the exchange's own: a task that
+//! stalls after its request has left but before it notes the time would
+//! otherwise move `t1` past the moment the request left, shrinking the
+//! delay of exactly that exchange, which the fit then trusts most (seen on
+//! a loaded machine: the exchanges with the smallest delays were 60 us
+//! early on average, and bursts fired 200 us early).
+//!
+//! The fitted line weighs each exchange by the inverse square of its delay:
+//! half the delay bounds an exchange's error.
+//!
 //! Before the exchanges span [`SyncConfig::min_drift_span_s`] the drift is
 //! unknown: the offset then comes from the one exchange with the smallest
 //! error bound, half its delay plus [`SyncConfig::drift_bound`] times its
@@ -38,6 +53,9 @@ pub struct ClockSample {
     pub t4: Time,
     /// The epoch of the central unit that answered.
     pub epoch: u64,
+    /// How long after `t1` Zenoh had taken the request, on the local clock,
+    /// nanoseconds (0 when unknown). See the module's documentation.
+    pub queued_ns: i64,
 }
 
 impl ClockSample {
@@ -63,6 +81,14 @@ impl ClockSample {
 
     fn stamps(&self) -> [i128; 4] {
         [self.t1, self.t2, self.t3, self.t4].map(|t| i128::from(t.as_nanos()))
+    }
+
+    /// The exchange with `t1` moved `ns` later (saturating).
+    fn sent_later_by(&self, ns: i64) -> Self {
+        Self {
+            t1: Time::from_nanos(self.t1.as_nanos().saturating_add(ns)),
+            ..*self
+        }
     }
 }
 
@@ -165,9 +191,29 @@ impl SyncSlave {
         true
     }
 
+    /// How long after `t1` the requests of the window typically left: half
+    /// the median time Zenoh took to take them (see the module's
+    /// documentation for why the median), nanoseconds.
+    pub fn typical_send_delay_ns(&self) -> i64 {
+        let mut queued: Vec<i64> = self.samples.iter().map(|s| s.queued_ns.max(0)).collect();
+        if queued.is_empty() {
+            return 0;
+        }
+        let mid = queued.len() / 2;
+        *queued.select_nth_unstable(mid).1 / 2
+    }
+
+    /// `s` with its `t1` moved to when its request typically left: the
+    /// exchange as the estimate uses it (and as a caller comparing an
+    /// exchange with the estimate should).
+    pub fn adjusted(&self, s: &ClockSample) -> ClockSample {
+        s.sent_later_by(self.typical_send_delay_ns())
+    }
+
     /// The exchanges the fit uses: the best of each equal stretch of time of
-    /// the window (stretches without an exchange give none).
-    fn fitted(&self) -> Vec<&ClockSample> {
+    /// the window (stretches without an exchange give none), adjusted.
+    fn fitted(&self) -> Vec<ClockSample> {
+        let send_delay_ns = self.typical_send_delay_ns();
         let buckets = self.config.buckets.max(1);
         let (Some(first), Some(last)) = (self.samples.front(), self.samples.back()) else {
             return Vec::new();
@@ -181,7 +227,10 @@ impl SyncSlave {
             let k = ((at * buckets as f64) as usize).min(buckets - 1);
             best[k] = min_delay(best[k].into_iter().chain(std::iter::once(s)));
         }
-        best.into_iter().flatten().collect()
+        best.into_iter()
+            .flatten()
+            .map(|s| s.sent_later_by(send_delay_ns))
+            .collect()
     }
 
     /// The estimate, or `None` before [`SyncConfig::min_samples`] exchanges.
@@ -197,13 +246,18 @@ impl SyncSlave {
             // An exchange's error is at most half its delay, plus what an
             // unknown drift adds since: the best bound wins, so a stall
             // that delays every recent exchange keeps an older good one.
-            let newest = self.samples.back()?.local_mid();
+            let send_delay_ns = self.typical_send_delay_ns();
+            let adjusted: Vec<ClockSample> = self
+                .samples
+                .iter()
+                .map(|s| s.sent_later_by(send_delay_ns))
+                .collect();
+            let newest = adjusted.last()?.local_mid();
             let bound = |s: &ClockSample| {
-                s.delay_ns() / 2.0
+                s.delay_ns().max(0.0) / 2.0
                     + self.config.drift_bound * newest.since(s.local_mid()).as_nanos() as f64
             };
-            let best = self
-                .samples
+            let best = adjusted
                 .iter()
                 .min_by(|a, b| bound(a).total_cmp(&bound(b)))?;
             return Some(SyncEstimate {
@@ -219,30 +273,43 @@ impl SyncSlave {
         // keep the bests within twice the median delay of all of them.
         let mut delays: Vec<f64> = fitted.iter().map(|s| s.delay_ns()).collect();
         delays.sort_by(f64::total_cmp);
-        let limit = 2.0 * delays[delays.len() / 2];
+        // (At least the median: adjusted delays can be negative.)
+        let median = delays[delays.len() / 2];
+        let limit = (2.0 * median).max(median);
         fitted.retain(|s| s.delay_ns() <= limit);
-        let n = fitted.len() as f64;
-        let reference = Time::from_nanos(
-            (fitted
-                .iter()
-                .map(|s| s.local_mid().as_nanos() as f64)
-                .sum::<f64>()
-                / n)
-                .round() as i64,
-        );
+        // Weights: the inverse square of each exchange's error bound, half
+        // its delay (1 us at least: an adjusted delay can reach zero).
+        let weights: Vec<f64> = fitted
+            .iter()
+            .map(|s| (s.delay_ns() / 2.0).max(1_000.0).powi(-2))
+            .collect();
+        let weight_sum: f64 = weights.iter().sum();
+        // Centred on the weighted mean time, summed from the first exchange
+        // (local times in f64 would lose a few hundred nanoseconds).
+        let first = fitted.first()?.local_mid();
+        let centre_ns = fitted
+            .iter()
+            .zip(&weights)
+            .map(|(s, w)| {
+                w * (i128::from(s.local_mid().as_nanos()) - i128::from(first.as_nanos())) as f64
+            })
+            .sum::<f64>()
+            / weight_sum;
+        let reference = Time::from_nanos(first.as_nanos().saturating_add(centre_ns.round() as i64));
         let xs: Vec<f64> = fitted
             .iter()
             .map(|s| {
                 (i128::from(s.local_mid().as_nanos()) - i128::from(reference.as_nanos())) as f64
             })
             .collect();
-        let ys: Vec<f64> = fitted.iter().map(|s| s.offset_ns()).collect();
-        let mean_y = ys.iter().sum::<f64>() / n;
-        let sxx: f64 = xs.iter().map(|x| x * x).sum();
+        let ys: Vec<f64> = fitted.iter().map(ClockSample::offset_ns).collect();
+        let mean_y = ys.iter().zip(&weights).map(|(y, w)| w * y).sum::<f64>() / weight_sum;
+        let sxx: f64 = xs.iter().zip(&weights).map(|(x, w)| w * x * x).sum();
         let drift = if fitted.len() >= 3 && sxx > 0.0 {
             xs.iter()
                 .zip(&ys)
-                .map(|(x, y)| x * (y - mean_y))
+                .zip(&weights)
+                .map(|((x, y), w)| w * x * (y - mean_y))
                 .sum::<f64>()
                 / sxx
         } else {
@@ -251,12 +318,13 @@ impl SyncSlave {
         let residual_var = xs
             .iter()
             .zip(&ys)
-            .map(|(x, y)| (y - mean_y - drift * x).powi(2))
+            .zip(&weights)
+            .map(|((x, y), w)| w * (y - mean_y - drift * x).powi(2))
             .sum::<f64>()
-            / n;
+            / weight_sum;
         // The scatter of the fitted exchanges, and at least a quarter of the
         // best round trip: an asymmetry no exchange can see.
-        let best_delay = min_delay(fitted.iter().copied()).map_or(0.0, |s| s.delay_ns());
+        let best_delay = min_delay(&fitted).map_or(0.0, |s| s.delay_ns().max(0.0));
         let sigma_ns = residual_var.sqrt().max(best_delay / 4.0);
         Some(SyncEstimate {
             reference,
@@ -293,6 +361,7 @@ mod tests {
             t3: Time(i64::MAX),
             t4: Time(2_000),
             epoch: 0,
+            queued_ns: 0,
         };
         assert!(s.offset_ns().is_finite() && s.delay_ns().is_finite());
         let mut slave = SyncSlave::new(SyncConfig::default());
@@ -303,6 +372,7 @@ mod tests {
             t3: Time(i64::MAX),
             t4: Time(i64::MAX),
             epoch: 0,
+            queued_ns: 0,
         };
         assert_eq!(far.local_mid(), Time(-1));
         slave.add(far);
@@ -315,6 +385,7 @@ mod tests {
                 t3: Time(0),
                 t4: Time(t),
                 epoch: 0,
+                queued_ns: 0,
             });
         }
         assert!(slave.estimate().is_none_or(|e| e.offset_ns.is_finite()));
@@ -350,6 +421,7 @@ mod tests {
             t3: Time::from_nanos(m3 as i64),
             t4: Time::from_nanos(local(m4) as i64),
             epoch: 0,
+            queued_ns: 0,
         }
     }
 
@@ -463,6 +535,36 @@ mod tests {
         assert!((e.drift + drift).abs() < 10e-6, "drift {}", e.drift);
         let err_ns = error_ns(&e, t + 0.5, offset, drift);
         assert!(err_ns.abs() < 60_000.0, "error {err_ns} ns");
+    }
+
+    /// Seen on a loaded machine: a task that stalls after its request has
+    /// left but before it notes when Zenoh took it. Moving that exchange's
+    /// own `t1` by half its noted time made its delay the smallest of all,
+    /// the fit trusted it most, and bursts fired 200 us early.
+    #[test]
+    fn a_request_noted_late_does_not_become_the_most_trusted_exchange() {
+        let mut s = SyncSlave::new(SyncConfig::default());
+        let (offset, drift) = (-50e6, -100e-6);
+        // Zenoh takes a request 100 us after `t1`; it then needs 150 us
+        // each way. Every fourth task stalls 800 us before noting the time.
+        let (taken_ns, leg_ns, stall_ns) = (100_000.0, 150_000.0, 800_000i64);
+        for k in 0..40 {
+            let mut x = exchange(
+                300.0 + k as f64 * 0.1,
+                offset,
+                drift,
+                taken_ns + leg_ns,
+                leg_ns,
+            );
+            x.queued_ns = taken_ns as i64 + if k % 4 == 0 { stall_ns } else { 0 };
+            assert!(s.add(x));
+        }
+        assert_eq!(s.typical_send_delay_ns(), 50_000);
+        let e = s.estimate().unwrap();
+        // Half of what is left of the outward leg's extra 100 us: 25 us.
+        let err_ns = error_ns(&e, 304.0, offset, drift);
+        assert!(err_ns.abs() < 30_000.0, "error {err_ns} ns");
+        assert!((e.drift + drift).abs() < 2e-6, "drift {}", e.drift);
     }
 
     #[test]

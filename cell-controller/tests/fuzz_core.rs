@@ -96,6 +96,7 @@ fn event(now: Time, cycle: &mut u64, a: &Act) -> Option<Event> {
                 t3: m + Duration::from_micros(50),
                 t4: t1 + Duration::from_micros(200),
                 epoch: if plausible { EPOCH } else { draw::<u64>(e)? },
+                queued_ns: 0,
             };
             Event::ClockExchange((a.kind & 0x80 == 0).then_some(sample))
         }
@@ -106,6 +107,7 @@ fn event(now: Time, cycle: &mut u64, a: &Act) -> Option<Event> {
                 t3: Time(c),
                 t4: Time(d),
                 epoch: ep,
+                queued_ns: 0,
             }),
         ),
         7 => Event::CentralAlive(a.kind & 0x80 == 0),

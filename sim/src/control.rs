@@ -566,6 +566,7 @@ impl ControlPlane {
             t3: t2,
             t4: self.cells[i].local(arrive_ns),
             epoch: self.central.epoch(),
+            queued_ns: 0,
         };
         let reply = if back + out > REQUEST_TIMEOUT {
             None

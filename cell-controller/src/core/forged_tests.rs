@@ -73,6 +73,7 @@ fn a_rogue_clock_answer_is_refused_and_the_estimate_stays() {
         t3: now + Duration::from_millis(300),
         t4: now + Duration::from_micros(200),
         epoch,
+        queued_ns: 0,
     };
     core.handle(now, Event::ClockExchange(Some(rogue(EPOCH + 1))));
     // ...and the same with the right epoch: one answer is not a clock step.
@@ -94,6 +95,7 @@ fn three_agreeing_exchanges_are_a_clock_step() {
             t3: now + Duration::from_millis(5),
             t4: now + Duration::from_micros(200),
             epoch: EPOCH,
+            queued_ns: 0,
         };
         core.handle(now, Event::ClockExchange(Some(stepped)));
         now = now + Duration::from_millis(20);

@@ -23,6 +23,7 @@ pub(super) fn synced_cell(offset_ms: i64) -> (CellCore, Time) {
                 t3: master,
                 t4: t1 + Duration::from_micros(200),
                 epoch: EPOCH,
+                queued_ns: 0,
             };
             now = now + Duration::from_micros(200);
             outputs = core.handle(now, Event::ClockExchange(Some(sample)));

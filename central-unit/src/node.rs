@@ -41,10 +41,11 @@ pub struct CentralArgs {
     /// cycles (see `ickon_central::core::standby`).
     #[arg(long)]
     pub standby: bool,
-    /// Which transmitters fire each cycle: `all` (the whole schedule) or
-    /// `occupancy` (only where robots may be, issue 20; the MSU agents
-    /// follow the cycle triggers' firing sets).
-    #[arg(long, value_enum, default_value_t = Firing::All)]
+    /// Which transmitters fire each cycle: `occupancy` (only where robots
+    /// may be, issue 20; the whole schedule while no robot is known; the
+    /// MSU agents follow the cycle triggers' firing sets) or `all` (the
+    /// whole schedule every cycle).
+    #[arg(long, value_enum, default_value_t = Firing::Occupancy)]
     pub firing: Firing,
     /// Do not learn the transmitters' survey errors from the robots' fixes
     /// (nor publish them on `central/survey`).

@@ -54,7 +54,7 @@ pub struct ScaleArgs {
     #[arg(long)]
     pub secure: bool,
     /// Which transmitters fire each cycle (`ickon sim --firing`).
-    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::All)]
+    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
     pub firing: ickon_central::node::Firing,
     /// Every agent's `tdoa-ekf` learns each cell's sync error as a state
     /// (`ickon sim --learn-cell-sync`).

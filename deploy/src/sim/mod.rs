@@ -95,9 +95,10 @@ pub struct SimArgs {
     /// temporary directory removed at exit.
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub secure: Option<Option<PathBuf>>,
-    /// Which transmitters the central unit fires each cycle: `all` or
-    /// `occupancy` (only where robots may be; issue 20).
-    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::All)]
+    /// Which transmitters the central unit fires each cycle: `occupancy`
+    /// (only where robots may be, issue 20; everything while no robot is
+    /// known) or `all` (the whole schedule every cycle).
+    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
     pub firing: ickon_central::node::Firing,
     /// Start a node again when it dies, as systemd would, instead of
     /// stopping the run.

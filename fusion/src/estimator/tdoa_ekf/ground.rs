@@ -62,6 +62,7 @@ use super::ground_state::{
 };
 use super::observation::{self, Outcome, Rejection};
 use super::recovery::{RecoveryParams, RejectionWatch};
+use super::standstill::{self, Standstill};
 use super::systematic::HeardLately;
 use crate::angle;
 use crate::estimator::dead_reckoning::IncrementTracker;
@@ -227,6 +228,8 @@ pub struct TdoaEkf {
     gyro: Option<(f64, f64)>,
     gyro_turn_rad: f64,
     gyro_time_s: f64,
+    /// Since when the wheels have not moved (a still robot's gyro reads its bias).
+    standstill: Standstill,
     /// While the heading is unknown: where the settled track started and
     /// the turn driven since (`None` inside until the position settles).
     heading_from_track: Option<Option<TrackStart>>,
@@ -368,6 +371,7 @@ impl TdoaEkf {
             gyro: None,
             gyro_turn_rad: 0.0,
             gyro_time_s: 0.0,
+            standstill: Standstill::default(),
             heading_from_track: None,
             unknown_heading_drift_m: 0.0,
             chain: Chain::default(),
@@ -470,7 +474,38 @@ impl TdoaEkf {
         };
         self.gyro_turn_rad = 0.0;
         self.gyro_time_s = 0.0;
+        let standing = self.standstill.note(&inc);
+        if gyro_running && standing && turn_time > 0.0 && self.heading_from_track.is_none() {
+            // Nothing turned: the heading holds, and the gyro read its bias.
+            self.increment(inc.t_s, 0.0, 0.0, 0.0, true);
+            let var = self.params.sensors.var_gyro_turn(turn_time) / turn_time.powi(2);
+            self.gyro_bias_at_rest(dtheta / turn_time, var);
+            return;
+        }
         self.increment(inc.t_s, inc.distance_m, dtheta, turn_time, gyro_running);
+    }
+
+    /// The gyro's mean rate `rate_rad_s` (variance `var`) over a stretch
+    /// in which the robot stood still: a measurement of its bias
+    /// ([`standstill`]), gated.
+    fn gyro_bias_at_rest(&mut self, rate_rad_s: f64, var: f64) {
+        let Some((x, p)) = &mut self.state else {
+            return;
+        };
+        if !(rate_rad_s.is_finite() && var.is_finite() && var > 0.0) {
+            return;
+        }
+        let mut h = Row::zeros();
+        h[BIAS] = 1.0;
+        let nu = rate_rad_s - x[BIAS];
+        let s = gs::innovation_variance(p, &h, var);
+        if nu * nu > standstill::GATE_SIGMAS.powi(2) * s {
+            return;
+        }
+        if let Some((nx, np)) = gs::update(x, p, &h, nu, var) {
+            *x = nx;
+            *p = np;
+        }
     }
 
     /// One dead-reckoning step ending at `t_s`: `distance_m` driven (signed)

@@ -39,6 +39,7 @@ mod ground_state;
 mod ground_tests;
 mod observation;
 mod recovery;
+mod standstill;
 mod systematic;
 #[cfg(test)]
 mod tests;

@@ -52,8 +52,13 @@ fn start_sim(dir: &Path, port: u16) -> ChildGuard {
     let mut cmd = Command::new(ICKON);
     // The sim kills c2 itself, as a planned fault: a node killed from
     // outside makes `ickon sim` stop the whole mesh at its next status
-    // check (by design), which raced with the page's drawing of c2.
+    // check (by design), which raced with the page's drawing of c2. The
+    // whole schedule fires every cycle (`--firing all`), so that every
+    // cell is due in every cycle and the schedule the page is served has
+    // all 16 emissions; under the default occupancy firing both depend on
+    // where the robots happen to be.
     cmd.args(["sim", "--robots", "3", "--duration", "120", "--seed", "1"])
+        .args(["--firing", "all"])
         .arg("--faults")
         .arg(format!("kill:cell/c2@{KILL_C2_AFTER_S}s"))
         .arg("--http")

@@ -216,27 +216,34 @@ impl SyncSlave {
         s.sent_later_by(self.typical_send_delay_ns())
     }
 
-    /// The exchanges the fit uses: the best of each equal stretch of time of
-    /// the window (stretches without an exchange give none), adjusted.
-    fn fitted(&self) -> Vec<ClockSample> {
+    /// Every exchange of the window, [`adjusted`](Self::adjusted).
+    fn adjusted_window(&self) -> Vec<ClockSample> {
         let send_delay_ns = self.typical_send_delay_ns();
+        self.samples
+            .iter()
+            .map(|s| s.sent_later_by(send_delay_ns))
+            .collect()
+    }
+
+    /// The exchanges the fit uses, adjusted: the best of each equal
+    /// stretch of time of the window (stretches without an exchange give
+    /// none).
+    fn fitted(&self) -> Vec<ClockSample> {
+        let window = self.adjusted_window();
         let buckets = self.config.buckets.max(1);
-        let (Some(first), Some(last)) = (self.samples.front(), self.samples.back()) else {
+        let (Some(first), Some(last)) = (window.first(), window.last()) else {
             return Vec::new();
         };
         // In i128: a local clock that jumped across the window spans more than i64.
         let t0 = i128::from(first.local_mid().as_nanos());
         let span = (i128::from(last.local_mid().as_nanos()) - t0).max(1) as f64;
         let mut best: Vec<Option<&ClockSample>> = vec![None; buckets];
-        for s in &self.samples {
+        for s in &window {
             let at = (i128::from(s.local_mid().as_nanos()) - t0) as f64 / span;
             let k = ((at * buckets as f64) as usize).min(buckets - 1);
             best[k] = min_delay(best[k].into_iter().chain(std::iter::once(s)));
         }
-        best.into_iter()
-            .flatten()
-            .map(|s| s.sent_later_by(send_delay_ns))
-            .collect()
+        best.into_iter().flatten().copied().collect()
     }
 
     /// The estimate, or `None` before [`SyncConfig::min_samples`] exchanges.
@@ -252,12 +259,7 @@ impl SyncSlave {
             // An exchange's error is at most half its delay, plus what an
             // unknown drift adds since: the best bound wins, so a stall
             // that delays every recent exchange keeps an older good one.
-            let send_delay_ns = self.typical_send_delay_ns();
-            let adjusted: Vec<ClockSample> = self
-                .samples
-                .iter()
-                .map(|s| s.sent_later_by(send_delay_ns))
-                .collect();
+            let adjusted = self.adjusted_window();
             let newest = adjusted.last()?.local_mid();
             let bound = |s: &ClockSample| {
                 s.delay_ns().max(0.0) / 2.0

@@ -179,6 +179,12 @@ fn heard_in_cycle(cycle: i64, clock_ms: i64) -> UltrasoundArrivals {
 
 const SAME: [(u32, i64); 3] = [(1, 0), (2, 30), (3, 60)];
 
+/// The start of cycle `cycle` read on an MSU clock `clock_ms` ahead of the
+/// central unit's (cycles 100 ms apart), nanoseconds.
+fn msu_start_ns(cycle: i64, clock_ms: i64) -> i64 {
+    (cycle * 100 + clock_ms) * 1_000_000
+}
+
 #[test]
 fn a_learnt_clock_offset_picks_the_cycle_heard_among_triggers_of_identical_offsets() {
     let mut recent = RecentTriggers::default();
@@ -191,7 +197,7 @@ fn a_learnt_clock_offset_picks_the_cycle_heard_among_triggers_of_identical_offse
     let m = recent.best_for(&msg, &book(), &flights).unwrap();
     assert_eq!((m.trigger.cycle, m.clear), (43, false));
     // A clock offset learnt (37 ms) from a cycle solved before.
-    recent.learn_clock(&trigger(39, &SAME), (39 * 100 + 37) * 1_000_000);
+    recent.learn_clock(&trigger(39, &SAME), msu_start_ns(39, 37));
     assert_eq!(recent.clock_offset_ns(), Some(37_000_000));
     for cycle in 40..44 {
         let m = recent
@@ -226,7 +232,7 @@ fn after_a_clock_step_the_offset_is_learnt_again() {
     for cycle in 70..74 {
         recent.note(trigger(cycle, &SAME));
     }
-    recent.learn_clock(&trigger(69, &SAME), (69 * 100 + 20) * 1_000_000);
+    recent.learn_clock(&trigger(69, &SAME), msu_start_ns(69, 20));
     // The MSU clock steps 250 ms: no trigger fits the offset learnt.
     for _ in 0..MISFITS_BEFORE_RELEARN {
         let m = recent
@@ -235,7 +241,7 @@ fn after_a_clock_step_the_offset_is_learnt_again() {
         assert!(!m.clear, "a misfit is not learnt from");
     }
     // A cycle solved after the step (a clear choice, below) replaces what was learnt.
-    recent.learn_clock(&trigger(72, &SAME), (72 * 100 + 270) * 1_000_000);
+    recent.learn_clock(&trigger(72, &SAME), msu_start_ns(72, 270));
     assert_eq!(recent.clock_offset_ns(), Some(270_000_000));
     let m = recent
         .best_for(&heard_in_cycle(71, 270), &book(), &flights)
@@ -249,7 +255,7 @@ fn forged_start_times_and_extreme_stamps_neither_panic_nor_displace_the_cycle_he
     for cycle in 80..83 {
         recent.note(trigger(cycle, &SAME));
     }
-    recent.learn_clock(&trigger(79, &SAME), (79 * 100 + 37) * 1_000_000);
+    recent.learn_clock(&trigger(79, &SAME), msu_start_ns(79, 37));
     // Newer triggers naming the same transmitters, stamped at the ends of time.
     for (cycle, start) in [(83, i64::MAX), (84, i64::MIN)] {
         let mut forged = trigger(cycle, &SAME);

@@ -498,11 +498,9 @@ impl TdoaEkf {
         let mut h = Row::zeros();
         h[BIAS] = 1.0;
         let nu = rate_rad_s - x[BIAS];
-        let s = gs::innovation_variance(p, &h, var);
-        if nu * nu > standstill::GATE_SIGMAS.powi(2) * s {
-            return;
-        }
-        if let Some((nx, np)) = gs::update(x, p, &h, nu, var) {
+        if let Ok((nx, np, _)) =
+            observation::gated_update(x, p, &h, nu, var.sqrt(), standstill::GATE_SIGMAS)
+        {
             *x = nx;
             *p = np;
         }

@@ -315,13 +315,26 @@ pub async fn run(
         .congestion_control(CongestionControl::Block)
         .await
         .map_err(zerr)?;
+    // Like the triggers (see the survey's below): a subscriber hears a
+    // schedule before the triggers that name it.
     let schedule_pub = session
         .declare_publisher(keys.central_schedule())
+        .express(true)
+        .priority(Priority::RealTime)
         .congestion_control(CongestionControl::Block)
         .await
         .map_err(zerr)?;
+    // With the triggers' priority and, like them, sent at once: a
+    // subscriber then hears a calibration and the triggers in the order
+    // they were sent (one priority's queue keeps its order; another's may
+    // overtake it when a link is busy), and an MSU takes a calibration
+    // from the first cycle triggered after it, so that a recorder and the
+    // MSU agree on which cycle that is (`ickon_msu::control_timing`).
     let survey_pub = session
         .declare_publisher(keys.central_survey())
+        .express(true)
+        .priority(Priority::RealTime)
+        .congestion_control(CongestionControl::Block)
         .await
         .map_err(zerr)?;
     let alive = session

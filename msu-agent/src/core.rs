@@ -186,8 +186,15 @@ impl MsuCore {
 
     /// A cycle trigger heard from the central unit (which transmitters fire
     /// when): arrivals are solved with the trigger that explains them.
+    ///
+    /// A trigger before the robot's first input is ignored, like a cell's
+    /// status: a recording's replay starts at the first input the agent
+    /// took and cannot tell the triggers the agent heard before it from
+    /// those sent before it listened.
     pub fn on_trigger(&mut self, trigger: CycleTrigger) {
-        self.solver.note_trigger(trigger);
+        if self.first_input.is_some() {
+            self.solver.note_trigger(trigger);
+        }
     }
 
     /// A cell's status: the sync sigma it reports becomes the prior of its
@@ -213,7 +220,7 @@ impl MsuCore {
         };
         if self.first_input.is_some() {
             self.solver
-                .set_clock_sync_sigma(clock, sigma_ns as f64 * 1e-9);
+                .take_clock_sync_sigma(clock, status.stamp, sigma_ns as f64 * 1e-9);
         }
         Ok(())
     }
@@ -365,10 +372,15 @@ impl MsuCore {
     }
 
     /// Takes the fleet's survey calibration (`central/survey`): the fix
-    /// solver uses its corrected transmitter positions from the next cycle.
-    /// `Ok(true)`: applied; `Ok(false)`: not newer than the one applied
-    /// (the central unit repeats it), or no schedule yet to tell the
-    /// central unit in charge. Refused, and nothing changes: a
+    /// solver uses its corrected transmitter positions from the next cycle
+    /// (while triggers are followed, the first cycle triggered after it:
+    /// [`crate::solver::FixSolver::take_survey_calibration`]).
+    /// `Ok(true)`: taken; `Ok(false)`: not newer than the one taken
+    /// (the central unit repeats it every second), no schedule yet to tell
+    /// the central unit in charge, or none of the robot's inputs yet (as
+    /// with a cell's status: a recording's replay starts at the first input
+    /// the agent took, and cannot tell a calibration the agent heard before
+    /// it from one it had not subscribed to yet; the repeat will do). Refused, and nothing changes: a
     /// calibration of another epoch than the schedules followed, an
     /// unknown or repeated transmitter, an offset or sigma that is not a
     /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`].
@@ -390,8 +402,8 @@ impl MsuCore {
         }
         if self
             .solver
-            .survey_calibration()
-            .is_some_and(|applied| applied >= (c.epoch, c.version))
+            .newest_survey_calibration()
+            .is_some_and(|taken| taken >= (c.epoch, c.version))
         {
             return Ok(false);
         }
@@ -427,7 +439,10 @@ impl MsuCore {
                 )));
             }
         }
-        self.solver.set_survey_calibration(Some(c));
+        if self.first_input.is_none() {
+            return Ok(false);
+        }
+        self.solver.take_survey_calibration(c);
         Ok(true)
     }
 
@@ -435,6 +450,12 @@ impl MsuCore {
     /// with; `None`: the surveyed positions.
     pub fn survey_calibration(&self) -> Option<(u64, u32)> {
         self.solver.survey_calibration()
+    }
+
+    /// `(epoch, version)` of the newest survey calibration taken, whether
+    /// its first cycle has come or not.
+    pub fn newest_survey_calibration(&self) -> Option<(u64, u32)> {
+        self.solver.newest_survey_calibration()
     }
 
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).

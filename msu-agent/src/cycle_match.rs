@@ -24,6 +24,15 @@
 //! never learnt as the right one. After [`MISFITS_BEFORE_RELEARN`] cycles
 //! in a row that no trigger fits (a stepped clock, another central unit),
 //! the offset is learnt again.
+//!
+//! Whether a choice was clear is judged against the triggers of a fixed
+//! window of cycles around it, the next one included, never against
+//! whichever happened to be heard when the arrivals were: the next cycle's
+//! trigger often races a cycle's arrivals to the MSU, and a recorder of
+//! the site can see that race end the other way. So when the next trigger
+//! has not come yet, the judgement waits for it ([`Clarity::AwaitingNext`],
+//! [`RecentTriggers::defer_learning`]), and the agent and a replay of its
+//! recording learn the same offset from the same cycles.
 
 use std::collections::VecDeque;
 
@@ -49,6 +58,12 @@ pub const CLOCK_GATE: Duration = Duration::from_millis(10);
 /// Cycles in a row that no trigger fits before the clock offset is learnt again.
 pub const MISFITS_BEFORE_RELEARN: u32 = 3;
 
+/// Cycles before the chosen one whose triggers a choice is judged against
+/// (with the chosen one's and the next one's): every trigger of that
+/// window is still kept when the judgement is made, however many newer
+/// ones have come ([`TRIGGERS_KEPT`] leaves room for three).
+pub const CLARITY_CYCLES_BEFORE: u64 = 3;
+
 /// The recent triggers of the epoch followed, newest last, and the MSU
 /// clock's offset from the central unit's.
 #[derive(Debug, Clone, Default)]
@@ -57,6 +72,23 @@ pub struct RecentTriggers {
     /// MSU clock minus central clock at the last cycles solved, nanoseconds.
     clock_offsets_ns: VecDeque<i64>,
     misfits: u32,
+    /// A cycle solved with a good fix whose clarity waits for the next trigger.
+    deferred: Option<Deferred>,
+}
+
+/// Whether a choice may teach the clock offset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clarity {
+    /// It fitted the learnt offset, or every trigger of its window was
+    /// heard and every other one spread the starts more than twice as wide.
+    Clear,
+    /// Another trigger explains the arrivals nearly as well (a tie is never
+    /// clear), one of the window was not heard, or the flight times are
+    /// not known.
+    Unclear,
+    /// The next cycle's trigger, which belongs to the window, has not been
+    /// heard yet: judged when it is.
+    AwaitingNext,
 }
 
 /// The trigger chosen for a message of arrivals.
@@ -64,10 +96,19 @@ pub struct RecentTriggers {
 pub struct Matched {
     /// The trigger whose firings the arrivals are solved with.
     pub trigger: CycleTrigger,
-    /// Whether the choice may teach the clock offset: it fitted the learnt
-    /// offset, or every other trigger spread the starts more than twice as
-    /// wide (a tie is never clear).
-    pub clear: bool,
+    /// Whether the choice may teach the clock offset.
+    pub clarity: Clarity,
+}
+
+/// A solved cycle waiting for the next trigger to say whether its choice was clear.
+#[derive(Debug, Clone)]
+struct Deferred {
+    trigger: CycleTrigger,
+    /// Its start on the MSU clock, from the fix, nanoseconds.
+    start_ns: i64,
+    msg: UltrasoundArrivals,
+    /// The flight times the choice was made with, by transmitter, nanoseconds.
+    flights_ns: Vec<(u32, i64)>,
 }
 
 /// One trigger tried on a message.
@@ -77,6 +118,43 @@ struct Candidate<'a> {
     deviation_ns: i64,
     /// Where the trigger puts the MSU clock's offset, nanoseconds.
     clock_offset_ns: i64,
+    /// Whether every arrival it names had a flight time.
+    flights_known: bool,
+}
+
+/// How `trigger` explains `msg` (`None`: its schedule is not in `book`, it
+/// is oversized, or it names none of the transmitters heard).
+fn explain<'a>(
+    trigger: &'a CycleTrigger,
+    msg: &UltrasoundArrivals,
+    book: &ScheduleBook,
+    flight_ns: &dyn Fn(u32) -> Option<i64>,
+) -> Option<Candidate<'a>> {
+    let schedule = book.get_in(trigger.epoch, trigger.schedule_version)?;
+    // More firings than emissions cannot be the central unit's (and would
+    // make the look-up below cost what a forger chooses).
+    if trigger.firing.len() > schedule.emissions.len() {
+        return None;
+    }
+    let emissions = trigger.emissions(schedule);
+    let mut flights_known = true;
+    let mut starts_ns: Vec<i64> = Vec::with_capacity(msg.arrivals.len());
+    for (a, e) in named(msg, &emissions) {
+        let flight = flight_ns(a.tx_id);
+        flights_known &= flight.is_some();
+        starts_ns.push(start_ns(a, e, flight.unwrap_or(0)));
+    }
+    if starts_ns.is_empty() {
+        return None;
+    }
+    let (median, deviation_ns) = median_and_deviation_ns(&mut starts_ns);
+    Some(Candidate {
+        trigger,
+        covered: starts_ns.len(),
+        deviation_ns,
+        clock_offset_ns: median.saturating_sub(trigger.start.as_nanos()),
+        flights_known,
+    })
 }
 
 impl RecentTriggers {
@@ -85,9 +163,14 @@ impl RecentTriggers {
     /// trigger that names no firings and no period (the whole schedule
     /// fires, as before issue 20) forgets them all: arrivals are then
     /// matched to the newest schedule, exactly as without triggers.
-    pub fn note(&mut self, trigger: CycleTrigger) {
+    ///
+    /// A cycle whose clarity waited for a newer trigger is judged now
+    /// (`book` holds the schedules the triggers name), and teaches the
+    /// clock offset if it was clear.
+    pub fn note(&mut self, trigger: CycleTrigger, book: &ScheduleBook) {
         if trigger.firing.is_empty() && trigger.cycle_period <= Duration::ZERO {
             self.triggers.clear();
+            self.deferred = None;
             return;
         }
         if let Some(last) = self.triggers.back() {
@@ -98,12 +181,46 @@ impl RecentTriggers {
             }
             if trigger.epoch > last.epoch {
                 self.triggers.clear();
+                self.deferred = None;
             }
         }
         if self.triggers.len() == TRIGGERS_KEPT {
             self.triggers.pop_front();
         }
         self.triggers.push_back(trigger);
+        if let Some(d) = self.deferred.take() {
+            let flight_ns = |tx: u32| d.flights_ns.iter().find(|(id, _)| *id == tx).map(|f| f.1);
+            match self.judge(&d.msg, book, &flight_ns, &d.trigger) {
+                Clarity::Clear => self.learn_clock(&d.trigger, d.start_ns),
+                Clarity::Unclear => {}
+                Clarity::AwaitingNext => self.deferred = Some(d),
+            }
+        }
+    }
+
+    /// Keeps a cycle solved with a good fix whose choice was
+    /// [`Clarity::AwaitingNext`]: `trigger` started at `start_ns` on the
+    /// MSU clock; `msg` was matched with the flight times `flights_ns`
+    /// (each of its transmitters', nanoseconds). The next trigger judges it
+    /// ([`Self::note`]); a newer deferred cycle replaces it.
+    pub fn defer_learning(
+        &mut self,
+        trigger: &CycleTrigger,
+        start_ns: i64,
+        msg: &UltrasoundArrivals,
+        flights_ns: Vec<(u32, i64)>,
+    ) {
+        self.deferred = Some(Deferred {
+            trigger: trigger.clone(),
+            start_ns,
+            msg: msg.clone(),
+            flights_ns,
+        });
+    }
+
+    /// `(epoch, cycle)` of the newest trigger kept.
+    pub fn newest(&self) -> Option<(u64, u64)> {
+        self.triggers.back().map(|t| (t.epoch, t.cycle))
     }
 
     /// Whether none is kept.
@@ -134,36 +251,14 @@ impl RecentTriggers {
         book: &ScheduleBook,
         flight_ns: &dyn Fn(u32) -> Option<i64>,
     ) -> Option<Matched> {
-        let mut candidates: Vec<Candidate> = Vec::new();
-        let mut flights_known = true;
         // Newest first.
-        for trigger in self.triggers.iter().rev() {
-            let Some(schedule) = book.get_in(trigger.epoch, trigger.schedule_version) else {
-                continue;
-            };
-            // More firings than emissions cannot be the central unit's (and
-            // would make the look-up below cost what a forger chooses).
-            if trigger.firing.len() > schedule.emissions.len() {
-                continue;
-            }
-            let emissions = trigger.emissions(schedule);
-            let mut starts_ns: Vec<i64> = Vec::with_capacity(msg.arrivals.len());
-            for (a, e) in named(msg, &emissions) {
-                let flight = flight_ns(a.tx_id);
-                flights_known &= flight.is_some();
-                starts_ns.push(start_ns(a, e, flight.unwrap_or(0)));
-            }
-            if starts_ns.is_empty() {
-                continue;
-            }
-            let (median, deviation_ns) = median_and_deviation_ns(&mut starts_ns);
-            candidates.push(Candidate {
-                trigger,
-                covered: starts_ns.len(),
-                deviation_ns,
-                clock_offset_ns: median.saturating_sub(trigger.start.as_nanos()),
-            });
-        }
+        let mut candidates: Vec<Candidate> = self
+            .triggers
+            .iter()
+            .rev()
+            .filter_map(|t| explain(t, msg, book, flight_ns))
+            .collect();
+        let flights_known = candidates.iter().all(|c| c.flights_known);
         let most = candidates.iter().map(|c| c.covered).max()?;
         candidates.retain(|c| c.covered == most);
         let learnt = self.clock_offset_ns().filter(|_| flights_known);
@@ -178,28 +273,80 @@ impl RecentTriggers {
                 self.misfits = 0;
                 return Some(Matched {
                     trigger: c.trigger.clone(),
-                    clear: true,
+                    clarity: Clarity::Clear,
                 });
             }
             self.misfits += 1;
         }
         // The tightest spread; newest first, so a later one must be strictly tighter.
-        let best =
-            candidates
-                .iter()
-                .enumerate()
-                .fold(None::<(usize, &Candidate)>, |best, (k, c)| match best {
-                    Some((_, b)) if b.deviation_ns <= c.deviation_ns => best,
-                    _ => Some((k, c)),
-                })?;
-        let clear = flights_known
-            && candidates.iter().enumerate().all(|(k, c)| {
-                k == best.0 || c.deviation_ns > best.1.deviation_ns.saturating_mul(2)
-            });
+        let best = candidates
+            .iter()
+            .fold(None::<&Candidate>, |best, c| match best {
+                Some(b) if b.deviation_ns <= c.deviation_ns => best,
+                _ => Some(c),
+            })?;
+        let clarity = if flights_known {
+            self.judge(msg, book, flight_ns, best.trigger)
+        } else {
+            Clarity::Unclear
+        };
         Some(Matched {
-            trigger: best.1.trigger.clone(),
-            clear,
+            trigger: best.trigger.clone(),
+            clarity,
         })
+    }
+
+    /// Whether `chosen` explains `msg` clearly: every trigger of its window
+    /// (from [`CLARITY_CYCLES_BEFORE`] cycles before it to the next one) was
+    /// heard, and every other one that names as many of the transmitters
+    /// heard spreads the starts more than twice as wide.
+    /// [`Clarity::AwaitingNext`] until a trigger newer than `chosen` is kept.
+    fn judge(
+        &self,
+        msg: &UltrasoundArrivals,
+        book: &ScheduleBook,
+        flight_ns: &dyn Fn(u32) -> Option<i64>,
+        chosen: &CycleTrigger,
+    ) -> Clarity {
+        let newer_kept = self
+            .triggers
+            .back()
+            .is_some_and(|t| t.epoch == chosen.epoch && t.cycle > chosen.cycle);
+        if !newer_kept {
+            return Clarity::AwaitingNext;
+        }
+        let window =
+            chosen.cycle.saturating_sub(CLARITY_CYCLES_BEFORE)..=chosen.cycle.saturating_add(1);
+        let in_window: Vec<&CycleTrigger> = self
+            .triggers
+            .iter()
+            .filter(|t| t.epoch == chosen.epoch && window.contains(&t.cycle))
+            .collect();
+        // A trigger of the window not heard (lost, or sent before the MSU
+        // listened) could be the one that explains the arrivals as well:
+        // the right cycle may be missing, and the one chosen a neighbour.
+        let window_len = window.end() - window.start() + 1;
+        if in_window.len() as u64 != window_len {
+            return Clarity::Unclear;
+        }
+        let explained: Vec<Candidate> = in_window
+            .into_iter()
+            .filter_map(|t| explain(t, msg, book, flight_ns))
+            .collect();
+        let Some(mine) = explained.iter().find(|c| c.trigger.cycle == chosen.cycle) else {
+            return Clarity::Unclear;
+        };
+        let clear = mine.flights_known
+            && explained.iter().all(|c| {
+                c.trigger.cycle == chosen.cycle
+                    || c.covered < mine.covered
+                    || c.deviation_ns > mine.deviation_ns.saturating_mul(2)
+            });
+        if clear {
+            Clarity::Clear
+        } else {
+            Clarity::Unclear
+        }
     }
 
     /// Learns the clock offset from a cycle solved with a good fix: the

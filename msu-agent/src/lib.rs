@@ -11,6 +11,7 @@
 pub mod assembly;
 mod config;
 pub mod config_file;
+pub mod control_timing;
 pub mod core;
 pub mod cycle_match;
 pub mod events;

@@ -74,17 +74,31 @@ enum Arrived {
     Odometry(Result<Odometry, DecodeError>),
     Imu(Result<Imu, DecodeError>),
     Range(Result<ObstacleRanges, DecodeError>),
+    Schedule(Result<Schedule, DecodeError>),
+    Trigger(Result<CycleTrigger, DecodeError>),
+    /// With the key it came under (a cell may speak only under its own).
+    CellStatus(String, Result<CellStatus, DecodeError>),
+    Survey(Result<SurveyCalibration, DecodeError>),
 }
 
 impl Arrived {
     /// The core's event, or what could not be decoded (with its kind, for
-    /// the rate-limited log).
-    fn into_event(self) -> Result<Event, (&'static str, DecodeError)> {
+    /// the rate-limited log). A cell status is checked against its key by
+    /// the caller.
+    fn into_event(self) -> Result<Event, (&'static str, String)> {
+        let bad = |kind: &'static str| move |e: DecodeError| (kind, e.to_string());
         Ok(match self {
-            Arrived::Arrivals(r) => Event::Arrivals(r.map_err(|e| ("undecodable arrivals", e))?),
-            Arrived::Odometry(r) => Event::Odometry(r.map_err(|e| ("undecodable odometry", e))?),
-            Arrived::Imu(r) => Event::Imu(r.map_err(|e| ("undecodable imu", e))?),
-            Arrived::Range(r) => Event::Range(r.map_err(|e| ("undecodable ranges", e))?),
+            Arrived::Arrivals(r) => Event::Arrivals(r.map_err(bad("undecodable arrivals"))?),
+            Arrived::Odometry(r) => Event::Odometry(r.map_err(bad("undecodable odometry"))?),
+            Arrived::Imu(r) => Event::Imu(r.map_err(bad("undecodable imu"))?),
+            Arrived::Range(r) => Event::Range(r.map_err(bad("undecodable ranges"))?),
+            Arrived::Schedule(r) => Event::Schedule(r.map_err(bad("undecodable schedule"))?),
+            Arrived::Trigger(r) => Event::Trigger(r.map_err(bad("undecodable cycle trigger"))?),
+            Arrived::CellStatus(key, r) => {
+                let status = r.map_err(|e| ("undecodable cell status", format!("{key}: {e}")))?;
+                Event::CellStatus(status)
+            }
+            Arrived::Survey(r) => Event::Survey(r.map_err(bad("undecodable survey calibration"))?),
         })
     }
 }
@@ -122,24 +136,50 @@ pub async fn run(
     let config = settings.tuning.estimator_for(&site, spec.start);
     let estimator = estimator::build(&config).map_err(|e| NodeError::Setup(e.to_string()))?;
     let mut core = MsuCore::new(settings.tuning.msu_config(&site), estimator);
-    let schedule_sub = session
+    // Every input, the central unit's and the cells' as well as the
+    // robot's, goes through one queue in the order the session received
+    // it, so that the core sees one defined order: the order a recorder of
+    // the site stores them in (the central unit's messages reach every
+    // subscriber in the order it sent them, and the robot's in the order
+    // its sensors did), which a replay then follows. A full queue drops and
+    // counts.
+    let (tx, mut inputs) = tokio::sync::mpsc::channel::<Arrived>(INPUT_QUEUE);
+    let queue_full = Arc::new(AtomicU64::new(0));
+    let sink = |wrap: fn(&zenoh::sample::Sample) -> Arrived| {
+        let (tx, full) = (tx.clone(), queue_full.clone());
+        move |sample: zenoh::sample::Sample| {
+            if tx.try_send(wrap(&sample)).is_err() {
+                full.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    };
+    let _schedule_sub = session
         .declare_subscriber(keys.central_schedule())
+        .callback(sink(|s| Arrived::Schedule(decode(&s.payload().to_bytes()))))
         .await
         .map_err(zerr)?;
     // The triggers name the transmitters of each cycle when the central unit
     // fires only where robots are; the core matches arrivals to them.
-    let trigger_sub = session
+    let _trigger_sub = session
         .declare_subscriber(keys.central_cycle())
+        .callback(sink(|s| Arrived::Trigger(decode(&s.payload().to_bytes()))))
         .await
         .map_err(zerr)?;
     // Each cell's sync sigma: the prior of its clock bias in `tdoa-ekf`.
-    let status_sub = session
+    let _status_sub = session
         .declare_subscriber(keys.cell_status_all())
+        .callback(sink(|s| {
+            Arrived::CellStatus(
+                s.key_expr().as_str().to_string(),
+                decode(&s.payload().to_bytes()),
+            )
+        }))
         .await
         .map_err(zerr)?;
     // The fleet's survey calibration: the transmitters' corrected positions.
-    let survey_sub = session
+    let _survey_sub = session
         .declare_subscriber(keys.central_survey())
+        .callback(sink(|s| Arrived::Survey(decode(&s.payload().to_bytes()))))
         .await
         .map_err(zerr)?;
     let Some(schedule) = fetch::<Schedule>(
@@ -165,20 +205,6 @@ pub async fn run(
     }
 
     let sub = |topic| keys.robot(robot, topic);
-    // Every input goes through one queue in the order it arrives, so that
-    // the core sees the robot's messages in one defined order (the order a
-    // recorder of the site stores them in; a replay then reproduces this
-    // agent's poses exactly). A full queue drops and counts.
-    let (tx, mut inputs) = tokio::sync::mpsc::channel::<Arrived>(INPUT_QUEUE);
-    let queue_full = Arc::new(AtomicU64::new(0));
-    let sink = |wrap: fn(&[u8]) -> Arrived| {
-        let (tx, full) = (tx.clone(), queue_full.clone());
-        move |sample: zenoh::sample::Sample| {
-            if tx.try_send(wrap(&sample.payload().to_bytes())).is_err() {
-                full.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    };
     let _receivers = {
         let (tx, full) = (tx.clone(), queue_full.clone());
         ReceiverSource::open(settings.receivers, session, &keys, robot, move |a| {
@@ -190,17 +216,17 @@ pub async fn run(
     };
     let _odom = session
         .declare_subscriber(sub(RobotTopic::Odom)?)
-        .callback(sink(|b| Arrived::Odometry(decode(b))))
+        .callback(sink(|s| Arrived::Odometry(decode(&s.payload().to_bytes()))))
         .await
         .map_err(zerr)?;
     let _imu = session
         .declare_subscriber(sub(RobotTopic::Imu)?)
-        .callback(sink(|b| Arrived::Imu(decode(b))))
+        .callback(sink(|s| Arrived::Imu(decode(&s.payload().to_bytes()))))
         .await
         .map_err(zerr)?;
     let _range = session
         .declare_subscriber(sub(RobotTopic::Range)?)
-        .callback(sink(|b| Arrived::Range(decode(b))))
+        .callback(sink(|s| Arrived::Range(decode(&s.payload().to_bytes()))))
         .await
         .map_err(zerr)?;
     drop(tx);
@@ -235,56 +261,49 @@ pub async fn run(
             );
         }
     };
-    macro_rules! decoded {
-        ($sample:expr, $t:ty, $kind:expr) => {
-            match decode::<$t>(&$sample.payload().to_bytes()) {
-                Ok(v) => Some(v),
-                Err(e) => {
-                    bad(&mut n, $kind, format!("{}: {e}", $sample.key_expr()));
-                    None
-                }
-            }
-        };
-    }
     let mut refusal_limit = LogLimiter::<InputKind>::default();
     let mut last_schedule_logged: Option<(u64, u32)> = None;
     loop {
         let event = tokio::select! {
             _ = &mut shutdown => break,
-            Ok(s) = schedule_sub.recv_async() => decoded!(s, Schedule, "undecodable schedule").map(|schedule| {
-                // The central re-announces its schedule every second: only
-                // a new one is worth a line.
-                if last_schedule_logged != Some((schedule.epoch, schedule.version)) {
-                    last_schedule_logged = Some((schedule.epoch, schedule.version));
-                    tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
-                }
-                Event::Schedule(schedule)
-            }),
-            Ok(s) = trigger_sub.recv_async() => decoded!(s, CycleTrigger, "undecodable cycle trigger").map(Event::Trigger),
-            Ok(s) = status_sub.recv_async() => decoded!(s, CellStatus, "undecodable cell status").and_then(|status| {
-                let key_cell = match keys.parse(s.key_expr().as_str()) {
-                    Ok(Key::CellStatus(cell)) => Some(cell),
+            Some(input) = inputs.recv() => {
+                let status_key = match &input {
+                    Arrived::CellStatus(key, _) => Some(key.clone()),
                     _ => None,
                 };
-                match MsuCore::status_under_key(key_cell.as_deref(), status) {
-                    Ok(status) => Some(Event::CellStatus(status)),
-                    Err(e) => {
-                        bad(&mut n, "cell status", format!("{}: {e}", s.key_expr()));
+                match input.into_event() {
+                    Ok(Event::Arrivals(a)) => {
+                        n.arrival_messages += 1;
+                        Some(Event::Arrivals(a))
+                    }
+                    Ok(Event::Schedule(schedule)) => {
+                        // The central re-announces its schedule every second:
+                        // only a new one is worth a line.
+                        if last_schedule_logged != Some((schedule.epoch, schedule.version)) {
+                            last_schedule_logged = Some((schedule.epoch, schedule.version));
+                            tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
+                        }
+                        Some(Event::Schedule(schedule))
+                    }
+                    Ok(Event::CellStatus(status)) => {
+                        let key = status_key.unwrap_or_default();
+                        let key_cell = match keys.parse(&key) {
+                            Ok(Key::CellStatus(cell)) => Some(cell),
+                            _ => None,
+                        };
+                        match MsuCore::status_under_key(key_cell.as_deref(), status) {
+                            Ok(status) => Some(Event::CellStatus(status)),
+                            Err(e) => {
+                                bad(&mut n, "cell status", format!("{key}: {e}"));
+                                None
+                            }
+                        }
+                    }
+                    Ok(event) => Some(event),
+                    Err((kind, e)) => {
+                        bad(&mut n, kind, e);
                         None
                     }
-                }
-            }),
-            Ok(s) = survey_sub.recv_async() => decoded!(s, SurveyCalibration, "undecodable survey calibration").map(Event::Survey),
-            Some(input) = inputs.recv() => match input.into_event() {
-                Ok(event) => {
-                    if matches!(event, Event::Arrivals(_)) {
-                        n.arrival_messages += 1;
-                    }
-                    Some(event)
-                }
-                Err((kind, e)) => {
-                    bad(&mut n, kind, e.to_string());
-                    None
                 }
             },
             // With --ros2: the robot's odometry and gyro from ROS 2 topics.
@@ -299,13 +318,15 @@ pub async fn run(
             r.note_odometry(odom);
         }
         let mut ros_fix = None;
-        let survey_before = core.survey_calibration();
+        let survey_before = core.newest_survey_calibration();
         let survey_fixes = match &event {
             Event::Survey(c) => Some(c.fixes_taken),
             _ => None,
         };
         let outputs = core.handle(event);
-        if let (Some(fixes), Some((epoch, version))) = (survey_fixes, core.survey_calibration()) {
+        if let (Some(fixes), Some((epoch, version))) =
+            (survey_fixes, core.newest_survey_calibration())
+        {
             if survey_before.is_none_or(|(e, _)| e != epoch) {
                 tracing::info!(
                     "robot {robot}: solving with the fleet's survey calibration (v{version}, from {fixes} fixes; newer ones follow silently)"

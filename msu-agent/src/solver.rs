@@ -29,8 +29,9 @@ use ickon_proto::time::{Duration, Time};
 use nalgebra::{Vector2, Vector3};
 
 use crate::assembly::{Signal, assemble, clock_of_cell};
+use crate::control_timing::PendingControl;
 use crate::core::{MsuConfig, MsuError};
-use crate::cycle_match::{Matched, RecentTriggers, cycle_start_ns};
+use crate::cycle_match::{Clarity, Matched, RecentTriggers, cycle_start_ns};
 use crate::fusion_clock::FusionClock;
 use crate::motion::CycleMotion;
 
@@ -81,6 +82,9 @@ pub struct FixSolver {
     surveyed_m: std::collections::BTreeMap<u32, [f64; 3]>,
     /// `(epoch, version)` of the survey calibration the table carries.
     survey: Option<(u64, u32)>,
+    /// A calibration and sync sigmas taken while triggers are followed,
+    /// waiting for the cycle they name ([`crate::control_timing`]).
+    pending: PendingControl,
 }
 
 impl FixSolver {
@@ -94,6 +98,7 @@ impl FixSolver {
         Self {
             surveyed_m,
             survey: None,
+            pending: PendingControl::default(),
             config,
             schedules: ScheduleBook::new(),
             cycle_trigger: None,
@@ -111,11 +116,17 @@ impl FixSolver {
         clock_of_cell(&self.config.transmitters, cell_id)
     }
 
-    /// Takes the sync sigma the cell of `clock` reports, seconds (clocks
-    /// come from [`Self::clock_of_cell`], so the table never grows beyond
-    /// the site's cells).
-    pub fn set_clock_sync_sigma(&mut self, clock: u32, sigma_s: f64) {
-        self.cell_sync_sigma_s.insert(clock, sigma_s);
+    /// Takes the sync sigma the cell of `clock` reports in a status made
+    /// at `stamp` (master time), seconds (clocks come from
+    /// [`Self::clock_of_cell`], so the table never grows beyond the site's
+    /// cells): while triggers are followed, from the first cycle that
+    /// starts after the status ([`crate::control_timing`]); else at once.
+    pub fn take_clock_sync_sigma(&mut self, clock: u32, stamp: Time, sigma_s: f64) {
+        if self.recent_triggers.is_empty() {
+            self.cell_sync_sigma_s.insert(clock, sigma_s);
+        } else {
+            self.pending.hold_sync_sigma(clock, stamp, sigma_s);
+        }
     }
 
     /// The clock of signal `s` as the filters take it: its cell and the
@@ -152,10 +163,41 @@ impl FixSolver {
         self.survey = calibration.map(|c| (c.epoch, c.version));
     }
 
+    /// Takes a checked calibration ([`crate::MsuCore::on_survey_calibration`]):
+    /// while the MSU follows the central unit's triggers, from the first
+    /// cycle whose trigger came after it ([`crate::control_timing`]); else
+    /// at once.
+    pub fn take_survey_calibration(&mut self, calibration: &SurveyCalibration) {
+        match self.recent_triggers.newest() {
+            Some(heard) => self.pending.hold_survey(calibration, heard),
+            None => self.set_survey_calibration(Some(calibration)),
+        }
+    }
+
+    /// Takes what was held for the cycle being solved (its trigger
+    /// `matched`; `None` while triggers are followed: no trigger explains
+    /// the arrivals, so they name no cycle, and nothing is due).
+    fn apply_due_control(&mut self, matched: Option<&CycleTrigger>) {
+        if matched.is_none() && !self.recent_triggers.is_empty() {
+            return;
+        }
+        let due = self.pending.due(matched);
+        if let Some(c) = due.survey {
+            self.set_survey_calibration(Some(&c));
+        }
+        self.cell_sync_sigma_s.extend(due.sync_sigma_s);
+    }
+
     /// `(epoch, version)` of the survey calibration solved with, `None`:
     /// the surveyed positions.
     pub fn survey_calibration(&self) -> Option<(u64, u32)> {
         self.survey
+    }
+
+    /// `(epoch, version)` of the newest calibration taken, applied or
+    /// waiting for its first cycle.
+    pub fn newest_survey_calibration(&self) -> Option<(u64, u32)> {
+        self.pending.survey_held().or(self.survey)
     }
 
     /// The epoch of the schedules followed.
@@ -185,6 +227,7 @@ impl FixSolver {
                 self.set_survey_calibration(None);
             }
         }
+        self.pending.keep_survey_of(self.schedules.epoch());
         Ok(())
     }
 
@@ -201,7 +244,7 @@ impl FixSolver {
     /// ([`crate::cycle_match`]), whose firings and offsets they are solved
     /// with.
     pub fn note_trigger(&mut self, trigger: CycleTrigger) {
-        self.recent_triggers.note(trigger);
+        self.recent_triggers.note(trigger, &self.schedules);
     }
 
     /// Forgets the schedules (tests; a site that changed).
@@ -234,19 +277,34 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
+        // The flight times a choice awaiting the next trigger was made with.
+        let mut matching_flights_ns = Vec::new();
         let matched = match &self.cycle_trigger {
             Some(t) => Some(Matched {
                 trigger: t.clone(),
-                clear: true,
+                clarity: Clarity::Clear,
             }),
             // The whole schedule fires: nothing to match, no flight to work out.
             None if self.recent_triggers.is_empty() => None,
             None => {
                 let flight_ns = self.expected_flights(msg, hint);
-                self.recent_triggers
-                    .best_for(msg, &self.schedules, &flight_ns)
+                let matched = self
+                    .recent_triggers
+                    .best_for(msg, &self.schedules, &flight_ns);
+                if matched
+                    .as_ref()
+                    .is_some_and(|m| m.clarity == Clarity::AwaitingNext)
+                {
+                    matching_flights_ns = msg
+                        .arrivals
+                        .iter()
+                        .filter_map(|a| Some((a.tx_id, flight_ns(a.tx_id)?)))
+                        .collect();
+                }
+                matched
             }
         };
+        self.apply_due_control(matched.as_ref().map(|m| &m.trigger));
         let trigger = matched.as_ref().map(|m| &m.trigger);
         let published = match trigger {
             Some(t) => self.schedules.get(t.schedule_version),
@@ -343,17 +401,19 @@ impl FixSolver {
             self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
             // The clock offset serves only matching: a trigger handed in
             // (`set_cycle_trigger`) needs none.
-            if let (
-                None,
-                Some(Matched {
-                    trigger,
-                    clear: true,
-                }),
-            ) = (&self.cycle_trigger, &matched)
-            {
+            if let (None, Some(Matched { trigger, clarity })) = (&self.cycle_trigger, &matched) {
                 let from_fix = self.flights_from(Some([sol.position_m[0], sol.position_m[1]]));
-                if let Some(start_ns) = cycle_start_ns(msg, &schedule.emissions, &from_fix) {
-                    self.recent_triggers.learn_clock(trigger, start_ns);
+                match (clarity, cycle_start_ns(msg, &schedule.emissions, &from_fix)) {
+                    (Clarity::Clear, Some(start_ns)) => {
+                        self.recent_triggers.learn_clock(trigger, start_ns)
+                    }
+                    (Clarity::AwaitingNext, Some(start_ns)) => self.recent_triggers.defer_learning(
+                        trigger,
+                        start_ns,
+                        msg,
+                        std::mem::take(&mut matching_flights_ns),
+                    ),
+                    _ => {}
                 }
             }
         }

@@ -216,13 +216,9 @@ pub fn run(
         // A schedule refused here was refused by the live agent too (same rules).
         let _ = core.set_schedule((**s).clone());
     }
-    // The triggers before the joining point, which the agent may match
-    // its first arrivals to (it keeps only the last few).
-    for (_, input) in &inputs[..from.min(inputs.len())] {
-        if let Input::Trigger(t) = input {
-            core.on_trigger((**t).clone());
-        }
-    }
+    // No trigger, status or calibration before the joining point: the
+    // agent takes none before its robot's first input (whether it had
+    // heard them cannot be told).
     for (t, input) in inputs.iter().skip(from) {
         let pose_now = match input {
             Input::Schedule(s) => {

@@ -3,6 +3,7 @@
 
 use super::tests::{C, TX, core_with};
 use crate::events::{Event, Output};
+use ickon_proto::msg::control::{CellStatus, SurveyCalibration};
 use ickon_proto::msg::robot::Arrival;
 use ickon_proto::time::{Duration, Time};
 
@@ -32,6 +33,18 @@ fn heard(p: [f64; 3], start_s: f64, firing: &[(u32, i64)]) -> UltrasoundArrivals
     UltrasoundArrivals { seq: 3, arrivals }
 }
 
+/// A core whose robot has been heard (a gyro sample at `t_s` on its
+/// clock): triggers before the robot's first input are ignored.
+fn listening(estimator: &str, t_s: f64) -> MsuCore {
+    let mut core = core_with(estimator);
+    core.on_imu(&ickon_proto::msg::robot::Imu {
+        stamp: Time::from_secs_f64(t_s),
+        gyro_z_rad_s: 0.0,
+    })
+    .unwrap();
+    core
+}
+
 fn fix_of(out: &[Output]) -> Option<&Fix> {
     out.iter().find_map(|o| match o {
         Output::Fix(f) => Some(f),
@@ -55,7 +68,7 @@ fn arrivals_of_a_packed_cycle_are_solved_with_its_trigger_not_the_schedule() {
         "without the trigger the schedule's offsets cannot explain it: {wrong:?}"
     );
 
-    let mut core = core_with("msu-raw");
+    let mut core = listening("msu-raw", 19.9);
     core.handle(Event::Trigger(trigger(40, &packed)));
     // The next cycle's trigger is out before this cycle's arrivals are in.
     core.handle(Event::Trigger(trigger(41, &[(5, 0), (3, 12), (2, 24)])));
@@ -87,4 +100,128 @@ fn a_trigger_of_the_whole_schedule_brings_back_the_schedule_offsets() {
     let fix = fix_of(&out).expect("a fix");
     assert!((fix.x_m - p[0]).abs() < 1e-4 && (fix.y_m - p[1]).abs() < 1e-4);
     assert_eq!(fix.used.len(), 5);
+}
+
+/// The central unit sends a calibration right after cycle 43's trigger,
+/// and the cell reports its sync sigma in a status made 50 ms into cycle
+/// 41. Each cycle's arrivals race the next trigger and the status to the
+/// MSU (and to a recorder, which can see the race end the other way).
+/// Either way the calibration applies from cycle 44, the first triggered
+/// after it, the sigma from cycle 42, the first started after the status,
+/// and every fix, range difference and pose is the same. Before, each
+/// applied to whichever arrivals were solved next.
+#[test]
+fn news_applies_from_the_cycle_it_names_however_the_arrivals_raced() {
+    let p = [1.7, 2.9, 0.5];
+    let firing = |cycle: u64| -> Vec<(u32, i64)> {
+        if cycle % 2 == 0 {
+            vec![(1, 0), (2, 12), (3, 24), (4, 36)]
+        } else {
+            vec![(5, 0), (3, 12), (2, 24), (4, 36)]
+        }
+    };
+    let calibration = SurveyCalibration {
+        epoch: 1,
+        version: 7,
+        fixes_taken: 100,
+        offsets: TX
+            .iter()
+            .map(|&(tx_id, _)| ickon_proto::msg::control::TransmitterOffset {
+                tx_id,
+                offset_m: [0.0, 0.0, if tx_id == 5 { 0.04 } else { 0.0 }],
+                sigma_m: [0.005; 3],
+            })
+            .collect(),
+    };
+    let status = CellStatus {
+        cell_id: "a".into(),
+        stamp: Time::from_nanos(4_150_000_000),
+        offset_ns: 0,
+        drift_ppb: 0,
+        offset_sigma_ns: 300_000,
+        sync_samples: 20,
+        last_cycle_fired: 41,
+        cycles_fired: 41,
+        slots_skipped: 0,
+        faults: Vec::new(),
+        inputs_refused: 0,
+    };
+    let run = |next_trigger_first: bool| {
+        let mut core = listening("tdoa-ekf", 3.9);
+        core.handle(Event::Trigger(trigger(40, &firing(40))));
+        let mut outputs = Vec::new();
+        // The range differences each cycle is solved into (with their
+        // clocks' sync sigmas), by a copy of the solver.
+        let mut differences = Vec::new();
+        let mut solve = |core: &mut MsuCore, msg: &UltrasoundArrivals| {
+            let mut clock = core.clock;
+            let solved = core.solver.clone().solve(msg, None, &mut clock);
+            differences.push(solved.map(|s| s.range_differences));
+            core.handle(Event::Arrivals(msg.clone()))
+        };
+        for cycle in 40..46u64 {
+            // An MSU clock 37 ms ahead of the central unit's.
+            let msg = heard(p, cycle as f64 * 0.1 + 0.037, &firing(cycle));
+            let mut news = vec![Event::Trigger(trigger(cycle + 1, &firing(cycle + 1)))];
+            match cycle + 1 {
+                42 => news.push(Event::CellStatus(status.clone())),
+                43 => news.push(Event::Survey(calibration.clone())),
+                _ => {}
+            }
+            if !next_trigger_first {
+                outputs.extend(solve(&mut core, &msg));
+            }
+            for event in news {
+                core.handle(event);
+            }
+            if next_trigger_first {
+                outputs.extend(solve(&mut core, &msg));
+            }
+        }
+        (outputs, differences)
+    };
+    let ((news_won, differences), arrivals_won) = (run(true), run(false));
+    assert_eq!(
+        (&news_won, &differences),
+        (&arrivals_won.0, &arrivals_won.1)
+    );
+    let sync_sigma_m: Vec<f64> = differences
+        .iter()
+        .map(|d| d.as_ref().unwrap()[0].clocks.unwrap()[0].sync_sigma_m)
+        .collect();
+    assert_eq!(sync_sigma_m[..2], [0.0, 0.0]);
+    assert!(
+        sync_sigma_m[2..]
+            .iter()
+            .all(|&s| (s - 300e-6 * C).abs() < 1e-12)
+    );
+    let versions: Vec<u32> = news_won
+        .iter()
+        .filter_map(|o| match o {
+            Output::Fix(f) => Some(f.survey_version),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(versions, [0, 0, 0, 0, 7, 7]);
+    assert!(news_won.iter().any(|o| matches!(o, Output::Pose(_))));
+}
+
+/// Before its robot's first input the MSU takes no trigger: a replay of a
+/// recording starts there and cannot tell which of the earlier ones the
+/// agent heard. After it, the same trigger is taken.
+#[test]
+fn a_trigger_before_the_robots_first_input_is_ignored() {
+    let p = [1.7, 2.9, 0.5];
+    let packed = [(4, 0), (2, 12), (1, 24), (3, 36)];
+    let msg = heard(p, 20.0, &packed);
+    let solved_at = |core: &mut MsuCore| {
+        fix_of(&core.handle(Event::Arrivals(msg.clone())))
+            .map(|f| (f.x_m - p[0]).hypot(f.y_m - p[1]))
+    };
+    let mut deaf = core_with("msu-raw");
+    deaf.handle(Event::Trigger(trigger(40, &packed)));
+    assert!(solved_at(&mut deaf).is_none_or(|e| e > 0.5));
+    let mut core = listening("msu-raw", 19.9);
+    core.handle(Event::Trigger(trigger(40, &packed)));
+    assert!(solved_at(&mut core).is_some_and(|e| e < 1e-4));
 }

@@ -59,9 +59,18 @@ fn a_calibration_moves_the_transmitter_and_the_fix_names_it() {
     assert_eq!(core.survey_calibration(), Some((1, 7)));
 }
 
+/// A core that has heard its robot (a calibration before the robot's
+/// first input is not taken).
+fn core_heard() -> MsuCore {
+    let mut core = core_with("msu-raw");
+    core.on_arrivals(&arrivals_from(&true_tx(), [2.2, 1.1, 0.5], &[]))
+        .unwrap();
+    core
+}
+
 #[test]
 fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
-    let mut core = core_with("msu-raw");
+    let mut core = core_heard();
     // Version 0 names the surveyed positions: no calibration has it.
     assert!(matches!(
         core.on_survey_calibration(&calibration(0, 0.01)),
@@ -111,7 +120,8 @@ fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
 }
 
 #[test]
-fn before_any_schedule_a_calibration_waits_and_a_new_central_unit_starts_from_the_survey() {
+fn before_any_schedule_or_input_a_calibration_waits_and_a_new_central_unit_starts_from_the_survey()
+{
     let config = core_with("msu-raw").solver.config().clone();
     let mut fresh = MsuCore::new(config, build_by_name("msu-raw").unwrap());
     assert_eq!(
@@ -119,7 +129,11 @@ fn before_any_schedule_a_calibration_waits_and_a_new_central_unit_starts_from_th
         Ok(false)
     );
     assert_eq!(fresh.survey_calibration(), None);
+    // Nor before the robot's first input: a replay of a recording, which
+    // starts there, could not tell whether the agent had heard it.
     let mut core = core_with("msu-raw");
+    assert_eq!(core.on_survey_calibration(&calibration(2, 0.04)), Ok(false));
+    let mut core = core_heard();
     assert_eq!(core.on_survey_calibration(&calibration(2, 0.04)), Ok(true));
     // The schedules of a central unit of a later epoch.
     let mut schedule = super::tests::schedule();

@@ -70,8 +70,8 @@ fn heard(start_ms: i64, bursts: &[(u32, i64, i64)]) -> UltrasoundArrivals {
 #[test]
 fn the_trigger_naming_the_heard_transmitters_wins_over_a_newer_one() {
     let mut recent = RecentTriggers::default();
-    recent.note(trigger(10, &[(1, 0), (2, 30), (3, 60)]));
-    recent.note(trigger(11, &[(2, 0), (4, 30)]));
+    recent.note(trigger(10, &[(1, 0), (2, 30), (3, 60)]), &book());
+    recent.note(trigger(11, &[(2, 0), (4, 30)]), &book());
     let msg = heard(5_000, &[(1, 0, 4_000), (2, 30, 9_000), (3, 60, 6_000)]);
     assert_eq!(
         recent
@@ -84,8 +84,8 @@ fn the_trigger_naming_the_heard_transmitters_wins_over_a_newer_one() {
 #[test]
 fn among_triggers_naming_the_same_set_the_offsets_that_explain_the_times_win() {
     let mut recent = RecentTriggers::default();
-    recent.note(trigger(20, &[(1, 0), (2, 30)]));
-    recent.note(trigger(21, &[(2, 0), (1, 30)]));
+    recent.note(trigger(20, &[(1, 0), (2, 30)]), &book());
+    recent.note(trigger(21, &[(2, 0), (1, 30)]), &book());
     // Heard as cycle 20 fired: 1 first, 2 thirty milliseconds later.
     let msg = heard(9_000, &[(1, 0, 5_000), (2, 30, 7_000)]);
     assert_eq!(
@@ -108,7 +108,7 @@ fn triggers_without_their_schedule_older_epochs_and_oversized_ones_are_not_used(
     let mut recent = RecentTriggers::default();
     let mut unknown = trigger(30, &[(1, 0)]);
     unknown.schedule_version = 9;
-    recent.note(unknown);
+    recent.note(unknown, &book());
     let msg = heard(0, &[(1, 0, 1_000)]);
     assert!(recent.best_for(&msg, &book(), &|_| None).is_none());
     let mut huge = trigger(31, &[(1, 0)]);
@@ -119,16 +119,16 @@ fn triggers_without_their_schedule_older_epochs_and_oversized_ones_are_not_used(
         };
         5
     ];
-    recent.note(huge);
+    recent.note(huge, &book());
     assert!(recent.best_for(&msg, &book(), &|_| None).is_none());
     let mut old = trigger(40, &[(1, 0)]);
     old.epoch = EPOCH - 1;
-    recent.note(old);
+    recent.note(old, &book());
     assert!(
         recent.best_for(&msg, &book(), &|_| None).is_none(),
         "an older epoch is ignored"
     );
-    recent.note(trigger(31, &[(1, 0)]));
+    recent.note(trigger(31, &[(1, 0)]), &book());
     assert!(
         recent.best_for(&msg, &book(), &|_| None).is_none(),
         "a repeated cycle is ignored"
@@ -139,7 +139,7 @@ fn triggers_without_their_schedule_older_epochs_and_oversized_ones_are_not_used(
 fn at_most_the_kept_number_of_triggers_is_held() {
     let mut recent = RecentTriggers::default();
     for cycle in 0..100 {
-        recent.note(trigger(cycle, &[(1, 0)]));
+        recent.note(trigger(cycle, &[(1, 0)]), &book());
     }
     assert_eq!(recent.triggers.len(), TRIGGERS_KEPT);
     assert_eq!(
@@ -151,10 +151,10 @@ fn at_most_the_kept_number_of_triggers_is_held() {
 #[test]
 fn a_trigger_of_the_whole_schedule_forgets_the_others() {
     let mut recent = RecentTriggers::default();
-    recent.note(trigger(50, &[(1, 0)]));
+    recent.note(trigger(50, &[(1, 0)]), &book());
     let mut plain = trigger(51, &[]);
     plain.cycle_period = Duration::ZERO;
-    recent.note(plain);
+    recent.note(plain, &book());
     assert!(recent.is_empty());
 }
 
@@ -166,6 +166,15 @@ fn flights(tx_id: u32) -> Option<i64> {
         .iter()
         .find(|(id, _)| *id == tx_id)
         .map(|&(_, us)| us * 1_000)
+}
+
+/// The flight times of `msg`'s transmitters, as the solver keeps them for
+/// a deferred judgement.
+fn flights_of(msg: &UltrasoundArrivals) -> Vec<(u32, i64)> {
+    msg.arrivals
+        .iter()
+        .filter_map(|a| Some((a.tx_id, flights(a.tx_id)?)))
+        .collect()
 }
 
 /// The arrivals of cycle `cycle` (start `cycle * 100` ms on the central
@@ -189,13 +198,17 @@ fn msu_start_ns(cycle: i64, clock_ms: i64) -> i64 {
 fn a_learnt_clock_offset_picks_the_cycle_heard_among_triggers_of_identical_offsets() {
     let mut recent = RecentTriggers::default();
     for cycle in 40..44 {
-        recent.note(trigger(cycle, &SAME));
+        recent.note(trigger(cycle, &SAME), &book());
     }
     let msg = heard_in_cycle(41, 37);
-    // Nothing tells them apart but their starts: the newest wins, and the
-    // choice is not clear enough to learn from.
+    // Nothing tells them apart but their starts: the newest wins, and
+    // whether the choice is clear waits for the next trigger, which ties
+    // with it too: nothing is learnt.
     let m = recent.best_for(&msg, &book(), &flights).unwrap();
-    assert_eq!((m.trigger.cycle, m.clear), (43, false));
+    assert_eq!((m.trigger.cycle, m.clarity), (43, Clarity::AwaitingNext));
+    recent.defer_learning(&m.trigger, msu_start_ns(43, 37), &msg, flights_of(&msg));
+    recent.note(trigger(44, &SAME), &book());
+    assert_eq!(recent.clock_offset_ns(), None);
     // A clock offset learnt (37 ms) from a cycle solved before.
     recent.learn_clock(&trigger(39, &SAME), msu_start_ns(39, 37));
     assert_eq!(recent.clock_offset_ns(), Some(37_000_000));
@@ -203,34 +216,53 @@ fn a_learnt_clock_offset_picks_the_cycle_heard_among_triggers_of_identical_offse
         let m = recent
             .best_for(&heard_in_cycle(cycle, 37), &book(), &flights)
             .unwrap();
-        assert_eq!((m.trigger.cycle, m.clear), (cycle as u64, true));
+        assert_eq!((m.trigger.cycle, m.clarity), (cycle as u64, Clarity::Clear));
     }
-    // Without a position the starts include the flight times: the offset is not used.
+    // Without a position the starts include the flight times: the offset
+    // is not used, the newest wins, and it is never clear.
     let m = recent.best_for(&msg, &book(), &|_| None).unwrap();
-    assert_eq!(m.trigger.cycle, 43);
+    assert_eq!((m.trigger.cycle, m.clarity), (44, Clarity::Unclear));
 }
 
 #[test]
 fn a_clear_choice_is_one_the_others_explain_more_than_twice_as_badly() {
     let mut recent = RecentTriggers::default();
-    recent.note(trigger(60, &SAME));
-    recent.note(trigger(61, &[(1, 0), (2, 33), (3, 60)]));
+    recent.note(trigger(58, &[(1, 0), (2, 30), (3, 66)]), &book());
+    recent.note(trigger(59, &[(1, 0), (2, 36), (3, 60)]), &book());
+    recent.note(trigger(60, &SAME), &book());
+    recent.note(trigger(61, &[(1, 0), (2, 33), (3, 60)]), &book());
+    // Cycle 57 of the window was not heard: nothing tells that it would
+    // not have explained the arrivals as well.
     let m = recent
         .best_for(&heard_in_cycle(60, 5), &book(), &flights)
         .unwrap();
-    assert_eq!((m.trigger.cycle, m.clear), (60, true));
+    assert_eq!((m.trigger.cycle, m.clarity), (60, Clarity::Unclear));
+    let mut recent = RecentTriggers::default();
+    for (cycle, firing) in [
+        (57, [(1, 0), (2, 30), (3, 54)]),
+        (58, [(1, 0), (2, 30), (3, 66)]),
+        (59, [(1, 0), (2, 36), (3, 60)]),
+        (60, SAME),
+        (61, [(1, 0), (2, 33), (3, 60)]),
+    ] {
+        recent.note(trigger(cycle, &firing), &book());
+    }
+    let m = recent
+        .best_for(&heard_in_cycle(60, 5), &book(), &flights)
+        .unwrap();
+    assert_eq!((m.trigger.cycle, m.clarity), (60, Clarity::Clear));
     // Without positions, the flight times hide a 3 ms difference no better.
     let m = recent
         .best_for(&heard_in_cycle(60, 5), &book(), &|_| None)
         .unwrap();
-    assert!(!m.clear);
+    assert_eq!(m.clarity, Clarity::Unclear);
 }
 
 #[test]
 fn after_a_clock_step_the_offset_is_learnt_again() {
     let mut recent = RecentTriggers::default();
     for cycle in 70..74 {
-        recent.note(trigger(cycle, &SAME));
+        recent.note(trigger(cycle, &SAME), &book());
     }
     recent.learn_clock(&trigger(69, &SAME), msu_start_ns(69, 20));
     // The MSU clock steps 250 ms: no trigger fits the offset learnt.
@@ -238,7 +270,7 @@ fn after_a_clock_step_the_offset_is_learnt_again() {
         let m = recent
             .best_for(&heard_in_cycle(71, 270), &book(), &flights)
             .unwrap();
-        assert!(!m.clear, "a misfit is not learnt from");
+        assert_ne!(m.clarity, Clarity::Clear, "a misfit is not learnt from");
     }
     // A cycle solved after the step (a clear choice, below) replaces what was learnt.
     recent.learn_clock(&trigger(72, &SAME), msu_start_ns(72, 270));
@@ -246,26 +278,26 @@ fn after_a_clock_step_the_offset_is_learnt_again() {
     let m = recent
         .best_for(&heard_in_cycle(71, 270), &book(), &flights)
         .unwrap();
-    assert_eq!((m.trigger.cycle, m.clear), (71, true));
+    assert_eq!((m.trigger.cycle, m.clarity), (71, Clarity::Clear));
 }
 
 #[test]
 fn forged_start_times_and_extreme_stamps_neither_panic_nor_displace_the_cycle_heard() {
     let mut recent = RecentTriggers::default();
     for cycle in 80..83 {
-        recent.note(trigger(cycle, &SAME));
+        recent.note(trigger(cycle, &SAME), &book());
     }
     recent.learn_clock(&trigger(79, &SAME), msu_start_ns(79, 37));
     // Newer triggers naming the same transmitters, stamped at the ends of time.
     for (cycle, start) in [(83, i64::MAX), (84, i64::MIN)] {
         let mut forged = trigger(cycle, &SAME);
         forged.start = Time::from_nanos(start);
-        recent.note(forged);
+        recent.note(forged, &book());
     }
     let m = recent
         .best_for(&heard_in_cycle(81, 37), &book(), &flights)
         .unwrap();
-    assert_eq!((m.trigger.cycle, m.clear), (81, true));
+    assert_eq!((m.trigger.cycle, m.clarity), (81, Clarity::Clear));
     // Arrival stamps at the ends of time match something or nothing, without overflow.
     for t in [i64::MIN, i64::MAX] {
         let msg = UltrasoundArrivals {
@@ -291,4 +323,65 @@ fn forged_start_times_and_extreme_stamps_neither_panic_nor_displace_the_cycle_he
     }
     // The learnt offset is still the real one.
     assert_eq!(recent.clock_offset_ns(), Some(37_000_000));
+}
+
+/// What a solver does with a choice for cycle `cycle`'s arrivals `msg`
+/// (solved with a good fix, on an MSU clock 37 ms ahead).
+fn solved(recent: &mut RecentTriggers, msg: &UltrasoundArrivals, cycle: i64) -> CycleTrigger {
+    let m = recent.best_for(msg, &book(), &flights).unwrap();
+    match m.clarity {
+        Clarity::Clear => recent.learn_clock(&m.trigger, msu_start_ns(cycle, 37)),
+        Clarity::AwaitingNext => {
+            recent.defer_learning(&m.trigger, msu_start_ns(cycle, 37), msg, flights_of(msg))
+        }
+        Clarity::Unclear => {}
+    }
+    m.trigger
+}
+
+/// The next cycle's trigger races a cycle's arrivals to the MSU; a recorder
+/// of the site can see the race end the other way. Either way the same
+/// clock offset is learnt from the same cycles, and each cycle is solved
+/// with the same firings: a replay reproduces the agent. (Before the
+/// judgement waited for the next trigger, an MSU that heard cycle 50's
+/// arrivals first learnt from it, and one that heard trigger 51 first, of
+/// identical offsets, did not.)
+#[test]
+fn whether_the_next_trigger_comes_before_or_after_the_arrivals_the_same_is_learnt() {
+    let wide = [(1, 0), (2, 33), (3, 60)];
+    let late = [(1, 0), (2, 30), (3, 64)];
+    let firings: [&[(u32, i64)]; 8] = [&SAME, &SAME, &wide, &wide, &SAME, &late, &SAME, &SAME];
+    let first = 50;
+    let run = |next_trigger_first: bool| {
+        let mut recent = RecentTriggers::default();
+        recent.note(trigger(first, firings[0]), &book());
+        let mut seen = Vec::new();
+        for (k, firing) in firings.iter().enumerate().take(firings.len() - 1) {
+            let cycle = first + k as u64;
+            let bursts: Vec<(u32, i64, i64)> = firing
+                .iter()
+                .map(|&(tx, ms)| (tx, ms, flights(tx).unwrap() / 1_000))
+                .collect();
+            let msg = heard(cycle as i64 * 100 + 37, &bursts);
+            let next = trigger(cycle + 1, firings[k + 1]);
+            let chosen = if next_trigger_first {
+                recent.note(next, &book());
+                solved(&mut recent, &msg, cycle as i64)
+            } else {
+                let chosen = solved(&mut recent, &msg, cycle as i64);
+                recent.note(next, &book());
+                chosen
+            };
+            seen.push((
+                chosen.emissions(book().latest().unwrap()),
+                recent.clock_offset_ns(),
+            ));
+        }
+        seen
+    };
+    let (next_first, arrivals_first) = (run(true), run(false));
+    assert_eq!(next_first, arrivals_first);
+    // Nothing was learnt from the ties; the distinct cycle 55 taught the offset.
+    assert_eq!(next_first[4].1, None);
+    assert_eq!(next_first[5].1, Some(37_000_000));
 }

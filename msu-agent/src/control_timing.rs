@@ -65,6 +65,16 @@ impl PendingControl {
         }
     }
 
+    /// Forgets a held calibration (a newer one was applied at once).
+    pub fn forget_survey(&mut self) {
+        self.survey = None;
+    }
+
+    /// Forgets the sync sigma held for `clock` (a newer one was taken at once).
+    pub fn forget_sync_sigma(&mut self, clock: u32) {
+        self.sync_sigma_s.remove(&clock);
+    }
+
     /// Holds the sync sigma `sigma_s` of `clock`, reported in a status made
     /// at `stamp`, until the first cycle that starts after it (the newest
     /// report of a clock replaces the one held).

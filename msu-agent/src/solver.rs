@@ -123,6 +123,8 @@ impl FixSolver {
     /// starts after the status ([`crate::control_timing`]); else at once.
     pub fn take_clock_sync_sigma(&mut self, clock: u32, stamp: Time, sigma_s: f64) {
         if self.recent_triggers.is_empty() {
+            // An older report held for a cycle must not come after it.
+            self.pending.forget_sync_sigma(clock);
             self.cell_sync_sigma_s.insert(clock, sigma_s);
         } else {
             self.pending.hold_sync_sigma(clock, stamp, sigma_s);
@@ -170,7 +172,10 @@ impl FixSolver {
     pub fn take_survey_calibration(&mut self, calibration: &SurveyCalibration) {
         match self.recent_triggers.newest() {
             Some(heard) => self.pending.hold_survey(calibration, heard),
-            None => self.set_survey_calibration(Some(calibration)),
+            None => {
+                self.pending.forget_survey();
+                self.set_survey_calibration(Some(calibration));
+            }
         }
     }
 

@@ -225,3 +225,70 @@ fn a_trigger_before_the_robots_first_input_is_ignored() {
     core.handle(Event::Trigger(trigger(40, &packed)));
     assert!(solved_at(&mut core).is_some_and(|e| e < 1e-4));
 }
+
+/// News held for a cycle while triggers were followed never overrides
+/// newer news taken at once after the central unit went back to firing
+/// the whole schedule.
+#[test]
+fn news_held_for_a_cycle_does_not_override_newer_news_once_the_whole_schedule_fires() {
+    let p = [1.7, 2.9, 0.5];
+    let firing = [(1, 0), (2, 12), (3, 24), (4, 36)];
+    let calibration = |version: u32, dz: f64| SurveyCalibration {
+        epoch: 1,
+        version,
+        fixes_taken: 100,
+        offsets: vec![ickon_proto::msg::control::TransmitterOffset {
+            tx_id: 5,
+            offset_m: [0.0, 0.0, dz],
+            sigma_m: [0.005; 3],
+        }],
+    };
+    let status = |stamp_s: f64, sigma_ns: i64| CellStatus {
+        cell_id: "a".into(),
+        stamp: Time::from_secs_f64(stamp_s),
+        offset_ns: 0,
+        drift_ppb: 0,
+        offset_sigma_ns: sigma_ns,
+        sync_samples: 20,
+        last_cycle_fired: 0,
+        cycles_fired: 0,
+        slots_skipped: 0,
+        faults: Vec::new(),
+        inputs_refused: 0,
+    };
+    let mut core = listening("msu-raw", 3.9);
+    core.handle(Event::Trigger(trigger(40, &firing)));
+    // Held: for cycle 41 on.
+    core.handle(Event::Survey(calibration(3, 0.01)));
+    core.handle(Event::CellStatus(status(4.05, 100_000)));
+    // The whole schedule fires from now on; newer news is taken at once.
+    core.handle(Event::Trigger(CycleTrigger {
+        firing: Vec::new(),
+        cycle_period: Duration::ZERO,
+        ..trigger(41, &[])
+    }));
+    core.handle(Event::Survey(calibration(4, 0.02)));
+    core.handle(Event::CellStatus(status(4.15, 20_000)));
+    let all: Vec<(u32, i64)> = TX
+        .iter()
+        .enumerate()
+        .map(|(i, (id, _))| (*id, 40 * i as i64))
+        .collect();
+    let msg = heard(p, 4.2, &all);
+    let mut clock = core.clock;
+    let differences = core
+        .solver
+        .clone()
+        .solve(&msg, None, &mut clock)
+        .unwrap()
+        .range_differences;
+    assert!(
+        differences
+            .iter()
+            .all(|d| (d.clocks.unwrap()[0].sync_sigma_m - 20e-6 * C).abs() < 1e-12)
+    );
+    let fix = fix_of(&core.handle(Event::Arrivals(msg)))
+        .cloned()
+        .expect("a fix");
+    assert_eq!(fix.survey_version, 4);
+}

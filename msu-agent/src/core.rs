@@ -380,7 +380,8 @@ impl MsuCore {
     /// the central unit in charge, or none of the robot's inputs yet (as
     /// with a cell's status: a recording's replay starts at the first input
     /// the agent took, and cannot tell a calibration the agent heard before
-    /// it from one it had not subscribed to yet; the repeat will do). Refused, and nothing changes: a
+    /// it from one it had not subscribed to yet; the repeat will do).
+    /// Refused, and nothing changes: a
     /// calibration of another epoch than the schedules followed, an
     /// unknown or repeated transmitter, an offset or sigma that is not a
     /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`].

@@ -190,7 +190,12 @@ impl RecentTriggers {
         self.triggers.push_back(trigger);
         if let Some(d) = self.deferred.take() {
             let flight_ns = |tx: u32| d.flights_ns.iter().find(|(id, _)| *id == tx).map(|f| f.1);
-            match self.judge(&d.msg, book, &flight_ns, &d.trigger) {
+            let explained: Vec<Candidate> = self
+                .triggers
+                .iter()
+                .filter_map(|t| explain(t, &d.msg, book, &flight_ns))
+                .collect();
+            match self.judge(&explained, &d.trigger) {
                 Clarity::Clear => self.learn_clock(&d.trigger, d.start_ns),
                 Clarity::Unclear => {}
                 Clarity::AwaitingNext => self.deferred = Some(d),
@@ -252,15 +257,15 @@ impl RecentTriggers {
         flight_ns: &dyn Fn(u32) -> Option<i64>,
     ) -> Option<Matched> {
         // Newest first.
-        let mut candidates: Vec<Candidate> = self
+        let explained: Vec<Candidate> = self
             .triggers
             .iter()
             .rev()
             .filter_map(|t| explain(t, msg, book, flight_ns))
             .collect();
-        let flights_known = candidates.iter().all(|c| c.flights_known);
-        let most = candidates.iter().map(|c| c.covered).max()?;
-        candidates.retain(|c| c.covered == most);
+        let flights_known = explained.iter().all(|c| c.flights_known);
+        let most = explained.iter().map(|c| c.covered).max()?;
+        let candidates: Vec<&Candidate> = explained.iter().filter(|c| c.covered == most).collect();
         let learnt = self.clock_offset_ns().filter(|_| flights_known);
         if let Some(offset) = learnt {
             let nearest = candidates
@@ -286,7 +291,7 @@ impl RecentTriggers {
                 _ => Some(c),
             })?;
         let clarity = if flights_known {
-            self.judge(msg, book, flight_ns, best.trigger)
+            self.judge(&explained, best.trigger)
         } else {
             Clarity::Unclear
         };
@@ -296,18 +301,13 @@ impl RecentTriggers {
         })
     }
 
-    /// Whether `chosen` explains `msg` clearly: every trigger of its window
+    /// Whether `chosen` explains the arrivals clearly, given how each kept
+    /// trigger explains them (`explained`): every trigger of its window
     /// (from [`CLARITY_CYCLES_BEFORE`] cycles before it to the next one) was
     /// heard, and every other one that names as many of the transmitters
     /// heard spreads the starts more than twice as wide.
     /// [`Clarity::AwaitingNext`] until a trigger newer than `chosen` is kept.
-    fn judge(
-        &self,
-        msg: &UltrasoundArrivals,
-        book: &ScheduleBook,
-        flight_ns: &dyn Fn(u32) -> Option<i64>,
-        chosen: &CycleTrigger,
-    ) -> Clarity {
+    fn judge(&self, explained: &[Candidate], chosen: &CycleTrigger) -> Clarity {
         let newer_kept = self
             .triggers
             .back()
@@ -317,27 +317,20 @@ impl RecentTriggers {
         }
         let window =
             chosen.cycle.saturating_sub(CLARITY_CYCLES_BEFORE)..=chosen.cycle.saturating_add(1);
-        let in_window: Vec<&CycleTrigger> = self
-            .triggers
-            .iter()
-            .filter(|t| t.epoch == chosen.epoch && window.contains(&t.cycle))
-            .collect();
+        let in_window = |t: &CycleTrigger| t.epoch == chosen.epoch && window.contains(&t.cycle);
         // A trigger of the window not heard (lost, or sent before the MSU
         // listened) could be the one that explains the arrivals as well:
         // the right cycle may be missing, and the one chosen a neighbour.
         let window_len = window.end() - window.start() + 1;
-        if in_window.len() as u64 != window_len {
+        if self.triggers.iter().filter(|t| in_window(t)).count() as u64 != window_len {
             return Clarity::Unclear;
         }
-        let explained: Vec<Candidate> = in_window
-            .into_iter()
-            .filter_map(|t| explain(t, msg, book, flight_ns))
-            .collect();
-        let Some(mine) = explained.iter().find(|c| c.trigger.cycle == chosen.cycle) else {
+        let mut rivals = explained.iter().filter(|c| in_window(c.trigger));
+        let Some(mine) = rivals.clone().find(|c| c.trigger.cycle == chosen.cycle) else {
             return Clarity::Unclear;
         };
         let clear = mine.flights_known
-            && explained.iter().all(|c| {
+            && rivals.all(|c| {
                 c.trigger.cycle == chosen.cycle
                     || c.covered < mine.covered
                     || c.deviation_ns > mine.deviation_ns.saturating_mul(2)

@@ -12,9 +12,9 @@ use rand_distr::{Distribution, Normal};
 
 use super::*;
 use crate::estimator::replay::Core;
+use crate::estimator::tests::sim::GEOMETRY;
 use crate::estimator::{
     EncoderSample, GyroSample, InitialPose, Input, RangeDifferenceSample, TransmitterClock,
-    WheelGeometry,
 };
 
 const SPEED_M_S: f64 = 0.3;
@@ -25,11 +25,6 @@ const CYCLE_S: f64 = 0.4;
 const MAX_RANGE_M: f64 = 6.0;
 /// Share of arrivals replaced by a reflection during a burst.
 const REFLECTED_SHARE: f64 = 0.5;
-const GEOMETRY: WheelGeometry = WheelGeometry {
-    wheel_base_m: 0.33,
-    left_m_per_tick: 0.0005,
-    right_m_per_tick: 0.0005,
-};
 /// The straights of the loop run from x = 3 to x = 17 at y = 0.6 and 1.4.
 const STRAIGHT_M: f64 = 14.0;
 const TURN_RADIUS_M: f64 = 0.4;

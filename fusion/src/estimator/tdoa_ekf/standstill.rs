@@ -53,7 +53,8 @@ mod tests {
     use super::*;
     use crate::estimator::replay::Core;
     use crate::estimator::tdoa_ekf::{TdoaEkf, TdoaEkfParams};
-    use crate::estimator::{EncoderSample, GyroSample, InitialPose, Input, WheelGeometry};
+    use crate::estimator::tests::sim::GEOMETRY;
+    use crate::estimator::{EncoderSample, GyroSample, InitialPose, Input};
 
     /// A robot standing for 5 s with a gyro bias of 0.6 deg/s and the
     /// data sheet's 0.1 deg/s of noise at 100 Hz, nothing else heard: the
@@ -62,11 +63,6 @@ mod tests {
     /// followed.
     #[test]
     fn a_still_robots_heading_holds_and_its_gyro_bias_is_found() {
-        let geometry = WheelGeometry {
-            wheel_base_m: 0.33,
-            left_m_per_tick: 0.0005,
-            right_m_per_tick: 0.0005,
-        };
         let params = TdoaEkfParams {
             initial_pose: Some(InitialPose::default()),
             ..TdoaEkfParams::default()
@@ -84,15 +80,15 @@ mod tests {
                     rate_rad_s: turn_rad_s + bias + noise.sample(&mut rng),
                 }));
                 if k % 2 == 0 {
-                    let ticks = (wheel_m / geometry.left_m_per_tick).floor() as i64;
+                    let ticks = (wheel_m / GEOMETRY.left_m_per_tick).floor() as i64;
                     f.step(&Input::Encoders(EncoderSample {
                         t_s,
                         left_ticks: -ticks,
                         right_ticks: ticks,
-                        geometry,
+                        geometry: GEOMETRY,
                     }));
                 }
-                wheel_m += 0.5 * geometry.wheel_base_m * turn_rad_s * 0.01;
+                wheel_m += 0.5 * GEOMETRY.wheel_base_m * turn_rad_s * 0.01;
             }
             f
         };

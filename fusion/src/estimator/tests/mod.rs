@@ -5,4 +5,4 @@
 mod filters;
 mod props;
 mod runs;
-mod sim;
+pub(super) mod sim;

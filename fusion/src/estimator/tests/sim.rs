@@ -12,7 +12,8 @@ use crate::estimator::{
 };
 use crate::tdoa::Fix;
 
-pub(super) const GEOMETRY: WheelGeometry = WheelGeometry {
+/// A Pioneer-like drive: 0.33 m wheel base, 0.5 mm per encoder tick.
+pub(in crate::estimator) const GEOMETRY: WheelGeometry = WheelGeometry {
     wheel_base_m: 0.33,
     left_m_per_tick: 0.0005,
     right_m_per_tick: 0.0005,

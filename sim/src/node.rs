@@ -11,7 +11,7 @@ use std::time::Duration;
 use clap::Args;
 
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
+use ickon_proto::msg::control::{Burst, CycleTrigger, Schedule, SiteInfo};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
@@ -88,6 +88,11 @@ pub async fn run(
         .map_err(zerr)?;
     let bursts = session
         .declare_subscriber(keys.cell_burst_all())
+        .await
+        .map_err(zerr)?;
+    // Which transmitters fire each cycle: a cycle is over when they have.
+    let triggers = session
+        .declare_subscriber(keys.central_cycle())
         .await
         .map_err(zerr)?;
     if let Some(schedule) = fetch::<Schedule>(
@@ -168,6 +173,15 @@ pub async fn run(
                 Err(e) => {
                     if let Some(held) = log_limit.admit("burst", std::time::Instant::now()) {
                         tracing::warn!("undecodable burst on {}: {e} ({held} more since)", s.key_expr());
+                    }
+                    None
+                }
+            },
+            Ok(s) = triggers.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
+                Ok(t) => Some(WorldEvent::Trigger(t)),
+                Err(e) => {
+                    if let Some(held) = log_limit.admit("trigger", std::time::Instant::now()) {
+                        tracing::warn!("undecodable cycle trigger: {e} ({held} more since)");
                     }
                     None
                 }

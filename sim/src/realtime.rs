@@ -18,11 +18,17 @@
 //! only the last [`DELIVERED_KEPT`] delivered ones are remembered, to drop
 //! their stragglers. Schedules are taken under the rules of
 //! [`ickon_proto::epoch`].
+//!
+//! A cycle's trigger, when heard, says which transmitters fire in it and
+//! how long it lasts (the central unit fires only where the robots are):
+//! the cycle is then complete when those have fired, as an MSU that
+//! follows the triggers knows, instead of waiting the whole schedule's
+//! period for transmitters that do not fire in it.
 
 use std::collections::{BTreeMap, VecDeque};
 
 use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
-use ickon_proto::msg::control::{Burst, Schedule};
+use ickon_proto::msg::control::{Burst, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -70,6 +76,9 @@ pub enum WorldEvent {
     /// A cell's report of a burst it fired (its `actual` time on the true
     /// time base).
     Burst(Burst),
+    /// The central unit's trigger of a cycle: which transmitters fire in
+    /// it, and its length.
+    Trigger(CycleTrigger),
     /// Time to move the robots to `now`.
     Tick,
 }
@@ -84,6 +93,15 @@ pub const DELIVERED_KEPT: usize = 64;
 
 /// A cycle: (epoch of the central unit, cycle number).
 type CycleKey = (u64, u64);
+
+/// What a cycle's trigger says of its sound.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TriggeredCycle {
+    /// Bursts that make it complete.
+    emissions: usize,
+    /// Its length, seconds.
+    period_s: f64,
+}
 
 #[derive(Debug, Default)]
 struct PendingCycle {
@@ -104,6 +122,9 @@ pub struct RealtimeWorld {
     next_truth_s: f64,
     pending: BTreeMap<CycleKey, PendingCycle>,
     delivered: VecDeque<CycleKey>,
+    /// The triggers of the cycles not yet delivered (at most
+    /// [`DELIVERED_KEPT`]: a trigger whose bursts never come is forgotten).
+    triggered: BTreeMap<CycleKey, TriggeredCycle>,
     schedules: ScheduleBook,
     emissions_per_cycle: Option<usize>,
     period_s: f64,
@@ -153,6 +174,7 @@ impl RealtimeWorld {
             next_truth_s: 0.0,
             pending: BTreeMap::new(),
             delivered: VecDeque::new(),
+            triggered: BTreeMap::new(),
             schedules: ScheduleBook::new(),
             emissions_per_cycle: None,
             period_s: 1.0,
@@ -181,9 +203,35 @@ impl RealtimeWorld {
                     self.on_burst((b.epoch, b.cycle), b.tx_id, seconds(b.actual));
                 }
             }
+            WorldEvent::Trigger(t) => self.on_trigger(&t),
             WorldEvent::Tick => self.advance(seconds(now), &mut out),
         }
         out
+    }
+
+    /// Takes a cycle's trigger: the cycle is complete once the bursts it
+    /// names have fired. A trigger of a cycle already delivered, or under
+    /// no schedule the world holds, changes nothing; a repeated one
+    /// replaces the first.
+    pub fn on_trigger(&mut self, trigger: &CycleTrigger) {
+        let key = (trigger.epoch, trigger.cycle);
+        if self.delivered.contains(&key) {
+            return;
+        }
+        let Some(schedule) = self
+            .schedules
+            .get_in(trigger.epoch, trigger.schedule_version)
+        else {
+            return;
+        };
+        let cycle = TriggeredCycle {
+            emissions: trigger.emissions(schedule).len(),
+            period_s: trigger.period(schedule).as_secs_f64().clamp(1e-3, 10.0),
+        };
+        if self.triggered.len() >= DELIVERED_KEPT && !self.triggered.contains_key(&key) {
+            self.triggered.pop_first();
+        }
+        self.triggered.insert(key, cycle);
     }
 
     /// The true time the world's seconds count from (the first event's `now`).
@@ -294,17 +342,21 @@ impl RealtimeWorld {
         let due: Vec<CycleKey> = self
             .pending
             .iter()
-            .filter(|(_, p)| {
+            .filter(|(k, p)| {
+                let trigger = self.triggered.get(k);
                 let heard_all = now >= p.last_s + self.max_flight_s + DELIVERY_MARGIN_S;
-                let complete = self
-                    .emissions_per_cycle
+                let complete = trigger
+                    .map(|t| t.emissions)
+                    .or(self.emissions_per_cycle)
                     .is_some_and(|n| p.emissions.len() >= n);
-                let timed_out = now >= p.first_s + self.period_s + self.max_flight_s;
+                let period_s = trigger.map_or(self.period_s, |t| t.period_s);
+                let timed_out = now >= p.first_s + period_s + self.max_flight_s;
                 heard_all && (complete || timed_out)
             })
             .map(|(&k, _)| k)
             .collect();
         for k in due {
+            self.triggered.remove(&k);
             if let Some(p) = self.pending.remove(&k) {
                 if self.delivered.len() == DELIVERED_KEPT {
                     self.delivered.pop_front();
@@ -419,6 +471,99 @@ mod tests {
             .fold(0.0, f64::max);
         world.advance(3.0 + last + 0.1, &mut out);
         assert_eq!(count(&out)[4], 2);
+    }
+
+    /// The trigger of cycle `cycle` starting at `start_s` that fires the
+    /// schedule's first `n` emissions, and those emissions.
+    fn trigger_of_first(
+        schedule: &Schedule,
+        cycle: u64,
+        start_s: f64,
+        n: usize,
+    ) -> (CycleTrigger, Vec<Emission>) {
+        let fired: Vec<Emission> = schedule.emissions.iter().take(n).cloned().collect();
+        let last = fired.iter().map(|e| e.offset).max().unwrap_or_default();
+        let trigger = CycleTrigger {
+            cycle,
+            start: Time::from_secs_f64(start_s),
+            schedule_version: schedule.version,
+            epoch: E,
+            firing: fired
+                .iter()
+                .map(|e| ickon_proto::msg::control::Firing {
+                    tx_id: e.tx_id,
+                    offset: e.offset,
+                })
+                .collect(),
+            cycle_period: last + Duration::from_millis(20),
+        };
+        (trigger, fired)
+    }
+
+    /// Arrival messages out of cycle `cycle` firing the schedule's first
+    /// three emissions at `start_s`, time moved to just after the last
+    /// one's sound; with or without its trigger heard.
+    fn delivered_after_own_sound(triggered: bool, cycle: u64, start_s: f64) -> usize {
+        let (_, mut world, schedule) = setup("ideal");
+        world.set_schedule(schedule.clone()).unwrap();
+        let (trigger, fired) = trigger_of_first(&schedule, cycle, start_s, 3);
+        assert!(fired.len() < schedule.emissions.len());
+        if triggered {
+            world.on_trigger(&trigger);
+        }
+        for e in &fired {
+            world.on_burst((E, cycle), e.tx_id, start_s + e.offset.as_secs_f64());
+        }
+        let last = fired
+            .iter()
+            .map(|e| e.offset.as_secs_f64())
+            .fold(0.0, f64::max);
+        let mut out = Vec::new();
+        world.advance(start_s + last + world.max_flight_s + 0.01, &mut out);
+        count(&out)[4]
+    }
+
+    #[test]
+    fn a_triggered_cycle_is_over_when_its_own_bursts_are_heard() {
+        // Two robots: each gets the cycle once its three bursts are heard.
+        assert_eq!(delivered_after_own_sound(true, 5, 3.0), 2);
+        // Without the trigger the world waits for the schedule's other
+        // transmitters, a whole period.
+        assert_eq!(delivered_after_own_sound(false, 5, 3.0), 0);
+    }
+
+    #[test]
+    fn a_trigger_under_an_unknown_schedule_or_of_a_delivered_cycle_changes_nothing() {
+        let (_, mut world, schedule) = setup("ideal");
+        world.set_schedule(schedule.clone()).unwrap();
+        let (mut unknown, _) = trigger_of_first(&schedule, 9, 3.0, 3);
+        unknown.schedule_version += 7;
+        world.on_trigger(&unknown);
+        let (mut other_epoch, _) = trigger_of_first(&schedule, 9, 3.0, 3);
+        other_epoch.epoch = E + 1;
+        world.on_trigger(&other_epoch);
+        assert!(world.triggered.is_empty());
+        assert_eq!(run_cycle(&mut world, &schedule, (E, 7), 3.0), 2);
+        let (late, _) = trigger_of_first(&schedule, 7, 3.0, 3);
+        world.on_trigger(&late);
+        assert!(world.triggered.is_empty());
+    }
+
+    #[test]
+    fn triggers_whose_bursts_never_come_are_forgotten() {
+        let (_, mut world, schedule) = setup("ideal");
+        world.set_schedule(schedule.clone()).unwrap();
+        for cycle in 0..(3 * DELIVERED_KEPT as u64) {
+            let (t, _) = trigger_of_first(&schedule, cycle, 3.0, 3);
+            world.on_trigger(&t);
+        }
+        assert_eq!(world.triggered.len(), DELIVERED_KEPT);
+        // The newest are kept.
+        assert!(
+            world
+                .triggered
+                .contains_key(&(E, 3 * DELIVERED_KEPT as u64 - 1))
+        );
     }
 
     fn count(out: &[WorldOutput]) -> [usize; 5] {

@@ -175,7 +175,12 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
             ),
             (
                 Subscribe,
-                vec![keys.central_schedule(), keys.cell_burst_all()],
+                vec![
+                    keys.central_schedule(),
+                    keys.cell_burst_all(),
+                    // Which transmitters fire each cycle: when it is over.
+                    keys.central_cycle(),
+                ],
             ),
             (Query, vec![keys.central_site(), keys.central_schedule()]),
             (Token, vec![keys.alive_world(), format!("@ros2_lv/{d}/**")]),

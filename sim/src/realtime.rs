@@ -224,8 +224,14 @@ impl RealtimeWorld {
         else {
             return;
         };
+        let emissions = trigger.emissions(schedule).len();
+        if emissions == 0 {
+            // Names only transmitters the schedule does not have: no cell
+            // fires them, and "complete" would mean nothing.
+            return;
+        }
         let cycle = TriggeredCycle {
-            emissions: trigger.emissions(schedule).len(),
+            emissions,
             period_s: trigger.period(schedule).as_secs_f64().clamp(1e-3, 10.0),
         };
         if self.triggered.len() >= DELIVERED_KEPT && !self.triggered.contains_key(&key) {
@@ -533,7 +539,8 @@ mod tests {
     }
 
     #[test]
-    fn a_trigger_under_an_unknown_schedule_or_of_a_delivered_cycle_changes_nothing() {
+    fn a_trigger_under_an_unknown_schedule_of_unknown_transmitters_or_of_a_delivered_cycle_changes_nothing()
+     {
         let (_, mut world, schedule) = setup("ideal");
         world.set_schedule(schedule.clone()).unwrap();
         let (mut unknown, _) = trigger_of_first(&schedule, 9, 3.0, 3);
@@ -542,6 +549,11 @@ mod tests {
         let (mut other_epoch, _) = trigger_of_first(&schedule, 9, 3.0, 3);
         other_epoch.epoch = E + 1;
         world.on_trigger(&other_epoch);
+        let (mut strangers, _) = trigger_of_first(&schedule, 9, 3.0, 3);
+        for f in &mut strangers.firing {
+            f.tx_id += 10_000;
+        }
+        world.on_trigger(&strangers);
         assert!(world.triggered.is_empty());
         assert_eq!(run_cycle(&mut world, &schedule, (E, 7), 3.0), 2);
         let (late, _) = trigger_of_first(&schedule, 7, 3.0, 3);

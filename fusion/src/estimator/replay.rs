@@ -100,7 +100,7 @@ impl<C: Core> Replay<C> {
     /// history when `at` is its length), rebuilt from the checkpoint
     /// before it; `None` only if the history lost its first checkpoint.
     fn state_before(&self, at: usize) -> Option<C> {
-        if at == self.history.len() && self.history.is_empty() {
+        if self.history.is_empty() {
             return Some(self.current.clone());
         }
         let from = (0..=at.min(self.history.len().saturating_sub(1)))

@@ -11,7 +11,7 @@ use std::time::Duration;
 use clap::Args;
 
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::control::{Burst, CycleTrigger, Schedule, SiteInfo};
+use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
@@ -156,36 +156,16 @@ pub async fn run(
     loop {
         let event = tokio::select! {
             _ = &mut shutdown => break,
-            Ok(s) = schedule_sub.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
-                Ok(schedule) => Some(WorldEvent::Schedule(schedule)),
-                Err(e) => {
-                    if let Some(held) = log_limit.admit("schedule", std::time::Instant::now()) {
-                        tracing::warn!("undecodable schedule: {e} ({held} more since)");
-                    }
-                    None
-                }
-            },
-            Ok(s) = bursts.recv_async() => match decode::<Burst>(&s.payload().to_bytes()) {
-                Ok(b) => {
-                    bursts_heard += 1;
-                    Some(WorldEvent::Burst(b))
-                }
-                Err(e) => {
-                    if let Some(held) = log_limit.admit("burst", std::time::Instant::now()) {
-                        tracing::warn!("undecodable burst on {}: {e} ({held} more since)", s.key_expr());
-                    }
-                    None
-                }
-            },
-            Ok(s) = triggers.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
-                Ok(t) => Some(WorldEvent::Trigger(t)),
-                Err(e) => {
-                    if let Some(held) = log_limit.admit("trigger", std::time::Instant::now()) {
-                        tracing::warn!("undecodable cycle trigger: {e} ({held} more since)");
-                    }
-                    None
-                }
-            },
+            Ok(s) = schedule_sub.recv_async() => {
+                decoded(&mut log_limit, "schedule", &s).map(WorldEvent::Schedule)
+            }
+            Ok(s) = bursts.recv_async() => decoded(&mut log_limit, "burst", &s).map(|b| {
+                bursts_heard += 1;
+                WorldEvent::Burst(b)
+            }),
+            Ok(s) = triggers.recv_async() => {
+                decoded(&mut log_limit, "cycle trigger", &s).map(WorldEvent::Trigger)
+            }
             _ = tick.tick() => Some(WorldEvent::Tick),
         };
         let Some(event) = event else { continue };
@@ -202,6 +182,27 @@ pub async fn run(
         );
     }
     Ok(bursts_heard)
+}
+
+/// The message in `sample`, or `None` when it does not decode (logged at
+/// a bounded rate per kind, with the key it came under).
+fn decoded<T: serde::de::DeserializeOwned>(
+    log_limit: &mut LogLimiter<&'static str>,
+    kind: &'static str,
+    sample: &zenoh::sample::Sample,
+) -> Option<T> {
+    match decode::<T>(&sample.payload().to_bytes()) {
+        Ok(message) => Some(message),
+        Err(e) => {
+            if let Some(held) = log_limit.admit(kind, std::time::Instant::now()) {
+                tracing::warn!(
+                    "undecodable {kind} on {}: {e} ({held} more since)",
+                    sample.key_expr()
+                );
+            }
+            None
+        }
+    }
 }
 
 async fn publish(

@@ -56,6 +56,13 @@ pub struct CentralArgs {
     /// survey calibration.
     #[arg(long, default_value_t = 50.0, value_parser = timing_sigma_us)]
     pub timing_sigma_us: f64,
+    /// One-sigma error of a cell's sync, microseconds: how far the site's
+    /// network may leave a cell's clock from the central unit's (half its
+    /// paths' asymmetry, which no clock exchange sees). The prior of each
+    /// cell's lateness in the survey calibration, which the MSUs take from
+    /// that cell's pseudo-ranges; 0 keeps every cell on time.
+    #[arg(long, default_value_t = 60.0, value_parser = cell_sync_sigma_us)]
+    pub cell_sync_sigma_us: f64,
     /// Keep the survey calibration in this file (JSON), so that a restart
     /// goes on from what the fleet taught it: read at start when it
     /// exists (a file of another site or transmitter table is set aside
@@ -122,6 +129,15 @@ fn save_survey_file(path: &std::path::Path, saved: &SavedCalibration) {
     }
 }
 
+/// `--cell-sync-sigma-us`: microseconds from 0 up to a second.
+fn cell_sync_sigma_us(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if (0.0..=1e6).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("{v} is not in [0, 1000000] us")),
+        Err(e) => Err(format!("{text:?}: {e}")),
+    }
+}
+
 /// `--timing-sigma-us`: a positive number of microseconds up to a second.
 fn timing_sigma_us(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
@@ -148,6 +164,7 @@ impl CentralArgs {
         config.survey =
             (!self.no_survey_calibration).then(|| crate::survey_calibration::CalibrationConfig {
                 range_sigma_m: self.timing_sigma_us * 1e-6 * site.speed_of_sound_m_s,
+                cell_sync_sigma_m: self.cell_sync_sigma_us * 1e-6 * site.speed_of_sound_m_s,
                 ..Default::default()
             });
         config

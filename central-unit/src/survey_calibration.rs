@@ -22,10 +22,15 @@
 //! `(PJ)'(PJ) / sigma^2` to the information of `x`; with the survey's, the
 //! sync's and the air's own sigmas as the prior, the estimate is the
 //! least-squares solution over every fix taken (a batch over the whole
-//! history: the transmitters do not move). The cells' sync errors and the
-//! speed of sound are estimated only so that they do not leak into the
-//! positions; they change with every clock exchange and with the air, and
-//! are not published.
+//! history: the transmitters do not move). The speed of sound is estimated
+//! only so that it does not leak into the positions; it changes with the
+//! air and is not published. The cells' sync errors are published, as each
+//! transmitter's lateness (`late_m`), which the MSUs take from its
+//! pseudo-ranges: what a cell's sync is off by is mostly the asymmetry of
+//! its network path, which no clock exchange can see and which stays
+//! while the path does; only differences between cells are observable
+//! (what every cell shares, every range difference cancels), and the prior
+//! keeps the rest at zero.
 //!
 //! A signal heard by a reflection has a path longer than its range, and a
 //! few centimetres of it pass a fix's gate: it would bend a position. A fix
@@ -40,7 +45,7 @@
 use std::collections::BTreeMap;
 
 use ickon_proto::msg::control::{
-    MAX_SURVEY_OFFSET_M, SurveyCalibration as SurveyMessage, TransmitterOffset,
+    MAX_LATE_M, MAX_SURVEY_OFFSET_M, SurveyCalibration as SurveyMessage, TransmitterOffset,
 };
 use ickon_proto::msg::robot::{Fix, FixQuality};
 use ickon_proto::site::{Column, Site, Wall, line_of_sight};
@@ -54,7 +59,8 @@ pub struct CalibrationConfig {
     /// One-sigma error of each surveyed coordinate, metres (the survey's
     /// accuracy: the prior of every position).
     pub survey_sigma_m: f64,
-    /// One-sigma range error a cell's sync adds to its transmitters, metres.
+    /// One-sigma range error a cell's sync adds to its transmitters, metres:
+    /// the prior of each cell's published lateness (0: every cell on time).
     pub cell_sync_sigma_m: f64,
     /// One-sigma error of one arrival's pseudo-range, metres (timing noise
     /// times the speed of sound; never less than 1 cm is used, see
@@ -126,11 +132,20 @@ pub struct TransmitterCorrection {
     pub offset_m: [f64; 3],
     /// One-sigma uncertainty of each corrected coordinate, metres.
     pub sigma_m: [f64; 3],
+    /// How late its cell's bursts arrive, metres of path (its cell's sync
+    /// error; see [`TransmitterOffset::late_m`]).
+    pub late_m: f64,
+    /// One-sigma uncertainty of `late_m`, metres.
+    pub late_sigma_m: f64,
 }
 
-/// Corrections by transmitter id, as an MSU applies them (absent: the
-/// surveyed position).
+/// Position corrections by transmitter id, as an MSU applies them (absent:
+/// the surveyed position).
 pub type Applied = BTreeMap<u32, [f64; 3]>;
+
+/// Lateness corrections by transmitter id, metres, as an MSU applies them
+/// (absent: none).
+pub type AppliedLate = BTreeMap<u32, f64>;
 
 /// Calibrations kept to read the fixes solved with them: a fix comes back
 /// within a second or two of the calibration it used, and one is published
@@ -333,8 +348,13 @@ impl SurveyCalibration {
     }
 
     /// Takes one robot's fix, solved with the positions corrected by
-    /// `applied`.
-    pub fn take_fix(&mut self, fix: &Fix, applied: &Applied) -> Result<(), FixSkipped> {
+    /// `applied` and the pseudo-ranges by `late`.
+    pub fn take_fix(
+        &mut self,
+        fix: &Fix,
+        applied: &Applied,
+        late: &AppliedLate,
+    ) -> Result<(), FixSkipped> {
         if fix.quality != FixQuality::Good {
             return Err(FixSkipped::NotGood);
         }
@@ -383,6 +403,7 @@ impl SurveyCalibration {
                 cell,
                 toward: to_tx / range,
                 offset,
+                late: late.get(&id).copied().unwrap_or(0.0),
                 range,
             });
         }
@@ -421,9 +442,10 @@ impl SurveyCalibration {
             jacobian[(i, column_of(scale))] = -r.range;
         }
         let pj = &projector * &jacobian;
-        // Put back the offsets the MSU solved with: the estimate is of the
-        // whole error.
-        let used_offsets = DVector::from_fn(n, |i, _| rows[i].toward.dot(&rows[i].offset));
+        // Put back the offsets and lateness the MSU solved with: the
+        // estimate is of the whole error.
+        let used_offsets =
+            DVector::from_fn(n, |i, _| rows[i].toward.dot(&rows[i].offset) + rows[i].late);
         let residuals = DVector::from_vec(fix.residuals_m.clone()) + &projector * used_offsets;
         let sigma = self.config.range_sigma_m.max(MIN_RANGE_SIGMA_M);
         let worst = fix.residuals_m.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
@@ -464,18 +486,36 @@ impl SurveyCalibration {
                     tx_id,
                     offset_m: [0.0; 3],
                     sigma_m: [sigma; 3],
+                    late_m: 0.0,
+                    late_sigma_m: self.config.cell_sync_sigma_m,
                 })
                 .collect();
         };
         let estimate = cholesky.solve(&self.weighted);
         let covariance = cholesky.inverse();
+        let scale = estimate.len() - 1;
+        let cell_of = |tx_id: u32| {
+            self.index
+                .get(&tx_id)
+                .map(|&(_, cell)| cell)
+                .filter(|&cell| cell < scale)
+        };
         (0..n_tx)
-            .map(|i| TransmitterCorrection {
-                tx_id: self.ids[i],
-                offset_m: std::array::from_fn(|a| estimate[3 * i + a]),
-                sigma_m: std::array::from_fn(|a| {
-                    covariance[(3 * i + a, 3 * i + a)].max(0.0).sqrt()
-                }),
+            .map(|i| {
+                let tx_id = self.ids[i];
+                let (late_m, late_sigma_m) = cell_of(tx_id)
+                    .map_or((0.0, self.config.cell_sync_sigma_m), |cell| {
+                        (estimate[cell], covariance[(cell, cell)].max(0.0).sqrt())
+                    });
+                TransmitterCorrection {
+                    tx_id,
+                    offset_m: std::array::from_fn(|a| estimate[3 * i + a]),
+                    sigma_m: std::array::from_fn(|a| {
+                        covariance[(3 * i + a, 3 * i + a)].max(0.0).sqrt()
+                    }),
+                    late_m,
+                    late_sigma_m,
+                }
             })
             .collect()
     }
@@ -484,9 +524,11 @@ impl SurveyCalibration {
 /// What is published of `c`, and whether it is what was learnt: an offset
 /// beyond [`MAX_SURVEY_OFFSET_M`] (or not a number) is not a survey's
 /// error a calibration corrects, and the transmitter stays where it was
-/// surveyed, with the survey's sigma. Every other offset is published as
-/// learnt: the least-squares estimate with the survey as its prior already
-/// shrinks what the fleet has not shown towards zero.
+/// surveyed, with the survey's sigma; a lateness beyond [`MAX_LATE_M`] is a
+/// cell failing its own synchronisation, and is published as 0 with the
+/// sync's sigma. Everything else is published as learnt: the least-squares
+/// estimate with the survey and the sync as its prior already shrinks what
+/// the fleet has not shown towards zero.
 ///
 /// (Until the tenth stop a coordinate under two of its sigmas was published
 /// as 0: in the `ideal` world the small offsets learnt from what the solver
@@ -495,23 +537,29 @@ impl SurveyCalibration {
 /// `eight`. Since no arrival is taken below the survey's sigma that run
 /// gives 7.8 mm either way, and the test cost up to 10 mm on `warehouse`'s
 /// routes: seed 2 `aisle-3` 45.6 mm with it, 36.0 without.)
-fn publishable(c: TransmitterCorrection, survey_sigma_m: f64) -> (TransmitterOffset, bool) {
-    let plausible = c.offset_m.iter().all(|v| v.abs() <= MAX_SURVEY_OFFSET_M)
+fn publishable(c: TransmitterCorrection, config: &CalibrationConfig) -> (TransmitterOffset, bool) {
+    let position_plausible = c.offset_m.iter().all(|v| v.abs() <= MAX_SURVEY_OFFSET_M)
         && c.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0);
-    let offset = if plausible {
-        TransmitterOffset {
-            tx_id: c.tx_id,
-            offset_m: c.offset_m,
-            sigma_m: c.sigma_m,
-        }
+    let late_plausible =
+        c.late_m.abs() <= MAX_LATE_M && c.late_sigma_m.is_finite() && c.late_sigma_m >= 0.0;
+    let (offset_m, sigma_m) = if position_plausible {
+        (c.offset_m, c.sigma_m)
     } else {
-        TransmitterOffset {
-            tx_id: c.tx_id,
-            offset_m: [0.0; 3],
-            sigma_m: [survey_sigma_m; 3],
-        }
+        ([0.0; 3], [config.survey_sigma_m; 3])
     };
-    (offset, plausible)
+    let (late_m, late_sigma_m) = if late_plausible {
+        (c.late_m, c.late_sigma_m)
+    } else {
+        (0.0, config.cell_sync_sigma_m)
+    };
+    let offset = TransmitterOffset {
+        tx_id: c.tx_id,
+        offset_m,
+        sigma_m,
+        late_m,
+        late_sigma_m,
+    };
+    (offset, position_plausible && late_plausible)
 }
 
 /// The surveyed table of `site`, as a saved calibration names it.
@@ -532,6 +580,8 @@ struct Row {
     toward: Vector3<f64>,
     /// The correction the MSU solved with, metres.
     offset: Vector3<f64>,
+    /// The lateness the MSU took from its pseudo-range, metres.
+    late: f64,
     /// Distance from the receiver, metres.
     range: f64,
 }
@@ -544,7 +594,7 @@ pub struct SurveyPublisher {
     publish_every: Duration,
     next_at: Option<Time>,
     /// The versions published, oldest first.
-    history: std::collections::VecDeque<(u32, Applied)>,
+    history: std::collections::VecDeque<(u32, Applied, AppliedLate)>,
     /// Transmitters already reported beyond a calibration's reach.
     warned: std::collections::BTreeSet<u32>,
 }
@@ -576,15 +626,17 @@ impl SurveyPublisher {
     /// Takes a robot's fix, read against the calibration it names.
     pub fn take_fix(&mut self, fix: &Fix) -> Result<(), FixSkipped> {
         if fix.survey_version == 0 {
-            return self.calibration.take_fix(fix, &Applied::new());
+            return self
+                .calibration
+                .take_fix(fix, &Applied::new(), &AppliedLate::new());
         }
-        let (_, applied) = self
+        let (_, applied, late) = self
             .history
             .iter()
-            .find(|(v, _)| *v == fix.survey_version)
+            .find(|(v, _, _)| *v == fix.survey_version)
             .ok_or(FixSkipped::UnknownCalibration)?;
         // Disjoint fields: the version's offsets are read in place.
-        self.calibration.take_fix(fix, applied)
+        self.calibration.take_fix(fix, applied, late)
     }
 
     /// The calibration to publish at `now` in `epoch`, if one is due.
@@ -599,22 +651,24 @@ impl SurveyPublisher {
         }
         self.next_at = Some(now + self.publish_every);
         let from_clock = u32::try_from(now.as_nanos().max(0) / 1_000_000_000).unwrap_or(u32::MAX);
-        let last = self.history.back().map_or(0, |(v, _)| *v);
+        let last = self.history.back().map_or(0, |(v, _, _)| *v);
         let version = from_clock.max(last.saturating_add(1)).max(1);
-        let survey_sigma_m = self.calibration.config.survey_sigma_m;
+        let config = self.calibration.config;
         let offsets: Vec<TransmitterOffset> = self
             .calibration
             .corrections()
             .into_iter()
             .map(|c| {
-                let (offset, plausible) = publishable(c, survey_sigma_m);
+                let (offset, plausible) = publishable(c, &config);
                 if !plausible && self.warned.insert(c.tx_id) {
                     tracing::warn!(
                         "transmitter {}: the fleet's fixes put it {:?} m from its surveyed \
-                         position, beyond the {MAX_SURVEY_OFFSET_M} m a calibration corrects: \
-                         survey it again (left at its surveyed position)",
+                         position and its bursts {:.3} m late, beyond the {MAX_SURVEY_OFFSET_M} m \
+                         and {MAX_LATE_M} m a calibration corrects: survey it again or check \
+                         its cell's sync (left as surveyed and on time)",
                         c.tx_id,
-                        c.offset_m
+                        c.offset_m,
+                        c.late_m
                     );
                 }
                 offset
@@ -626,6 +680,7 @@ impl SurveyPublisher {
         self.history.push_back((
             version,
             offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect(),
+            offsets.iter().map(|o| (o.tx_id, o.late_m)).collect(),
         ));
         Some(SurveyMessage {
             epoch,

@@ -9,7 +9,8 @@ use ickon_fusion::estimator::{
 };
 use ickon_fusion::tdoa;
 use ickon_proto::msg::control::{
-    CellStatus, CycleTrigger, MAX_SURVEY_OFFSET_M, Schedule, SurveyCalibration, TransmitterEntry,
+    CellStatus, CycleTrigger, MAX_LATE_M, MAX_SURVEY_OFFSET_M, Schedule, SurveyCalibration,
+    TransmitterEntry,
 };
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
@@ -384,7 +385,8 @@ impl MsuCore {
     /// Refused, and nothing changes: a
     /// calibration of another epoch than the schedules followed, an
     /// unknown or repeated transmitter, an offset or sigma that is not a
-    /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`].
+    /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`] or a
+    /// lateness beyond [`MAX_LATE_M`].
     pub fn on_survey_calibration(&mut self, c: &SurveyCalibration) -> Result<bool, MsuError> {
         let refuse = |reason: String| MsuError::Survey {
             epoch: c.epoch,
@@ -437,6 +439,18 @@ impl MsuCore {
                 return Err(refuse(format!(
                     "transmitter {}: sigma {:?} m is not a number or negative",
                     o.tx_id, o.sigma_m
+                )));
+            }
+            if !(o.late_m.is_finite() && o.late_m.abs() <= MAX_LATE_M) {
+                return Err(refuse(format!(
+                    "transmitter {}: lateness {} m is not a number or beyond {MAX_LATE_M} m",
+                    o.tx_id, o.late_m
+                )));
+            }
+            if !(o.late_sigma_m.is_finite() && o.late_sigma_m >= 0.0) {
+                return Err(refuse(format!(
+                    "transmitter {}: lateness sigma {} m is not a number or negative",
+                    o.tx_id, o.late_sigma_m
                 )));
             }
         }

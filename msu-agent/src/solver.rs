@@ -80,6 +80,9 @@ pub struct FixSolver {
     /// The surveyed positions of the table, metres, by transmitter id (the
     /// table's own positions carry the fleet's calibration when one applies).
     surveyed_m: std::collections::BTreeMap<u32, [f64; 3]>,
+    /// How late each transmitter's bursts arrive, metres of path, by id
+    /// (the calibration's `late_m`; absent: on time).
+    late_m: std::collections::BTreeMap<u32, f64>,
     /// `(epoch, version)` of the survey calibration the table carries.
     survey: Option<(u64, u32)>,
     /// A calibration and sync sigmas taken while triggers are followed,
@@ -97,6 +100,7 @@ impl FixSolver {
             .collect();
         Self {
             surveyed_m,
+            late_m: std::collections::BTreeMap::new(),
             survey: None,
             pending: PendingControl::default(),
             config,
@@ -149,9 +153,10 @@ impl FixSolver {
     }
 
     /// Solves from now on with each transmitter at its surveyed position
-    /// plus its offset in `calibration` (a transmitter it does not name:
-    /// the surveyed position); `None`: the surveyed positions. The caller
-    /// checks the calibration ([`crate::MsuCore::on_survey_calibration`]).
+    /// plus its offset in `calibration`, its pseudo-ranges shortened by its
+    /// lateness (a transmitter it does not name: the surveyed position, on
+    /// time); `None`: the surveyed positions, on time. The caller checks
+    /// the calibration ([`crate::MsuCore::on_survey_calibration`]).
     pub fn set_survey_calibration(&mut self, calibration: Option<&SurveyCalibration>) {
         let offsets: std::collections::BTreeMap<u32, [f64; 3]> = calibration
             .map(|c| c.offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect())
@@ -162,6 +167,9 @@ impl FixSolver {
                 (t.x_m, t.y_m, t.z_m) = (x + dx, y + dy, z + dz);
             }
         }
+        self.late_m = calibration
+            .map(|c| c.offsets.iter().map(|o| (o.tx_id, o.late_m)).collect())
+            .unwrap_or_default();
         self.survey = calibration.map(|c| (c.epoch, c.version));
     }
 
@@ -319,7 +327,10 @@ impl FixSolver {
         let of_cycle = trigger.map(|t| t.schedule_of_cycle(published));
         let schedule = of_cycle.as_ref().unwrap_or(published);
         let c = self.config.speed_of_sound_m_s;
-        let cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
+        let mut cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
+        for s in &mut cycle.signals {
+            s.pseudo_range_m -= self.late_m.get(&s.tx_id).copied().unwrap_or(0.0);
+        }
         let reference_s = clock.to_fusion(cycle.stamp);
         let hidden = self.hidden(&cycle.signals, reference_s);
         let range_differences = self.range_differences(&cycle.signals, &hidden, clock);

@@ -370,6 +370,8 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
         tx_id: 31,
         offset_m: [0.004, -0.002, 0.011],
         sigma_m: [0.006, 0.007, 0.003],
+        late_m: -0.0071,
+        late_sigma_m: 0.0042,
     };
     check("TransmitterOffset", &offset, &mut checked);
     check(

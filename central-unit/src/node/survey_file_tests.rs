@@ -117,3 +117,31 @@ fn a_broken_file_stops_the_start_with_the_file_and_the_reason() {
     let e = load_survey_file(&d, &site, CalibrationConfig::default()).unwrap_err();
     assert!(e.contains(&d.display().to_string()), "{e}");
 }
+
+#[test]
+fn the_cells_sync_sigma_flag_sets_the_lateness_prior_and_refuses_nonsense() {
+    use clap::Parser;
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        central: CentralArgs,
+    }
+    let site = Site::default_site();
+    let parse = |extra: &[&str]| {
+        Cli::try_parse_from([&["ickon-central"][..], extra].concat()).map(|c| c.central)
+    };
+    let default = parse(&[]).unwrap().core_config(&site).survey.unwrap();
+    assert!((default.cell_sync_sigma_m - 60e-6 * site.speed_of_sound_m_s).abs() < 1e-12);
+    let set = parse(&["--cell-sync-sigma-us", "20"]).unwrap();
+    let config = set.core_config(&site).survey.unwrap();
+    assert!((config.cell_sync_sigma_m - 20e-6 * site.speed_of_sound_m_s).abs() < 1e-12);
+    assert_eq!(
+        parse(&["--cell-sync-sigma-us", "0"])
+            .unwrap()
+            .cell_sync_sigma_us,
+        0.0
+    );
+    for bad in ["-1", "2e6", "NaN", "fast"] {
+        assert!(parse(&["--cell-sync-sigma-us", bad]).is_err(), "{bad}");
+    }
+}

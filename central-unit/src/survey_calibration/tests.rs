@@ -63,6 +63,22 @@ fn fix_at(
     version: u32,
     noise: &mut Noise,
 ) -> Option<Fix> {
+    let on_time = AppliedLate::new();
+    fix_with_late(site, at, truth, applied, [&on_time; 2], version, noise)
+}
+
+/// [`fix_at`] with each transmitter's bursts really `late[0]` metres late,
+/// and `late[1]` taken from its pseudo-ranges by the MSU.
+fn fix_with_late(
+    site: &Site,
+    at: [f64; 2],
+    truth: &Applied,
+    applied: &Applied,
+    late: [&AppliedLate; 2],
+    version: u32,
+    noise: &mut Noise,
+) -> Option<Fix> {
+    let late_of = |k: usize, id: u32| late[k].get(&id).copied().unwrap_or(0.0);
     let height_m = site.msu.height_m;
     let p = Vector3::new(at[0], at[1], height_m);
     let signals: Vec<tdoa::Signal> = site
@@ -76,7 +92,8 @@ fn fix_at(
             (range < 8.0).then(|| tdoa::Signal {
                 tx_id: t.id,
                 tx_m: surveyed + Vector3::from(applied.get(&t.id).copied().unwrap_or([0.0; 3])),
-                pseudo_range_m: range + 1.5 + noise.normal(NOISE_M),
+                pseudo_range_m: range + 1.5 + late_of(0, t.id) - late_of(1, t.id)
+                    + noise.normal(NOISE_M),
                 t_s: 0.0,
             })
         })
@@ -179,7 +196,7 @@ fn a_fleet_learns_where_the_transmitters_hang_from_its_fixes() {
     let none = Applied::new();
     for at in places(8_000, &mut noise) {
         if let Some(fix) = fix_at(&site, at, &truth, &none, 0, &mut noise) {
-            let _ = c.take_fix(&fix, &none);
+            let _ = c.take_fix(&fix, &none, &AppliedLate::new());
         }
     }
     assert!(c.fixes_taken() > 1_000, "{}", c.fixes_taken());
@@ -204,7 +221,7 @@ fn fixes_solved_with_a_calibration_still_estimate_the_whole_error() {
     let mut c = SurveyCalibration::new(&site, config());
     for at in places(4_000, &mut noise) {
         if let Some(fix) = fix_at(&site, at, &truth, &half, 3, &mut noise) {
-            let _ = c.take_fix(&fix, &half);
+            let _ = c.take_fix(&fix, &half, &AppliedLate::new());
         }
     }
     let [_, (after, before)] = rms_height_errors(&site, &c, &truth);
@@ -244,7 +261,7 @@ fn a_fix_that_may_have_used_a_reflection_is_not_taken() {
     fix.quality = FixQuality::Good;
     let mut c2 = c.clone();
     assert_eq!(
-        c2.take_fix(&fix, &Applied::new()),
+        c2.take_fix(&fix, &Applied::new(), &AppliedLate::new()),
         Err(FixSkipped::MaybeReflected)
     );
     assert_eq!(c2.fixes_taken(), 0);
@@ -328,12 +345,19 @@ fn malformed_fixes_are_refused_and_teach_nothing() {
         ),
     ];
     for (fix, why) in cases {
-        assert_eq!(c.take_fix(&fix, &Applied::new()), Err(why), "{fix:?}");
+        assert_eq!(
+            c.take_fix(&fix, &Applied::new(), &AppliedLate::new()),
+            Err(why),
+            "{fix:?}"
+        );
     }
     assert_eq!(c.fixes_taken(), 0);
     assert_eq!(c.corrections(), before);
     // The good one is taken.
-    assert_eq!(c.take_fix(&good, &Applied::new()), Ok(()));
+    assert_eq!(
+        c.take_fix(&good, &Applied::new(), &AppliedLate::new()),
+        Ok(())
+    );
 }
 
 #[test]
@@ -383,12 +407,14 @@ fn a_transmitter_beyond_a_calibrations_reach_is_published_at_its_survey() {
         tx_id: 7,
         offset_m,
         sigma_m,
+        late_m: 0.003,
+        late_sigma_m: 0.002,
     };
-    let (o, ok) = publishable(learnt([0.01, -0.02, 0.2], [0.004; 3]), 0.01);
+    let (o, ok) = publishable(learnt([0.01, -0.02, 0.2], [0.004; 3]), &config());
     assert!(ok);
     assert_eq!(o.offset_m, [0.01, -0.02, 0.2]);
     // Small against its sigma: published as learnt (the prior has shrunk it).
-    let (o, ok) = publishable(learnt([0.007, -0.02, 0.002], [0.004; 3]), 0.01);
+    let (o, ok) = publishable(learnt([0.007, -0.02, 0.002], [0.004; 3]), &config());
     assert!(ok);
     assert_eq!(o.offset_m, [0.007, -0.02, 0.002]);
     assert_eq!(o.sigma_m, [0.004; 3]);
@@ -397,8 +423,109 @@ fn a_transmitter_beyond_a_calibrations_reach_is_published_at_its_survey() {
         ([f64::NAN, 0.0, 0.0], [0.004; 3]),
         ([0.0, 0.0, 0.01], [f64::INFINITY, 0.0, 0.0]),
     ] {
-        let (o, ok) = publishable(learnt(offset, sigma), 0.01);
+        let (o, ok) = publishable(learnt(offset, sigma), &config());
         assert!(!ok, "{offset:?} {sigma:?}");
         assert_eq!((o.tx_id, o.offset_m, o.sigma_m), (7, [0.0; 3], [0.01; 3]));
+        // Its lateness is still published as learnt.
+        assert_eq!((o.late_m, o.late_sigma_m), (0.003, 0.002));
     }
+}
+
+/// How late each lab transmitter's bursts really arrive, metres of path:
+/// its cell's sync error, a fixed pattern of the size the sync's prior
+/// expects (2 cm).
+fn cells_late(site: &Site) -> AppliedLate {
+    let by_cell = [0.012, -0.009, 0.004, -0.011, 0.007];
+    site.transmitters
+        .iter()
+        .map(|t| {
+            let k = site.cells.iter().position(|c| c.id == t.cell).unwrap_or(0);
+            (t.id, by_cell[k % by_cell.len()])
+        })
+        .collect()
+}
+
+/// RMS of (learnt - true) lateness and of the true lateness over the
+/// transmitters, each with its mean taken out: what every cell shares,
+/// every range difference cancels, and no fix can see.
+fn rms_late_errors(learnt: &[TransmitterOffset], truth: &AppliedLate) -> (f64, f64) {
+    let demeaned = |v: Vec<f64>| {
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        v.into_iter().map(move |x| x - mean)
+    };
+    let rms = |v: Vec<f64>| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let errors = learnt.iter().map(|o| o.late_m - truth[&o.tx_id]).collect();
+    let truths = learnt.iter().map(|o| truth[&o.tx_id]).collect();
+    (
+        rms(demeaned(errors).collect()),
+        rms(demeaned(truths).collect()),
+    )
+}
+
+#[test]
+fn the_fleet_learns_how_late_each_cell_fires_and_reads_fixes_solved_with_it_whole() {
+    let site = Site::default_site();
+    let truth = true_offsets(&site, true);
+    let late = cells_late(&site);
+    let on_time = AppliedLate::new();
+    let mut noise = Noise(0x5eed_0004);
+    let mut p = SurveyPublisher::new(&site, config());
+    let start = ickon_proto::time::Time::from_secs_f64(500.0);
+    for at in places(3_000, &mut noise) {
+        let msu = [&late, &on_time];
+        if let Some(fix) = fix_with_late(&site, at, &truth, &Applied::new(), msu, 0, &mut noise) {
+            let _ = p.take_fix(&fix);
+        }
+    }
+    let first = p.due(start, 4).expect("published");
+    let (after, before) = rms_late_errors(&first.offsets, &late);
+    assert!(after < 0.3 * before, "rms {after} m against {before} m");
+    // The MSUs now solve with what was published: their fixes show only
+    // what is left, and the central unit puts the rest back.
+    let applied: Applied = first
+        .offsets
+        .iter()
+        .map(|o| (o.tx_id, o.offset_m))
+        .collect();
+    let taken: AppliedLate = first.offsets.iter().map(|o| (o.tx_id, o.late_m)).collect();
+    for at in places(3_000, &mut noise) {
+        let msu = [&late, &taken];
+        let solved = fix_with_late(&site, at, &truth, &applied, msu, first.version, &mut noise);
+        if let Some(fix) = solved {
+            let _ = p.take_fix(&fix);
+        }
+    }
+    let second = p.due(start + Duration::from_millis(1_000), 4).unwrap();
+    let (after, before) = rms_late_errors(&second.offsets, &late);
+    // Read as increments, the second half would pull every estimate
+    // towards zero (rms error about half the truth's).
+    assert!(after < 0.2 * before, "rms {after} m against {before} m");
+    assert!(p.calibration().fixes_taken() > 1_000);
+}
+
+#[test]
+fn a_lateness_beyond_a_calibrations_reach_is_published_as_none() {
+    let c = config();
+    for late_m in [0.3, -0.26, f64::NAN, f64::INFINITY] {
+        let learnt = TransmitterCorrection {
+            tx_id: 4,
+            offset_m: [0.002; 3],
+            sigma_m: [0.004; 3],
+            late_m,
+            late_sigma_m: 0.003,
+        };
+        let (o, ok) = publishable(learnt, &c);
+        assert!(!ok, "{late_m}");
+        assert_eq!((o.late_m, o.late_sigma_m), (0.0, c.cell_sync_sigma_m));
+        // The position is still published as learnt.
+        assert_eq!((o.offset_m, o.sigma_m), ([0.002; 3], [0.004; 3]));
+    }
+    let learnt = TransmitterCorrection {
+        tx_id: 4,
+        offset_m: [0.0; 3],
+        sigma_m: [0.004; 3],
+        late_m: -0.2,
+        late_sigma_m: f64::NAN,
+    };
+    assert_eq!(publishable(learnt, &c).0.late_m, 0.0);
 }

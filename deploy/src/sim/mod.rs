@@ -375,10 +375,16 @@ pub async fn measure(
         .map(|v| v.get_name().to_string())
         .unwrap_or_default();
     let timing_sigma_us = format!("{}", ickon_sim::engine::timing_sigma_s(profile) * 1e6);
+    let sync_sigma_us = format!("{}", ickon_sim::engine::cell_sync_sigma_s(profile) * 1e6);
     let survey_flags: Vec<&str> = if args.no_survey_calibration {
         vec!["--no-survey-calibration"]
     } else {
-        vec!["--timing-sigma-us", &timing_sigma_us]
+        vec![
+            "--timing-sigma-us",
+            &timing_sigma_us,
+            "--cell-sync-sigma-us",
+            &sync_sigma_us,
+        ]
     };
     central_cmd.args(["--firing", &firing]).args(&survey_flags);
     credential(&mut central_cmd, &crate::secure::Identity::Central);

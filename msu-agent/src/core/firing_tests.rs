@@ -130,6 +130,8 @@ fn news_applies_from_the_cycle_it_names_however_the_arrivals_raced() {
                 tx_id,
                 offset_m: [0.0, 0.0, if tx_id == 5 { 0.04 } else { 0.0 }],
                 sigma_m: [0.005; 3],
+                late_m: 0.0,
+                late_sigma_m: 0.003,
             })
             .collect(),
     };
@@ -241,6 +243,8 @@ fn news_held_for_a_cycle_does_not_override_newer_news_once_the_whole_schedule_fi
             tx_id: 5,
             offset_m: [0.0, 0.0, dz],
             sigma_m: [0.005; 3],
+            late_m: 0.0,
+            late_sigma_m: 0.003,
         }],
     };
     let status = |stamp_s: f64, sigma_ns: i64| CellStatus {

@@ -1,5 +1,6 @@
 //! The fleet's survey calibration moves the transmitters the fix solver
-//! uses; a calibration that cannot be right changes nothing.
+//! uses and takes their lateness from their pseudo-ranges; a calibration
+//! that cannot be right changes nothing.
 
 use super::tests::{TX, arrivals_from, core_with};
 use super::*;
@@ -25,6 +26,8 @@ fn calibration(version: u32, dz_5: f64) -> SurveyCalibration {
                 tx_id,
                 offset_m: [0.0, 0.0, if tx_id == 5 { dz_5 } else { 0.0 }],
                 sigma_m: [0.005; 3],
+                late_m: 0.0,
+                late_sigma_m: 0.003,
             })
             .collect(),
     }
@@ -85,6 +88,12 @@ fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
     other_epoch.epoch = 2;
     let mut negative_sigma = calibration(4, 0.0);
     negative_sigma.offsets[2].sigma_m[1] = -1.0;
+    let late = |late_m: f64, late_sigma_m: f64| {
+        let mut c = calibration(4, 0.0);
+        c.offsets[1].late_m = late_m;
+        c.offsets[1].late_sigma_m = late_sigma_m;
+        c
+    };
     for bad in [
         calibration(4, f64::NAN),
         calibration(4, 0.3),
@@ -93,6 +102,11 @@ fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
         twice,
         other_epoch,
         negative_sigma,
+        late(f64::NAN, 0.003),
+        late(0.26, 0.003),
+        late(-1e300, 0.003),
+        late(0.01, -0.001),
+        late(0.01, f64::INFINITY),
     ] {
         let out = core.handle(Event::Survey(bad.clone()));
         assert!(
@@ -145,4 +159,31 @@ fn before_any_schedule_or_input_a_calibration_waits_and_a_new_central_unit_start
         .unwrap()
         .unwrap();
     assert_eq!(fix.survey_version, 0);
+}
+
+#[test]
+fn a_calibrations_lateness_is_taken_from_the_transmitters_pseudo_ranges() {
+    let mut core = core_heard();
+    let at = [1.6, 2.7, 0.5];
+    // Transmitters 2 and 3 (as if of a cell whose sync is off) arrive
+    // 3 cm of path late.
+    let late_arrivals = || arrivals_from(&TX, at, &[(2, 0.03), (3, 0.03)]);
+    let before = core.on_arrivals(&late_arrivals()).unwrap().unwrap();
+    assert!(worst_residual_m(&before) > 5e-3, "{before:?}");
+    let mut c = calibration(5, 0.0);
+    for o in &mut c.offsets {
+        if o.tx_id == 2 || o.tx_id == 3 {
+            o.late_m = 0.03;
+        }
+    }
+    assert_eq!(core.on_survey_calibration(&c), Ok(true));
+    let after = core.on_arrivals(&late_arrivals()).unwrap().unwrap();
+    assert_eq!(after.survey_version, 5);
+    assert!(worst_residual_m(&after) < 1e-5, "{after:?}");
+    assert!((after.x_m - at[0]).abs() < 1e-4 && (after.y_m - at[1]).abs() < 1e-4);
+    // A calibration that no longer says so: the arrivals are taken as
+    // they come again.
+    assert_eq!(core.on_survey_calibration(&calibration(6, 0.0)), Ok(true));
+    let again = core.on_arrivals(&late_arrivals()).unwrap().unwrap();
+    assert!(worst_residual_m(&again) > 5e-3, "{again:?}");
 }

@@ -27,6 +27,13 @@ pub struct TransmitterEntry {
 /// transmitter at its surveyed position and says so).
 pub const MAX_SURVEY_OFFSET_M: f64 = 0.25;
 
+/// The largest lateness of a transmitter's bursts a calibration may
+/// correct, metres of path (about 0.73 ms): a cell whose bursts are that
+/// late is failing its own synchronisation, which it reports in its status
+/// (the MSU refuses a calibration that says more; the central unit
+/// publishes 0 for such a transmitter).
+pub const MAX_LATE_M: f64 = 0.25;
+
 /// One transmitter's survey correction.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TransmitterOffset {
@@ -36,6 +43,15 @@ pub struct TransmitterOffset {
     pub offset_m: [f64; 3],
     /// One-sigma uncertainty of each corrected coordinate, metres.
     pub sigma_m: [f64; 3],
+    /// How much later than its schedule says every burst of the
+    /// transmitter arrives, in metres of path: its cell's sync error, which
+    /// no clock exchange sees (a path slower one way than the other) but
+    /// the fleet's fixes do. The MSU subtracts it from the transmitter's
+    /// pseudo-ranges. Only differences between cells matter (what all
+    /// share, every range difference cancels).
+    pub late_m: f64,
+    /// One-sigma uncertainty of `late_m`, metres.
+    pub late_sigma_m: f64,
 }
 
 /// `central/survey`: the fleet's calibration of the transmitters' surveyed

@@ -197,6 +197,12 @@ fn check_outputs(core: &CentralCore, now: Time, out: &[Output]) -> Result<(), Te
                         o.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0),
                         "{o:?}"
                     );
+                    prop_assert!(
+                        o.late_m.abs() <= ickon_proto::msg::control::MAX_LATE_M
+                            && o.late_sigma_m.is_finite()
+                            && o.late_sigma_m >= 0.0,
+                        "{o:?}"
+                    );
                 }
             }
             Output::Trigger(t) => {

@@ -131,19 +131,24 @@ fn save_survey_file(path: &std::path::Path, saved: &SavedCalibration) {
 
 /// `--cell-sync-sigma-us`: microseconds from 0 up to a second.
 fn cell_sync_sigma_us(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(v) if (0.0..=1e6).contains(&v) => Ok(v),
-        Ok(v) => Err(format!("{v} is not in [0, 1000000] us")),
-        Err(e) => Err(format!("{text:?}: {e}")),
-    }
+    micros_up_to_a_second(text, true)
 }
 
 /// `--timing-sigma-us`: a positive number of microseconds up to a second.
 fn timing_sigma_us(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
-        Ok(v) => Err(format!("{v} is not in (0, 1000000] us")),
-        Err(e) => Err(e.to_string()),
+    micros_up_to_a_second(text, false)
+}
+
+/// A number of microseconds up to a second, above 0 (or from 0 when
+/// `zero_allowed`); NaN is in no range.
+fn micros_up_to_a_second(text: &str, zero_allowed: bool) -> Result<f64, String> {
+    let v = text.parse::<f64>().map_err(|e| format!("{text:?}: {e}"))?;
+    let above_floor = if zero_allowed { v >= 0.0 } else { v > 0.0 };
+    if above_floor && v <= 1e6 {
+        Ok(v)
+    } else {
+        let open = if zero_allowed { '[' } else { '(' };
+        Err(format!("{v} is not in {open}0, 1000000] us"))
     }
 }
 

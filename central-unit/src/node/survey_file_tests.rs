@@ -144,4 +144,13 @@ fn the_cells_sync_sigma_flag_sets_the_lateness_prior_and_refuses_nonsense() {
     for bad in ["-1", "2e6", "NaN", "fast"] {
         assert!(parse(&["--cell-sync-sigma-us", bad]).is_err(), "{bad}");
     }
+    // The timing sigma takes the same range but 0.
+    assert!(parse(&["--timing-sigma-us", "0"]).is_err());
+    for bad in ["-1", "2e6", "NaN", "fast"] {
+        assert!(parse(&["--timing-sigma-us", bad]).is_err(), "{bad}");
+    }
+    assert_eq!(
+        parse(&["--timing-sigma-us", "70"]).unwrap().timing_sigma_us,
+        70.0
+    );
 }

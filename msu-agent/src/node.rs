@@ -179,7 +179,9 @@ pub async fn run(
     // The fleet's survey calibration: the transmitters' corrected positions.
     let _survey_sub = session
         .declare_subscriber(keys.central_survey())
-        .callback(sink(|s| Arrived::Survey(decode(&s.payload().to_bytes()))))
+        .callback(sink(|s| {
+            Arrived::Survey(SurveyCalibration::decode(&s.payload().to_bytes()))
+        }))
         .await
         .map_err(zerr)?;
     let Some(schedule) = fetch::<Schedule>(

@@ -103,10 +103,13 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
             own(None)
         }
         Key::CentralCycle => own(Some(decode::<CycleTrigger>(payload)?.start)),
-        Key::CentralSurvey => {
-            decode::<SurveyCalibration>(payload)?;
-            own(None)
-        }
+        // Stored in the current layout, which the channel's schema
+        // describes, also when a central unit of an older release sent the
+        // layout before lateness.
+        Key::CentralSurvey => Stored {
+            data: encode(&SurveyCalibration::decode(payload)?)?,
+            event_time: None,
+        },
         Key::CellBurst(_) => own(Some(decode::<Burst>(payload)?.actual)),
         Key::CellStatus(_) => own(Some(decode::<CellStatus>(payload)?.stamp)),
         Key::SimTruth(_) => own(Some(decode::<Truth>(payload)?.stamp)),
@@ -201,5 +204,45 @@ mod tests {
         })
         .unwrap();
         assert!(prepare(&p, &schedule_bytes).is_err());
+    }
+
+    #[test]
+    fn a_calibration_of_the_layout_before_lateness_is_stored_in_the_current_one() {
+        // What a central unit sent before transmitters carried their
+        // lateness; the channel's schema is the current layout.
+        #[derive(serde::Serialize)]
+        struct OldOffset {
+            tx_id: u32,
+            offset_m: [f64; 3],
+            sigma_m: [f64; 3],
+        }
+        #[derive(serde::Serialize)]
+        struct OldCalibration {
+            epoch: u64,
+            version: u32,
+            fixes_taken: u64,
+            offsets: Vec<OldOffset>,
+        }
+        let old = encode(&OldCalibration {
+            epoch: 2,
+            version: 5,
+            fixes_taken: 640,
+            offsets: vec![OldOffset {
+                tx_id: 4,
+                offset_m: [0.01, 0.0, -0.02],
+                sigma_m: [0.003; 3],
+            }],
+        })
+        .unwrap();
+        let keys = Keys::new("lab").unwrap();
+        let p = plan(&keys, "ickon/lab/central/survey").unwrap();
+        let stored = prepare(&p, &old).unwrap();
+        let read: SurveyCalibration = decode(&stored.data).unwrap();
+        assert_eq!((read.version, read.offsets[0].tx_id), (5, 4));
+        assert_eq!(read.offsets[0].offset_m, [0.01, 0.0, -0.02]);
+        assert_eq!(read.offsets[0].late_m, 0.0);
+        let current = encode(&read).unwrap();
+        assert_eq!(prepare(&p, &current).unwrap().data, current);
+        assert!(prepare(&p, &old[..old.len() - 4]).is_err());
     }
 }

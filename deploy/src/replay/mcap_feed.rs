@@ -121,7 +121,7 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
                 }
                 Err(_) => false,
             },
-            Key::CentralSurvey => decode::<SurveyCalibration>(&m.data)
+            Key::CentralSurvey => SurveyCalibration::decode(&m.data)
                 .map(|c| control.push((i, Input::Survey(Arc::new(c)))))
                 .is_ok(),
             Key::SimTruth(id) => decode::<Truth>(&m.data)

@@ -2,7 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::codec::{DecodeError, decode};
 use crate::time::{Duration, Time};
+
+mod survey_before_lateness;
 
 /// One row of the transmitter lookup table the MSU uses to turn an id into a position.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -68,6 +71,21 @@ pub struct SurveyCalibration {
     pub fixes_taken: u64,
     /// One per transmitter of the site.
     pub offsets: Vec<TransmitterOffset>,
+}
+
+impl SurveyCalibration {
+    /// Decodes a `central/survey` payload: the current layout, or the one
+    /// before transmitters carried their lateness (read with no lateness;
+    /// the two cannot be mistaken for each other, an offset of the older
+    /// layout being 16 bytes shorter). A payload that is neither fails with
+    /// the current layout's error.
+    pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
+        decode::<Self>(payload).or_else(|current| {
+            decode::<survey_before_lateness::CalibrationWithoutLateness>(payload)
+                .map(Self::from)
+                .map_err(|_| current)
+        })
+    }
 }
 
 /// `central/site`: the site model.

@@ -497,9 +497,7 @@ impl CentralCore {
     /// What to keep of the survey calibration across a restart (`None`
     /// when it is off).
     pub fn survey_saved(&self) -> Option<SavedCalibration> {
-        self.survey
-            .as_ref()
-            .map(|p| p.calibration().saved(&self.site))
+        self.survey.as_ref().map(|p| p.saved(&self.site))
     }
 
     /// Goes on from a survey calibration kept across a restart; `Ok(false)`

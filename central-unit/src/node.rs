@@ -63,6 +63,11 @@ pub struct CentralArgs {
     /// that cell's pseudo-ranges; 0 keeps every cell on time.
     #[arg(long, default_value_t = 60.0, value_parser = cell_sync_sigma_us)]
     pub cell_sync_sigma_us: f64,
+    /// How long the survey calibration remembers a cell's lateness,
+    /// hours (its correlation time): a cell whose network path changes is
+    /// followed within about this long; 0 remembers it for good.
+    #[arg(long, default_value_t = 24.0, value_parser = cell_sync_memory_h)]
+    pub cell_sync_memory_h: f64,
     /// Keep the survey calibration in this file (JSON), so that a restart
     /// goes on from what the fleet taught it: read at start when it
     /// exists (a file of another site or transmitter table is set aside
@@ -134,6 +139,16 @@ fn cell_sync_sigma_us(text: &str) -> Result<f64, String> {
     micros_up_to_a_second(text, true)
 }
 
+/// `--cell-sync-memory-h`: hours from 0 up to a year (8760).
+fn cell_sync_memory_h(text: &str) -> Result<f64, String> {
+    let v = text.parse::<f64>().map_err(|e| format!("{text:?}: {e}"))?;
+    if (0.0..=8760.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in [0, 8760] h"))
+    }
+}
+
 /// `--timing-sigma-us`: a positive number of microseconds up to a second.
 fn timing_sigma_us(text: &str) -> Result<f64, String> {
     micros_up_to_a_second(text, false)
@@ -170,6 +185,7 @@ impl CentralArgs {
             (!self.no_survey_calibration).then(|| crate::survey_calibration::CalibrationConfig {
                 range_sigma_m: self.timing_sigma_us * 1e-6 * site.speed_of_sound_m_s,
                 cell_sync_sigma_m: self.cell_sync_sigma_us * 1e-6 * site.speed_of_sound_m_s,
+                cell_sync_memory_s: self.cell_sync_memory_h * 3600.0,
                 ..Default::default()
             });
         config

@@ -22,7 +22,9 @@
 //! `(PJ)'(PJ) / sigma^2` to the information of `x`; with the survey's, the
 //! sync's and the air's own sigmas as the prior, the estimate is the
 //! least-squares solution over every fix taken (a batch over the whole
-//! history: the transmitters do not move). The speed of sound is estimated
+//! history: the transmitters do not move; the cells' lateness, which
+//! changes with their network paths, is forgotten over
+//! [`CalibrationConfig::cell_sync_memory_s`], see `forgetting`). The speed of sound is estimated
 //! only so that it does not leak into the positions; it changes with the
 //! air and is not published. The cells' sync errors are published, as each
 //! transmitter's lateness (`late_m`), which the MSUs take from its
@@ -69,6 +71,10 @@ pub struct CalibrationConfig {
     /// One-sigma relative error of the speed of sound the MSUs assume (the
     /// air's temperature off by a degree: 0.0018).
     pub sound_scale_sigma: f64,
+    /// How long a cell's lateness is remembered, seconds: its correlation
+    /// time (`survey_calibration::forgetting`); a re-routed cell's new
+    /// lateness is followed within about this long. 0: for good.
+    pub cell_sync_memory_s: f64,
     /// How often the calibration is published.
     pub publish_every: Duration,
 }
@@ -77,13 +83,16 @@ impl Default for CalibrationConfig {
     /// The values a site states before it has measured anything: a survey
     /// to 1 cm per axis (a tape and a laser meter), the cells' sync within
     /// about 60 us, the seeds' receivers' 50 us timing noise at 343 m/s,
-    /// the air within a degree, published every second.
+    /// the air within a degree, a cell's lateness remembered for a day (a
+    /// network path is re-routed rarely; a day keeps what was learnt
+    /// through a night the fleet stands idle), published every second.
     fn default() -> Self {
         Self {
             survey_sigma_m: 0.01,
             cell_sync_sigma_m: 0.02,
             range_sigma_m: 50e-6 * 343.0,
             sound_scale_sigma: 0.0018,
+            cell_sync_memory_s: 86_400.0,
             publish_every: Duration::from_millis(1_000),
         }
     }
@@ -211,6 +220,11 @@ pub struct SavedCalibration {
     pub information: Vec<f64>,
     /// The information-weighted estimate.
     pub weighted: Vec<f64>,
+    /// When it was last published, seconds of the master clock: the cells'
+    /// lateness drifts from there across the restart. Absent from files
+    /// written before the lateness was forgotten (read as "just now").
+    #[serde(default)]
+    pub saved_at_s: Option<f64>,
 }
 
 /// Why a saved calibration cannot be used.
@@ -303,6 +317,7 @@ impl SurveyCalibration {
             fixes_taken: self.fixes_taken,
             information: self.information.transpose().as_slice().to_vec(),
             weighted: self.weighted.as_slice().to_vec(),
+            saved_at_s: None,
         }
     }
 
@@ -325,6 +340,7 @@ impl SurveyCalibration {
             .information
             .iter()
             .chain(&saved.weighted)
+            .chain(&saved.saved_at_s)
             .all(|v| v.is_finite())
         {
             return Err(SavedMismatch::Broken("a value is not a number"));
@@ -593,6 +609,9 @@ pub struct SurveyPublisher {
     calibration: SurveyCalibration,
     publish_every: Duration,
     next_at: Option<Time>,
+    /// When the last calibration was published: the cells' lateness
+    /// drifts from there.
+    last_at: Option<Time>,
     /// The versions published, oldest first.
     history: std::collections::VecDeque<(u32, Applied, AppliedLate)>,
     /// Transmitters already reported beyond a calibration's reach.
@@ -607,6 +626,7 @@ impl SurveyPublisher {
             calibration: SurveyCalibration::new(site, config),
             publish_every: config.publish_every,
             next_at: None,
+            last_at: None,
             history: std::collections::VecDeque::new(),
             warned: std::collections::BTreeSet::new(),
         }
@@ -617,9 +637,22 @@ impl SurveyPublisher {
         &self.calibration
     }
 
-    /// Goes on from a calibration kept across a restart.
+    /// What to keep across a restart (`site` is the site it serves), with
+    /// the time it was last published.
+    pub fn saved(&self, site: &Site) -> SavedCalibration {
+        SavedCalibration {
+            saved_at_s: self.last_at.map(Time::as_secs_f64),
+            ..self.calibration.saved(site)
+        }
+    }
+
+    /// Goes on from a calibration kept across a restart: the cells'
+    /// lateness drifts over the time since it was saved at the next
+    /// publication (not at all when it was saved "in the future", the
+    /// master clock having been set back).
     pub fn restore(&mut self, site: &Site, saved: &SavedCalibration) -> Result<(), SavedMismatch> {
         self.calibration = SurveyCalibration::restored(site, self.calibration.config, saved)?;
+        self.last_at = saved.saved_at_s.map(Time::from_secs_f64);
         Ok(())
     }
 
@@ -650,6 +683,10 @@ impl SurveyPublisher {
             return None;
         }
         self.next_at = Some(now + self.publish_every);
+        if let Some(last) = self.last_at.replace(now) {
+            self.calibration
+                .forget_cell_sync((now - last).as_secs_f64());
+        }
         let from_clock = u32::try_from(now.as_nanos().max(0) / 1_000_000_000).unwrap_or(u32::MAX);
         let last = self.history.back().map_or(0, |(v, _, _)| *v);
         let version = from_clock.max(last.saturating_add(1)).max(1);
@@ -690,6 +727,8 @@ impl SurveyPublisher {
         })
     }
 }
+
+mod forgetting;
 
 #[cfg(test)]
 mod tests;

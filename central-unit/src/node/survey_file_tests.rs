@@ -35,6 +35,19 @@ fn a_kept_calibration_comes_back_as_it_was_saved() {
     assert_eq!(restored.fixes_taken(), 1234);
     assert!(restored.corrections()[0].offset_m[2] != 0.0);
     assert!(!path.with_extension("tmp").exists());
+    // With the time it was saved, and from a release that did not keep it.
+    let timed = SavedCalibration {
+        saved_at_s: Some(1.8e9),
+        ..saved.clone()
+    };
+    save_survey_file(&path, &timed);
+    let back = load_survey_file(&path, &site, CalibrationConfig::default());
+    assert_eq!(back, Ok(Some(timed)));
+    let mut older = serde_json::to_value(&saved).unwrap();
+    older.as_object_mut().unwrap().remove("saved_at_s").unwrap();
+    std::fs::write(&path, older.to_string()).unwrap();
+    let back = load_survey_file(&path, &site, CalibrationConfig::default());
+    assert_eq!(back, Ok(Some(saved)));
 }
 
 #[test]
@@ -118,18 +131,20 @@ fn a_broken_file_stops_the_start_with_the_file_and_the_reason() {
     assert!(e.contains(&d.display().to_string()), "{e}");
 }
 
-#[test]
-fn the_cells_sync_sigma_flag_sets_the_lateness_prior_and_refuses_nonsense() {
+/// `ickon-central`'s flags, parsed as its command line would be.
+fn parse(extra: &[&str]) -> Result<CentralArgs, clap::Error> {
     use clap::Parser;
     #[derive(Parser)]
     struct Cli {
         #[command(flatten)]
         central: CentralArgs,
     }
+    Cli::try_parse_from([&["ickon-central"][..], extra].concat()).map(|c| c.central)
+}
+
+#[test]
+fn the_cells_sync_sigma_flag_sets_the_lateness_prior_and_refuses_nonsense() {
     let site = Site::default_site();
-    let parse = |extra: &[&str]| {
-        Cli::try_parse_from([&["ickon-central"][..], extra].concat()).map(|c| c.central)
-    };
     let default = parse(&[]).unwrap().core_config(&site).survey.unwrap();
     assert!((default.cell_sync_sigma_m - 60e-6 * site.speed_of_sound_m_s).abs() < 1e-12);
     let set = parse(&["--cell-sync-sigma-us", "20"]).unwrap();
@@ -153,4 +168,23 @@ fn the_cells_sync_sigma_flag_sets_the_lateness_prior_and_refuses_nonsense() {
         parse(&["--timing-sigma-us", "70"]).unwrap().timing_sigma_us,
         70.0
     );
+}
+
+#[test]
+fn the_cells_sync_memory_flag_sets_the_correlation_time_and_refuses_nonsense() {
+    let site = Site::default_site();
+    let memory_s = |extra: &[&str]| {
+        parse(extra)
+            .unwrap()
+            .core_config(&site)
+            .survey
+            .unwrap()
+            .cell_sync_memory_s
+    };
+    assert_eq!(memory_s(&[]), 86_400.0);
+    assert_eq!(memory_s(&["--cell-sync-memory-h", "2.5"]), 9_000.0);
+    assert_eq!(memory_s(&["--cell-sync-memory-h", "0"]), 0.0);
+    for bad in ["-1", "9000", "NaN", "inf", "a day"] {
+        assert!(parse(&["--cell-sync-memory-h", bad]).is_err(), "{bad}");
+    }
 }

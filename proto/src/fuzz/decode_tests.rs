@@ -100,6 +100,25 @@ targets! {
 proptest! {
     #![proptest_config(config())]
 
+    /// `central/survey` as the MSU reads it: either layout (the current,
+    /// or the one before each transmitter carried its lateness). What it
+    /// accepts re-encodes in the current layout to a stable form.
+    #[test]
+    fn fuzz_decode_survey_calibration_either_layout(
+        older in payload::<control::survey_before_lateness::CalibrationWithoutLateness>(),
+        current in payload::<control::SurveyCalibration>(),
+    ) {
+        for bytes in [older, current] {
+            let Ok(value) = control::SurveyCalibration::decode(&bytes) else {
+                continue;
+            };
+            let canonical = encode(&value).map_err(|e| TestCaseError::fail(e.to_string()))?;
+            let again = control::SurveyCalibration::decode(&canonical)
+                .map_err(|e| TestCaseError::fail(e.to_string()))?;
+            prop_assert_eq!(encode(&again).ok(), Some(canonical));
+        }
+    }
+
     /// The rmw_zenoh attachment of every ROS 2 sample.
     #[test]
     fn fuzz_decode_ros_attachment(

@@ -43,7 +43,8 @@ use crate::occupancy::{FiringConfig, RobotView, firing_plan};
 use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
 use crate::spacing::SpacingTable;
 use crate::survey_calibration::{
-    CalibrationConfig, SavedCalibration, SavedMismatch, SurveyPublisher,
+    CalibrationConfig, FixSkipped, SavedCalibration, SavedMismatch, SurveyPublisher,
+    fix_rate::FixRate,
 };
 use ickon_proto::msg::control::Firing;
 
@@ -198,6 +199,8 @@ pub struct CentralCore {
     /// Fixes the survey calibration could not take, by reason (debugging
     /// a calibration that does not move).
     survey_skipped: BTreeMap<&'static str, u64>,
+    /// Each robot's share of the survey calibration.
+    survey_fix_rate: FixRate,
 }
 
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
@@ -250,6 +253,7 @@ impl CentralCore {
                 .survey
                 .map(|c| SurveyPublisher::new(&site_for_survey, c)),
             survey_skipped: BTreeMap::new(),
+            survey_fix_rate: FixRate::default(),
         })
     }
 
@@ -351,7 +355,7 @@ impl CentralCore {
             }
             Event::Fix { robot, fix } => {
                 self.on_fix(&robot, now);
-                self.survey_fix(&fix);
+                self.survey_fix(&robot, &fix);
                 Vec::new()
             }
             Event::ScheduleSeen(schedule) if self.standby.is_some() => {
@@ -479,12 +483,28 @@ impl CentralCore {
 
     /// Gives a robot's fix to the survey calibration (a fix of a robot not
     /// on the site is counted by the health books, and still a fix of
-    /// the site's transmitters).
-    fn survey_fix(&mut self, fix: &Fix) {
+    /// the site's transmitters), within the robot's share of the
+    /// calibration: one fix a cycle (every robot the site does not list
+    /// shares one such share).
+    fn survey_fix(&mut self, robot: &str, fix: &Fix) {
+        if self.survey.is_none() {
+            return;
+        }
+        let key = if self.site.robots.iter().any(|r| r.id == robot) {
+            robot
+        } else {
+            ""
+        };
+        let admitted = self.survey_fix_rate.admit(key, self.next_cycle);
         let Some(publisher) = self.survey.as_mut() else {
             return;
         };
-        if let Err(skipped) = publisher.take_fix(fix) {
+        let taken = if admitted {
+            publisher.take_fix(fix)
+        } else {
+            Err(FixSkipped::OverRate)
+        };
+        if let Err(skipped) = taken {
             *self.survey_skipped.entry(skipped.label()).or_default() += 1;
         }
     }

@@ -187,6 +187,9 @@ pub enum FixSkipped {
     /// The geometry of the fix leaves its own unknowns undetermined.
     #[error("fix geometry is degenerate")]
     Degenerate,
+    /// The robot gave more fixes than one a cycle ([`fix_rate`]).
+    #[error("robot gives more fixes than one a cycle")]
+    OverRate,
 }
 
 impl FixSkipped {
@@ -200,6 +203,7 @@ impl FixSkipped {
             Self::MaybeReflected => "maybe reflected",
             Self::UnknownCalibration => "unknown calibration",
             Self::Degenerate => "degenerate",
+            Self::OverRate => "over its rate",
         }
     }
 }
@@ -728,6 +732,7 @@ impl SurveyPublisher {
     }
 }
 
+pub mod fix_rate;
 mod forgetting;
 
 #[cfg(test)]

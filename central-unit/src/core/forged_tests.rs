@@ -144,3 +144,55 @@ fn bursts_of_another_epoch_are_not_counted_as_fired() {
         .unwrap();
     assert_eq!(h.cycles_fired, 0);
 }
+
+#[test]
+fn a_robot_flooding_fixes_gets_one_a_cycle_into_the_survey_calibration() {
+    use ickon_proto::msg::robot::{Fix, FixQuality};
+    let mut c = core();
+    let start = c.next_wake();
+    c.tick(start);
+    let Event::Fix { fix, .. } = super::tests::fix_of("r1") else {
+        unreachable!()
+    };
+    let good = Fix {
+        x_m: 4.0,
+        y_m: 1.25,
+        used: vec![11, 12, 13, 14],
+        residuals_m: vec![0.002, -0.001, 0.001, -0.002],
+        quality: FixQuality::Good,
+        ..*fix
+    };
+    let send = |c: &mut CentralCore, robot: &str, at: Time| {
+        c.handle(
+            at,
+            Event::Fix {
+                robot: robot.into(),
+                fix: Box::new(good.clone()),
+            },
+        );
+    };
+    // r1 floods: 100 fixes every cycle for 20 cycles; r2 gives its one.
+    for _ in 0..20 {
+        let at = c.next_wake();
+        c.tick(at);
+        for _ in 0..100 {
+            send(&mut c, "r1", at);
+        }
+        send(&mut c, "r2", at);
+    }
+    let taken = c.survey().unwrap().calibration().fixes_taken();
+    // r2's 20, and r1's burst of 3 and 1.25 a cycle after it.
+    assert!((42..=47).contains(&taken), "{taken}");
+    let over = c
+        .survey_skipped()
+        .get("over its rate")
+        .copied()
+        .unwrap_or(0);
+    assert_eq!(over + taken, 2_020);
+    // Ids the site does not list share one share, however many.
+    for k in 0..500 {
+        send(&mut c, &format!("forged-{k}"), start);
+    }
+    assert_eq!(c.survey().unwrap().calibration().fixes_taken(), taken + 3);
+    assert!(c.survey_fix_rate.len() <= c.site().robots.len() + 1);
+}

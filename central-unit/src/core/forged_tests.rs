@@ -147,21 +147,10 @@ fn bursts_of_another_epoch_are_not_counted_as_fired() {
 
 #[test]
 fn a_robot_flooding_fixes_gets_one_a_cycle_into_the_survey_calibration() {
-    use ickon_proto::msg::robot::{Fix, FixQuality};
     let mut c = core();
     let start = c.next_wake();
     c.tick(start);
-    let Event::Fix { fix, .. } = super::tests::fix_of("r1") else {
-        unreachable!()
-    };
-    let good = Fix {
-        x_m: 4.0,
-        y_m: 1.25,
-        used: vec![11, 12, 13, 14],
-        residuals_m: vec![0.002, -0.001, 0.001, -0.002],
-        quality: FixQuality::Good,
-        ..*fix
-    };
+    let good = super::tests::good_fix();
     let send = |c: &mut CentralCore, robot: &str, at: Time| {
         c.handle(
             at,

@@ -38,6 +38,21 @@ pub(super) fn fix_of(robot: &str) -> Event {
     }
 }
 
+/// A good fix in the lab's first room that the survey calibration takes.
+pub(super) fn good_fix() -> Fix {
+    let Event::Fix { fix, .. } = fix_of("r1") else {
+        unreachable!()
+    };
+    Fix {
+        x_m: 4.0,
+        y_m: 1.25,
+        used: vec![11, 12, 13, 14],
+        residuals_m: vec![0.002, -0.001, 0.001, -0.002],
+        quality: FixQuality::Good,
+        ..*fix
+    }
+}
+
 fn triggers(out: &[Output]) -> Vec<CycleTrigger> {
     out.iter()
         .filter_map(|o| match o {
@@ -647,17 +662,7 @@ fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes
     assert_eq!(first.epoch, c.epoch());
     assert_eq!(first.fixes_taken, 0);
     assert_eq!(first.offsets.len(), c.site().transmitters.len());
-    let Event::Fix { fix, .. } = fix_of("r1") else {
-        unreachable!()
-    };
-    let good = Fix {
-        x_m: 4.0,
-        y_m: 1.25,
-        used: vec![11, 12, 13, 14],
-        residuals_m: vec![0.002, -0.001, 0.001, -0.002],
-        quality: FixQuality::Good,
-        ..*fix
-    };
+    let good = good_fix();
     c.handle(
         now,
         Event::Fix {

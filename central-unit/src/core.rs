@@ -201,6 +201,10 @@ pub struct CentralCore {
     survey_skipped: BTreeMap<&'static str, u64>,
     /// Each robot's share of the survey calibration.
     survey_fix_rate: FixRate,
+    /// Cycles triggered by this central unit, or heard from the active one
+    /// while a standby (never counted again from 0): what each robot's
+    /// share refills with.
+    cycles_heard: u64,
 }
 
 /// Own triggers remembered to recognise them on the way back (a few cycles' worth).
@@ -254,6 +258,7 @@ impl CentralCore {
                 .map(|c| SurveyPublisher::new(&site_for_survey, c)),
             survey_skipped: BTreeMap::new(),
             survey_fix_rate: FixRate::default(),
+            cycles_heard: 0,
         })
     }
 
@@ -463,6 +468,7 @@ impl CentralCore {
             }
             self.last_trigger = Some(trigger);
             self.next_cycle = self.next_cycle.saturating_add(1);
+            self.cycles_heard = self.cycles_heard.saturating_add(1);
             self.next_start = self.next_start + period;
             if self.next_start <= before {
                 // At the end of time (saturated): nothing more to trigger.
@@ -495,7 +501,7 @@ impl CentralCore {
         } else {
             ""
         };
-        let admitted = self.survey_fix_rate.admit(key, self.next_cycle);
+        let admitted = self.survey_fix_rate.admit(key, self.cycles_heard);
         let Some(publisher) = self.survey.as_mut() else {
             return;
         };

@@ -24,9 +24,9 @@
 //! least-squares solution over every fix taken (a batch over the whole
 //! history: the transmitters do not move; the cells' lateness, which
 //! changes with their network paths, is forgotten over
-//! [`CalibrationConfig::cell_sync_memory_s`], see `forgetting`). The speed of sound is estimated
-//! only so that it does not leak into the positions; it changes with the
-//! air and is not published. The cells' sync errors are published, as each
+//! [`CalibrationConfig::cell_sync_memory_s`], see `forgetting`). The speed
+//! of sound is estimated only so that it does not leak into the positions;
+//! it changes with the air and is not published. The cells' sync errors are published, as each
 //! transmitter's lateness (`late_m`), which the MSUs take from its
 //! pseudo-ranges: what a cell's sync is off by is mostly the asymmetry of
 //! its network path, which no clock exchange can see and which stays

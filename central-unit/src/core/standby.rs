@@ -118,7 +118,14 @@ impl CentralCore {
         // stamped further ahead (forged) must not hold the standby back
         // until then: its start counts as one period from now at most.
         f.lease_end = trigger.start.min(now + period) + period * LEASE_CYCLES;
+        let again = f
+            .last_trigger
+            .as_ref()
+            .is_some_and(|t| (t.epoch, t.cycle) == (trigger.epoch, trigger.cycle));
         f.last_trigger = Some(trigger);
+        if !again {
+            self.cycles_heard = self.cycles_heard.saturating_add(1);
+        }
     }
 
     pub(super) fn lease_expired(&self, now: Time) -> bool {

@@ -5,9 +5,9 @@
 //! calibration corrects) and every cell's lateness. A token bucket per
 //! robot of the site, and one shared by every id the site does not list
 //! (so that ids made up by the thousand share one robot's rate and the
-//! table stays bounded by the site): it refills at
-//! [`FIXES_PER_CYCLE`] per cycle the central unit triggers and holds
-//! [`BURST_FIXES`].
+//! table stays bounded by the site): it refills at [`FIXES_PER_CYCLE`]
+//! per cycle the central unit triggers (a standby: per cycle it hears the
+//! active one trigger) and holds [`BURST_FIXES`].
 //! Checked before anything else of the fix, so that a flood costs a map
 //! look-up, not the fix's line-of-sight checks.
 

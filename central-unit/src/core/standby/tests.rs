@@ -248,3 +248,30 @@ fn a_forged_far_future_empty_schedule_is_not_taken_over() {
     assert_eq!(s.emissions, own.emissions);
     assert!(a.next_wake() > later);
 }
+
+#[test]
+fn a_standby_takes_each_robots_fix_a_cycle_into_its_survey_calibration() {
+    // Its share of the fleet's fixes refills with the cycles it hears: a
+    // standby that counted only its own (none) would learn three fixes a
+    // robot and take over with a calibration of nothing.
+    let t0 = Time::from_secs_f64(100.0);
+    let mut a = active(t0);
+    let mut s = standby(t0 + Duration::from_millis(10));
+    let fix = crate::core::tests::good_fix();
+    for _ in 0..30 {
+        run_both(&mut a, &mut s, 1);
+        let now = a.next_wake();
+        for c in [&mut a, &mut s] {
+            c.handle(
+                now,
+                Event::Fix {
+                    robot: "r1".into(),
+                    fix: Box::new(fix.clone()),
+                },
+            );
+        }
+    }
+    let taken = |c: &CentralCore| c.survey().unwrap().calibration().fixes_taken();
+    assert_eq!(taken(&a), 30);
+    assert_eq!(taken(&s), 30);
+}

@@ -201,6 +201,9 @@ pub struct CentralCore {
     survey_skipped: BTreeMap<&'static str, u64>,
     /// Each robot's share of the survey calibration.
     survey_fix_rate: FixRate,
+    /// Fixes kept from the survey calibration as over each robot's share
+    /// (keyed as `survey_fix_rate`), for a warning at each power of two.
+    fixes_over_rate: BTreeMap<String, u64>,
     /// Cycles triggered by this central unit, or heard from the active one
     /// while a standby (never counted again from 0): what each robot's
     /// share refills with.
@@ -259,6 +262,7 @@ impl CentralCore {
             survey_skipped: BTreeMap::new(),
             survey_fix_rate: FixRate::default(),
             cycles_heard: 0,
+            fixes_over_rate: BTreeMap::new(),
         })
     }
 
@@ -508,6 +512,19 @@ impl CentralCore {
         let taken = if admitted {
             publisher.take_fix(fix)
         } else {
+            let refused = self.fixes_over_rate.entry(key.to_string()).or_default();
+            *refused += 1;
+            if refused.is_power_of_two() {
+                let who = if key.is_empty() {
+                    "robots the site does not list".to_string()
+                } else {
+                    format!("robot {key}")
+                };
+                tracing::warn!(
+                    "{who} sent more fixes than one a cycle: {refused} kept from the survey \
+                     calibration so far (a broken MSU, or fixes forged under its name)"
+                );
+            }
             Err(FixSkipped::OverRate)
         };
         if let Err(skipped) = taken {

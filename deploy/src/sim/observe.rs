@@ -99,7 +99,20 @@ pub(super) async fn observe(
 
     // The plain one-hop latency: a second session in this process subscribes
     // to probes the observer publishes; both share this process's clock.
-    let probe_session = open_observer(hub, args.mesh, credential).await?;
+    let probe_session = match open_observer(hub, args.mesh, credential).await {
+        Ok(s) => s,
+        // The router died between the nodes' start and this session (a
+        // test kills it as soon as the run is up): say which node, as the
+        // run would have a moment later, not only that nothing connects.
+        Err(e) => match sup.first_dead() {
+            Some(dead) => anyhow::bail!(
+                "node {} {} while the simulation was starting ({e})",
+                dead.name,
+                dead.status
+            ),
+            None => return Err(e),
+        },
+    };
     let probe_sub = probe_session
         .declare_subscriber(keys.sim_probe())
         .await

@@ -201,9 +201,6 @@ pub struct CentralCore {
     survey_skipped: BTreeMap<&'static str, u64>,
     /// Each robot's share of the survey calibration.
     survey_fix_rate: FixRate,
-    /// Fixes kept from the survey calibration as over each robot's share
-    /// (keyed as `survey_fix_rate`), for a warning at each power of two.
-    fixes_over_rate: BTreeMap<String, u64>,
     /// Cycles triggered by this central unit, or heard from the active one
     /// while a standby (never counted again from 0): what each robot's
     /// share refills with.
@@ -262,7 +259,6 @@ impl CentralCore {
             survey_skipped: BTreeMap::new(),
             survey_fix_rate: FixRate::default(),
             cycles_heard: 0,
-            fixes_over_rate: BTreeMap::new(),
         })
     }
 
@@ -497,35 +493,26 @@ impl CentralCore {
     /// calibration: one fix a cycle (every robot the site does not list
     /// shares one such share).
     fn survey_fix(&mut self, robot: &str, fix: &Fix) {
-        if self.survey.is_none() {
-            return;
-        }
-        let key = if self.site.robots.iter().any(|r| r.id == robot) {
-            robot
-        } else {
-            ""
-        };
-        let admitted = self.survey_fix_rate.admit(key, self.cycles_heard);
+        let key = if self.on_site(robot) { robot } else { "" };
         let Some(publisher) = self.survey.as_mut() else {
             return;
         };
-        let taken = if admitted {
-            publisher.take_fix(fix)
-        } else {
-            let refused = self.fixes_over_rate.entry(key.to_string()).or_default();
-            *refused += 1;
-            if refused.is_power_of_two() {
-                let who = if key.is_empty() {
-                    "robots the site does not list".to_string()
-                } else {
-                    format!("robot {key}")
-                };
-                tracing::warn!(
-                    "{who} sent more fixes than one a cycle: {refused} kept from the survey \
-                     calibration so far (a broken MSU, or fixes forged under its name)"
-                );
+        let taken = match self.survey_fix_rate.admit(key, self.cycles_heard) {
+            Ok(()) => publisher.take_fix(fix),
+            Err(refused) => {
+                if refused.is_power_of_two() {
+                    let who = if key.is_empty() {
+                        "robots the site does not list".to_string()
+                    } else {
+                        format!("robot {key}")
+                    };
+                    tracing::warn!(
+                        "{who} sent more fixes than one a cycle: {refused} kept from the survey \
+                         calibration so far (a broken MSU, or fixes forged under its name)"
+                    );
+                }
+                Err(FixSkipped::OverRate)
             }
-            Err(FixSkipped::OverRate)
         };
         if let Err(skipped) = taken {
             *self.survey_skipped.entry(skipped.label()).or_default() += 1;
@@ -815,8 +802,13 @@ impl CentralCore {
     /// The tracker of robot `id` if the site has it. Robots the site does
     /// not know are counted, not tracked: the table stays as large as the
     /// site, whatever anyone publishes.
+    /// Whether `id` is one of the site's robots.
+    fn on_site(&self, id: &str) -> bool {
+        self.site.robots.iter().any(|r| r.id == id)
+    }
+
     fn robot_mut(&mut self, id: &str) -> Option<&mut RobotTracker> {
-        if self.site.robots.iter().any(|r| r.id == id) {
+        if self.on_site(id) {
             Some(self.robots.entry(id.to_string()).or_default())
         } else {
             self.unknown_robot_messages += 1;

@@ -33,24 +33,28 @@ struct Bucket {
     tokens: f64,
     /// The central unit's cycle when it was last refilled.
     cycle: u64,
+    /// Fixes refused so far.
+    refused: u64,
 }
 
 impl FixRate {
     /// Whether a fix of the robot `key` during the central unit's cycle
-    /// `cycle` is within its share (taking it from the share if so). The
-    /// share is counted in the cycles the central unit triggers, not in
-    /// time: the firing plan shortens a cycle below the schedule's period,
-    /// and a clock stepped either way moves no cycle.
-    pub fn admit(&mut self, key: &str, cycle: u64) -> bool {
+    /// `cycle` is within its share (taking it from the share if so); if
+    /// not, `Err` with the robot's fixes refused so far, this one included.
+    /// The share is counted in the cycles the central unit triggers, not
+    /// in time: the firing plan shortens a cycle below the schedule's
+    /// period, and a clock stepped either way moves no cycle.
+    pub fn admit(&mut self, key: &str, cycle: u64) -> Result<(), u64> {
         let Some(b) = self.buckets.get_mut(key) else {
             self.buckets.insert(
                 key.to_string(),
                 Bucket {
                     tokens: BURST_FIXES - 1.0,
                     cycle,
+                    refused: 0,
                 },
             );
-            return true;
+            return Ok(());
         };
         // Cycles counted again from 0 (a new epoch) refill nothing once.
         let cycles = cycle.saturating_sub(b.cycle) as f64;
@@ -58,10 +62,16 @@ impl FixRate {
         b.cycle = cycle;
         if b.tokens >= 1.0 {
             b.tokens -= 1.0;
-            true
+            Ok(())
         } else {
-            false
+            b.refused += 1;
+            Err(b.refused)
         }
+    }
+
+    /// Fixes of the robot `key` refused so far.
+    pub fn refused(&self, key: &str) -> u64 {
+        self.buckets.get(key).map_or(0, |b| b.refused)
     }
 
     /// Robots with a bucket.
@@ -87,7 +97,7 @@ mod tests {
         let mut taken = 0;
         for k in 0..4_000u64 {
             let during = if k % 7 == 3 { k + 2 } else { k };
-            taken += usize::from(rate.admit("r1", during));
+            taken += usize::from(rate.admit("r1", during).is_ok());
         }
         assert_eq!(taken, 4_000);
     }
@@ -96,14 +106,18 @@ mod tests {
     fn a_flood_is_held_to_the_rate_and_unknown_ids_share_one_share() {
         let mut rate = FixRate::default();
         // 100 fixes a cycle for 40 cycles from one robot.
-        let taken = (0..4_000u64).filter(|&k| rate.admit("r1", k / 100)).count();
+        let taken = (0..4_000u64)
+            .filter(|&k| rate.admit("r1", k / 100).is_ok())
+            .count();
         // 39 cycles at 1.25 a cycle, and the burst.
         assert!((50..=52).contains(&taken), "{taken}");
         // Another robot is not held back by it.
-        assert!(rate.admit("r2", 20));
+        assert!(rate.admit("r2", 20).is_ok());
         // Made-up ids, all keyed as unknown by the core, share one bucket.
-        let unknown = (0..1_000u32).filter(|_| rate.admit("", 50)).count();
+        let unknown = (0..1_000u32).filter(|_| rate.admit("", 50).is_ok()).count();
         assert_eq!(unknown, 3);
+        assert_eq!(rate.refused(""), 997);
+        assert_eq!(rate.refused("r1"), 4_000 - taken as u64);
         assert_eq!(rate.len(), 3);
     }
 
@@ -111,13 +125,13 @@ mod tests {
     fn cycles_counted_again_from_zero_refill_nothing_once_then_as_before() {
         let mut rate = FixRate::default();
         for _ in 0..3 {
-            assert!(rate.admit("r1", 10_000));
+            assert!(rate.admit("r1", 10_000).is_ok());
         }
-        assert!(!rate.admit("r1", 10_000));
+        assert_eq!(rate.admit("r1", 10_000), Err(1));
         // A new epoch counts from 0: no refill across the reset, and no
         // robot left waiting for the old count to come round.
-        assert!(!rate.admit("r1", 0));
-        assert!(rate.admit("r1", 1));
-        assert!(!rate.admit("r1", 1));
+        assert_eq!(rate.admit("r1", 0), Err(2));
+        assert!(rate.admit("r1", 1).is_ok());
+        assert_eq!(rate.admit("r1", 1), Err(3));
     }
 }

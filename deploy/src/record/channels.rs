@@ -210,24 +210,14 @@ mod tests {
     fn a_calibration_of_the_layout_before_lateness_is_stored_in_the_current_one() {
         // What a central unit sent before transmitters carried their
         // lateness; the channel's schema is the current layout.
-        #[derive(serde::Serialize)]
-        struct OldOffset {
-            tx_id: u32,
-            offset_m: [f64; 3],
-            sigma_m: [f64; 3],
-        }
-        #[derive(serde::Serialize)]
-        struct OldCalibration {
-            epoch: u64,
-            version: u32,
-            fixes_taken: u64,
-            offsets: Vec<OldOffset>,
-        }
-        let old = encode(&OldCalibration {
+        use ickon_proto::msg::control::survey_before_lateness::{
+            CalibrationWithoutLateness, OffsetWithoutLateness,
+        };
+        let old = encode(&CalibrationWithoutLateness {
             epoch: 2,
             version: 5,
             fixes_taken: 640,
-            offsets: vec![OldOffset {
+            offsets: vec![OffsetWithoutLateness {
                 tx_id: 4,
                 offset_m: [0.01, 0.0, -0.02],
                 sigma_m: [0.003; 3],

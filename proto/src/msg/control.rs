@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use crate::codec::{DecodeError, decode};
 use crate::time::{Duration, Time};
 
-pub(crate) mod survey_before_lateness;
+pub mod survey_before_lateness;
 
 /// One row of the transmitter lookup table the MSU uses to turn an id into a position.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

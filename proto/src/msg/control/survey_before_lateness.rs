@@ -9,20 +9,29 @@ use serde::{Deserialize, Serialize};
 
 use super::{SurveyCalibration, TransmitterOffset};
 
-/// One transmitter's correction, without the lateness.
+/// One transmitter's correction, without the lateness (the fields mean
+/// what [`TransmitterOffset`]'s of the same name do).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub(crate) struct OffsetWithoutLateness {
+pub struct OffsetWithoutLateness {
+    /// Transmitter id.
     pub tx_id: u32,
+    /// What to add to its surveyed position (x, y, z), metres.
     pub offset_m: [f64; 3],
+    /// One-sigma uncertainty of each corrected coordinate, metres.
     pub sigma_m: [f64; 3],
 }
 
-/// The calibration, without the lateness.
+/// The calibration, without the lateness (the fields mean what
+/// [`SurveyCalibration`]'s of the same name do).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub(crate) struct CalibrationWithoutLateness {
+pub struct CalibrationWithoutLateness {
+    /// The epoch of the central unit that made it.
     pub epoch: u64,
+    /// Its version in that epoch.
     pub version: u32,
+    /// Fixes of the fleet behind it.
     pub fixes_taken: u64,
+    /// One per transmitter of the site.
     pub offsets: Vec<OffsetWithoutLateness>,
 }
 

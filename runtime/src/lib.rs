@@ -7,7 +7,8 @@
 //!   a `zenoh::Config`;
 //! - [`shutdown`]: a shutdown future (Ctrl-C, SIGTERM, or the parent process
 //!   going away);
-//! - [`error`]: [`NodeError`], the typed error of every node's edge;
+//! - [`error`]: [`NodeError`], the typed error of every node's edge, and
+//!   [`command`]: [`CommandError`], the outcome of an `ickon` subcommand;
 //! - [`clock`]: the system clock as a [`Time`](ickon_proto::time::Time), and
 //!   the simulated device clock that lets a node run with an injected offset
 //!   and drift, and [`clock_steps`]: its steps at run time in a simulation;
@@ -21,6 +22,7 @@
 pub mod args;
 pub mod clock;
 pub mod clock_steps;
+pub mod command;
 pub mod error;
 pub mod log_limit;
 pub mod process;
@@ -31,6 +33,7 @@ pub mod shutdown;
 
 pub use args::{LEAN_ZENOH_RUNTIME, NodeArgs, ZENOH_RUNTIME_ENV, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};
+pub use command::CommandError;
 pub use error::{NodeError, zerr};
 pub use log_limit::LogLimiter;
 pub use process::{block_on, init_tracing, run_node};

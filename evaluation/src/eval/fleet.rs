@@ -1,0 +1,161 @@
+//! `ickon eval --robots N`: the first N robots of the site at once, in
+//! virtual time, each robot's achieved fix rate and error, and what
+//! collisions cost (issue 20's measurements).
+
+use ickon_central::core::{CentralConfig, SchedulePolicy};
+use ickon_central::occupancy::FiringConfig;
+use ickon_proto::site::Site;
+use ickon_sim::NoiseProfile;
+use ickon_sim::fleet::{FleetConfig, run_fleet};
+
+use super::EvalArgs;
+use ickon_runtime::CommandError;
+
+/// Virtual seconds of a `--robots` run without `--duration`.
+const DEFAULT_DURATION_S: f64 = 60.0;
+
+/// Runs the fleet evaluation of `args` on `site`.
+pub fn run(
+    site: &Site,
+    profile: NoiseProfile,
+    robots: usize,
+    args: &EvalArgs,
+) -> Result<(), CommandError> {
+    let schedule = match args.schedule.as_str() {
+        "tight" => SchedulePolicy::Tight,
+        "uniform" => SchedulePolicy::Uniform,
+        other => {
+            return Err(CommandError::bad_input(format!(
+                "unknown schedule `{other}` (known: tight, uniform)"
+            )));
+        }
+    };
+    let firing = args.firing.as_deref().unwrap_or("occupancy");
+    let fire_range_m = args
+        .fire_range_m
+        .unwrap_or(FiringConfig::default().fire_range_m);
+    let duration = args.duration.unwrap_or(DEFAULT_DURATION_S);
+    let occupancy = match firing {
+        "occupancy" => true,
+        "all" => false,
+        other => {
+            return Err(CommandError::bad_input(format!(
+                "unknown firing `{other}` (known: occupancy, all)"
+            )));
+        }
+    };
+    let estimator = if args.estimator == "all" {
+        "tdoa-ekf".to_string()
+    } else {
+        args.estimator.clone()
+    };
+    if !(fire_range_m > 0.0 && fire_range_m <= 100.0) {
+        return Err(CommandError::bad_input(
+            "--fire-range-m must be in (0, 100] m",
+        ));
+    }
+    if !(duration > 3.0 && duration.is_finite()) {
+        return Err(CommandError::bad_input(
+            "--duration must be more than the 3 s warm-up",
+        ));
+    }
+    let survey = super::survey_calibration(args, site, &profile);
+    let config = FleetConfig {
+        robots,
+        duration_s: duration,
+        warm_up_s: 3.0,
+        profile,
+        seed: args.seed,
+        estimator,
+        central: CentralConfig {
+            schedule,
+            firing: FiringConfig {
+                occupancy,
+                fire_range_m,
+                ..FiringConfig::default()
+            },
+            survey,
+            ..CentralConfig::default()
+        },
+        filter: super::filter_options(args),
+    };
+    let out = match run_fleet(site, &config) {
+        Ok(o) => o,
+        Err(e @ ickon_sim::RunError::FleetSize { .. }) => {
+            return Err(CommandError::bad_input(format!("{e}")));
+        }
+        Err(e) => {
+            return Err(CommandError::failure(format!("{e}")));
+        }
+    };
+    if args.json {
+        let doc = serde_json::json!({
+            "site": site.name,
+            "robots": robots,
+            "duration_s": duration,
+            "schedule": args.schedule,
+            "firing": firing,
+            "estimator": config.estimator,
+            "seed": args.seed,
+            "profile": config.profile.name,
+            "fleet": out,
+            "collision_loss_share": out.collisions.lost_share(),
+        });
+        println!("{doc}");
+        return Ok(());
+    }
+    println!(
+        "{} robots on {} for {:.0} s (3 s warm-up), schedule {}, firing {}, {} ({}), seed {}",
+        robots,
+        site.name,
+        duration,
+        args.schedule,
+        firing,
+        config.estimator,
+        config.profile.name,
+        args.seed
+    );
+    println!(
+        "cycles: {:.2}/s, {:.1} of {} transmitters fired per cycle on average",
+        out.cycles_per_s, out.mean_firing, out.transmitters
+    );
+    match out.survey_fixes_taken {
+        Some(n) => println!("survey calibration: learnt from {n} of the fleet's fixes"),
+        None => println!("survey calibration: off"),
+    }
+    println!(
+        "{:>6} {:>9} {:>8} {:>10} {:>10} {:>9}",
+        "robot", "route", "fixes/s", "mean mm", "p95 mm", "lost %"
+    );
+    for r in &out.robots {
+        println!(
+            "{:>6} {:>9} {:>8.2} {:>10.1} {:>10.1} {:>9.2}",
+            r.id,
+            r.route,
+            r.fixes_per_s,
+            r.mean_err_mm,
+            r.p95_err_mm,
+            100.0 * r.collisions.lost_share()
+        );
+    }
+    let n = out.robots.len().max(1) as f64;
+    let c = &out.collisions;
+    println!(
+        "mean over robots: {:.2} fixes/s (lowest {:.2}), {:.1} mm; collisions: {} of {} direct detections lost ({:.2} %: {} collided, {} of them misdecoded, {} masked); {} of {} detections of blocked transmitters (reflections only) lost",
+        out.robots.iter().map(|r| r.fixes_per_s).sum::<f64>() / n,
+        out.robots
+            .iter()
+            .map(|r| r.fixes_per_s)
+            .fold(f64::INFINITY, f64::min),
+        out.robots.iter().map(|r| r.mean_err_mm).sum::<f64>() / n,
+        c.lost(),
+        c.detected,
+        100.0 * c.lost_share(),
+        c.collided,
+        c.misdecoded,
+        c.masked,
+        c.blocked_lost,
+        c.blocked_detected
+    );
+    Ok(())
+}

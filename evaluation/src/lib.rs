@@ -1,0 +1,26 @@
+//! # ickon-evaluation
+//!
+//! How well ICKON-rs positions, measured:
+//!
+//! - `ickon eval` ([`EvalArgs`], [`run_eval`]): every estimator on the
+//!   simulated world in virtual time, scored as in the seed papers, one
+//!   robot per route or a fleet at once;
+//! - `ickon replay util` ([`UtilArgs`], [`run_util`]): the real UTIL TDOA
+//!   flights through the 3D estimators, scored against motion capture;
+//! - `ickon replay plaza` ([`PlazaArgs`], [`run_plaza`]): the ground
+//!   filter on a real wheeled robot (CMU Plaza), scored against its truth;
+//! - [`chart`]: the font and styling every PNG picture of the tools shares;
+//! - [`print_estimator_table`]: the seeds' accuracy table, also printed by
+//!   the MCAP replay.
+//!
+//! No Zenoh: everything here runs in one process from files and seeds.
+
+pub mod chart;
+mod eval;
+mod plaza;
+mod util;
+
+pub use eval::table::print as print_estimator_table;
+pub use eval::{EvalArgs, run as run_eval};
+pub use plaza::{PlazaArgs, run as run_plaza};
+pub use util::{UtilArgs, run as run_util};

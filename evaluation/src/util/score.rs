@@ -1,0 +1,266 @@
+//! Scoring estimates against the motion-capture truth while both stream
+//! in: the truth is interpolated linearly at each estimate's own time, with
+//! the antenna offset applied, and only the samples still needed are kept.
+
+use std::collections::VecDeque;
+
+use super::dataset::TruthRow;
+
+/// Truth gaps longer than this are not interpolated across (a dropout of
+/// the motion capture), seconds.
+const MAX_TRUTH_GAP_S: f64 = 0.1;
+/// Spacing of the points kept for the plots, seconds.
+const PLOT_STEP_S: f64 = 0.02;
+
+/// One point of a plotted series.
+#[derive(Debug, Clone, Copy)]
+pub struct SeriesPoint {
+    /// Time, seconds.
+    pub t_s: f64,
+    /// The estimate, metres.
+    pub estimate_m: [f64; 3],
+    /// The truth (antenna), metres.
+    pub truth_m: [f64; 3],
+}
+
+/// The scored errors of one estimator.
+#[derive(Debug, Clone, Default)]
+pub struct Track {
+    pending: VecDeque<(f64, [f64; 3])>,
+    /// Time of the newest estimate queued: later ones are not older.
+    newest_s: Option<f64>,
+    /// Time of the first estimate.
+    first_s: Option<f64>,
+    /// 3D error of every scored estimate, metres (kept for the percentile).
+    errors_3d_m: Vec<f64>,
+    sum2_xy: f64,
+    /// Estimates with no truth around them (before, after, or in a gap).
+    pub unscored: u64,
+    /// Points for the plots, when asked for.
+    pub series: Option<Vec<SeriesPoint>>,
+}
+
+/// The summary of a [`Track`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Summary {
+    /// Estimates scored.
+    pub scored: u64,
+    /// Root mean square of the 3D error, metres.
+    pub rmse_3d_m: f64,
+    /// Root mean square of the horizontal error, metres.
+    pub rmse_xy_m: f64,
+    /// Mean 3D error, metres.
+    pub mean_3d_m: f64,
+    /// 95th percentile of the 3D error, metres.
+    pub p95_3d_m: f64,
+    /// Largest 3D error, metres.
+    pub max_3d_m: f64,
+}
+
+impl Track {
+    /// A track, keeping plot points when `plot` is set.
+    pub fn new(plot: bool) -> Self {
+        Self {
+            series: plot.then(Vec::new),
+            ..Self::default()
+        }
+    }
+
+    /// Queues an estimate (times non-decreasing).
+    pub fn push(&mut self, t_s: f64, estimate_m: [f64; 3]) {
+        self.pending.push_back((t_s, estimate_m));
+        self.newest_s = Some(t_s);
+        self.first_s.get_or_insert(t_s);
+    }
+
+    /// Time of the first estimate, seconds.
+    pub fn first_s(&self) -> Option<f64> {
+        self.first_s
+    }
+
+    /// No estimate to come is older than this (minus infinity before the
+    /// first estimate).
+    fn needs_truth_from_s(&self) -> f64 {
+        self.pending
+            .front()
+            .map(|e| e.0)
+            .or(self.newest_s)
+            .unwrap_or(f64::NEG_INFINITY)
+    }
+
+    /// Scores what the truth now covers; with `ended`, gives up on the rest.
+    fn resolve(&mut self, truth: &VecDeque<TruthRow>, ended: bool) {
+        let newest = truth.back().map_or(f64::NEG_INFINITY, |r| r.t_s);
+        while let Some(&(t, est)) = self.pending.front() {
+            if t > newest && !ended {
+                break;
+            }
+            self.pending.pop_front();
+            match interpolate(truth, t) {
+                Some(truth_m) => self.score(t, est, truth_m),
+                None => self.unscored += 1,
+            }
+        }
+    }
+
+    fn score(&mut self, t_s: f64, est: [f64; 3], truth_m: [f64; 3]) {
+        let d: [f64; 3] = std::array::from_fn(|k| est[k] - truth_m[k]);
+        let xy2 = d[0] * d[0] + d[1] * d[1];
+        self.errors_3d_m.push((xy2 + d[2] * d[2]).sqrt());
+        self.sum2_xy += xy2;
+        if let Some(series) = &mut self.series {
+            if series.last().is_none_or(|p| t_s - p.t_s >= PLOT_STEP_S) {
+                series.push(SeriesPoint {
+                    t_s,
+                    estimate_m: est,
+                    truth_m,
+                });
+            }
+        }
+    }
+
+    /// The error statistics (zeros when nothing was scored).
+    pub fn summary(&self) -> Summary {
+        let n = self.errors_3d_m.len();
+        if n == 0 {
+            return Summary {
+                scored: 0,
+                rmse_3d_m: 0.0,
+                rmse_xy_m: 0.0,
+                mean_3d_m: 0.0,
+                p95_3d_m: 0.0,
+                max_3d_m: 0.0,
+            };
+        }
+        let nf = n as f64;
+        let mut sorted = self.errors_3d_m.clone();
+        sorted.sort_by(f64::total_cmp);
+        // Nearest rank.
+        let rank = ((0.95 * nf).ceil() as usize).clamp(1, n) - 1;
+        Summary {
+            scored: n as u64,
+            rmse_3d_m: (sorted.iter().map(|e| e * e).sum::<f64>() / nf).sqrt(),
+            rmse_xy_m: (self.sum2_xy / nf).sqrt(),
+            mean_3d_m: sorted.iter().sum::<f64>() / nf,
+            p95_3d_m: sorted[rank],
+            max_3d_m: sorted[n - 1],
+        }
+    }
+}
+
+/// The truth stream, shared by the tracks of every estimator.
+#[derive(Debug, Clone)]
+pub struct Truth {
+    /// Kept samples, antenna positions.
+    samples: VecDeque<TruthRow>,
+    /// Added to the body centre to get the antenna, metres.
+    antenna_offset_m: [f64; 3],
+}
+
+impl Truth {
+    /// An empty stream; `antenna_offset_m` is added to every pose.
+    pub fn new(antenna_offset_m: [f64; 3]) -> Self {
+        Self {
+            samples: VecDeque::new(),
+            antenna_offset_m,
+        }
+    }
+
+    /// Adds a pose, scores what it covers and forgets what is not needed.
+    pub fn push(&mut self, row: TruthRow, tracks: &mut [&mut Track]) {
+        let p = row.position_m;
+        self.samples.push_back(TruthRow {
+            t_s: row.t_s,
+            position_m: std::array::from_fn(|k| p[k] + self.antenna_offset_m[k]),
+            attitude_xyzw: row.attitude_xyzw,
+        });
+        for track in tracks.iter_mut() {
+            track.resolve(&self.samples, false);
+        }
+        // Keep the last sample at or before the oldest estimate to come.
+        let horizon = tracks
+            .iter()
+            .map(|t| t.needs_truth_from_s())
+            .fold(f64::INFINITY, f64::min);
+        while self.samples.len() > 2 && self.samples[1].t_s <= horizon {
+            self.samples.pop_front();
+        }
+    }
+
+    /// The end of the file: scores or gives up on every pending estimate.
+    pub fn finish(&self, tracks: &mut [&mut Track]) {
+        for track in tracks.iter_mut() {
+            track.resolve(&self.samples, true);
+        }
+    }
+}
+
+fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64) -> Option<[f64; 3]> {
+    let i = truth.partition_point(|r| r.t_s <= t_s);
+    if i == 0 {
+        return None;
+    }
+    let r0 = truth[i - 1];
+    if r0.t_s == t_s {
+        return Some(r0.position_m);
+    }
+    let r1 = truth.get(i)?;
+    let dt = r1.t_s - r0.t_s;
+    if dt > MAX_TRUTH_GAP_S {
+        return None;
+    }
+    let w = (t_s - r0.t_s) / dt;
+    Some(std::array::from_fn(|k| {
+        r0.position_m[k] + w * (r1.position_m[k] - r0.position_m[k])
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(t_s: f64, x: f64) -> TruthRow {
+        TruthRow {
+            t_s,
+            position_m: [x, 0.0, 1.0],
+            attitude_xyzw: None,
+        }
+    }
+
+    #[test]
+    fn estimates_are_scored_against_the_interpolated_antenna_whichever_stream_leads() {
+        let mut truth = Truth::new([0.0, 0.0, 0.1]);
+        let mut track = Track::new(false);
+        truth.push(row(0.0, 0.0), &mut [&mut track]);
+        // Ahead of the truth: waits.
+        track.push(0.05, [0.5, 0.0, 1.1]);
+        track.push(0.15, [1.5, 0.0, 1.1]);
+        truth.push(row(0.1, 1.0), &mut [&mut track]);
+        assert_eq!(track.summary().scored, 1);
+        truth.push(row(0.2, 2.0), &mut [&mut track]);
+        // After the last truth: not scored.
+        track.push(0.3, [3.0, 0.0, 1.1]);
+        truth.finish(&mut [&mut track]);
+        let s = track.summary();
+        assert_eq!((s.scored, track.unscored), (2, 1));
+        assert!(s.rmse_3d_m < 1e-12, "{s:?}");
+    }
+
+    #[test]
+    fn statistics_match_hand_computation() {
+        let mut truth = Truth::new([0.0; 3]);
+        let mut track = Track::new(false);
+        for k in 0..=20 {
+            truth.push(row(f64::from(k) * 0.01, 0.0), &mut [&mut track]);
+        }
+        // Errors 3, 4 (xy) and 0.
+        track.push(0.01, [3.0, 0.0, 1.0]);
+        track.push(0.02, [0.0, 4.0, 1.0]);
+        track.push(0.03, [0.0, 0.0, 1.0]);
+        truth.finish(&mut [&mut track]);
+        let s = track.summary();
+        assert!((s.rmse_3d_m - (25.0_f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert!((s.mean_3d_m - 7.0 / 3.0).abs() < 1e-12);
+        assert_eq!((s.p95_3d_m, s.max_3d_m), (4.0, 4.0));
+    }
+}

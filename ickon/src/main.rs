@@ -1,0 +1,31 @@
+//! `ickon`: the launcher of ICKON-rs.
+//!
+//! Thin by design: parse the command line, set up logging, hand over to the
+//! library crate of the subcommand, and turn its result into an exit code.
+
+mod cli;
+mod node;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+fn main() -> ExitCode {
+    let cli = cli::Cli::parse();
+    init_tracing();
+    cli::run(cli)
+}
+
+/// Logs go to stderr so that `--json` output on stdout stays clean;
+/// `RUST_LOG` overrides the default level. Zenoh's own warnings (scouting
+/// delays at start-up, late data at shutdown) are routine in a mesh that
+/// starts and stops at once, so only its errors are shown by default.
+fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+        tracing_subscriber::EnvFilter::new("warn,zenoh=error,zenoh_transport=error")
+    });
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+}

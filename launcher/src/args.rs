@@ -1,0 +1,168 @@
+//! The flags of `ickon sim` and their checks, made before any process starts.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use ickon_proto::site::Site;
+use ickon_runtime::CommandError;
+
+use crate::faults;
+use crate::launch::Mesh;
+
+/// Arguments of `ickon sim`.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
+    #[arg(long)]
+    pub site: Option<PathBuf>,
+    /// Number of robots: the first N robots of the site, each on its own route.
+    #[arg(long, default_value_t = 3)]
+    pub robots: usize,
+    /// How long to run once every node is live, seconds.
+    #[arg(long, default_value_t = 30.0)]
+    pub duration: f64,
+    /// Estimator every MSU agent runs (`tdoa-ekf`, ours, by default).
+    #[arg(long, default_value = "tdoa-ekf")]
+    pub estimator: String,
+    /// Noise profile of the simulated world: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
+    #[arg(long, default_value = "paper")]
+    pub profile: String,
+    /// Seed of every random draw (world noise, injected clock errors).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON document on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Run the ROS 2 path end to end: the world publishes each robot's
+    /// odometry and gyro as ROS 2 topics (rmw_zenoh) and the MSU agents read
+    /// them there (`ickon-msu --ros2`) and publish ROS 2 poses too.
+    #[arg(long)]
+    pub ros2: bool,
+    /// Serve the live web map from the central unit on ADDR, or the next
+    /// free port above it (with no ADDR: 127.0.0.1:8080); the URL is printed.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
+    pub http: Option<std::net::SocketAddr>,
+    /// File with the token that allows pause, resume and reload over HTTP.
+    #[arg(long, value_name = "FILE", requires = "http")]
+    pub http_token_file: Option<PathBuf>,
+    /// How the nodes reach each other: through a router, as on a site, or
+    /// as a full mesh of peers (the layout before routers, to compare).
+    #[arg(long, value_enum, default_value = "router")]
+    pub mesh: Mesh,
+    /// Record every message of the run into this MCAP file (as `ickon
+    /// record`; refused if it exists), with what a replay needs to run the
+    /// MSU cores as the agents did.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Access control on the router, default deny, and every node (the
+    /// launcher too) authenticated with its own credential: the files of
+    /// `ickon site secure --sim` in DIR, or with no DIR a fresh set in a
+    /// temporary directory removed at exit.
+    #[arg(long, value_name = "DIR", num_args = 0..=1)]
+    pub secure: Option<Option<PathBuf>>,
+    /// Which transmitters the central unit fires each cycle: `occupancy`
+    /// (only where robots may be, issue 20; everything while no robot is
+    /// known) or `all` (the whole schedule every cycle).
+    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
+    pub firing: ickon_central::node::Firing,
+    /// Start a node again when it dies, as systemd would, instead of
+    /// stopping the run.
+    #[arg(long)]
+    pub restart: bool,
+    /// Run a second central unit as a hot standby (`ickon-central --standby`)
+    /// that takes over when the first goes.
+    #[arg(long)]
+    pub standby: bool,
+    /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,clockstep:cell/c3@20s+5ms,kill:msu/r1@25s`
+    /// (times from the moment every node is live; see `launcher/src/faults.rs`).
+    #[arg(long, value_name = "PLAN")]
+    pub faults: Option<String>,
+    /// Every agent's `tdoa-ekf` learns each cell's sync error as a state
+    /// (`learn_cell_sync = true` in the configuration file they are given).
+    #[arg(long)]
+    pub learn_cell_sync: bool,
+    /// The central unit does not learn the transmitters' survey errors
+    /// from the robots' fixes (on by default).
+    #[arg(long)]
+    pub no_survey_calibration: bool,
+}
+
+impl SimArgs {
+    /// The filter options every agent's configuration file gets.
+    pub fn filter_options(&self) -> ickon_sim::engine::FilterOptions {
+        ickon_sim::engine::FilterOptions {
+            learn_cell_sync: self.learn_cell_sync,
+        }
+    }
+}
+
+/// Loads the site and checks the flags, before any process is started.
+pub fn check_args(
+    args: &SimArgs,
+) -> Result<(Site, ickon_sim::profile::NoiseProfile), CommandError> {
+    let (site, _text, _name) = Site::load_or_default(args.site.as_deref())
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    if args.robots == 0 || args.robots > site.robots.len() {
+        return Err(CommandError::bad_input(format!(
+            "--robots {} is not possible: the site {:?} has {} robots (1 to {})",
+            args.robots,
+            site.name,
+            site.robots.len(),
+            site.robots.len()
+        )));
+    }
+    let profile = ickon_sim::profile::NoiseProfile::load(&args.profile)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    ickon_fusion::estimator::EstimatorConfig::default_for(&args.estimator)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    args.filter_options()
+        .check_for(&args.estimator)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
+        return Err(CommandError::bad_input(
+            "--duration must be between 0 and 86400 seconds",
+        ));
+    }
+    // Read here as the central unit will: a bad token file is the user's
+    // input, refused before a node starts, not a central dying at start-up.
+    if let Some(path) = &args.http_token_file {
+        ickon_central::http::read_token(path)
+            .map_err(|e| CommandError::bad_input(format!("--http-token-file: {e}")))?;
+    }
+    if let Some(plan) = &args.faults {
+        match faults::parse_plan(plan) {
+            Err(e) => {
+                return Err(CommandError::bad_input(format!("{e}")));
+            }
+            Ok(plan) => {
+                if let Some(f) = plan.iter().find(|f| {
+                    matches!(f.action, faults::FaultAction::ClockStep(_))
+                        && !faults::keeps_a_clock(&f.node)
+                }) {
+                    return Err(CommandError::bad_input(format!(
+                        "--faults: {:?}: only a cell or a central unit keeps a clock to step",
+                        f.text
+                    )));
+                }
+                let nodes: Vec<String> = std::iter::once("central".to_string())
+                    .chain(args.standby.then(|| "central standby".to_string()))
+                    .chain(["world".to_string(), "router".to_string()])
+                    .chain(site.cells.iter().map(|c| format!("cell {}", c.id)))
+                    .chain(
+                        site.robots
+                            .iter()
+                            .take(args.robots)
+                            .map(|r| format!("msu {}", r.id)),
+                    )
+                    .collect();
+                if let Some(f) = plan.iter().find(|f| !nodes.contains(&f.node)) {
+                    return Err(CommandError::bad_input(format!(
+                        "--faults: {:?}: this run has no node {}",
+                        f.text, f.node
+                    )));
+                }
+            }
+        }
+    }
+    Ok((site, profile))
+}

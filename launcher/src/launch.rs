@@ -1,0 +1,164 @@
+//! Starting the nodes of `ickon sim`: ports, command lines, injected clock errors.
+
+use std::process::Command;
+
+use ickon_proto::site::Site;
+use rand::Rng;
+
+use crate::args::SimArgs;
+
+/// Injected clock errors of cells and robots: up to this offset...
+const MAX_CLOCK_OFFSET_US: f64 = 50_000.0;
+/// ...and this drift.
+const MAX_CLOCK_DRIFT_PPM: f64 = 100.0;
+
+/// A free loopback TCP port for the central unit to listen on (bound and
+/// released; the node binds it right after). It is taken below the kernel's
+/// ephemeral range: the other nodes connect to it before it listens, and a
+/// connect to a free port inside that range can be given the same port as
+/// its own source and connect to itself (seen once: the central then found
+/// its port taken).
+pub(crate) fn free_port() -> std::io::Result<u16> {
+    let ephemeral_low = std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<u16>().ok())
+        .unwrap_or(32_768);
+    const LOWEST: u16 = 10_000;
+    if ephemeral_low > LOWEST + 100 {
+        let span = u32::from(ephemeral_low - LOWEST);
+        let start = std::process::id() % span;
+        for k in 0..span.min(2_000) {
+            let port = LOWEST + u16::try_from((start + k * 7) % span).unwrap_or(0);
+            if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
+                return Ok(port);
+            }
+        }
+    }
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
+
+/// How the nodes of a run reach each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mesh {
+    /// As on a site: one router process, every node its client.
+    Router,
+    /// Every node a peer listening on loopback, connected to the central
+    /// unit, gossip making a full mesh (the layout before routers; kept to
+    /// compare).
+    Peer,
+}
+
+/// The `ickon node <role>` command line shared by every node of the mesh:
+/// a client of the router at `hub` (`Mesh::Router`), or a peer listening on
+/// `listen` and connected to `hub` (`Mesh::Peer`; no `hub` for the first).
+pub(crate) fn node_command(
+    args: &SimArgs,
+    site: &Site,
+    role: &str,
+    hub: &str,
+    listen: &str,
+) -> anyhow::Result<Command> {
+    let mut cmd = lean_command()?;
+    cmd.args(["node", role, "--no-multicast-scouting"]);
+    match args.mesh {
+        Mesh::Router => {
+            cmd.args(["--mode", "client"]);
+        }
+        Mesh::Peer => {
+            cmd.args(["--mode", "peer", "--listen", listen]);
+        }
+    }
+    cmd.args(["--site-name", &site.name]);
+    if !hub.is_empty() {
+        cmd.args(["--connect", hub]);
+    }
+    if let Some(site) = &args.site {
+        cmd.arg("--site").arg(site);
+    }
+    cmd.arg("--exit-with-parent");
+    Ok(cmd)
+}
+
+/// The `ickon router` command line of a run's router, listening on `endpoint`.
+pub(crate) fn router_command(endpoint: &str) -> anyhow::Result<Command> {
+    let mut cmd = lean_command()?;
+    cmd.args(["router", "--no-multicast-scouting", "--listen", endpoint]);
+    cmd.arg("--exit-with-parent");
+    Ok(cmd)
+}
+
+/// This executable, with Zenoh's thread pools kept small (unless the user
+/// chose their own `ZENOH_RUNTIME`): a hundred processes on two cores.
+fn lean_command() -> anyhow::Result<Command> {
+    let mut cmd = Command::new(std::env::current_exe()?);
+    if std::env::var_os(ickon_runtime::ZENOH_RUNTIME_ENV).is_none() {
+        cmd.env(
+            ickon_runtime::ZENOH_RUNTIME_ENV,
+            ickon_runtime::LEAN_ZENOH_RUNTIME,
+        );
+    }
+    Ok(cmd)
+}
+
+/// Waits until something accepts TCP connections on the loopback `port`
+/// (the router listens), the router dies, or `timeout` passes.
+pub(crate) async fn wait_for_listener(
+    port: u16,
+    sup: &mut crate::supervisor::Supervisor,
+    timeout: std::time::Duration,
+) -> anyhow::Result<()> {
+    let deadline = tokio::time::Instant::now() + timeout;
+    loop {
+        // A loopback connect is answered at once: accepted or refused.
+        if std::net::TcpStream::connect(("127.0.0.1", port)).is_ok() {
+            return Ok(());
+        }
+        if let Some(dead) = sup.first_dead() {
+            anyhow::bail!("node {} {} during start-up", dead.name, dead.status);
+        }
+        if tokio::time::Instant::now() > deadline {
+            anyhow::bail!(
+                "the router does not listen on port {port} after {} s",
+                timeout.as_secs()
+            );
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+}
+
+/// Stream of the injected clock errors, so that changing the world's noise
+/// streams never changes the clocks.
+pub(crate) const CLOCK_STREAM: u64 = 0xC10C_C10C;
+
+pub(crate) fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
+    let offset_us = rng.random_range(-MAX_CLOCK_OFFSET_US..=MAX_CLOCK_OFFSET_US);
+    let drift_ppm = rng.random_range(-MAX_CLOCK_DRIFT_PPM..=MAX_CLOCK_DRIFT_PPM);
+    [
+        "--clock-offset-us".into(),
+        format!("{offset_us:.0}"),
+        "--clock-drift-ppm".into(),
+        format!("{drift_ppm:.1}"),
+    ]
+}
+
+/// Adds the web map's flags of `ickon sim --http` to the central unit's
+/// command; the address it will serve, if any: the one asked for, or the
+/// next free port above it when it is taken (the URL is printed).
+pub(crate) fn http_flags(
+    args: &SimArgs,
+    central: &mut Command,
+) -> anyhow::Result<Option<std::net::SocketAddr>> {
+    let Some(wanted) = args.http else {
+        return Ok(None);
+    };
+    let addr = ickon_central::http::first_free_addr(wanted)
+        .ok_or_else(|| anyhow::anyhow!("no free port for the web map from {wanted}"))?;
+    central.arg("--http").arg(addr.to_string());
+    if let Some(token) = &args.http_token_file {
+        central.arg("--http-token-file").arg(token);
+    }
+    Ok(Some(addr))
+}

@@ -1,0 +1,227 @@
+//! Every node's command line for one run, built before the first process
+//! starts: the router, the central unit (and its standby), one cell
+//! controller per cell, the world, one MSU agent per robot.
+
+use std::process::Command;
+
+use ickon_operator::secure::Identity;
+use ickon_proto::site::Site;
+use ickon_recording::sim_hook;
+use ickon_sim::profile::NoiseProfile;
+use rand::SeedableRng;
+
+use crate::args::SimArgs;
+use crate::faults;
+use crate::launch::{self, CLOCK_STREAM, Mesh, clock_flags, node_command, router_command};
+use crate::msu_file;
+use crate::secure::SimSecurity;
+
+/// The command lines of one run, in the order they are started.
+pub(crate) struct NodeCommands {
+    /// The router (`None` in a full mesh of peers).
+    pub router: Option<Command>,
+    /// The central unit.
+    pub central: Command,
+    /// The hot standby of `--standby`.
+    pub standby: Option<Command>,
+    /// One cell controller per cell, with its name.
+    pub cells: Vec<(String, Command)>,
+    /// The simulated world.
+    pub world: Command,
+    /// One MSU agent per robot, with its name.
+    pub msus: Vec<(String, Command)>,
+    /// Where the central unit serves the live map, with `--http`.
+    pub web: Option<std::net::SocketAddr>,
+    /// The agents' configuration file, removed when the run is over.
+    pub msu_file: tempfile::NamedTempFile,
+}
+
+impl NodeCommands {
+    /// Builds every command line of the run; the nodes connect to `hub`
+    /// (and, in a full mesh, those a replay needs to the recorder too).
+    pub fn build(
+        args: &SimArgs,
+        site: &Site,
+        profile: &NoiseProfile,
+        hub: &str,
+        recorder: Option<&str>,
+        msus: &[sim_hook::MsuStart],
+        security: Option<&SimSecurity>,
+    ) -> anyhow::Result<Self> {
+        let credential = |cmd: &mut Command, who: Identity| {
+            if let Some(s) = security {
+                s.client(cmd, &who);
+            }
+        };
+        // The clock steps of the plan (checked already), given to each node at
+        // its start: it takes the next at each SIGUSR1 the plan sends.
+        let plan = args
+            .faults
+            .as_deref()
+            .and_then(|p| faults::parse_plan(p).ok())
+            .unwrap_or_default();
+        let clock_steps = |cmd: &mut Command, node: &str| {
+            if let Some(steps) = faults::clock_steps_flag(&plan, node) {
+                cmd.arg("--sim-clock-steps-us").arg(steps);
+            }
+        };
+        let (router, central_at) = match args.mesh {
+            Mesh::Router => {
+                let mut router = router_command(hub)?;
+                if let Some(s) = security {
+                    s.router(&mut router);
+                }
+                (Some(router), (hub, ""))
+            }
+            Mesh::Peer => (None, ("", hub)),
+        };
+        let central_flags = central_flags(args, profile);
+        let mut central = node_command(args, site, "central", central_at.0, central_at.1)?;
+        central.args(&central_flags);
+        credential(&mut central, Identity::Central);
+        let web = launch::http_flags(args, &mut central)?;
+        clock_steps(&mut central, "central");
+        let standby = if args.standby {
+            // A second central unit that follows the first and takes over.
+            let mut standby = node_command(args, site, "central", central_at.0, central_at.1)?;
+            standby.arg("--standby").args(&central_flags);
+            clock_steps(&mut standby, "central standby");
+            credential(&mut standby, Identity::Central);
+            Some(standby)
+        } else {
+            None
+        };
+        // In a peer mesh, the nodes whose messages a replay needs also connect
+        // to the recorder directly; through a router (a client keeps one
+        // connection) the recorder hears them by the router, as every observer.
+        let to_recorder: Vec<String> = recorder
+            .iter()
+            .filter(|_| args.mesh == Mesh::Peer)
+            .flat_map(|e| ["--connect".to_string(), e.to_string()])
+            .collect();
+        let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
+        let mut cells = Vec::new();
+        for cell in &site.cells {
+            let mut cmd = node_command(args, site, "cell", hub, "tcp/127.0.0.1:0")?;
+            cmd.args(["--cell", &cell.id])
+                .args(clock_flags(&mut clocks))
+                .args(&to_recorder);
+            let name = format!("cell {}", cell.id);
+            clock_steps(&mut cmd, &name);
+            credential(&mut cmd, Identity::Cell(cell.id.clone()));
+            cells.push((name, cmd));
+        }
+        let robots: Vec<&str> = msus.iter().map(|m| m.robot.as_str()).collect();
+        let mut world = node_command(args, site, "world", hub, "tcp/127.0.0.1:0")?;
+        world.args([
+            "--robots",
+            &robots.join(","),
+            "--profile",
+            &args.profile,
+            "--seed",
+            &args.seed.to_string(),
+        ]);
+        world.args(&to_recorder);
+        credential(&mut world, Identity::World);
+        if args.ros2 {
+            world.arg("--ros2");
+        }
+        // Every agent reads one configuration file, as a deployed one does: the
+        // estimator as `ickon eval` sets it up for the profile's data sheet,
+        // the simulated robots' nominal drive, the arrivals' timing noise (the
+        // site gives each agent its robot's start pose).
+        let drive = ickon_sim::robot::DriveSpec::default();
+        let msu_file = msu_file::write_temp(&msu_file::render(
+            &ickon_sim::engine::estimator_config(
+                &args.estimator,
+                [0.0; 3],
+                site,
+                profile,
+                args.filter_options(),
+            )?,
+            ickon_sim::engine::timing_sigma_s(profile),
+            drive.geometry(),
+            args.ros2,
+        )?)?;
+        let mut agents = Vec::new();
+        for msu in msus {
+            let mut cmd = node_command(args, site, "msu", hub, "tcp/127.0.0.1:0")?;
+            cmd.args(["--robot", &msu.robot, "--config"])
+                .arg(msu_file.path())
+                .args(&to_recorder);
+            credential(&mut cmd, Identity::Robot(msu.robot.clone()));
+            agents.push((format!("msu {}", msu.robot), cmd));
+        }
+        Ok(Self {
+            router,
+            central,
+            standby,
+            cells,
+            world,
+            msus: agents,
+            web,
+            msu_file,
+        })
+    }
+}
+
+/// The central unit's firing plan and survey calibration flags (its
+/// standby gets the same).
+fn central_flags(args: &SimArgs, profile: &NoiseProfile) -> Vec<String> {
+    // The flag's own spelling, from the same clap definition that parses it.
+    let firing = clap::ValueEnum::to_possible_value(&args.firing)
+        .map(|v| v.get_name().to_string())
+        .unwrap_or_default();
+    let mut flags = vec!["--firing".to_string(), firing];
+    if args.no_survey_calibration {
+        flags.push("--no-survey-calibration".into());
+    } else {
+        flags.extend([
+            "--timing-sigma-us".to_string(),
+            format!("{}", ickon_sim::engine::timing_sigma_s(profile) * 1e6),
+            "--cell-sync-sigma-us".to_string(),
+            format!("{}", ickon_sim::engine::cell_sync_sigma_s(profile) * 1e6),
+        ]);
+    }
+    flags
+}
+
+/// What each MSU agent is started with: the same estimator set-up as `ickon
+/// eval` (the robot's start pose and the profile's sensor data sheet), and
+/// the nominal drive of the simulated robots (what the agent converts
+/// encoder ticks with).
+pub(crate) fn msu_starts(
+    args: &SimArgs,
+    site: &Site,
+    profile: &NoiseProfile,
+    robots: &[String],
+) -> anyhow::Result<Vec<sim_hook::MsuStart>> {
+    let drive = ickon_sim::robot::DriveSpec::default();
+    robots
+        .iter()
+        .map(|robot| {
+            let start = site
+                .robots
+                .iter()
+                .find(|r| &r.id == robot)
+                .map_or([0.0; 3], |r| r.start);
+            let config = ickon_sim::engine::estimator_config(
+                &args.estimator,
+                start,
+                site,
+                profile,
+                args.filter_options(),
+            )?;
+            // The value the agent's configuration file holds (`msu_file`):
+            // a float written in full, so the replay uses the agent's value.
+            let timing_sigma_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
+            Ok(sim_hook::MsuStart {
+                robot: robot.clone(),
+                estimator_json: serde_json::to_string(&config)?,
+                timing_sigma_us,
+                wheel_base_m: drive.wheel_base_m,
+                m_per_tick: drive.m_per_tick(),
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,236 @@
+//! What `ickon sim` reports: the live status line, and the report at the
+//! end (a table, or one JSON document with `--json`).
+
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+use ickon_proto::site::Site;
+
+use crate::args::SimArgs;
+use crate::launch::Mesh;
+use crate::metrics::{self, CellSummary, RobotSummary, RunStats};
+use crate::run::RunFacts;
+use crate::usage;
+
+/// The JSON document of `ickon sim --json`.
+#[derive(Debug, Serialize)]
+pub struct SimReport {
+    /// The site's name.
+    pub site: String,
+    /// The noise profile of the world.
+    pub profile: String,
+    /// The estimator every agent ran.
+    pub estimator: String,
+    /// The seed of every random draw.
+    pub seed: u64,
+    /// Whether odometry and gyro went over ROS 2 (`--ros2`).
+    pub ros2: bool,
+    /// How long the run was watched, seconds.
+    pub duration_s: f64,
+    /// Cycles per second of the schedule with every cell up: the fixes each
+    /// robot can get per second at most.
+    pub update_rate_hz: f64,
+    /// How the nodes reached each other.
+    pub mesh: Mesh,
+    /// Whether the router enforced access control (`--secure`).
+    pub secure: bool,
+    /// The endpoint every node connected to: the router's (the central
+    /// unit's with `--mesh peer`); it tells this run's processes apart.
+    pub central_endpoint: String,
+    /// Median one-hop Zenoh latency, microseconds.
+    pub zenoh_hop_p50_us: Option<f64>,
+    /// 99th percentile of the one-hop Zenoh latency, microseconds.
+    pub zenoh_hop_p99_us: Option<f64>,
+    /// Each robot's fixes, poses, errors and latencies.
+    pub robots: Vec<RobotSummary>,
+    /// Each cell's cycles fired and missed, and its sync error.
+    pub cells: Vec<CellSummary>,
+    /// Messages the observer could not decode.
+    pub bad_messages: u64,
+    /// Cycles the central unit triggered while the run was watched.
+    pub cycles_triggered: u64,
+    /// Of those, per second of the run.
+    pub cycles_per_s: f64,
+    /// CPU time and peak memory per kind of process, read just before they stopped.
+    pub processes: Vec<usage::KindUsage>,
+    /// The recording of `--record`: file, messages per topic, rates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recorded: Option<ickon_recording::RecordReport>,
+    /// Faults injected (`--faults`) and when, seconds from the start.
+    pub faults_done: Vec<(String, f64)>,
+    /// Nodes restarted after they died (`--restart`).
+    pub restarts: Vec<String>,
+}
+
+pub(crate) fn status_line(
+    stats: &RunStats,
+    last_burst: &std::collections::HashMap<String, Instant>,
+    cells: usize,
+    started: Instant,
+) -> String {
+    let firing = last_burst
+        .values()
+        .filter(|t| t.elapsed() < Duration::from_secs(2))
+        .count();
+    let robots: Vec<String> = stats
+        .robots
+        .iter()
+        .map(|(id, r)| {
+            let err = r
+                .current_error_m
+                .map(|e| format!("{:>4.0} mm", e * 1e3))
+                .unwrap_or_else(|| "   - mm".into());
+            format!("{id} {:>4.1} fix/s {err}", r.fixes_per_s())
+        })
+        .collect();
+    // Under occupancy firing a trigger names its transmitters.
+    let set = stats
+        .last_firing
+        .map_or("all tx".to_string(), |n| format!("{n} tx"));
+    format!(
+        "[{:>5.0} s] {} | cells firing {firing}/{cells}, {:.1} cycles/s, {set}   ",
+        started.elapsed().as_secs_f64(),
+        robots.join(" | "),
+        stats.cycles_per_s()
+    )
+}
+
+impl SimReport {
+    /// The report of a run from what the observer counted and `facts`.
+    pub(crate) fn assemble(
+        args: &SimArgs,
+        site: &Site,
+        robots: &[String],
+        stats: &RunStats,
+        facts: RunFacts,
+    ) -> Self {
+        let completed = metrics::completed_cycles(&stats.cycles_triggered);
+        SimReport {
+            site: site.name.clone(),
+            profile: args.profile.clone(),
+            estimator: args.estimator.clone(),
+            seed: args.seed,
+            ros2: args.ros2,
+            duration_s: args.duration,
+            update_rate_hz: facts.update_rate_hz,
+            mesh: args.mesh,
+            secure: facts.secure,
+            central_endpoint: facts.central_endpoint,
+            zenoh_hop_p50_us: metrics::percentile(&stats.hop_latencies_us, 50.0),
+            zenoh_hop_p99_us: metrics::percentile(&stats.hop_latencies_us, 99.0),
+            robots: robots
+                .iter()
+                .map(|r| {
+                    stats
+                        .robots
+                        .get(r)
+                        .map(|s| s.summary(r, completed.len()))
+                        .unwrap_or_else(|| {
+                            metrics::RobotStats::default().summary(r, completed.len())
+                        })
+                })
+                .collect(),
+            cells: site
+                .cells
+                .iter()
+                .map(|c| {
+                    let due = stats.cycles_for_cell(&c.id, &completed);
+                    stats
+                        .cells
+                        .get(&c.id)
+                        .map(|s| s.summary(&c.id, &due))
+                        .unwrap_or_else(|| metrics::CellStats::default().summary(&c.id, &due))
+                })
+                .collect(),
+            bad_messages: stats.bad_messages.values().sum(),
+            cycles_triggered: stats.cycles_triggered.len() as u64,
+            cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
+            processes: facts.processes,
+            recorded: facts.recorded,
+            faults_done: stats.faults_done.clone(),
+            restarts: stats.restarts.clone(),
+        }
+    }
+}
+
+pub(crate) fn render_report(r: &SimReport) -> String {
+    use std::fmt::Write;
+    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+    let us = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0}"));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s, {:.2} cycles/s",
+        r.site, r.estimator, r.profile, r.seed, r.duration_s, r.update_rate_hz
+    );
+    let _ = writeln!(
+        out,
+        "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
+        "robot",
+        "fixes",
+        "poses",
+        "mean mm",
+        "rmse mm",
+        "p95 mm",
+        "lat p50 us",
+        "lat p99 us",
+        "max fix gap s"
+    );
+    for x in &r.robots {
+        let _ = writeln!(
+            out,
+            "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
+            x.id,
+            x.fixes,
+            x.poses,
+            mm(x.mean_mm),
+            mm(x.rmse_mm),
+            mm(x.p95_mm),
+            us(x.latency_p50_us),
+            us(x.latency_p99_us),
+            x.longest_fix_gap_s
+                .map_or("-".to_string(), |g| format!("{g:.2}"))
+        );
+    }
+    for x in r.robots.iter().filter(|x| x.localising_poses > 0) {
+        let _ = writeln!(
+            out,
+            "{}: {} poses published as localising (no fix had confirmed them), not scored",
+            x.id, x.localising_poses
+        );
+    }
+    let _ = writeln!(
+        out,
+        "zenoh one-hop latency: p50 {} us, p99 {} us",
+        us(r.zenoh_hop_p50_us),
+        us(r.zenoh_hop_p99_us)
+    );
+    let _ = writeln!(
+        out,
+        "{:<6} {:>12} {:>7} {:>8} {:>16} {:>16}",
+        "cell", "cycles fired", "missed", "bursts", "sync err p99 us", "sync err max us"
+    );
+    for c in &r.cells {
+        let _ = writeln!(
+            out,
+            "{:<6} {:>12} {:>7} {:>8} {:>16} {:>16}",
+            c.id,
+            c.cycles_fired,
+            c.cycles_missed,
+            c.bursts,
+            us(c.sync_error_us),
+            us(c.sync_error_max_us)
+        );
+    }
+    if r.bad_messages > 0 {
+        let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);
+    }
+    for (fault, at_s) in &r.faults_done {
+        let _ = writeln!(out, "fault {fault} injected at {at_s:.1} s");
+    }
+    if !r.restarts.is_empty() {
+        let _ = writeln!(out, "restarted: {}", r.restarts.join(", "));
+    }
+    out
+}

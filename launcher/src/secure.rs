@@ -1,0 +1,123 @@
+//! `ickon sim --secure [DIR]`: the run's router with access control and
+//! every node, the launcher included, authenticated with its own credential,
+//! as `ickon site secure --sim` writes them (into a temporary directory
+//! removed at exit, or DIR).
+
+use std::path::Path;
+use std::process::Command;
+
+use ickon_proto::site::Site;
+
+use ickon_operator::secure::{Identity, Layout, SecuredDir, acl::Ros2Scope, write_dir};
+use ickon_runtime::CommandError;
+
+use crate::args::SimArgs;
+use crate::launch::Mesh;
+
+/// The credentials of one secured run.
+pub(crate) struct SimSecurity {
+    dir: SecuredDir,
+    /// Holds the generated directory until the run is over.
+    _temp: Option<tempfile::TempDir>,
+}
+
+impl SimSecurity {
+    /// With `--secure`: the directory given (checked: the router's files
+    /// and a credential for every node of this run), or a new set in a
+    /// temporary directory.
+    pub(crate) fn prepare(
+        args: &SimArgs,
+        site: &Site,
+        robots: &[String],
+    ) -> Result<Option<Self>, CommandError> {
+        let Some(wanted) = &args.secure else {
+            return Ok(None);
+        };
+        if args.mesh != Mesh::Router {
+            return Err(CommandError::bad_input(
+                "--secure needs --mesh router: access control is enforced by the router, peers talking directly bypass it",
+            ));
+        }
+        let result = if let Some(wanted) = wanted {
+            let mut needed = vec![Identity::Central, Identity::World, Identity::Observer];
+            needed.extend(site.cells.iter().map(|c| Identity::Cell(c.id.clone())));
+            needed.extend(robots.iter().map(|r| Identity::Robot(r.clone())));
+            if args.record.is_some() {
+                needed.push(Identity::Recorder);
+            }
+            SecuredDir::open(wanted, &needed).map(|dir| SimSecurity { dir, _temp: None })
+        } else {
+            generate(site)
+        };
+        result
+            .map(Some)
+            .map_err(|e| e.into_command_error().context("--secure"))
+    }
+
+    /// Starts the router with the ACL and the user/password check.
+    pub(crate) fn router(&self, cmd: &mut Command) {
+        cmd.arg("--zenoh-config").arg(self.dir.router());
+    }
+
+    /// Gives a node its credential (the flags on its command line still
+    /// say where to connect).
+    pub(crate) fn client(&self, cmd: &mut Command, identity: &Identity) {
+        cmd.arg("--zenoh-config").arg(self.dir.client(identity));
+    }
+
+    /// The client configuration of `identity`, for the launcher's own sessions.
+    pub(crate) fn client_file(&self, identity: &Identity) -> std::path::PathBuf {
+        self.dir.client(identity)
+    }
+
+    /// Where the admin credential is, to tell the user.
+    pub(crate) fn admin_hint(&self) -> String {
+        format!(
+            "access control on; `ickon admin` needs --zenoh-config {}",
+            self.dir.client(&Identity::Admin).display()
+        )
+    }
+}
+
+/// A fresh set of credentials for every identity of the site.
+fn generate(site: &Site) -> Result<SimSecurity, ickon_operator::secure::SecureError> {
+    let temp = tempfile::Builder::new()
+        .prefix("ickon-secure-")
+        .tempdir()
+        .map_err(|e| ickon_operator::secure::SecureError::Io {
+            path: std::env::temp_dir(),
+            source: e,
+        })?;
+    let domain = ros2_domain();
+    let layout = Layout {
+        listen: vec!["tcp/127.0.0.1:7447".into()],
+        connect: vec!["tcp/127.0.0.1:7447".into()],
+        link: vec![],
+        routers: 1,
+        sim: true,
+        ros2: Ros2Scope { domain },
+    };
+    let dir = write_dir(site, &temp.path().join("site"), &layout)?;
+    Ok(SimSecurity {
+        dir,
+        _temp: Some(temp),
+    })
+}
+
+/// The ROS domain the agents use with `--ros2` (`ROS_DOMAIN_ID`, else 0),
+/// so that the ACL names their keys.
+fn ros2_domain() -> u32 {
+    std::env::var("ROS_DOMAIN_ID")
+        .ok()
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or(0)
+}
+
+/// A Zenoh configuration starting from `file` (a credential), or the default.
+pub(crate) fn base_config(file: Option<&Path>) -> anyhow::Result<zenoh::Config> {
+    match file {
+        Some(f) => zenoh::Config::from_file(f)
+            .map_err(|e| anyhow::anyhow!("zenoh config {}: {e}", f.display())),
+        None => Ok(zenoh::Config::default()),
+    }
+}

@@ -439,7 +439,7 @@ impl CentralCore {
 
     /// Emits every trigger due at `now` (one per cycle, never two for one
     /// cycle); a standby emits nothing.
-    pub fn tick(&mut self, now: Time) -> Vec<Output> {
+    fn tick(&mut self, now: Time) -> Vec<Output> {
         let mut out = self.notice_clock_step_back(now);
         if self.standby.is_some() {
             return out;
@@ -761,7 +761,7 @@ impl CentralCore {
 
     /// A cell's liveliness token appeared (`up`) or disappeared at `now`;
     /// the schedule that follows from it, if any.
-    pub fn cell_alive(&mut self, id: &str, up: bool, now: Time) -> Vec<Output> {
+    fn cell_alive(&mut self, id: &str, up: bool, now: Time) -> Vec<Output> {
         let Some(c) = self.cells.get_mut(id) else {
             tracing::warn!("liveliness of unknown cell {id:?} ignored");
             return Vec::new();
@@ -775,7 +775,7 @@ impl CentralCore {
     }
 
     /// A cell's status report.
-    pub fn on_cell_status(&mut self, status: CellStatus) {
+    fn on_cell_status(&mut self, status: CellStatus) {
         if let Some(c) = self.cells.get_mut(&status.cell_id) {
             c.on_status(status);
         }
@@ -783,7 +783,7 @@ impl CentralCore {
 
     /// A burst report, its `actual` emission time on the master time base.
     /// Bursts of another epoch answer another central unit's triggers.
-    pub fn on_burst(&mut self, burst: &Burst) {
+    fn on_burst(&mut self, burst: &Burst) {
         if burst.epoch != self.epoch {
             return;
         }
@@ -793,7 +793,7 @@ impl CentralCore {
     }
 
     /// A robot's liveliness token appeared or disappeared.
-    pub fn robot_alive(&mut self, id: &str, up: bool) {
+    fn robot_alive(&mut self, id: &str, up: bool) {
         if let Some(r) = self.robot_mut(id) {
             r.alive = up;
         }
@@ -822,14 +822,14 @@ impl CentralCore {
     }
 
     /// A robot published a pose, received at `now`.
-    pub fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
+    fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
         if let Some(r) = self.robot_mut(id) {
             r.on_pose(pose, now);
         }
     }
 
     /// A robot published a fix at `now`.
-    pub fn on_fix(&mut self, id: &str, now: Time) {
+    fn on_fix(&mut self, id: &str, now: Time) {
         if let Some(r) = self.robot_mut(id) {
             r.on_fix(now);
         }

@@ -15,7 +15,7 @@ use ickon_proto::msg::admin::CoverageReport;
 use ickon_proto::site::{Site, Transmitter};
 use nalgebra::Vector3;
 
-use crate::schedule::AUDIBLE_RANGE_M;
+use crate::audibility::AUDIBLE_RANGE_M;
 
 /// Grid spacing when the admin does not ask for one, metres.
 pub const DEFAULT_RESOLUTION_M: f64 = 0.25;

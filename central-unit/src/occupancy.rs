@@ -30,8 +30,8 @@
 use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::time::{Duration, Time};
 
+use crate::audibility::GRID_M;
 use crate::pose_track::Velocity;
-use crate::schedule::GRID_M;
 use crate::spacing::{NeedMatrix, Packing, SpacingTable};
 
 /// How the central unit picks the transmitters of a cycle.

@@ -25,7 +25,7 @@
 use ickon_proto::site::Site;
 use ickon_proto::time::Duration;
 
-use crate::schedule::{AUDIBLE_RANGE_M, GRID_M, sample_points};
+use crate::audibility::{AUDIBLE_RANGE_M, GRID_M, sample_points};
 
 /// Spacings needed between every pair of transmitters: `need[i][j]` is the
 /// least time from `i`'s emission to `j`'s when `j` fires after `i`;

@@ -7,7 +7,18 @@ use ickon_proto::site::Site;
 use ickon_runtime::CommandError;
 
 use crate::faults;
-use crate::launch::Mesh;
+
+/// How the nodes of a run reach each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mesh {
+    /// As on a site: one router process, every node its client.
+    Router,
+    /// Every node a peer listening on loopback, connected to the central
+    /// unit, gossip making a full mesh (the layout before routers; kept to
+    /// compare).
+    Peer,
+}
 
 /// Arguments of `ickon sim`.
 #[derive(Debug, Args)]

@@ -5,7 +5,7 @@ use std::process::Command;
 use ickon_proto::site::Site;
 use rand::Rng;
 
-use crate::args::SimArgs;
+use crate::args::{Mesh, SimArgs};
 
 /// Injected clock errors of cells and robots: up to this offset...
 const MAX_CLOCK_OFFSET_US: f64 = 50_000.0;
@@ -37,18 +37,6 @@ pub(crate) fn free_port() -> std::io::Result<u16> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port())
-}
-
-/// How the nodes of a run reach each other.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Mesh {
-    /// As on a site: one router process, every node its client.
-    Router,
-    /// Every node a peer listening on loopback, connected to the central
-    /// unit, gossip making a full mesh (the layout before routers; kept to
-    /// compare).
-    Peer,
 }
 
 /// The `ickon node <role>` command line shared by every node of the mesh:

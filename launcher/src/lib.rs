@@ -30,9 +30,9 @@ mod secure;
 mod supervisor;
 mod usage;
 
+pub use args::Mesh;
 pub use args::SimArgs;
 pub use bench::{BenchCommand, run as run_bench};
-pub use launch::Mesh;
 pub use metrics::{CellSummary, RobotSummary};
 pub use report::SimReport;
 pub use run::run as run_sim;

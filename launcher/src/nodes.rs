@@ -10,9 +10,10 @@ use ickon_recording::sim_hook;
 use ickon_sim::profile::NoiseProfile;
 use rand::SeedableRng;
 
+use crate::args::Mesh;
 use crate::args::SimArgs;
 use crate::faults;
-use crate::launch::{self, CLOCK_STREAM, Mesh, clock_flags, node_command, router_command};
+use crate::launch::{self, CLOCK_STREAM, clock_flags, node_command, router_command};
 use crate::msu_file;
 use crate::secure::SimSecurity;
 

@@ -9,8 +9,8 @@ use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use zenoh::sample::SampleKind;
 
+use crate::args::Mesh;
 use crate::args::SimArgs;
-use crate::launch::Mesh;
 use crate::metrics::RunStats;
 use crate::report::status_line;
 use crate::supervisor;

@@ -7,10 +7,9 @@ use serde::Serialize;
 
 use ickon_proto::site::Site;
 
+use crate::args::Mesh;
 use crate::args::SimArgs;
-use crate::launch::Mesh;
 use crate::metrics::{self, CellSummary, RobotSummary, RunStats};
-use crate::run::RunFacts;
 use crate::usage;
 
 /// The JSON document of `ickon sim --json`.
@@ -94,6 +93,20 @@ pub(crate) fn status_line(
         robots.join(" | "),
         stats.cycles_per_s()
     )
+}
+
+/// What the report takes from the run beside the observer's statistics.
+pub(crate) struct RunFacts {
+    /// Cycles per second of the schedule with every cell up.
+    pub update_rate_hz: f64,
+    /// Whether the router enforced access control.
+    pub secure: bool,
+    /// The endpoint every node connected to.
+    pub central_endpoint: String,
+    /// CPU time and peak memory per kind of process.
+    pub processes: Vec<usage::KindUsage>,
+    /// The recording of `--record`, if it succeeded.
+    pub recorded: Option<ickon_recording::RecordReport>,
 }
 
 impl SimReport {

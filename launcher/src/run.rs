@@ -20,7 +20,7 @@ use crate::launch::{free_port, wait_for_listener};
 use crate::metrics::RunStats;
 use crate::nodes::{NodeCommands, msu_starts};
 use crate::observe::{observe, open_observer};
-use crate::report::{SimReport, render_report};
+use crate::report::{RunFacts, SimReport, render_report};
 use crate::secure::SimSecurity;
 use crate::supervisor::Supervisor;
 use crate::usage;
@@ -175,20 +175,6 @@ pub async fn measure(
         (f, _) => f,
     };
     Ok((report, failure))
-}
-
-/// What the report takes from the run beside the observer's statistics.
-pub(crate) struct RunFacts {
-    /// Cycles per second of the schedule with every cell up.
-    pub update_rate_hz: f64,
-    /// Whether the router enforced access control.
-    pub secure: bool,
-    /// The endpoint every node connected to.
-    pub central_endpoint: String,
-    /// CPU time and peak memory per kind of process.
-    pub processes: Vec<usage::KindUsage>,
-    /// The recording of `--record`, if it succeeded.
-    pub recorded: Option<ickon_recording::RecordReport>,
 }
 
 /// The launcher's own sessions on a started mesh: the observer, with its

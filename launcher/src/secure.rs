@@ -11,8 +11,8 @@ use ickon_proto::site::Site;
 use ickon_operator::secure::{Identity, Layout, SecuredDir, acl::Ros2Scope, write_dir};
 use ickon_runtime::CommandError;
 
+use crate::args::Mesh;
 use crate::args::SimArgs;
-use crate::launch::Mesh;
 
 /// The credentials of one secured run.
 pub(crate) struct SimSecurity {

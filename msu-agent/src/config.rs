@@ -1,4 +1,5 @@
-//! Building an [`MsuConfig`] from the site model, shared by the MSU agent
+//! What the MSU knows about its site and its robot ([`MsuConfig`]), built
+//! from the site model, shared by the MSU agent
 //! process and the virtual-time engine so that both solve alike.
 
 use ickon_fusion::estimator::tdoa_ekf::Floor;
@@ -6,7 +7,37 @@ use ickon_fusion::estimator::{EstimatorConfig, UnknownEstimator, WheelGeometry};
 use ickon_proto::msg::control::TransmitterEntry;
 use ickon_proto::site::Site;
 
-use crate::core::MsuConfig;
+use ickon_proto::site::{Column, Wall};
+
+/// What the MSU knows about its site and its robot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MsuConfig {
+    /// Speed of sound the MSU assumes, m/s.
+    pub speed_of_sound_m_s: f64,
+    /// Height of the receivers above the floor, metres.
+    pub height_m: f64,
+    /// Pointing angle of each receiver from the heading, counter-clockwise, radians.
+    pub receiver_angles_rad: Vec<f64>,
+    /// The transmitter lookup table.
+    pub transmitters: Vec<TransmitterEntry>,
+    /// The robot's nominal drive geometry (turns encoder ticks into metres).
+    pub wheels: WheelGeometry,
+    /// One-sigma timing noise of an arrival, seconds (weights the fix covariance).
+    pub timing_sigma_s: f64,
+    /// Largest range residual a used signal may keep, metres (reflection gate).
+    pub residual_gate_m: f64,
+    /// Floor area a fix must lie in (`[min_x, min_y]`, `[max_x, max_y]`, metres):
+    /// a solution outside cannot be the robot (a reflection or a wrong root).
+    pub floor_bounds_m: Option<[[f64; 2]; 2]>,
+    /// Largest acceptable one-sigma position uncertainty of a fix, metres
+    /// (larger: degenerate geometry, reported as no fix).
+    pub max_fix_sigma_m: f64,
+    /// The site's walls and columns: a transmitter they hide from where the
+    /// robot is can only be heard by a reflection (empty: nothing blocks).
+    pub walls: Vec<Wall>,
+    /// See `walls`.
+    pub columns: Vec<Column>,
+}
 
 /// Largest one-sigma position uncertainty a fix may have before it counts as
 /// degenerate geometry, metres.

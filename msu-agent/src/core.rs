@@ -4,99 +4,21 @@
 //! differences, odometry, gyro and obstacle ranges -> one or several
 //! estimators -> pose). An estimator refusing an input never withholds a fix.
 
-use ickon_fusion::estimator::{
-    EncoderSample, Estimator, EstimatorError, GyroSample, Input, RangeSample, WheelGeometry,
-};
-use ickon_fusion::tdoa;
+use ickon_fusion::estimator::{EncoderSample, Estimator, GyroSample, Input, RangeSample};
 use ickon_proto::msg::control::{
     CellStatus, CycleTrigger, MAX_LATE_M, MAX_SURVEY_OFFSET_M, Schedule, SurveyCalibration,
-    TransmitterEntry,
 };
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
 };
-use ickon_proto::site::{Column, Wall};
 use ickon_proto::time::{Duration, Time};
 
-use crate::assembly::AssemblyError;
+pub use crate::config::MsuConfig;
+pub use crate::error::MsuError;
 use crate::fusion_clock::FusionClock;
 use crate::host::FusionHost;
 use crate::solver::FixSolver;
 use crate::time_gate::{TimeGate, Verdict};
-
-/// What the MSU knows about its site and its robot.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MsuConfig {
-    /// Speed of sound the MSU assumes, m/s.
-    pub speed_of_sound_m_s: f64,
-    /// Height of the receivers above the floor, metres.
-    pub height_m: f64,
-    /// Pointing angle of each receiver from the heading, counter-clockwise, radians.
-    pub receiver_angles_rad: Vec<f64>,
-    /// The transmitter lookup table.
-    pub transmitters: Vec<TransmitterEntry>,
-    /// The robot's nominal drive geometry (turns encoder ticks into metres).
-    pub wheels: WheelGeometry,
-    /// One-sigma timing noise of an arrival, seconds (weights the fix covariance).
-    pub timing_sigma_s: f64,
-    /// Largest range residual a used signal may keep, metres (reflection gate).
-    pub residual_gate_m: f64,
-    /// Floor area a fix must lie in (`[min_x, min_y]`, `[max_x, max_y]`, metres):
-    /// a solution outside cannot be the robot (a reflection or a wrong root).
-    pub floor_bounds_m: Option<[[f64; 2]; 2]>,
-    /// Largest acceptable one-sigma position uncertainty of a fix, metres
-    /// (larger: degenerate geometry, reported as no fix).
-    pub max_fix_sigma_m: f64,
-    /// The site's walls and columns: a transmitter they hide from where the
-    /// robot is can only be heard by a reflection (empty: nothing blocks).
-    pub walls: Vec<Wall>,
-    /// See `walls`.
-    pub columns: Vec<Column>,
-}
-
-/// Why a message could not be used.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum MsuError {
-    /// No schedule yet: arrivals cannot be matched to emissions.
-    #[error("no schedule received yet")]
-    NoSchedule,
-    /// The cycle could not be assembled.
-    #[error(transparent)]
-    Assembly(#[from] AssemblyError),
-    /// The cycle's signals are malformed (cannot come from a working MSU).
-    #[error(transparent)]
-    Solve(#[from] tdoa::SolveError),
-    /// The estimator rejected the input.
-    #[error(transparent)]
-    Estimator(#[from] EstimatorError),
-    /// The schedule was refused (see [`ickon_proto::epoch`]).
-    #[error(transparent)]
-    Schedule(#[from] ickon_proto::epoch::ScheduleRefused),
-    /// A cell status that cannot be used.
-    #[error("status of cell {cell:?}: {reason}")]
-    CellStatus {
-        /// The cell it names.
-        cell: String,
-        /// What is wrong with it.
-        reason: &'static str,
-    },
-    /// A survey calibration that cannot be used.
-    #[error("survey calibration {version} of epoch {epoch}: {reason}")]
-    Survey {
-        /// Its epoch.
-        epoch: u64,
-        /// Its version.
-        version: u32,
-        /// What is wrong with it.
-        reason: String,
-    },
-    /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
-    #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
-    FromTheFuture {
-        /// How far ahead, seconds.
-        ahead_s: f64,
-    },
-}
 
 /// Largest sync sigma a cell status may report: 10 ms, 3.4 m of sound.
 pub const MAX_CELL_SYNC_SIGMA: Duration = Duration::from_millis(10);
@@ -173,16 +95,10 @@ impl MsuCore {
     /// Takes the schedule the arrivals are matched against, if the rules
     /// of [`ickon_proto::epoch`] allow it (an altered or backward one is
     /// refused, and the one in force stays).
-    pub fn set_schedule(&mut self, schedule: Schedule) -> Result<(), MsuError> {
+    pub(crate) fn set_schedule(&mut self, schedule: Schedule) -> Result<(), MsuError> {
         self.solver
             .set_schedule(schedule)
             .map_err(MsuError::Schedule)
-    }
-
-    /// The trigger of the next cycle to solve (which transmitters fire, and
-    /// when), or `None` for every emission of the schedule.
-    pub fn set_cycle_trigger(&mut self, trigger: Option<CycleTrigger>) {
-        self.solver.set_cycle_trigger(trigger);
     }
 
     /// A cycle trigger heard from the central unit (which transmitters fire
@@ -192,7 +108,7 @@ impl MsuCore {
     /// status: a recording's replay starts at the first input the agent
     /// took and cannot tell the triggers the agent heard before it from
     /// those sent before it listened.
-    pub fn on_trigger(&mut self, trigger: CycleTrigger) {
+    pub(crate) fn on_trigger(&mut self, trigger: CycleTrigger) {
         if self.first_input.is_some() {
             self.solver.note_trigger(trigger);
         }
@@ -207,7 +123,7 @@ impl MsuCore {
     /// replay starts at the first input the agent took, and the statuses it
     /// had heard before that cannot be told from those it had not (each
     /// cell reports every second, so the next one comes soon).
-    pub fn on_cell_status(&mut self, status: &CellStatus) -> Result<(), MsuError> {
+    pub(crate) fn on_cell_status(&mut self, status: &CellStatus) -> Result<(), MsuError> {
         let refuse = |reason| MsuError::CellStatus {
             cell: status.cell_id.clone(),
             reason,
@@ -334,7 +250,10 @@ impl MsuCore {
     /// to the estimators. `Ok(Some(fix))` for every valid fix, whether or
     /// not an estimator took it (refusals are counted by the host);
     /// `Ok(None)`: no fix this cycle; `Err`: the message cannot be used.
-    pub fn on_arrivals(&mut self, msg: &UltrasoundArrivals) -> Result<Option<Fix>, MsuError> {
+    pub(crate) fn on_arrivals(
+        &mut self,
+        msg: &UltrasoundArrivals,
+    ) -> Result<Option<Fix>, MsuError> {
         if let Some(last) = msg.arrivals.iter().map(|a| a.t_arrival).max() {
             self.gate(last)?;
         }
@@ -387,7 +306,10 @@ impl MsuCore {
     /// unknown or repeated transmitter, an offset or sigma that is not a
     /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`] or a
     /// lateness beyond [`MAX_LATE_M`].
-    pub fn on_survey_calibration(&mut self, c: &SurveyCalibration) -> Result<bool, MsuError> {
+    pub(crate) fn on_survey_calibration(
+        &mut self,
+        c: &SurveyCalibration,
+    ) -> Result<bool, MsuError> {
         let refuse = |reason: String| MsuError::Survey {
             epoch: c.epoch,
             version: c.version,
@@ -474,7 +396,7 @@ impl MsuCore {
     }
 
     /// Feeds wheel odometry (its encoder ticks, with the nominal geometry).
-    pub fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
+    pub(crate) fn on_odometry(&mut self, odom: &Odometry) -> Result<(), MsuError> {
         self.gate(odom.stamp)?;
         self.last_odometry = Some(self.last_odometry.map_or(odom.stamp, |t| t.max(odom.stamp)));
         let geometry = self.solver.config().wheels;
@@ -490,7 +412,7 @@ impl MsuCore {
     }
 
     /// Feeds one gyro sample.
-    pub fn on_imu(&mut self, imu: &Imu) -> Result<(), MsuError> {
+    pub(crate) fn on_imu(&mut self, imu: &Imu) -> Result<(), MsuError> {
         self.gate(imu.stamp)?;
         self.host.feed(&Input::Gyro(GyroSample {
             t_s: self.clock.to_fusion(imu.stamp),
@@ -500,7 +422,7 @@ impl MsuCore {
     }
 
     /// Feeds one obstacle-sensor sample.
-    pub fn on_range(&mut self, r: &ObstacleRanges) -> Result<(), MsuError> {
+    pub(crate) fn on_range(&mut self, r: &ObstacleRanges) -> Result<(), MsuError> {
         self.gate(r.stamp)?;
         self.host.feed(&Input::Range(RangeSample {
             t_s: self.clock.to_fusion(r.stamp),
@@ -566,10 +488,12 @@ mod survey_tests;
 mod sync_tests;
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use ickon_fusion::estimator::WheelGeometry;
     use ickon_fusion::estimator::build_by_name;
     use ickon_proto::msg::control::Emission;
+    use ickon_proto::msg::control::TransmitterEntry;
     use ickon_proto::msg::robot::{Arrival, FixQuality};
     use ickon_proto::time::{Duration, Time};
 
@@ -586,7 +510,7 @@ mod tests {
         core_with("msu-raw")
     }
 
-    pub(super) fn core_with(estimator: &str) -> MsuCore {
+    pub(crate) fn core_with(estimator: &str) -> MsuCore {
         let config = MsuConfig {
             speed_of_sound_m_s: C,
             height_m: 0.5,

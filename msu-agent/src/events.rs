@@ -10,7 +10,8 @@
 use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
 
-use crate::core::{MsuCore, MsuError};
+use crate::core::MsuCore;
+use crate::error::MsuError;
 
 /// Something that happened to the MSU.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,7 +35,7 @@ pub enum Event {
 }
 
 /// Which kind of input an [`Output::Refused`] concerns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum InputKind {
     /// An arrivals message.
     Arrivals,

@@ -29,9 +29,10 @@ use ickon_proto::time::{Duration, Time};
 use nalgebra::{Vector2, Vector3};
 
 use crate::assembly::{Signal, assemble, clock_of_cell};
+use crate::config::MsuConfig;
 use crate::control_timing::PendingControl;
-use crate::core::{MsuConfig, MsuError};
 use crate::cycle_match::{Clarity, Matched, RecentTriggers, cycle_start_ns};
+use crate::error::MsuError;
 use crate::fusion_clock::FusionClock;
 use crate::motion::CycleMotion;
 
@@ -64,9 +65,6 @@ pub struct SolvedCycle {
 pub struct FixSolver {
     config: MsuConfig,
     schedules: ScheduleBook,
-    /// The trigger of the cycle about to be solved, when the central unit
-    /// names which transmitters fire (occupancy firing, issue 20).
-    cycle_trigger: Option<CycleTrigger>,
     /// The triggers heard from the central unit, when the MSU follows them.
     recent_triggers: RecentTriggers,
     last_fix: Option<(Time, Vector2<f64>)>,
@@ -105,7 +103,6 @@ impl FixSolver {
             pending: PendingControl::default(),
             config,
             schedules: ScheduleBook::new(),
-            cycle_trigger: None,
             recent_triggers: RecentTriggers::default(),
             last_fix: None,
             last_good: None,
@@ -244,14 +241,6 @@ impl FixSolver {
         Ok(())
     }
 
-    /// The trigger of the next cycle to solve: its firings and period
-    /// replace the schedule's emissions for that cycle (the schedule
-    /// itself, under the rules of [`ickon_proto::epoch`], stays as
-    /// published). `None`: every emission of the schedule fires.
-    pub fn set_cycle_trigger(&mut self, trigger: Option<CycleTrigger>) {
-        self.cycle_trigger = trigger;
-    }
-
     /// A cycle trigger heard from the central unit: later arrivals are
     /// matched to the recent trigger that explains them best
     /// ([`crate::cycle_match`]), whose firings and offsets they are solved
@@ -292,30 +281,28 @@ impl FixSolver {
     ) -> Result<SolvedCycle, MsuError> {
         // The flight times a choice awaiting the next trigger was made with.
         let mut matching_flights_ns = Vec::new();
-        let matched = match &self.cycle_trigger {
-            Some(t) => Some(Matched {
-                trigger: t.clone(),
-                clarity: Clarity::Clear,
-            }),
+        // A matched trigger's firings and period replace the schedule's
+        // emissions for that cycle (the schedule itself, under the rules of
+        // [`ickon_proto::epoch`], stays as published).
+        let matched = if self.recent_triggers.is_empty() {
             // The whole schedule fires: nothing to match, no flight to work out.
-            None if self.recent_triggers.is_empty() => None,
-            None => {
-                let flight_ns = self.expected_flights(msg, hint);
-                let matched = self
-                    .recent_triggers
-                    .best_for(msg, &self.schedules, &flight_ns);
-                if matched
-                    .as_ref()
-                    .is_some_and(|m| m.clarity == Clarity::AwaitingNext)
-                {
-                    matching_flights_ns = msg
-                        .arrivals
-                        .iter()
-                        .filter_map(|a| Some((a.tx_id, flight_ns(a.tx_id)?)))
-                        .collect();
-                }
-                matched
+            None
+        } else {
+            let flight_ns = self.expected_flights(msg, hint);
+            let matched = self
+                .recent_triggers
+                .best_for(msg, &self.schedules, &flight_ns);
+            if matched
+                .as_ref()
+                .is_some_and(|m| m.clarity == Clarity::AwaitingNext)
+            {
+                matching_flights_ns = msg
+                    .arrivals
+                    .iter()
+                    .filter_map(|a| Some((a.tx_id, flight_ns(a.tx_id)?)))
+                    .collect();
             }
+            matched
         };
         self.apply_due_control(matched.as_ref().map(|m| &m.trigger));
         let trigger = matched.as_ref().map(|m| &m.trigger);
@@ -415,9 +402,8 @@ impl FixSolver {
             self.motion
                 .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
             self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
-            // The clock offset serves only matching: a trigger handed in
-            // (`set_cycle_trigger`) needs none.
-            if let (None, Some(Matched { trigger, clarity })) = (&self.cycle_trigger, &matched) {
+            // The clock offset serves the matching of later cycles.
+            if let Some(Matched { trigger, clarity }) = &matched {
                 let from_fix = self.flights_from(Some([sol.position_m[0], sol.position_m[1]]));
                 match (clarity, cycle_start_ns(msg, &schedule.emissions, &from_fix)) {
                     (Clarity::Clear, Some(start_ns)) => {

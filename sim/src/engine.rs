@@ -10,7 +10,7 @@ use std::collections::{BTreeMap, BinaryHeap};
 
 use ickon_central::survey_calibration::CalibrationConfig;
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
-use ickon_msu::{MsuConfig, MsuCore};
+use ickon_msu::{Event as MsuEvent, MsuConfig, MsuCore, MsuDriver};
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::Fix;
 use ickon_proto::site::Site;
@@ -98,6 +98,9 @@ pub enum RunError {
     /// The MSU refused the control plane's schedule.
     #[error(transparent)]
     Msu(#[from] ickon_msu::MsuError),
+    /// The MSU refused the control plane's first schedule.
+    #[error("the MSU refused the schedule: {0}")]
+    Refused(String),
     /// More robots asked for than the site has (or none).
     #[error("{asked} robots asked for: the site has {site} (give 1 to {site})")]
     FleetSize {
@@ -171,6 +174,9 @@ pub struct RunOutput {
     pub cells: Vec<CellSyncReport>,
     /// What collisions and reverberation did to the robot's detections.
     pub collisions: crate::collision::CollisionCounts,
+    /// Inputs the MSU core refused, by kind, with the first reason (`None`:
+    /// none was).
+    pub refused_inputs: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -339,8 +345,11 @@ pub fn run(
         )?)?);
     }
     let n_est = estimators.len();
-    let mut core = MsuCore::with_estimators(msu.clone(), estimators);
-    core.set_schedule(schedule.clone())?;
+    let mut msu_driver = MsuDriver::new(MsuCore::with_estimators(msu.clone(), estimators));
+    msu_driver.feed(MsuEvent::Schedule(schedule.clone()));
+    if let Some(why) = msu_driver.first_refusal() {
+        return Err(RunError::Refused(why.to_string()));
+    }
     let route_len = world.robot.route_length_m();
     let n_refs = route.reference_points.len().max(1);
     let total_refs = n_refs * config.tours as usize;
@@ -361,11 +370,10 @@ pub fn run(
         timing_sigma_s: msu.timing_sigma_s,
         cells: Vec::new(),
         collisions: Default::default(),
+        refused_inputs: None,
     };
     // The true emission times of each cycle's bursts, until it is delivered.
     let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
-    // Each cycle's trigger (which transmitters fire when), until delivered.
-    let mut triggers: BTreeMap<u64, ickon_proto::msg::control::CycleTrigger> = BTreeMap::new();
     let mut q = Queue::default();
     let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
     q.push(PHYSICS_DT_S, Event::Physics);
@@ -379,10 +387,10 @@ pub fn run(
     while let Some((t, ev)) = q.pop() {
         control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
         for status in control.take_statuses() {
-            let _ = core.on_cell_status(&status);
+            msu_driver.feed(MsuEvent::CellStatus(status));
         }
         for survey in control.take_surveys() {
-            let _ = core.on_survey_calibration(&survey);
+            msu_driver.feed(MsuEvent::Survey(survey));
         }
         for trigger in control.take_triggers() {
             // Every burst of the cycle has been heard by then.
@@ -393,7 +401,9 @@ pub fn run(
                 trigger.start.as_secs_f64() + period_s + max_flight_s,
                 Event::Deliver(trigger.cycle),
             );
-            triggers.insert(trigger.cycle, trigger);
+            // As on the mesh: the MSU hears every trigger and matches its
+            // arrivals to one itself (`ickon_msu::cycle_match`).
+            msu_driver.feed(MsuEvent::Trigger(trigger));
         }
         for b in control.take_fired() {
             emissions
@@ -412,7 +422,7 @@ pub fn run(
                     if world.robot.progress_m < s_ref {
                         break;
                     }
-                    let poses: Vec<_> = (0..n_est).map(|i| core.pose_of(i)).collect();
+                    let poses: Vec<_> = (0..n_est).map(|i| msu_driver.core().pose_of(i)).collect();
                     out.refs.push(RefSample {
                         tour: u32::try_from(tour + 1).unwrap_or(u32::MAX),
                         index: idx,
@@ -446,18 +456,18 @@ pub fn run(
             }
             Event::Gyro => {
                 let imu = world.gyro(t, gyro_dt);
-                // A rejected sample leaves the estimator as it was; the host counts it.
-                let _ = core.on_imu(&imu);
+                // A rejected sample leaves the estimator as it was; the driver counts it.
+                msu_driver.feed(MsuEvent::Imu(imu));
                 q.push(t + gyro_dt, Event::Gyro);
             }
             Event::Encoders => {
                 let odom = world.odometry(t);
-                let _ = core.on_odometry(&odom);
+                msu_driver.feed(MsuEvent::Odometry(odom));
                 q.push(t + 1.0 / ENCODER_HZ, Event::Encoders);
             }
             Event::Ranges => {
                 let r = world.ranges(t);
-                let _ = core.on_range(&r);
+                msu_driver.feed(MsuEvent::Range(r));
                 q.push(t + 1.0 / RANGES_HZ, Event::Ranges);
             }
             Event::Deliver(k) => {
@@ -466,16 +476,12 @@ pub fn run(
                 let fired = std::mem::replace(&mut emissions, later)
                     .remove(&k)
                     .unwrap_or_default();
-                let later = triggers.split_off(&(k + 1));
-                let trigger = std::mem::replace(&mut triggers, later).remove(&k);
                 if fired.is_empty() {
                     continue;
                 }
                 let msg = world.arrivals_from_emissions(&fired);
-                // The control plane's own schedules: never refused.
-                let _ = core.set_schedule(control.schedule_for(k).clone());
-                core.set_cycle_trigger(trigger);
-                if let Ok(Some(fix)) = core.on_arrivals(&msg) {
+                msu_driver.feed(MsuEvent::Schedule(control.schedule_for(k).clone()));
+                if let Some(fix) = msu_driver.feed(MsuEvent::Arrivals(msg)).fix {
                     control.send_to_central(ickon_central::core::Event::Fix {
                         robot: ROBOT_ID.into(),
                         fix: Box::new(fix.clone()),
@@ -503,7 +509,7 @@ pub fn run(
                     xy_m: [s.x_m, s.y_m],
                 });
                 for (i, trace) in out.estimate_traces.iter_mut().enumerate() {
-                    if let Some(p) = core.pose_of(i) {
+                    if let Some(p) = msu_driver.core().pose_of(i) {
                         trace.push(TracePoint {
                             tour,
                             xy_m: [p.x_m, p.y_m],
@@ -514,6 +520,7 @@ pub fn run(
             }
         }
     }
+    out.refused_inputs = msu_driver.refusal_summary();
     out.cells = control.sync_reports();
     out.collisions = world.collision_counts();
     progress(1.0);

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 
 use ickon_central::core::{CentralConfig, Event as CentralEvent};
 use ickon_fusion::estimator;
-use ickon_msu::MsuCore;
+use ickon_msu::{Event as MsuEvent, MsuCore, MsuDriver};
 use ickon_proto::msg::control::CycleTrigger;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -66,6 +66,10 @@ pub struct RobotResult {
     /// Of its fixes after the warm-up, those solved with the central unit's
     /// survey calibration.
     pub calibrated_fixes: u64,
+    /// Inputs its MSU core refused, by kind, with the first reason (absent:
+    /// none was).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refused_inputs: Option<String>,
 }
 
 /// A fleet run's results.
@@ -90,7 +94,7 @@ struct Member {
     id: String,
     route: String,
     world: World,
-    core: MsuCore,
+    msu: MsuDriver,
     fixes: u64,
     calibrated_fixes: u64,
     errors_mm: Vec<f64>,
@@ -126,9 +130,10 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             config.filter,
         )?)?;
         let msu = msu_config(site, &config.profile, world.drive.geometry());
-        let mut core = MsuCore::with_estimators(msu, vec![est]);
-        // The control plane's own schedules: never refused.
-        let _ = core.set_schedule(control.central().latest_schedule().clone());
+        let mut msu = MsuDriver::new(MsuCore::with_estimators(msu, vec![est]));
+        msu.feed(MsuEvent::Schedule(
+            control.central().latest_schedule().clone(),
+        ));
         control.send_to_central(CentralEvent::RobotAlive {
             id: spec.id.clone(),
             up: true,
@@ -137,7 +142,7 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             id: spec.id.clone(),
             route: spec.route.clone(),
             world,
-            core,
+            msu,
             fixes: 0,
             calibrated_fixes: 0,
             errors_mm: Vec::new(),
@@ -163,12 +168,12 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
         control.advance_to(Time::from_secs_f64(t));
         for status in control.take_statuses() {
             for m in &mut members {
-                let _ = m.core.on_cell_status(&status);
+                m.msu.feed(MsuEvent::CellStatus(status.clone()));
             }
         }
         for survey in control.take_surveys() {
             for m in &mut members {
-                let _ = m.core.on_survey_calibration(&survey);
+                m.msu.feed(MsuEvent::Survey(survey.clone()));
             }
         }
         for trigger in control.take_triggers() {
@@ -185,7 +190,7 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             // As on the mesh: every MSU hears every trigger and matches its
             // arrivals to one itself (`ickon_msu::cycle_match`).
             for m in &mut members {
-                m.core.on_trigger(trigger.clone());
+                m.msu.feed(MsuEvent::Trigger(trigger.clone()));
             }
             triggers.insert(trigger.cycle, trigger);
         }
@@ -201,11 +206,11 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             m.world.step(t, PHYSICS_DT_S, moving);
             if step % gyro_every == 0 {
                 let imu = m.world.gyro(t, gyro_dt);
-                let _ = m.core.on_imu(&imu);
+                m.msu.feed(MsuEvent::Imu(imu));
             }
             if step % encoder_every == 0 {
                 let odom = m.world.odometry(t);
-                let _ = m.core.on_odometry(&odom);
+                m.msu.feed(MsuEvent::Odometry(odom));
             }
         }
         let now_ns = (t * 1e9) as i64;
@@ -222,8 +227,8 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
                 let schedule = control.schedule_for(k).clone();
                 for m in &mut members {
                     let msg = m.world.arrivals_from_emissions(&fired);
-                    let _ = m.core.set_schedule(schedule.clone());
-                    if let Ok(Some(fix)) = m.core.on_arrivals(&msg) {
+                    m.msu.feed(MsuEvent::Schedule(schedule.clone()));
+                    if let Some(fix) = m.msu.feed(MsuEvent::Arrivals(msg)).fix {
                         let calibrated = fix.survey_version != 0;
                         control.send_to_central(CentralEvent::Fix {
                             robot: m.id.clone(),
@@ -249,7 +254,9 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
         }
         if step % pose_every == 0 {
             for m in &mut members {
-                let Some(pose) = m.core.pose() else { continue };
+                let Some(pose) = m.msu.core().pose() else {
+                    continue;
+                };
                 if scoring {
                     let truth = m.world.truth(t);
                     let err = (pose.x_m - truth.x_m).hypot(pose.y_m - truth.y_m);
@@ -287,6 +294,7 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
                 },
                 collisions: c,
                 calibrated_fixes: m.calibrated_fixes,
+                refused_inputs: m.msu.refusal_summary(),
             }
         })
         .collect();

@@ -88,6 +88,11 @@ pub fn run(
             return Err(CommandError::failure(format!("{e}")));
         }
     };
+    for r in &out.robots {
+        if let Some(refused) = &r.refused_inputs {
+            eprintln!("warning: robot {}: the MSU core {refused}", r.id);
+        }
+    }
     if args.json {
         let doc = serde_json::json!({
             "site": site.name,

@@ -150,6 +150,11 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
         .map(|o| ickon_sim::score(o, site.speed_of_sound_m_s, site.msu.height_m))
         .collect();
     let flat: Vec<&Score> = reorder(&scores, &estimators);
+    for o in &outputs {
+        if let Some(refused) = &o.refused_inputs {
+            eprintln!("warning: route {}: the MSU core {refused}", o.config.route);
+        }
+    }
     if args.json {
         let doc = serde_json::json!({
             "site": site.name,

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::{RunReport, Sample};
+use super::report::{RunReport, Sample};
 use crate::chart::{DrawError, FAMILY, axes, gridlines, legend, span};
 
 const FILTER: RGBColor = RGBColor(31, 119, 180);

@@ -59,8 +59,8 @@ use super::dead_reckoning::{
     DeadReckoningNoise, Increment, IncrementTracker, arc_step, propagate_covariance,
 };
 use super::gyro_calibration::GyroCalibration;
+use super::history::InOrderFilter;
 use super::obstacle_angle::{ObstacleAngle, ObstacleAngleParams, next_angle};
-use super::replay::Core;
 use super::{InitialPose, Input, PoseEstimate};
 use crate::angle;
 
@@ -99,7 +99,7 @@ impl Default for CdaParams {
             max_gyro_gap_s: 0.5,
             noise: DeadReckoningNoise::default(),
             initial_pose: InitialPose::default(),
-            history_s: super::registry::default_history_s(),
+            history_s: super::history::default_history_s(),
         }
     }
 }
@@ -339,7 +339,7 @@ impl Cda {
     }
 }
 
-impl Core for Cda {
+impl InOrderFilter for Cda {
     fn name(&self) -> &'static str {
         "cda"
     }

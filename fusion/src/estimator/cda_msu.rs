@@ -16,9 +16,9 @@
 
 use super::cda::{CdaChain, CdaParams};
 use super::heading_kf::HeadingKfParams;
+use super::history::InOrderFilter;
 use super::ickon_akf::HeadingPositionFusion;
 use super::position_akf::PositionAkfParams;
-use super::replay::Core;
 use super::{InitialPose, Input, PoseEstimate};
 
 /// Parameters of `cda-msu`.
@@ -44,7 +44,7 @@ impl Default for CdaMsuParams {
             heading: HeadingKfParams::default(),
             position: PositionAkfParams::default(),
             initial_pose: None,
-            history_s: super::registry::default_history_s(),
+            history_s: super::history::default_history_s(),
         }
     }
 }
@@ -74,7 +74,7 @@ impl CdaMsu {
     }
 }
 
-impl Core for CdaMsu {
+impl InOrderFilter for CdaMsu {
     fn name(&self) -> &'static str {
         "cda-msu"
     }

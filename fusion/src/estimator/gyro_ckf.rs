@@ -41,9 +41,9 @@
 use nalgebra::{Matrix2, Matrix3, RowVector2, Vector1, Vector2};
 
 use super::dead_reckoning::IncrementTracker;
+use super::history::InOrderFilter;
 use super::kf;
 use super::position_akf::{PositionAkf, PositionAkfParams};
-use super::replay::Core;
 use super::{InitialPose, Input, PoseEstimate};
 use crate::angle;
 
@@ -86,7 +86,7 @@ impl Default for GyroCkfParams {
             max_gyro_gap_s: 0.5,
             position: PositionAkfParams::default(),
             initial_pose: None,
-            history_s: super::registry::default_history_s(),
+            history_s: super::history::default_history_s(),
         }
     }
 }
@@ -212,7 +212,7 @@ impl GyroCkf {
     }
 }
 
-impl Core for GyroCkf {
+impl InOrderFilter for GyroCkf {
     fn name(&self) -> &'static str {
         "gyro-ckf"
     }

@@ -33,8 +33,8 @@ use nalgebra::{Matrix2, Matrix3};
 
 use super::dead_reckoning::IncrementTracker;
 use super::heading_kf::{HeadingKf, HeadingKfParams};
+use super::history::InOrderFilter;
 use super::position_akf::{PositionAkf, PositionAkfParams};
-use super::replay::Core;
 use super::start_check::{StartCheck, StartVerdict};
 use super::{InitialPose, Input, PoseEstimate};
 
@@ -58,7 +58,7 @@ impl Default for IckonAkfParams {
             heading: HeadingKfParams::default(),
             position: PositionAkfParams::default(),
             initial_pose: None,
-            history_s: super::registry::default_history_s(),
+            history_s: super::history::default_history_s(),
         }
     }
 }
@@ -145,7 +145,7 @@ impl HeadingPositionFusion {
     }
 }
 
-/// The `ickon-akf` state machine (wrap in [`super::replay::Replay`]).
+/// The `ickon-akf` state machine (wrap in [`super::history::LateInputHistory`]).
 #[derive(Debug, Clone)]
 pub struct IckonAkf {
     increments: IncrementTracker,
@@ -166,7 +166,7 @@ impl IckonAkf {
     }
 }
 
-impl Core for IckonAkf {
+impl InOrderFilter for IckonAkf {
     fn name(&self) -> &'static str {
         "ickon-akf"
     }

@@ -45,6 +45,7 @@ pub mod guard;
 mod gyro_calibration;
 pub mod gyro_ckf;
 pub mod heading_kf;
+pub mod history;
 pub mod ickon_akf;
 mod input;
 mod kf;
@@ -53,7 +54,6 @@ pub mod obstacle_angle;
 pub mod odometry;
 pub mod position_akf;
 mod registry;
-pub mod replay;
 mod start_check;
 pub mod tdoa_ekf;
 

@@ -15,7 +15,7 @@
 
 use nalgebra::{Matrix2, Matrix3};
 
-use super::replay::Core;
+use super::history::InOrderFilter;
 use super::{Input, PoseEstimate};
 use crate::tdoa::Fix;
 
@@ -33,7 +33,7 @@ impl Default for MsuRawParams {
     fn default() -> Self {
         Self {
             heading_sigma_deg: 30.0,
-            history_s: super::registry::default_history_s(),
+            history_s: super::history::default_history_s(),
         }
     }
 }
@@ -57,7 +57,7 @@ impl MsuRaw {
     }
 }
 
-impl Core for MsuRaw {
+impl InOrderFilter for MsuRaw {
     fn name(&self) -> &'static str {
         "msu-raw"
     }

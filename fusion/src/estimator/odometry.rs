@@ -17,7 +17,7 @@
 use nalgebra::Matrix3;
 
 use super::dead_reckoning::{DeadReckoningNoise, IncrementTracker, arc_step, propagate_covariance};
-use super::replay::Core;
+use super::history::InOrderFilter;
 use super::{InitialPose, Input, OdometrySample, PoseEstimate};
 
 /// Parameters of `odometry`.
@@ -37,7 +37,7 @@ impl Default for OdometryParams {
         Self {
             initial_pose: InitialPose::default(),
             noise: DeadReckoningNoise::default(),
-            history_s: super::registry::default_history_s(),
+            history_s: super::history::default_history_s(),
         }
     }
 }
@@ -95,7 +95,7 @@ impl Odometry {
     }
 }
 
-impl Core for Odometry {
+impl InOrderFilter for Odometry {
     fn name(&self) -> &'static str {
         "odometry"
     }

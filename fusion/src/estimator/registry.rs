@@ -12,10 +12,10 @@
 use super::cda::{Cda, CdaParams};
 use super::cda_msu::{CdaMsu, CdaMsuParams};
 use super::gyro_ckf::{GyroCkf, GyroCkfParams};
+use super::history::LateInputHistory;
 use super::ickon_akf::{IckonAkf, IckonAkfParams};
 use super::msu_raw::{MsuRaw, MsuRawParams};
 use super::odometry::{Odometry, OdometryParams};
-use super::replay::Replay;
 use super::tdoa_ekf::{TdoaEkf, TdoaEkfParams};
 use super::{Estimator, InvalidParameter};
 use crate::estimator::InitialPose;
@@ -32,11 +32,6 @@ const NAMES: [&str; 7] = [
     "cda-msu",
     "tdoa-ekf",
 ];
-
-/// Default seconds of input history kept for late inputs.
-pub(crate) fn default_history_s() -> f64 {
-    2.0
-}
 
 /// Every estimator name [`build_by_name`] accepts.
 pub fn names() -> &'static [&'static str] {
@@ -142,13 +137,21 @@ pub fn build(config: &EstimatorConfig) -> Result<Box<dyn Estimator>, InvalidPara
 
 fn build_valid(config: &EstimatorConfig) -> Box<dyn Estimator> {
     match config {
-        EstimatorConfig::Odometry(p) => Box::new(Replay::new(Odometry::new(p), p.history_s)),
-        EstimatorConfig::MsuRaw(p) => Box::new(Replay::new(MsuRaw::new(p), p.history_s)),
-        EstimatorConfig::IckonAkf(p) => Box::new(Replay::new(IckonAkf::new(p), p.history_s)),
-        EstimatorConfig::GyroCkf(p) => Box::new(Replay::new(GyroCkf::new(p), p.history_s)),
-        EstimatorConfig::Cda(p) => Box::new(Replay::new(Cda::new(p), p.history_s)),
-        EstimatorConfig::CdaMsu(p) => Box::new(Replay::new(CdaMsu::new(p), p.history_s)),
-        EstimatorConfig::TdoaEkf(p) => Box::new(Replay::new(TdoaEkf::new(p), p.history_s)),
+        EstimatorConfig::Odometry(p) => {
+            Box::new(LateInputHistory::new(Odometry::new(p), p.history_s))
+        }
+        EstimatorConfig::MsuRaw(p) => Box::new(LateInputHistory::new(MsuRaw::new(p), p.history_s)),
+        EstimatorConfig::IckonAkf(p) => {
+            Box::new(LateInputHistory::new(IckonAkf::new(p), p.history_s))
+        }
+        EstimatorConfig::GyroCkf(p) => {
+            Box::new(LateInputHistory::new(GyroCkf::new(p), p.history_s))
+        }
+        EstimatorConfig::Cda(p) => Box::new(LateInputHistory::new(Cda::new(p), p.history_s)),
+        EstimatorConfig::CdaMsu(p) => Box::new(LateInputHistory::new(CdaMsu::new(p), p.history_s)),
+        EstimatorConfig::TdoaEkf(p) => {
+            Box::new(LateInputHistory::new(TdoaEkf::new(p), p.history_s))
+        }
     }
 }
 

@@ -11,8 +11,8 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand};
 use serde::Serialize;
 
+use crate::args::Mesh;
 use crate::args::{SimArgs, check_args};
-use crate::launch::Mesh;
 use crate::report::SimReport;
 use crate::run::measure;
 use ickon_runtime::CommandError;

@@ -23,8 +23,8 @@ use ickon_fusion::estimator::{EstimatorConfig, UnknownEstimator, WheelGeometry};
 use ickon_proto::site::Site;
 use thiserror::Error;
 
+use crate::config::MsuConfig;
 use crate::config::apply_site;
-use crate::core::MsuConfig;
 
 /// Distance per encoder tick of a Pioneer 3-DX, metres (its 19.5 cm wheel,
 /// 500-line encoder and 38.3:1 gear): the drive the seeds used.

@@ -5,9 +5,12 @@
 //! without them the cycle gives its fix.
 
 use super::*;
+use ickon_fusion::estimator::WheelGeometry;
 use ickon_fusion::estimator::build_by_name;
 use ickon_proto::msg::control::Emission;
+use ickon_proto::msg::control::TransmitterEntry;
 use ickon_proto::msg::robot::{Arrival, Odometry};
+use ickon_proto::site::Wall;
 
 const C: f64 = 343.0;
 /// In the robot's room.

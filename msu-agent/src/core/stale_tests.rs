@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::events::{Event, Output};
+use ickon_fusion::estimator::WheelGeometry;
 use ickon_fusion::estimator::build_by_name;
 
 fn config() -> MsuConfig {

@@ -12,7 +12,7 @@
 //! input received before the agent's first pose); every later pose is then
 //! compared too. Without recorded poses the replay starts at the first input.
 
-use ickon_msu::MsuCore;
+use ickon_msu::{Event, MsuCore, MsuDriver};
 use ickon_proto::decode;
 use ickon_proto::keys::{Key, RobotTopic};
 use std::sync::Arc;
@@ -200,7 +200,7 @@ pub struct Published {
 /// calling `publish` for every pose the live agent would have published;
 /// `publish` returns `false` to stop early.
 pub fn run(
-    core: &mut MsuCore,
+    msu: &mut MsuDriver,
     inputs: &[(u64, Input)],
     join: Join,
     mut publish: impl FnMut(Published) -> bool,
@@ -213,59 +213,40 @@ pub fn run(
         .map(|(_, i)| i)
         .find(|i| matches!(i, Input::Schedule(_)))
     {
-        // A schedule refused here was refused by the live agent too (same rules).
-        let _ = core.set_schedule((**s).clone());
+        // A schedule refused here was refused by the live agent too (same
+        // rules); the driver counts it.
+        msu.feed(Event::Schedule((**s).clone()));
     }
     // No trigger, status or calibration before the joining point: the
     // agent takes none before its robot's first input (whether it had
     // heard them cannot be told).
+    // What the live agent refused, the replay refuses too (same rules):
+    // the driver counts it.
     for (t, input) in inputs.iter().skip(from) {
-        let pose_now = match input {
-            Input::Schedule(s) => {
-                let _ = core.set_schedule((**s).clone());
-                false
-            }
-            Input::Trigger(c) => {
-                core.on_trigger((**c).clone());
-                false
-            }
-            Input::CellStatus(s) => {
-                // A status refused here was refused by the live agent too.
-                let _ = core.on_cell_status(s);
-                false
-            }
-            Input::Survey(c) => {
-                // Refused here, refused by the live agent too.
-                let _ = core.on_survey_calibration(c);
-                false
-            }
-            Input::Arrivals(m) => matches!(core.on_arrivals(m), Ok(Some(_))),
-            Input::Odometry(m) => core.on_odometry(m).is_ok(),
+        let event = match input {
+            Input::Schedule(s) => Event::Schedule((**s).clone()),
+            Input::Trigger(c) => Event::Trigger((**c).clone()),
+            Input::CellStatus(s) => Event::CellStatus((**s).clone()),
+            Input::Survey(c) => Event::Survey((**c).clone()),
+            Input::Arrivals(m) => Event::Arrivals(m.clone()),
+            Input::Odometry(m) => Event::Odometry(*m),
             Input::Imu(_) if late_imu > 0 => {
                 late_imu -= 1;
-                false
+                continue;
             }
             Input::Range(_) if late_range > 0 => {
                 late_range -= 1;
-                false
+                continue;
             }
-            Input::Imu(m) => {
-                let _ = core.on_imu(m);
-                false
-            }
-            Input::Range(m) => {
-                let _ = core.on_range(m);
-                false
-            }
+            Input::Imu(m) => Event::Imu(*m),
+            Input::Range(m) => Event::Range(*m),
         };
-        if pose_now {
-            if let Some(pose) = core.pose() {
-                if !publish(Published {
-                    log_time_ns: *t,
-                    pose,
-                }) {
-                    return;
-                }
+        if let Some(pose) = msu.feed(event).pose {
+            if !publish(Published {
+                log_time_ns: *t,
+                pose,
+            }) {
+                return;
             }
         }
     }
@@ -355,7 +336,7 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         })
     });
     for (from, late_imu, late_range) in tries {
-        let mut core = make()?;
+        let mut msu = MsuDriver::new(make()?);
         let mut k = 0usize;
         let mut exact = 0usize;
         let mut worst = 0.0f64;
@@ -374,7 +355,7 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         // Paired by stamp: a live pose the replay does not make (an input
         // the recorder missed) is passed over; a replayed pose the agent did
         // not publish means the agent was not listening yet.
-        run(&mut core, &stream.inputs, join, |p| {
+        run(&mut msu, &stream.inputs, join, |p| {
             let stamp = p.pose.stamp.as_nanos();
             while live.get(k).is_some_and(|(_, lp)| lp.stamp_ns < stamp) {
                 k += 1;

@@ -72,6 +72,10 @@ struct EstimatorResult {
     scored: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     score: Option<Row>,
+    /// Inputs the core refused, by kind, with the first reason (the live
+    /// agent refused the same ones).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    refused_inputs: Option<String>,
     #[serde(skip)]
     published: Vec<Published>,
 }
@@ -364,7 +368,7 @@ fn replay_robot(
             )));
             continue;
         };
-        let Some(mut core) = make_core(setup, site, &config) else {
+        let Some(core) = make_core(setup, site, &config) else {
             problems.push(Problem(format!(
                 "robot {}: estimator {name}'s configuration is invalid",
                 stream.id
@@ -372,7 +376,8 @@ fn replay_robot(
             continue;
         };
         let mut published = Vec::new();
-        feed::run(&mut core, &stream.inputs, start, |p| {
+        let mut msu = ickon_msu::MsuDriver::new(core);
+        feed::run(&mut msu, &stream.inputs, start, |p| {
             published.push(p);
             true
         });
@@ -385,6 +390,7 @@ fn replay_robot(
             poses: published.len(),
             scored: scored.as_ref().map_or(0, |s| s.points),
             score: scored.map(|s| s.row),
+            refused_inputs: msu.refusal_summary(),
             published,
         });
     }
@@ -494,6 +500,11 @@ fn print_text(
         }
         if let Some(note) = &r.note {
             println!("{}: note: {note}", r.id);
+        }
+        for e in &r.estimators {
+            if let Some(refused) = &e.refused_inputs {
+                println!("{} {}: {refused}", r.id, e.estimator);
+            }
         }
     }
     let scores: Vec<Score> = robots

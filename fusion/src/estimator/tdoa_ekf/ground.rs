@@ -67,7 +67,7 @@ use super::systematic::HeardLately;
 use crate::angle;
 use crate::estimator::dead_reckoning::IncrementTracker;
 use crate::estimator::guard::{LateArrivals, LateParams};
-use crate::estimator::replay::Core;
+use crate::estimator::history::InOrderFilter;
 use crate::estimator::{InitialPose, Input, PoseEstimate, RangeDifferenceSample};
 use crate::tdoa;
 
@@ -190,7 +190,7 @@ impl Default for TdoaEkfParams {
             heading_chord_m: 0.5,
             settled_sigma_m: 0.1,
             track_heading_sigma_deg: 10.0,
-            history_s: crate::estimator::registry::default_history_s(),
+            history_s: crate::estimator::history::default_history_s(),
             late: ultrasound_late_params(),
             learn_cell_sync: false,
         }
@@ -1256,7 +1256,7 @@ fn turn_scale_sigma(params: &TdoaEkfParams) -> f64 {
     }
 }
 
-impl Core for TdoaEkf {
+impl InOrderFilter for TdoaEkf {
     fn name(&self) -> &'static str {
         "tdoa-ekf"
     }

@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use super::*;
-use crate::estimator::replay::Core;
+use crate::estimator::history::InOrderFilter;
 use crate::estimator::tests::sim::GEOMETRY;
 use crate::estimator::{
     EncoderSample, GyroSample, InitialPose, Input, RangeDifferenceSample, TransmitterClock,

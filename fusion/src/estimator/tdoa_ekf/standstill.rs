@@ -51,7 +51,7 @@ mod tests {
     use rand_distr::{Distribution, Normal};
 
     use super::*;
-    use crate::estimator::replay::Core;
+    use crate::estimator::history::InOrderFilter;
     use crate::estimator::tdoa_ekf::{TdoaEkf, TdoaEkfParams};
     use crate::estimator::tests::sim::GEOMETRY;
     use crate::estimator::{EncoderSample, GyroSample, InitialPose, Input};

@@ -6,7 +6,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use super::*;
-use crate::estimator::replay::Core;
+use crate::estimator::history::InOrderFilter;
 use crate::estimator::{InitialPose, Input, RangeDifferenceSample};
 
 /// Eight transmitters on the corners of a 6 x 6 x 3 m room.

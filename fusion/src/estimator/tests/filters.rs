@@ -6,8 +6,8 @@ use super::runs::{config, feed_for};
 use super::sim::{Circle, GEOMETRY, Noise, circling_run};
 use crate::estimator::cda::{Cda, CdaParams, HeadingSource};
 use crate::estimator::gyro_ckf::GyroCkfParams;
+use crate::estimator::history::LateInputHistory;
 use crate::estimator::ickon_akf::IckonAkfParams;
-use crate::estimator::replay::Replay;
 use crate::estimator::{
     EncoderSample, Estimator, EstimatorConfig, EstimatorError, GyroSample, InitialPose, Input,
     OdometrySample, RangeSample, build, names, two_sensor_heading,
@@ -273,8 +273,8 @@ fn fix_after_a_long_gap_reinitialises_the_position() {
     }
 }
 
-fn cda(params: CdaParams) -> Replay<Cda> {
-    Replay::new(Cda::new(&params), params.history_s)
+fn cda(params: CdaParams) -> LateInputHistory<Cda> {
+    LateInputHistory::new(Cda::new(&params), params.history_s)
 }
 
 #[test]
@@ -332,9 +332,9 @@ fn cda_switches_to_gyro_in_a_turn_and_back_on_a_straight() {
     e.handle(&gyro(0.05, 0.0)).unwrap();
     e.handle(&enc(0.1, 0, 0)).unwrap();
     e.handle(&enc(0.2, 0, 0)).unwrap();
-    let source = |e: &Replay<Cda>| e.core().chain().source();
+    let source = |e: &LateInputHistory<Cda>| e.core().chain().source();
     let (mut l, mut r, mut t) = (0_i64, 0_i64, 0.2);
-    let mut drive = |e: &mut Replay<Cda>, dl: i64, dr: i64, rate: f64| {
+    let mut drive = |e: &mut LateInputHistory<Cda>, dl: i64, dr: i64, rate: f64| {
         for k in 1..=10 {
             e.handle(&gyro(t + 0.01 * f64::from(k), rate)).unwrap();
         }

@@ -16,7 +16,7 @@ struct Recorder {
     applied: Vec<(f64, f64)>,
 }
 
-impl Core for Recorder {
+impl InOrderFilter for Recorder {
     fn name(&self) -> &'static str {
         "recorder"
     }
@@ -46,7 +46,7 @@ fn gyro(t_s: f64, rate_rad_s: f64) -> Input {
 /// Feeds `(time, tag)` inputs and checks, after each, the recorder against
 /// the accepted inputs sorted stably by time, and each refusal's reason.
 fn check(inputs: &[(f64, f64)], history_s: f64) -> Result<(), TestCaseError> {
-    let mut replay = Replay::new(Recorder::default(), history_s);
+    let mut replay = LateInputHistory::new(Recorder::default(), history_s);
     let mut accepted: Vec<(f64, f64)> = Vec::new();
     for &(t_s, tag) in inputs {
         let newest = accepted
@@ -124,7 +124,7 @@ fn a_poisoned_input_changes_nothing_in_order_or_late() {
 
 #[test]
 fn the_history_keeps_a_state_per_checkpoint_not_per_input() {
-    let mut replay = Replay::new(Recorder::default(), 2.0);
+    let mut replay = LateInputHistory::new(Recorder::default(), 2.0);
     // 150 inputs a second for 10 s, each tenth one 0.3 s late.
     for i in 0..1500 {
         let t_s = f64::from(i) / 150.0;

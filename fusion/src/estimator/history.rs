@@ -21,14 +21,19 @@ use std::collections::VecDeque;
 
 use super::{Estimator, EstimatorError, Input, PoseEstimate, checked_covariance};
 
+/// Default seconds of input history kept for late inputs.
+pub(crate) fn default_history_s() -> f64 {
+    2.0
+}
+
 /// Input time between two kept states, seconds: a late input steps at most
 /// this much further than it did when every state was kept (about 15 steps
 /// of a 100 Hz gyro and 50 Hz wheels), while copies of the state fall from
 /// one per input to one per checkpoint.
 pub const CHECKPOINT_S: f64 = 0.1;
 
-/// An estimator's state machine, fed strictly in time order by [`Replay`].
-pub trait Core: Clone + Send {
+/// An estimator's state machine, fed strictly in time order by [`LateInputHistory`].
+pub trait InOrderFilter: Clone + Send {
     /// Registry name.
     fn name(&self) -> &'static str;
     /// Applies one validated input, not older than any input applied before.
@@ -44,9 +49,9 @@ struct Entry<C> {
     before: Option<C>,
 }
 
-/// Wraps a [`Core`] into an [`Estimator`] that accepts late inputs.
+/// Wraps a [`InOrderFilter`] into an [`Estimator`] that accepts late inputs.
 #[derive(Debug, Clone)]
-pub struct Replay<C: Core> {
+pub struct LateInputHistory<C: InOrderFilter> {
     initial: C,
     current: C,
     history_s: f64,
@@ -58,7 +63,7 @@ pub struct Replay<C: Core> {
     floor_s: f64,
 }
 
-impl<C: Core> Replay<C> {
+impl<C: InOrderFilter> LateInputHistory<C> {
     /// Wraps `core`, keeping `history_s` seconds of inputs (negative or
     /// non-finite values are read as 0: no late input is accepted).
     pub fn new(core: C, history_s: f64) -> Self {
@@ -198,7 +203,7 @@ struct Rebuilt<C> {
     tail: Vec<Entry<C>>,
 }
 
-fn sane<C: Core>(core: &C) -> bool {
+fn sane<C: InOrderFilter>(core: &C) -> bool {
     match core.pose() {
         None => true,
         Some(p) => {
@@ -210,7 +215,7 @@ fn sane<C: Core>(core: &C) -> bool {
     }
 }
 
-impl<C: Core> Estimator for Replay<C> {
+impl<C: InOrderFilter> Estimator for LateInputHistory<C> {
     fn name(&self) -> &'static str {
         self.current.name()
     }

@@ -4,6 +4,8 @@
 //! library crate of the subcommand, and turn its result into an exit code.
 
 mod cli;
+#[cfg(test)]
+mod docs_check;
 mod node;
 
 use std::process::ExitCode;

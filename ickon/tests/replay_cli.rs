@@ -13,15 +13,11 @@ use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/util")
-        .join(name)
+    ickon_testkit::data::data_root().join("util").join(name)
 }
 
 fn imu_data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/util-imu")
-        .join(name)
+    ickon_testkit::data::data_root().join("util-imu").join(name)
 }
 
 fn ickon() -> Command {
@@ -59,6 +55,12 @@ fn estimator<'a>(doc: &'a serde_json::Value, name: &str) -> &'a serde_json::Valu
 
 #[test]
 fn json_names_the_file_and_scores_both_estimators() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     let out = replay("const1-trial1-tdoa2.csv", "1", &["--max-seconds", "20"]);
     let doc = json(&out);
     assert!(
@@ -105,6 +107,12 @@ fn json_names_the_file_and_scores_both_estimators() {
 
 #[test]
 fn tdoa3_outliers_are_rejected_and_do_not_spoil_the_estimate() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     let doc = json(&replay(
         "const1-trial1-tdoa3.csv",
         "1",
@@ -127,6 +135,12 @@ fn tdoa3_outliers_are_rejected_and_do_not_spoil_the_estimate() {
 /// from the truth, and never worse than the plain CV-EKF beside it.
 #[test]
 fn full_flights_meet_the_targets() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     for (flight, constellation, target_m) in [
         ("const1-trial1-tdoa2.csv", "1", 0.09),
         ("const2-trial1-tdoa2.csv", "2", 0.09),
@@ -158,6 +172,12 @@ fn full_flights_meet_the_targets() {
 /// of its measurements are over 0.5 m off, most of them before take-off).
 #[test]
 fn imu_flight_scores_position_and_attitude() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     let out = ickon()
         .args(["replay", "util", "--imu", "--json", "--data"])
         .arg(imu_data("pre0425-traj1-tdoa2.csv"))
@@ -188,6 +208,12 @@ fn imu_flight_scores_position_and_attitude() {
 /// publishes stays as close as before.
 #[test]
 fn a_clock_jump_in_the_file_restarts_the_filter_without_a_jump_in_the_estimate() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     let text = std::fs::read_to_string(data("const1-trial1-tdoa2.csv")).unwrap();
     let mut out = String::new();
     for (k, line) in text.lines().enumerate() {
@@ -224,6 +250,12 @@ fn a_clock_jump_in_the_file_restarts_the_filter_without_a_jump_in_the_estimate()
 
 #[test]
 fn plot_writes_the_trajectory_and_the_error_pictures() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     let dir = std::env::temp_dir().join(format!("ickon-replay-plot-{}", std::process::id()));
     let dir_s = dir.to_str().unwrap();
     let out = replay(
@@ -266,6 +298,12 @@ const ROW: &str = "0,1,0.5,0.01,1.0,0.0,1.0,0.01\n";
 
 #[test]
 fn bad_input_exits_with_code_two_naming_file_and_line() {
+    let (Some(_), Some(_)) = (
+        ickon_testkit::real_data("util"),
+        ickon_testkit::real_data("util-imu"),
+    ) else {
+        return;
+    };
     let anchors = data("anchors.csv");
     let missing = PathBuf::from("/nonexistent/flight.csv");
     let err = bad(&missing, &anchors);

@@ -17,7 +17,7 @@ use ickon_runtime::CommandError;
 pub struct RouterArgs {
     /// Zenoh flags: `-l` where clients and other routers reach this one
     /// (Zenoh's default `tcp/[::]:7447` when neither a file nor a flag says),
-    /// `-e` the other floors' routers, `-c` a router config file
+    /// `-e` the other floors' routers, `--zenoh-config` a router config file
     /// (`deploy/zenoh/site-router.json5`); the mode is always `router`.
     #[command(flatten)]
     pub zenoh: ZenohArgs,

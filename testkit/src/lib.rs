@@ -13,12 +13,14 @@
 //!   locators read back;
 //! - [`rosbags`]: [`Rosbags`], the independent ROS 2 CDR decoder and
 //!   encoder (PyPI `rosbags`) the ROS 2 tests check against;
-//! - [`site`]: [`lab_site_file`], the built-in site under a test's own name.
+//! - [`site`]: [`lab_site_file`], the built-in site under a test's own name;
+//! - [`data`]: [`real_data`], the real measurement data (`ICKON_DATA`).
 //!
 //! The test binaries themselves live with the crates they test (e.g.
 //! `ickon/tests/mesh_control.rs` for the `ickon` binary).
 
 pub mod child;
+pub mod data;
 pub mod observer;
 pub mod port;
 pub mod rosbags;
@@ -26,6 +28,7 @@ pub mod site;
 pub mod wait;
 
 pub use child::ChildGuard;
+pub use data::{DATA_VARIABLE, real_data};
 pub use observer::Observer;
 pub use port::{free_tcp_port, loopback_endpoint};
 pub use rosbags::Rosbags;

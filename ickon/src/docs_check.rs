@@ -1,0 +1,231 @@
+//! The documentation cannot drift from the code: the CLI reference
+//! (`docs/cli.md`) is generated from the clap definitions, every command
+//! line shown in README.md and docs/ parses with them, and every relative
+//! link and repository path they name exists.
+//!
+//! `ICKON_WRITE_CLI_REFERENCE=1 cargo test -p ickon docs_check` writes the
+//! reference anew after a change to the command line.
+
+use std::path::{Path, PathBuf};
+
+use clap::{CommandFactory, Parser};
+
+use crate::cli::Cli;
+
+/// The repository's root (the binary crate sits one level below it).
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// README.md and every Markdown file under docs/.
+fn documents() -> Vec<PathBuf> {
+    let mut out = vec![root().join("README.md")];
+    let mut dirs = vec![root().join("docs")];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).expect("docs/ is readable").flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "md") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The CLI reference as the code defines it.
+fn cli_reference() -> String {
+    let options = clap_markdown::MarkdownOptions::new()
+        .title("`ickon` command-line reference".to_string())
+        .show_footer(false);
+    clap_markdown::help_markdown_command_custom(&Cli::command(), &options)
+}
+
+#[test]
+fn the_cli_reference_is_the_one_the_code_generates() {
+    let path = root().join("docs/cli.md");
+    let generated = cli_reference();
+    if std::env::var_os("ICKON_WRITE_CLI_REFERENCE").is_some() {
+        std::fs::write(&path, &generated).expect("docs/cli.md is writable");
+    }
+    let checked_in = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        checked_in == generated,
+        "docs/cli.md differs from what the command-line definitions generate: \
+         run `ICKON_WRITE_CLI_REFERENCE=1 cargo test -p ickon docs_check` and commit it"
+    );
+}
+
+/// The command lines of the shell blocks of `text` (continuation lines
+/// joined, comments cut), with their line numbers.
+fn command_lines(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    let mut in_block = false;
+    let mut shell = false;
+    let mut pending: Option<(usize, String)> = None;
+    for (i, line) in text.lines().enumerate() {
+        let trimmed = line.trim_start();
+        if let Some(lang) = trimmed.strip_prefix("```") {
+            in_block = !in_block;
+            shell = in_block && !matches!(lang.trim(), "text" | "mermaid" | "ini" | "toml" | "json" | "json5");
+            continue;
+        }
+        if !(in_block && shell) {
+            continue;
+        }
+        let (start, mut joined) = match pending.take() {
+            Some((n, so_far)) => (n, so_far + " " + trimmed),
+            None => {
+                let cmd = trimmed.strip_prefix("$ ").unwrap_or(trimmed);
+                if !(cmd.starts_with("ickon ") || cmd.starts_with("ickon-") || cmd == "ickon" || cmd.starts_with("cargo run")) {
+                    continue;
+                }
+                (i + 1, cmd.to_string())
+            }
+        };
+        if let Some(rest) = joined.strip_suffix('\\') {
+            pending = Some((start, rest.trim_end().to_string()));
+            continue;
+        }
+        if let Some(cut) = joined.find(" #") {
+            joined.truncate(cut);
+        }
+        out.push((start, joined.trim().to_string()));
+    }
+    out
+}
+
+/// `line` as the `ickon` binary's arguments (a node binary's as `ickon node
+/// <role>`; `cargo run ... -- ARGS` as `ickon ARGS`), or `None` if it is not
+/// an ICKON-rs command.
+fn as_ickon_args(line: &str) -> Option<Vec<String>> {
+    let words = shlex::split(line)?;
+    // Placeholders the docs use for numbers.
+    let words: Vec<String> = words
+        .into_iter()
+        .map(|w| if w == "N" { "1".to_string() } else { w })
+        .collect();
+    let (first, rest) = words.split_first()?;
+    let mut args = vec!["ickon".to_string()];
+    match first.as_str() {
+        "ickon" => {}
+        "cargo" => {
+            let dashes = rest.iter().position(|w| w == "--")?;
+            if !rest[..dashes].iter().any(|w| w == "ickon") {
+                return None;
+            }
+            args.extend(rest[dashes + 1..].iter().cloned());
+            return Some(args);
+        }
+        node => {
+            let role = node.strip_prefix("ickon-")?;
+            args.extend(["node".to_string(), role.to_string()]);
+        }
+    }
+    args.extend(rest.iter().cloned());
+    Some(args)
+}
+
+#[test]
+fn every_command_line_in_the_docs_parses() {
+    let mut problems = Vec::new();
+    let mut checked = 0;
+    for doc in documents() {
+        let text = std::fs::read_to_string(&doc).expect("readable");
+        for (line, command) in command_lines(&text) {
+            let Some(args) = as_ickon_args(&command) else {
+                continue;
+            };
+            checked += 1;
+            if let Err(e) = Cli::try_parse_from(&args) {
+                use clap::error::ErrorKind::{DisplayHelp, DisplayVersion};
+                if !matches!(e.kind(), DisplayHelp | DisplayVersion) {
+                    let first = e.to_string().lines().next().unwrap_or_default().to_string();
+                    problems.push(format!("{}:{line}: {command}: {first}", doc.display()));
+                }
+            }
+        }
+    }
+    assert!(checked >= 20, "only {checked} command lines found in the docs");
+    assert!(problems.is_empty(), "command lines that do not parse:\n{}", problems.join("\n"));
+}
+
+/// The folders at the repository's root: a path in backticks that starts
+/// with one of them names a file of the repository.
+fn top_level_folders() -> Vec<String> {
+    std::fs::read_dir(root())
+        .expect("the root is readable")
+        .flatten()
+        .filter(|e| e.path().is_dir())
+        .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .filter(|n| !n.starts_with('.') && n != "target")
+        .collect()
+}
+
+#[test]
+fn every_relative_link_and_named_path_exists() {
+    let folders = top_level_folders();
+    let mut problems = Vec::new();
+    for doc in documents() {
+        let text = std::fs::read_to_string(&doc).expect("readable");
+        let dir = doc.parent().expect("a document is in a folder");
+        for (n, line) in text.lines().enumerate() {
+            for target in links(line) {
+                let target = target.split('#').next().unwrap_or_default();
+                if target.is_empty() || target.contains("://") || target.starts_with("mailto:") {
+                    continue;
+                }
+                if !dir.join(target).exists() {
+                    problems.push(format!("{}:{}: link {target}", doc.display(), n + 1));
+                }
+            }
+            for path in code_spans(line) {
+                let first = path.split('/').next().unwrap_or_default();
+                let named = path.contains('/')
+                    && folders.iter().any(|f| f == first)
+                    && !path.contains(['*', '<', '{', ' ', '$']);
+                if named && !root().join(path).exists() {
+                    problems.push(format!("{}:{}: path {path}", doc.display(), n + 1));
+                }
+            }
+        }
+    }
+    assert!(problems.is_empty(), "missing files:\n{}", problems.join("\n"));
+}
+
+/// The targets of the Markdown links `[text](target)` of a line.
+fn links(line: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let mut rest = line;
+    while let Some(i) = rest.find("](") {
+        let after = &rest[i + 2..];
+        let Some(end) = after.find(')') else { break };
+        out.push(after[..end].trim());
+        rest = &after[end..];
+    }
+    out
+}
+
+/// The contents of the code spans `` `...` `` of a line.
+fn code_spans(line: &str) -> Vec<&str> {
+    line.split('`').skip(1).step_by(2).collect()
+}
+
+#[test]
+fn the_checks_find_what_they_look_for() {
+    let text = "x\n```sh\nickon sim --robots 2 \\\n  --duration 5   # short\nls\n```\n```text\nickon nonsense\n```\n";
+    assert_eq!(command_lines(text), vec![(3, "ickon sim --robots 2 --duration 5".to_string())]);
+    assert_eq!(
+        as_ickon_args("ickon-cell --cell c1"),
+        Some(vec!["ickon".into(), "node".into(), "cell".into(), "--cell".into(), "c1".into()])
+    );
+    assert_eq!(
+        as_ickon_args("cargo run --release -p ickon -- sim"),
+        Some(vec!["ickon".into(), "sim".into()])
+    );
+    assert!(Cli::try_parse_from(as_ickon_args("ickon sim --robots two").unwrap()).is_err());
+    assert_eq!(links("see [a](docs/x.md#y) and [b](https://e.org)"), vec!["docs/x.md#y", "https://e.org"]);
+    assert_eq!(code_spans("a `deploy/sites/lab.toml` b `x`"), vec!["deploy/sites/lab.toml", "x"]);
+}

@@ -9,6 +9,19 @@
 //!   settled on a mirror solution passes its own gate), or
 //! - time jumps (a gap in the stream, a clock stepped back or forth).
 //!
+//! Its worst moments are bounded by three rules:
+//! - a measurement set aside as late counts against the state like one
+//!   the gate refused: a state that explains only the anchors it kept is
+//!   not confirmed by them (otherwise a wrong state sets aside the anchors
+//!   that contradict it and slides on with the rest);
+//! - anchors are blamed for late arrivals only once a consistent window
+//!   has confirmed the state since it was last placed;
+//! - a lost filter is re-placed only where the receiver can have gone
+//!   since its last confirmed estimate at its top speed
+//!   ([`LostParams::max_speed_m_s`]); a window farther away waits (the
+//!   reach grows with time, so a wrong confirmed estimate does not hold the
+//!   filter for ever), and nothing is published meanwhile.
+//!
 //! Any filter implementing [`GuardedFilter`] can be watched: the 3D
 //! constant-velocity and IMU filters of [`crate::estimator::flight`] do; a planar
 //! filter can, by answering its position at its known height.
@@ -62,6 +75,10 @@ pub struct LostParams {
     /// Standard deviation of the position when placed from a window, at
     /// least, metres.
     pub min_reset_sigma_m: f64,
+    /// The receiver's top speed, m/s: a window may re-place a lost filter
+    /// only where the receiver can have gone since its last confirmed
+    /// estimate at this speed (within 3 combined standard deviations).
+    pub max_speed_m_s: f64,
 }
 
 impl Default for LostParams {
@@ -69,7 +86,9 @@ impl Default for LostParams {
     /// twentieth of a second of UWB); 3 windows in a row (0.3 s); 0.5 m
     /// (five times the UWB measurement noise, well beyond the 0.1 m a
     /// window smears over); 1 s (a constant-velocity prediction then
-    /// carries up to a metre of error); 0.1 m.
+    /// carries up to a metre of error); 0.1 m; 3 m/s (a small multirotor
+    /// flying indoors, taken from the class of vehicle before any flight
+    /// was scored: faster than that it crosses a 7 m room in 2 s).
     fn default() -> Self {
         Self {
             rejections: RecoveryParams::default(),
@@ -78,6 +97,7 @@ impl Default for LostParams {
             disagree_m: 0.5,
             max_gap_s: 1.0,
             min_reset_sigma_m: 0.1,
+            max_speed_m_s: 3.0,
         }
     }
 }
@@ -127,6 +147,9 @@ pub struct GuardCounts {
     pub ambiguous_windows: u64,
     /// Times the filter was placed from a window.
     pub placements: u64,
+    /// Consistent windows not used to re-place the filter: farther from
+    /// its last confirmed estimate than the receiver can have moved.
+    pub unreachable_windows: u64,
 }
 
 /// What one measurement did.
@@ -157,7 +180,17 @@ pub struct Guarded<F> {
     outside_run: u32,
     disagree_run: u32,
     trusted_m: Option<Vector3<f64>>,
+    confirmed: Option<Confirmed>,
+    confirmed_since_placed: bool,
     counts: GuardCounts,
+}
+
+/// The last estimate a consistent window agreed with.
+#[derive(Debug, Clone, Copy)]
+struct Confirmed {
+    t_s: f64,
+    position_m: Vector3<f64>,
+    sigma_m: f64,
 }
 
 impl<F: GuardedFilter> Guarded<F> {
@@ -183,6 +216,8 @@ impl<F: GuardedFilter> Guarded<F> {
             outside_run: 0,
             disagree_run: 0,
             trusted_m: start_hint_m.map(Vector3::from),
+            confirmed: None,
+            confirmed_since_placed: false,
             counts: GuardCounts::default(),
         }
     }
@@ -242,12 +277,22 @@ impl<F: GuardedFilter> Guarded<F> {
         self.filter.predict_to(m.t_s);
         if self.late.is_aside(m) {
             self.counts.set_aside += 1;
+            // A measurement the state cannot use does not confirm it.
+            if self.note_gate(true) {
+                lost = self.lose(LostReason::Rejections);
+                let hint = self.trusted_m;
+                self.try_place(m.t_s, hint);
+            }
             return self.finish(None, lost);
         }
         let innovation = self.filter.predicted_m(m).map(|p| m.d_m - p);
         let outcome = self.filter.update(m);
         let gated = matches!(outcome, Outcome::Rejected(Rejection::Gate { .. }));
-        self.late.note(m, innovation.filter(|_| gated));
+        // Blame needs a state known to be right: a wrong state blames the
+        // anchors that contradict it and sets aside the ones it needs.
+        if self.confirmed_since_placed {
+            self.late.note(m, innovation.filter(|_| gated));
+        }
         if self.filter.constrain(&self.volume) {
             self.counts.constrained += 1;
             self.outside_run += 1;
@@ -260,7 +305,7 @@ impl<F: GuardedFilter> Guarded<F> {
             Some(LostReason::Outside)
         } else if m.t_s - self.last_check_s >= self.params.window.window_s {
             self.last_check_s = m.t_s;
-            self.check_against_window()
+            self.check_against_window(m.t_s)
                 .then_some(LostReason::Disagreement)
         } else {
             None
@@ -292,7 +337,7 @@ impl<F: GuardedFilter> Guarded<F> {
     }
 
     /// Whether the window has disagreed with the filter for long enough.
-    fn check_against_window(&mut self) -> bool {
+    fn check_against_window(&mut self, t_s: f64) -> bool {
         let here = self.filter.position_m();
         match self.window.solve(&self.volume, Some(here)) {
             WindowFix::Fix {
@@ -306,6 +351,12 @@ impl<F: GuardedFilter> Guarded<F> {
                 } else {
                     self.disagree_run = 0;
                     self.trusted_m = Some(here);
+                    self.confirmed = Some(Confirmed {
+                        t_s,
+                        position_m: here,
+                        sigma_m: combined,
+                    });
+                    self.confirmed_since_placed = true;
                 }
             }
             WindowFix::Ambiguous { .. } => self.counts.ambiguous_windows += 1,
@@ -336,7 +387,16 @@ impl<F: GuardedFilter> Guarded<F> {
                 sigma_m,
             } => {
                 let sigma = sigma_m.max(self.params.lost.min_reset_sigma_m);
+                if let Some(c) = self.confirmed {
+                    let reach_m = self.params.lost.max_speed_m_s * (t_s - c.t_s).abs()
+                        + 3.0 * (c.sigma_m.powi(2) + sigma.powi(2)).sqrt();
+                    if (position_m - c.position_m).norm() > reach_m {
+                        self.counts.unreachable_windows += 1;
+                        return;
+                    }
+                }
                 self.filter.reset(t_s, position_m, sigma);
+                self.confirmed_since_placed = false;
                 self.placed = true;
                 self.counts.placements += 1;
                 self.late.clear();

@@ -266,3 +266,25 @@ fn a_filter_stuck_far_away_is_declared_lost_and_replaced() {
     // At most about half a second of bad estimates (at 200 Hz).
     assert!(lost_for < 100, "{lost_for}");
 }
+
+/// The receiver seems to teleport 4 m (the range differences switch to
+/// another place at once): the consistent windows there are refused until
+/// a receiver at its top speed could have got there, and then the filter
+/// follows them.
+#[test]
+fn a_window_farther_than_the_motion_allows_waits_for_the_reach_to_grow() {
+    let tx = corners();
+    let mut g = guarded(&tx, None, None);
+    let jump = |t: f64| {
+        if t < 10.0 {
+            Vector3::new(2.0, 3.0, 1.2)
+        } else {
+            Vector3::new(2.0, 3.0, 1.2) + Vector3::new(4.0, 0.0, 0.0) * 0.9
+        }
+    };
+    let f = fly(&mut g, &tx, jump, 16.0, 11, &mut clean, |t| t);
+    assert!(f.counts.unreachable_windows > 0, "{:?}", f.counts);
+    assert_eq!(f.counts.placements, 2, "{:?}", f.counts);
+    let end = jump(16.0);
+    assert!((g.filter().position_m() - end).norm() < 0.1);
+}

@@ -1,4 +1,4 @@
-//! Occupancy-aware firing (issue 20): each cycle, only the transmitters a
+//! Occupancy-aware firing: each cycle, only the transmitters a
 //! robot can hear from somewhere it may be.
 //!
 //! A robot's **uncertainty region** is a disc: radius `sigma_k` times the
@@ -64,7 +64,7 @@ pub struct FiringConfig {
 }
 
 impl Default for FiringConfig {
-    /// Every transmitter fires (the behaviour before issue 20); the other
+    /// Every transmitter fires (`--firing all`); the other
     /// values are those `--firing occupancy` uses.
     fn default() -> Self {
         Self {

@@ -1,4 +1,4 @@
-//! A robot's velocity, from the poses it publishes (issue 20: the central
+//! A robot's velocity, from the poses it publishes (the central
 //! unit predicts where a robot will be during the next cycle instead of
 //! allowing for its top speed in every direction).
 //!

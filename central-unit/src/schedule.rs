@@ -109,7 +109,7 @@ pub fn colour_cells(site: &Site, cells: &[&Cell]) -> Vec<usize> {
 
 /// The schedule of `site` with `active_cells` taking part (site order is
 /// kept), with epoch 0 (the central unit stamps its own), each transmitter
-/// as early as the geometry lets it fire ([`crate::spacing`]): issue 20's
+/// as early as the geometry lets it fire ([`crate::spacing`]): the
 /// tight schedule, the one the central unit runs.
 pub fn compute_schedule(
     site: &Site,
@@ -191,7 +191,7 @@ pub fn schedule_from_packing(
     }
 }
 
-/// The schedule as it was before issue 20, kept to measure against: cells
+/// The uniform schedule, kept to measure against: cells
 /// coloured apart when one hears the other, one slot of the longest flight
 /// of any cell for every emission, every transmitter of a colour in turn.
 /// It lets bursts collide at points that hear two cells of one colour

@@ -1,5 +1,4 @@
-//! How far apart two transmitters must fire, from the geometry (issue 20's
-//! "tighter slots"), and the packing of a set of transmitters into one
+//! How far apart two transmitters must fire, from the geometry, and the packing of a set of transmitters into one
 //! cycle.
 //!
 //! Two transmitters **conflict** when they share a carrier channel and some

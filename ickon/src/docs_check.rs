@@ -22,7 +22,10 @@ fn documents() -> Vec<PathBuf> {
     let mut out = vec![root().join("README.md")];
     let mut dirs = vec![root().join("docs")];
     while let Some(dir) = dirs.pop() {
-        for entry in std::fs::read_dir(&dir).expect("docs/ is readable").flatten() {
+        for entry in std::fs::read_dir(&dir)
+            .expect("docs/ is readable")
+            .flatten()
+        {
             let path = entry.path();
             if path.is_dir() {
                 dirs.push(path);
@@ -35,12 +38,42 @@ fn documents() -> Vec<PathBuf> {
     out
 }
 
-/// The CLI reference as the code defines it.
+/// The CLI reference as the code defines it: `ickon`, then each node's
+/// own binary (`ickon-central`, `ickon-cell`, `ickon-msu`, `ickon-world`,
+/// the same flags as the hidden `ickon node <role>`).
 fn cli_reference() -> String {
-    let options = clap_markdown::MarkdownOptions::new()
-        .title("`ickon` command-line reference".to_string())
-        .show_footer(false);
-    clap_markdown::help_markdown_command_custom(&Cli::command(), &options)
+    let options = |title: &str| {
+        clap_markdown::MarkdownOptions::new()
+            .title(title.to_string())
+            .show_footer(false)
+            .show_table_of_contents(false)
+    };
+    let cli = Cli::command();
+    let mut out = clap_markdown::help_markdown_command_custom(
+        &cli,
+        &options("`ickon` command-line reference").show_table_of_contents(true),
+    );
+    let node = cli.find_subcommand("node").expect("`ickon node` exists");
+    let binaries = [
+        ("central", "ickon-central"),
+        ("cell", "ickon-cell"),
+        ("msu", "ickon-msu"),
+        ("world", "ickon-world"),
+    ];
+    for (role, name) in binaries {
+        let binary = node
+            .find_subcommand(role)
+            .expect("every node role exists")
+            .clone()
+            .name(name)
+            .bin_name(name);
+        out.push('\n');
+        out.push_str(&clap_markdown::help_markdown_command_custom(
+            &binary,
+            &options(&format!("`{name}` command-line reference")),
+        ));
+    }
+    out
 }
 
 #[test]
@@ -69,7 +102,11 @@ fn command_lines(text: &str) -> Vec<(usize, String)> {
         let trimmed = line.trim_start();
         if let Some(lang) = trimmed.strip_prefix("```") {
             in_block = !in_block;
-            shell = in_block && !matches!(lang.trim(), "text" | "mermaid" | "ini" | "toml" | "json" | "json5");
+            shell = in_block
+                && !matches!(
+                    lang.trim(),
+                    "text" | "mermaid" | "ini" | "toml" | "json" | "json5"
+                );
             continue;
         }
         if !(in_block && shell) {
@@ -79,7 +116,11 @@ fn command_lines(text: &str) -> Vec<(usize, String)> {
             Some((n, so_far)) => (n, so_far + " " + trimmed),
             None => {
                 let cmd = trimmed.strip_prefix("$ ").unwrap_or(trimmed);
-                if !(cmd.starts_with("ickon ") || cmd.starts_with("ickon-") || cmd == "ickon" || cmd.starts_with("cargo run")) {
+                if !(cmd.starts_with("ickon ")
+                    || cmd.starts_with("ickon-")
+                    || cmd == "ickon"
+                    || cmd.starts_with("cargo run"))
+                {
                     continue;
                 }
                 (i + 1, cmd.to_string())
@@ -148,8 +189,15 @@ fn every_command_line_in_the_docs_parses() {
             }
         }
     }
-    assert!(checked >= 20, "only {checked} command lines found in the docs");
-    assert!(problems.is_empty(), "command lines that do not parse:\n{}", problems.join("\n"));
+    assert!(
+        checked >= 20,
+        "only {checked} command lines found in the docs"
+    );
+    assert!(
+        problems.is_empty(),
+        "command lines that do not parse:\n{}",
+        problems.join("\n")
+    );
 }
 
 /// The folders at the repository's root: a path in backticks that starts
@@ -183,8 +231,17 @@ fn every_relative_link_and_named_path_exists() {
             }
             for path in code_spans(line) {
                 let first = path.split('/').next().unwrap_or_default();
+                // A file (with an extension) or a folder (with a final
+                // slash) under a folder of the repository; `sim/probe` is
+                // a key, not a path.
+                let last = path
+                    .trim_end_matches('/')
+                    .rsplit('/')
+                    .next()
+                    .unwrap_or_default();
                 let named = path.contains('/')
                     && folders.iter().any(|f| f == first)
+                    && (path.ends_with('/') || last.contains('.'))
                     && !path.contains(['*', '<', '{', ' ', '$']);
                 if named && !root().join(path).exists() {
                     problems.push(format!("{}:{}: path {path}", doc.display(), n + 1));
@@ -192,7 +249,11 @@ fn every_relative_link_and_named_path_exists() {
             }
         }
     }
-    assert!(problems.is_empty(), "missing files:\n{}", problems.join("\n"));
+    assert!(
+        problems.is_empty(),
+        "missing files:\n{}",
+        problems.join("\n")
+    );
 }
 
 /// The targets of the Markdown links `[text](target)` of a line.
@@ -216,16 +277,31 @@ fn code_spans(line: &str) -> Vec<&str> {
 #[test]
 fn the_checks_find_what_they_look_for() {
     let text = "x\n```sh\nickon sim --robots 2 \\\n  --duration 5   # short\nls\n```\n```text\nickon nonsense\n```\n";
-    assert_eq!(command_lines(text), vec![(3, "ickon sim --robots 2 --duration 5".to_string())]);
+    assert_eq!(
+        command_lines(text),
+        vec![(3, "ickon sim --robots 2 --duration 5".to_string())]
+    );
     assert_eq!(
         as_ickon_args("ickon-cell --cell c1"),
-        Some(vec!["ickon".into(), "node".into(), "cell".into(), "--cell".into(), "c1".into()])
+        Some(vec![
+            "ickon".into(),
+            "node".into(),
+            "cell".into(),
+            "--cell".into(),
+            "c1".into()
+        ])
     );
     assert_eq!(
         as_ickon_args("cargo run --release -p ickon -- sim"),
         Some(vec!["ickon".into(), "sim".into()])
     );
     assert!(Cli::try_parse_from(as_ickon_args("ickon sim --robots two").unwrap()).is_err());
-    assert_eq!(links("see [a](docs/x.md#y) and [b](https://e.org)"), vec!["docs/x.md#y", "https://e.org"]);
-    assert_eq!(code_spans("a `deploy/sites/lab.toml` b `x`"), vec!["deploy/sites/lab.toml", "x"]);
+    assert_eq!(
+        links("see [a](docs/x.md#y) and [b](https://e.org)"),
+        vec!["docs/x.md#y", "https://e.org"]
+    );
+    assert_eq!(
+        code_spans("a `deploy/sites/lab.toml` b `x`"),
+        vec!["deploy/sites/lab.toml", "x"]
+    );
 }

@@ -21,7 +21,7 @@ fn main() -> ExitCode {
 /// Logs go to stderr so that `--json` output on stdout stays clean;
 /// `RUST_LOG` overrides the default level. Zenoh's own warnings (scouting
 /// delays at start-up, late data at shutdown) are routine in a mesh that
-/// starts and stops at once, so only its errors are shown by default.
+/// starts and ends at once, so only its errors are shown by default.
 fn init_tracing() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
         tracing_subscriber::EnvFilter::new("warn,zenoh=error,zenoh_transport=error")

@@ -4,7 +4,7 @@
 //! so that tests running in parallel never meet. Cell clocks are offset by
 //! up to +-50 ms and drift by up to +-100 ppm.
 //!
-//! Checks issue 6's "done when": every cell fires every cycle at the
+//! Checks that every cell fires every cycle at the
 //! scheduled time with a residual sync error under 200 us; `ickon admin
 //! status --json` lists four live cells; a killed cell is reported down
 //! within two cycles while the others keep firing; restarted, it fires again
@@ -730,7 +730,7 @@ fn cells_survive_a_central_unit_restart_and_fire_again_in_sync() {
     );
 }
 
-/// Issue 14's forged control messages, published by a client of the mesh:
+/// Forged control messages, published by a client of the mesh:
 /// an empty schedule under the current version and epoch, a trigger with
 /// cycle 2^62 at a plausible time, and a rogue clock queryable answering
 /// 300 ms off for another epoch. Each is refused (the cells keep firing

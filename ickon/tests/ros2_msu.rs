@@ -4,7 +4,7 @@
 //! (PyPI) made, put on the rmw_zenoh keys with the attachment, and its pose
 //! (ICKON key and ROS 2 topic) follows them. Bad samples in between
 //! (truncated, without attachment, of the wrong type, NaN covariance,
-//! stamps going backwards) change nothing and stop nothing.
+//! stamps going backwards) change nothing and end nothing.
 
 use std::process::Command;
 use std::time::Duration;

@@ -122,8 +122,7 @@ fn two_robots_on_the_full_mesh_are_accurate_and_every_process_stops() {
     }
 }
 
-/// The whole schedule every cycle (`--firing all`, the default before the
-/// thirteenth stop): cycles at the schedule's rate, every cell firing in
+/// The whole schedule every cycle (`--firing all`): cycles at the schedule's rate, every cell firing in
 /// each, and still a fix from nearly every cycle.
 #[test]
 fn the_whole_schedule_fires_every_cell_every_cycle() {

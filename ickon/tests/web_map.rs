@@ -1,4 +1,4 @@
-//! Issue 17's "done when": `ickon sim --http` serves the live map, and a
+//! `ickon sim --http` serves the live map, and a
 //! real browser (headless Chromium over DevTools) loads it with no console
 //! error, draws every cell and robot, sees the robots move between two
 //! looks a second apart, and sees a killed cell turn to the down colour

@@ -72,7 +72,7 @@ pub struct SimArgs {
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub secure: Option<Option<PathBuf>>,
     /// Which transmitters the central unit fires each cycle: `occupancy`
-    /// (only where robots may be, issue 20; everything while no robot is
+    /// (only where robots may be; everything while no robot is
     /// known) or `all` (the whole schedule every cycle).
     #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
     pub firing: ickon_central::node::Firing,

@@ -1,5 +1,6 @@
 //! `ickon sim`: the whole system as separate OS processes over a loopback
-//! Zenoh mesh, started and stopped with one command.
+//! Zenoh mesh, started with one command and ended with Ctrl-C (or at
+//! the end of `--duration`).
 //!
 //! The launcher spawns itself as `ickon node <role>` for the central unit, one
 //! cell controller per cell, the world, and one MSU agent per robot: the same

@@ -29,7 +29,7 @@ use ickon_operator::secure::Identity;
 /// How long the nodes get to come up and announce themselves.
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long the nodes get to stop after SIGTERM before they are killed.
-const STOP_GRACE: Duration = Duration::from_secs(5);
+const GRACE_TO_STOP: Duration = Duration::from_secs(5);
 
 /// A run's report and, if the run failed after it started (a node died),
 /// why.
@@ -115,13 +115,13 @@ pub async fn measure(
     let mesh = match started {
         Ok(mesh) => mesh,
         Err(e) => {
-            sup.stop_all(STOP_GRACE);
+            sup.stop_all(GRACE_TO_STOP);
             return Err(e);
         }
     };
     let quiet = args.json && !std::io::IsTerminal::is_terminal(&std::io::stderr());
     if let Err(e) = wait_until_live(args, site, &keys, &robots, &mesh, &mut sup, quiet).await {
-        sup.stop_all(STOP_GRACE);
+        sup.stop_all(GRACE_TO_STOP);
         mesh.close().await;
         return Err(e);
     }
@@ -143,13 +143,13 @@ pub async fn measure(
     }
     // The nodes stop first, so that the file holds everything they
     // published, the last poses the observer counted among it.
-    let killed = sup.stop_all(STOP_GRACE);
+    let killed = sup.stop_all(GRACE_TO_STOP);
     let recorded = mesh.finish().await;
     let (stats, failure) = observed.map_err(failed)?;
     if !killed.is_empty() {
         eprintln!(
             "warning: nodes that did not stop within {} s were killed: {}",
-            STOP_GRACE.as_secs(),
+            GRACE_TO_STOP.as_secs(),
             killed.join(", ")
         );
     }

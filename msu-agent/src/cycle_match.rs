@@ -1,5 +1,5 @@
 //! Which cycle trigger a message of arrivals belongs to, when the central
-//! unit names the transmitters of each cycle (occupancy firing, issue 20).
+//! unit names the transmitters of each cycle (occupancy firing).
 //!
 //! The MSU hears bursts on its own clock and has no cycle number: a cycle's
 //! arrivals come after its trigger and often after the next one's. So each
@@ -161,7 +161,7 @@ impl RecentTriggers {
     /// Keeps `trigger` (the oldest kept goes beyond [`TRIGGERS_KEPT`]); one
     /// of an older epoch than the newest kept, or a repeat, is ignored. A
     /// trigger that names no firings and no period (the whole schedule
-    /// fires, as before issue 20) forgets them all: arrivals are then
+    /// fires) forgets them all: arrivals are then
     /// matched to the newest schedule, exactly as without triggers.
     ///
     /// A cycle whose clarity waited for a newer trigger is judged now

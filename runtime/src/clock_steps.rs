@@ -6,8 +6,7 @@
 //! SIGUSR1 (the supervisor sends it at the planned time). Why a signal and
 //! a list given at start:
 //! - nothing on the network can step a clock: a control key would be one
-//!   more message any client of the mesh can forge (issue 14 is about
-//!   those), a signal comes only from the same user or root on the machine;
+//!   more message any client of the mesh can forge, a signal comes only from the same user or root on the machine;
 //! - the steps are fixed by whoever started the node and bounded like
 //!   `--clock-offset-us`: a signal carries no value to forge;
 //! - a node started without the flag installs no handler, so it behaves

@@ -1,4 +1,4 @@
-//! The forged and faulty control messages of issue 14, each refused,
+//! Forged and faulty control messages, each refused,
 //! counted and reported, the cell's own bursts unaffected.
 
 use super::tests::{MS, run_until, synced_cell};

@@ -1,5 +1,5 @@
 //! Control messages on the central unit's own keys that it did not send
-//! (issue 14): each counted, reported, and answered so that they heal.
+//! (forged): each counted, reported, and answered so that they heal.
 
 use super::*;
 

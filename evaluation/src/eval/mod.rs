@@ -56,7 +56,7 @@ pub struct EvalArgs {
     /// Virtual seconds of a `--robots` run [default: 60].
     #[arg(long, requires = "robots")]
     pub duration: Option<f64>,
-    /// The central unit's schedule: `tight` (from the geometry) or `uniform` (before issue 20).
+    /// The central unit's schedule: `tight` (from the geometry) or `uniform` (one slot per emission, cells coloured apart; kept to compare).
     #[arg(long, default_value = "tight")]
     pub schedule: String,
     /// Which transmitters fire in a `--robots` run: `occupancy` (where the

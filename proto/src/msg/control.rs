@@ -162,7 +162,7 @@ pub struct CycleTrigger {
     /// within each epoch.
     pub epoch: u64,
     /// The transmitters that fire in this cycle and their offsets, when the
-    /// central unit fires only where robots are (issue 20); empty: every
+    /// central unit fires only where robots are (occupancy firing); empty: every
     /// emission of the schedule fires at its scheduled offset.
     pub firing: Vec<Firing>,
     /// This cycle's length; zero: the schedule's `cycle_period`.

@@ -17,8 +17,8 @@ const MAX_CLOCK_DRIFT_PPM: f64 = 100.0;
 /// ephemeral range: the other nodes connect to it before it listens, and a
 /// connect to a free port inside that range can be given the same port as
 /// its own source and connect to itself (seen once: the central then found
-/// its port taken).
-pub(crate) fn free_port() -> std::io::Result<u16> {
+/// its port taken). `taken`: ports already handed out but not bound yet.
+pub(crate) fn free_port(taken: &[u16]) -> std::io::Result<u16> {
     let ephemeral_low = std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
         .ok()
         .and_then(|s| s.split_whitespace().next()?.parse::<u16>().ok())
@@ -29,14 +29,19 @@ pub(crate) fn free_port() -> std::io::Result<u16> {
         let start = std::process::id() % span;
         for k in 0..span.min(2_000) {
             let port = LOWEST + u16::try_from((start + k * 7) % span).unwrap_or(0);
-            if std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
+            if !taken.contains(&port) && std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
                 return Ok(port);
             }
         }
     }
-    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port())
+    loop {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")?
+            .local_addr()?
+            .port();
+        if !taken.contains(&port) {
+            return Ok(port);
+        }
+    }
 }
 
 /// The `ickon node <role>` command line shared by every node of the mesh:

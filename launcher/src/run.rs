@@ -81,10 +81,14 @@ pub async fn measure(
         .map(|r| r.id.clone())
         .collect();
     let security = SimSecurity::prepare(args, site, &robots)?;
-    let hub_port = free_port().map_err(failed)?;
+    let hub_port = free_port(&[]).map_err(failed)?;
     let hub = format!("tcp/127.0.0.1:{hub_port}");
     let recorder_endpoint = match args.record {
-        Some(_) => Some(format!("tcp/127.0.0.1:{}", free_port().map_err(failed)?)),
+        // Not bound before the router starts: the hub's port is excluded.
+        Some(_) => Some(format!(
+            "tcp/127.0.0.1:{}",
+            free_port(&[hub_port]).map_err(failed)?
+        )),
         None => None,
     };
     let msus = msu_starts(args, site, profile, &robots).map_err(failed)?;

@@ -18,6 +18,7 @@ use ickon_runtime::{
 };
 use tokio::sync::mpsc;
 use zenoh::Session;
+use zenoh::pubsub::Publisher;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
@@ -131,7 +132,7 @@ pub async fn run(
     let cell = args.cell.as_str();
     let clock = args.node.clock();
     args.node.listen_for_clock_steps(clock)?;
-    let mut driver = driver(args.driver, cell, clock);
+    let driver = driver(args.driver, cell, clock);
     let mut core = CellCore::new(cell, CellConfig::default(), clock.now());
     let triggers = session
         .declare_subscriber(keys.central_cycle())
@@ -180,7 +181,17 @@ pub async fn run(
         args.node.clock_drift_ppm
     );
 
-    let mut failures = Failures::default();
+    let mut outlets = Outlets {
+        session,
+        keys: &keys,
+        cell,
+        clock,
+        driver,
+        burst_pub,
+        status_pub,
+        replies_tx,
+        failures: Failures::default(),
+    };
     let mut stopping = false;
     while !stopping {
         let wake = core.next_wake().since(clock.now()).to_std();
@@ -195,7 +206,7 @@ pub async fn run(
             Ok(s) = schedules.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
                 Ok(schedule) => Event::Schedule(schedule),
                 Err(e) => {
-                    failures.undecodable += 1;
+                    outlets.failures.undecodable += 1;
                     tracing::debug!("cell {cell}: undecodable schedule: {e}");
                     continue;
                 }
@@ -203,54 +214,89 @@ pub async fn run(
             Ok(s) = triggers.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
                 Ok(t) => Event::Trigger(t),
                 Err(e) => {
-                    failures.undecodable += 1;
+                    outlets.failures.undecodable += 1;
                     tracing::debug!("cell {cell}: undecodable trigger: {e}");
                     continue;
                 }
             },
         };
         for output in core.handle(clock.now(), event) {
-            match output {
-                Output::Fire(b) => match driver.program(&b) {
-                    Ok(report) => {
-                        if !put_counted(&burst_pub, &report).await {
-                            failures.puts += 1;
-                        }
-                    }
-                    Err(e) => {
-                        failures.driver += 1;
-                        tracing::warn!("cell {cell}: tx {} not programmed: {e}", b.tx_id);
-                    }
-                },
-                Output::Status(status) => {
-                    if !put_counted(&status_pub, &status).await {
-                        failures.puts += 1;
-                    }
-                }
-                Output::RequestClock => {
-                    spawn_exchange(session, &keys, cell, clock, core.epoch(), &replies_tx);
-                }
-                Output::RequestSchedule => {
-                    let (session, key, tx) =
-                        (session.clone(), keys.central_schedule(), replies_tx.clone());
-                    tokio::spawn(async move {
-                        let ev =
-                            match query_once::<Schedule>(&session, &key, None, SCHEDULE_TIMEOUT)
-                                .await
-                            {
-                                Ok(Some(s)) => Event::Schedule(s),
-                                _ => Event::ScheduleUnanswered,
-                            };
-                        let _ = tx.send(ev);
-                    });
-                }
-            }
+            outlets.carry_out(output, &core).await;
         }
     }
+    let failures = outlets.failures;
     if failures.puts + failures.driver + failures.undecodable > 0 {
         tracing::info!("cell {cell}: stopped; {failures:?}");
     }
     Ok(())
+}
+
+/// Where the core's outputs go: the transmitter driver, the burst and
+/// status publishers, and the requests carried out beside the loop (their
+/// replies come back through `replies_tx`).
+struct Outlets<'a> {
+    session: &'a Session,
+    keys: &'a Keys,
+    cell: &'a str,
+    clock: SimulatedClock,
+    driver: Box<dyn TransmitterDriver>,
+    burst_pub: Publisher<'static>,
+    status_pub: Publisher<'static>,
+    replies_tx: mpsc::UnboundedSender<Event>,
+    failures: Failures,
+}
+
+impl Outlets<'_> {
+    /// Carries out one output of `core`: programs a burst and publishes its
+    /// report, publishes a status, or starts a clock exchange or a schedule
+    /// query.
+    async fn carry_out(&mut self, output: Output, core: &CellCore) {
+        let cell = self.cell;
+        match output {
+            Output::Fire(b) => match self.driver.program(&b) {
+                Ok(report) => {
+                    if !put_counted(&self.burst_pub, &report).await {
+                        self.failures.puts += 1;
+                    }
+                }
+                Err(e) => {
+                    self.failures.driver += 1;
+                    tracing::warn!("cell {cell}: tx {} not programmed: {e}", b.tx_id);
+                }
+            },
+            Output::Status(status) => {
+                if !put_counted(&self.status_pub, &status).await {
+                    self.failures.puts += 1;
+                }
+            }
+            Output::RequestClock => {
+                spawn_exchange(
+                    self.session,
+                    self.keys,
+                    cell,
+                    self.clock,
+                    core.epoch(),
+                    &self.replies_tx,
+                );
+            }
+            Output::RequestSchedule => {
+                let (session, key, tx) = (
+                    self.session.clone(),
+                    self.keys.central_schedule(),
+                    self.replies_tx.clone(),
+                );
+                tokio::spawn(async move {
+                    let ev = match query_once::<Schedule>(&session, &key, None, SCHEDULE_TIMEOUT)
+                        .await
+                    {
+                        Ok(Some(s)) => Event::Schedule(s),
+                        _ => Event::ScheduleUnanswered,
+                    };
+                    let _ = tx.send(ev);
+                });
+            }
+        }
+    }
 }
 
 /// Starts one clock exchange beside the loop; its result comes back as an event.

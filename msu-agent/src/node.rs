@@ -20,7 +20,9 @@ use ickon_proto::site::Site;
 use ickon_proto::{DecodeError, decode};
 use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, put_counted, zerr};
 use zenoh::Session;
+use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::Sample;
 
 use crate::receivers::{ReceiverKind, ReceiverSource};
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
@@ -145,45 +147,11 @@ pub async fn run(
     // counts.
     let (tx, mut inputs) = tokio::sync::mpsc::channel::<Arrived>(INPUT_QUEUE);
     let queue_full = Arc::new(AtomicU64::new(0));
-    let sink = |wrap: fn(&zenoh::sample::Sample) -> Arrived| {
-        let (tx, full) = (tx.clone(), queue_full.clone());
-        move |sample: zenoh::sample::Sample| {
-            if tx.try_send(wrap(&sample)).is_err() {
-                full.fetch_add(1, Ordering::Relaxed);
-            }
-        }
+    let queue = InputQueue {
+        tx,
+        full: queue_full.clone(),
     };
-    let _schedule_sub = session
-        .declare_subscriber(keys.central_schedule())
-        .callback(sink(|s| Arrived::Schedule(decode(&s.payload().to_bytes()))))
-        .await
-        .map_err(zerr)?;
-    // The triggers name the transmitters of each cycle when the central unit
-    // fires only where robots are; the core matches arrivals to them.
-    let _trigger_sub = session
-        .declare_subscriber(keys.central_cycle())
-        .callback(sink(|s| Arrived::Trigger(decode(&s.payload().to_bytes()))))
-        .await
-        .map_err(zerr)?;
-    // Each cell's sync sigma: the prior of its clock bias in `tdoa-ekf`.
-    let _status_sub = session
-        .declare_subscriber(keys.cell_status_all())
-        .callback(sink(|s| {
-            Arrived::CellStatus(
-                s.key_expr().as_str().to_string(),
-                decode(&s.payload().to_bytes()),
-            )
-        }))
-        .await
-        .map_err(zerr)?;
-    // The fleet's survey calibration: the transmitters' corrected positions.
-    let _survey_sub = session
-        .declare_subscriber(keys.central_survey())
-        .callback(sink(|s| {
-            Arrived::Survey(SurveyCalibration::decode(&s.payload().to_bytes()))
-        }))
-        .await
-        .map_err(zerr)?;
+    let _control_inputs = ControlInputs::declare(session, &keys, &queue).await?;
     let Some(schedule) = fetch::<Schedule>(
         session,
         &keys.central_schedule(),
@@ -206,161 +174,358 @@ pub async fn run(
         tracing::warn!("robot {robot}: the central unit's schedule refused: {e}");
     }
 
-    let sub = |topic| keys.robot(robot, topic);
-    let _receivers = {
-        let (tx, full) = (tx.clone(), queue_full.clone());
-        ReceiverSource::open(settings.receivers, session, &keys, robot, move |a| {
-            if tx.try_send(Arrived::Arrivals(a)).is_err() {
-                full.fetch_add(1, Ordering::Relaxed);
-            }
-        })
-        .await?
-    };
-    let _odom = session
-        .declare_subscriber(sub(RobotTopic::Odom)?)
-        .callback(sink(|s| Arrived::Odometry(decode(&s.payload().to_bytes()))))
-        .await
-        .map_err(zerr)?;
-    let _imu = session
-        .declare_subscriber(sub(RobotTopic::Imu)?)
-        .callback(sink(|s| Arrived::Imu(decode(&s.payload().to_bytes()))))
-        .await
-        .map_err(zerr)?;
-    let _range = session
-        .declare_subscriber(sub(RobotTopic::Range)?)
-        .callback(sink(|s| Arrived::Range(decode(&s.payload().to_bytes()))))
-        .await
-        .map_err(zerr)?;
-    drop(tx);
-    // Not express: batched with other samples only when the link is busy
-    // (Zenoh's adaptive batching), which is when one write per pose costs
-    // the router most.
-    let fix_pub = session
-        .declare_publisher(sub(RobotTopic::Fix)?)
-        .priority(Priority::InteractiveHigh)
-        .await
-        .map_err(zerr)?;
-    let pose_pub = session
-        .declare_publisher(sub(RobotTopic::Pose)?)
-        .priority(Priority::InteractiveHigh)
-        .congestion_control(CongestionControl::Drop)
-        .await
-        .map_err(zerr)?;
-
-    let mut ros = match settings.ros2.clone() {
+    let _robot_inputs =
+        RobotInputs::declare(session, &keys, robot, settings.receivers, &queue).await?;
+    drop(queue);
+    let publishers = Publishers::declare(session, &keys, robot).await?;
+    let ros = match settings.ros2.clone() {
         Some(plan) => Some(Ros2Link::open(session, plan, settings.tuning.wheels).await?),
         None => None,
     };
 
-    let mut n = MsuCounters::default();
-    // Bad input is logged once per kind per window, with the count held back.
-    let mut log_limit = LogLimiter::<&'static str>::default();
-    let mut bad = |n: &mut MsuCounters, kind: &'static str, what: String| {
-        n.bad_messages += 1;
-        if let Some(held) = log_limit.admit(kind, std::time::Instant::now()) {
+    let mut agent = Agent {
+        robot,
+        keys: &keys,
+        core,
+        publishers,
+        ros,
+        n: MsuCounters::default(),
+        log_limit: LogLimiter::default(),
+        refusal_limit: LogLimiter::default(),
+        last_schedule_logged: None,
+    };
+    agent.serve(&mut inputs, &mut shutdown).await;
+    let mut n = agent.n;
+    n.queue_full = queue_full.load(Ordering::Relaxed);
+    tracing::info!("robot {robot}: stopping: {n:?}");
+    if let Some(r) = &agent.ros {
+        tracing::info!("robot {robot}: ros2: {:?}", r.counters());
+    }
+    Ok(n)
+}
+
+/// The sending end of the agent's one input queue, with the count of
+/// inputs a full queue dropped.
+struct InputQueue {
+    tx: tokio::sync::mpsc::Sender<Arrived>,
+    full: Arc<AtomicU64>,
+}
+
+impl InputQueue {
+    /// A subscriber's callback: queues each sample as `wrap` decodes it, or
+    /// counts it when the queue is full.
+    fn sink(&self, wrap: fn(&Sample) -> Arrived) -> impl Fn(Sample) + Send + Sync + 'static {
+        let (tx, full) = (self.tx.clone(), self.full.clone());
+        move |sample: Sample| {
+            if tx.try_send(wrap(&sample)).is_err() {
+                full.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+/// The subscriptions to the central unit's and the cells' messages, held
+/// for the agent's run.
+struct ControlInputs {
+    _schedule: Subscriber<()>,
+    _trigger: Subscriber<()>,
+    _status: Subscriber<()>,
+    _survey: Subscriber<()>,
+}
+
+impl ControlInputs {
+    /// Subscribes to the schedule, the cycle triggers, the cells' statuses
+    /// and the survey calibration, each into `queue`.
+    async fn declare(
+        session: &Session,
+        keys: &Keys,
+        queue: &InputQueue,
+    ) -> Result<Self, NodeError> {
+        let schedule = session
+            .declare_subscriber(keys.central_schedule())
+            .callback(queue.sink(|s| Arrived::Schedule(decode(&s.payload().to_bytes()))))
+            .await
+            .map_err(zerr)?;
+        // The triggers name the transmitters of each cycle when the central unit
+        // fires only where robots are; the core matches arrivals to them.
+        let trigger = session
+            .declare_subscriber(keys.central_cycle())
+            .callback(queue.sink(|s| Arrived::Trigger(decode(&s.payload().to_bytes()))))
+            .await
+            .map_err(zerr)?;
+        // Each cell's sync sigma: the prior of its clock bias in `tdoa-ekf`.
+        let status = session
+            .declare_subscriber(keys.cell_status_all())
+            .callback(queue.sink(|s| {
+                Arrived::CellStatus(
+                    s.key_expr().as_str().to_string(),
+                    decode(&s.payload().to_bytes()),
+                )
+            }))
+            .await
+            .map_err(zerr)?;
+        // The fleet's survey calibration: the transmitters' corrected positions.
+        let survey = session
+            .declare_subscriber(keys.central_survey())
+            .callback(
+                queue.sink(|s| Arrived::Survey(SurveyCalibration::decode(&s.payload().to_bytes()))),
+            )
+            .await
+            .map_err(zerr)?;
+        Ok(Self {
+            _schedule: schedule,
+            _trigger: trigger,
+            _status: status,
+            _survey: survey,
+        })
+    }
+}
+
+/// The subscriptions to the robot's own messages, held for the agent's run.
+struct RobotInputs {
+    _receivers: ReceiverSource,
+    _odom: Subscriber<()>,
+    _imu: Subscriber<()>,
+    _range: Subscriber<()>,
+}
+
+impl RobotInputs {
+    /// Opens the robot's receivers and subscribes to its odometry, gyro and
+    /// obstacle ranges, each into `queue`.
+    async fn declare(
+        session: &Session,
+        keys: &Keys,
+        robot: &str,
+        receivers: ReceiverKind,
+        queue: &InputQueue,
+    ) -> Result<Self, NodeError> {
+        let sub = |topic| keys.robot(robot, topic);
+        let receivers = {
+            let (tx, full) = (queue.tx.clone(), queue.full.clone());
+            ReceiverSource::open(receivers, session, keys, robot, move |a| {
+                if tx.try_send(Arrived::Arrivals(a)).is_err() {
+                    full.fetch_add(1, Ordering::Relaxed);
+                }
+            })
+            .await?
+        };
+        let odom = session
+            .declare_subscriber(sub(RobotTopic::Odom)?)
+            .callback(queue.sink(|s| Arrived::Odometry(decode(&s.payload().to_bytes()))))
+            .await
+            .map_err(zerr)?;
+        let imu = session
+            .declare_subscriber(sub(RobotTopic::Imu)?)
+            .callback(queue.sink(|s| Arrived::Imu(decode(&s.payload().to_bytes()))))
+            .await
+            .map_err(zerr)?;
+        let range = session
+            .declare_subscriber(sub(RobotTopic::Range)?)
+            .callback(queue.sink(|s| Arrived::Range(decode(&s.payload().to_bytes()))))
+            .await
+            .map_err(zerr)?;
+        Ok(Self {
+            _receivers: receivers,
+            _odom: odom,
+            _imu: imu,
+            _range: range,
+        })
+    }
+}
+
+/// Where the agent publishes its robot's fixes and poses.
+struct Publishers {
+    fix: Publisher<'static>,
+    pose: Publisher<'static>,
+}
+
+impl Publishers {
+    /// Declares the fix and pose publishers of `robot`.
+    async fn declare(session: &Session, keys: &Keys, robot: &str) -> Result<Self, NodeError> {
+        // Not express: batched with other samples only when the link is busy
+        // (Zenoh's adaptive batching), which is when one write per pose costs
+        // the router most.
+        let fix = session
+            .declare_publisher(keys.robot(robot, RobotTopic::Fix)?)
+            .priority(Priority::InteractiveHigh)
+            .await
+            .map_err(zerr)?;
+        let pose = session
+            .declare_publisher(keys.robot(robot, RobotTopic::Pose)?)
+            .priority(Priority::InteractiveHigh)
+            .congestion_control(CongestionControl::Drop)
+            .await
+            .map_err(zerr)?;
+        Ok(Self { fix, pose })
+    }
+}
+
+/// The running agent: its core, where it publishes, its counters and the
+/// rate limits of its logs.
+struct Agent<'a> {
+    robot: &'a str,
+    keys: &'a Keys,
+    core: MsuCore,
+    publishers: Publishers,
+    ros: Option<Ros2Link>,
+    n: MsuCounters,
+    /// Bad input is logged once per kind per window, with the count held back.
+    log_limit: LogLimiter<&'static str>,
+    /// Refused input likewise, per input kind.
+    refusal_limit: LogLimiter<InputKind>,
+    /// The schedule (epoch, version) last logged.
+    last_schedule_logged: Option<(u64, u32)>,
+}
+
+impl Agent<'_> {
+    /// The event loop: hands each queued input (and with `--ros2` each ROS 2
+    /// input) to the core and publishes what it outputs, until `shutdown`
+    /// completes.
+    async fn serve(
+        &mut self,
+        inputs: &mut tokio::sync::mpsc::Receiver<Arrived>,
+        shutdown: &mut (impl Future<Output = ()> + Unpin),
+    ) {
+        loop {
+            let event = tokio::select! {
+                _ = &mut *shutdown => break,
+                Some(input) = inputs.recv() => self.admit(input),
+                // With --ros2: the robot's odometry and gyro from ROS 2 topics.
+                input = crate::ros2::next_input(&mut self.ros) => Some(match input {
+                    Ros2Input::Odometry(msg) => Event::Odometry(msg),
+                    Ros2Input::Imu(msg) => Event::Imu(msg),
+                }),
+            };
+            let Some(event) = event else { continue };
+            self.handle(event).await;
+        }
+    }
+
+    /// The core's event for a queued input, or `None` when it does not
+    /// decode or a cell status came under another cell's key (counted and
+    /// logged); counts arrivals and logs each new schedule.
+    fn admit(&mut self, input: Arrived) -> Option<Event> {
+        let robot = self.robot;
+        let status_key = match &input {
+            Arrived::CellStatus(key, _) => Some(key.clone()),
+            _ => None,
+        };
+        match input.into_event() {
+            Ok(Event::Arrivals(a)) => {
+                self.n.arrival_messages += 1;
+                Some(Event::Arrivals(a))
+            }
+            Ok(Event::Schedule(schedule)) => {
+                // The central re-announces its schedule every second:
+                // only a new one is worth a line.
+                if self.last_schedule_logged != Some((schedule.epoch, schedule.version)) {
+                    self.last_schedule_logged = Some((schedule.epoch, schedule.version));
+                    tracing::info!(
+                        "robot {robot}: schedule v{} from cycle {}",
+                        schedule.version,
+                        schedule.effective_cycle
+                    );
+                }
+                Some(Event::Schedule(schedule))
+            }
+            Ok(Event::CellStatus(status)) => {
+                let key = status_key.unwrap_or_default();
+                let key_cell = match self.keys.parse(&key) {
+                    Ok(Key::CellStatus(cell)) => Some(cell),
+                    _ => None,
+                };
+                match MsuCore::status_under_key(key_cell.as_deref(), status) {
+                    Ok(status) => Some(Event::CellStatus(status)),
+                    Err(e) => {
+                        self.bad("cell status", format!("{key}: {e}"));
+                        None
+                    }
+                }
+            }
+            Ok(event) => Some(event),
+            Err((kind, e)) => {
+                self.bad(kind, e);
+                None
+            }
+        }
+    }
+
+    /// Counts a dropped input and logs it at a bounded rate per kind.
+    fn bad(&mut self, kind: &'static str, what: String) {
+        let robot = self.robot;
+        self.n.bad_messages += 1;
+        if let Some(held) = self.log_limit.admit(kind, std::time::Instant::now()) {
             tracing::warn!(
                 "robot {robot}: dropped {kind}: {what} ({held} more since the last report)"
             );
         }
-    };
-    let mut refusal_limit = LogLimiter::<InputKind>::default();
-    let mut last_schedule_logged: Option<(u64, u32)> = None;
-    loop {
-        let event = tokio::select! {
-            _ = &mut shutdown => break,
-            Some(input) = inputs.recv() => {
-                let status_key = match &input {
-                    Arrived::CellStatus(key, _) => Some(key.clone()),
-                    _ => None,
-                };
-                match input.into_event() {
-                    Ok(Event::Arrivals(a)) => {
-                        n.arrival_messages += 1;
-                        Some(Event::Arrivals(a))
-                    }
-                    Ok(Event::Schedule(schedule)) => {
-                        // The central re-announces its schedule every second:
-                        // only a new one is worth a line.
-                        if last_schedule_logged != Some((schedule.epoch, schedule.version)) {
-                            last_schedule_logged = Some((schedule.epoch, schedule.version));
-                            tracing::info!("robot {robot}: schedule v{} from cycle {}", schedule.version, schedule.effective_cycle);
-                        }
-                        Some(Event::Schedule(schedule))
-                    }
-                    Ok(Event::CellStatus(status)) => {
-                        let key = status_key.unwrap_or_default();
-                        let key_cell = match keys.parse(&key) {
-                            Ok(Key::CellStatus(cell)) => Some(cell),
-                            _ => None,
-                        };
-                        match MsuCore::status_under_key(key_cell.as_deref(), status) {
-                            Ok(status) => Some(Event::CellStatus(status)),
-                            Err(e) => {
-                                bad(&mut n, "cell status", format!("{key}: {e}"));
-                                None
-                            }
-                        }
-                    }
-                    Ok(event) => Some(event),
-                    Err((kind, e)) => {
-                        bad(&mut n, kind, e);
-                        None
-                    }
-                }
-            },
-            // With --ros2: the robot's odometry and gyro from ROS 2 topics.
-            input = crate::ros2::next_input(&mut ros) => Some(match input {
-                Ros2Input::Odometry(msg) => Event::Odometry(msg),
-                Ros2Input::Imu(msg) => Event::Imu(msg),
-            }),
-        };
-        let Some(event) = event else { continue };
-        if let (Some(r), Event::Odometry(odom)) = (ros.as_mut(), &event) {
+    }
+
+    /// Hands `event` to the core and publishes its outputs, on ROS 2 as
+    /// well when it is on.
+    async fn handle(&mut self, event: Event) {
+        if let (Some(r), Event::Odometry(odom)) = (self.ros.as_mut(), &event) {
             // The odometry frame's track, for map -> odom.
             r.note_odometry(odom);
         }
-        let mut ros_fix = None;
-        let survey_before = core.newest_survey_calibration();
+        let survey_before = self.core.newest_survey_calibration();
         let survey_fixes = match &event {
             Event::Survey(c) => Some(c.fixes_taken),
             _ => None,
         };
-        let outputs = core.handle(event);
+        let outputs = self.core.handle(event);
+        self.log_survey(survey_before, survey_fixes);
+        self.publish(outputs).await;
+    }
+
+    /// Logs a survey calibration from `fixes` fixes that the core took up
+    /// (once per calibration epoch at info level, each new version at
+    /// debug level); `before` is the one it had.
+    fn log_survey(&self, before: Option<(u64, u32)>, fixes: Option<u64>) {
+        let robot = self.robot;
         if let (Some(fixes), Some((epoch, version))) =
-            (survey_fixes, core.newest_survey_calibration())
+            (fixes, self.core.newest_survey_calibration())
         {
-            if survey_before.is_none_or(|(e, _)| e != epoch) {
+            if before.is_none_or(|(e, _)| e != epoch) {
                 tracing::info!(
                     "robot {robot}: solving with the fleet's survey calibration (v{version}, from {fixes} fixes; newer ones follow silently)"
                 );
-            } else if survey_before != Some((epoch, version)) {
+            } else if before != Some((epoch, version)) {
                 tracing::debug!("robot {robot}: survey calibration v{version} ({fixes} fixes)");
             }
         }
+    }
+
+    /// Publishes the core's outputs in order (a fix's ROS 2 copy after the
+    /// pose that absorbed it) and counts them; logs refusals at a bounded
+    /// rate.
+    async fn publish(&mut self, outputs: Vec<Output>) {
+        let robot = self.robot;
+        let mut ros_fix = None;
         for output in outputs {
             match output {
                 Output::Fix(fix) => {
-                    if !put_counted(&fix_pub, &fix).await {
-                        n.failed_puts += 1;
+                    if !put_counted(&self.publishers.fix, &fix).await {
+                        self.n.failed_puts += 1;
                     }
-                    n.fixes += 1;
+                    self.n.fixes += 1;
                     // Its ROS 2 copy waits until the pose that absorbed it is out.
                     ros_fix = Some(fix);
                 }
                 Output::Pose(pose) => {
-                    if !put_counted(&pose_pub, &pose).await {
-                        n.failed_puts += 1;
+                    if !put_counted(&self.publishers.pose, &pose).await {
+                        self.n.failed_puts += 1;
                     }
-                    n.poses += 1;
+                    self.n.poses += 1;
                     // The ROS 2 copy after ours: it adds nothing ahead of it.
                     // A pose after a fix in one batch absorbed it.
-                    if let Some(r) = ros.as_mut() {
+                    if let Some(r) = self.ros.as_mut() {
                         r.publish_pose(&pose, ros_fix.is_some()).await;
                     }
                 }
                 Output::Refused { input, error } => {
-                    n.refused_inputs += 1;
-                    if let Some(held) = refusal_limit.admit(input, std::time::Instant::now()) {
+                    self.n.refused_inputs += 1;
+                    if let Some(held) = self.refusal_limit.admit(input, std::time::Instant::now()) {
                         tracing::debug!(
                             "robot {robot}: {input:?} not used: {error} ({held} more since)"
                         );
@@ -368,16 +533,10 @@ pub async fn run(
                 }
             }
         }
-        if let (Some(r), Some(fix)) = (ros.as_mut(), ros_fix) {
+        if let (Some(r), Some(fix)) = (self.ros.as_mut(), ros_fix) {
             r.publish_fix(&fix).await;
         }
     }
-    n.queue_full = queue_full.load(Ordering::Relaxed);
-    tracing::info!("robot {robot}: stopping: {n:?}");
-    if let Some(r) = &ros {
-        tracing::info!("robot {robot}: ros2: {:?}", r.counters());
-    }
-    Ok(n)
 }
 
 /// Arguments of `ickon-msu` (and `ickon node msu`).

@@ -22,7 +22,7 @@
 use ickon_fusion::estimator::{Input, RangeDifferenceSample, TransmitterClock};
 use ickon_fusion::tdoa;
 use ickon_proto::epoch::{ScheduleBook, ScheduleRefused};
-use ickon_proto::msg::control::{CycleTrigger, Schedule, SurveyCalibration};
+use ickon_proto::msg::control::{CycleTrigger, Emission, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Fix, FixQuality, UltrasoundArrivals};
 use ickon_proto::site::line_of_sight;
 use ickon_proto::time::{Duration, Time};
@@ -279,33 +279,9 @@ impl FixSolver {
         hint: Option<[f64; 2]>,
         clock: &mut FusionClock,
     ) -> Result<SolvedCycle, MsuError> {
-        // The flight times a choice awaiting the next trigger was made with.
-        let mut matching_flights_ns = Vec::new();
-        // A matched trigger's firings and period replace the schedule's
-        // emissions for that cycle (the schedule itself, under the rules of
-        // [`ickon_proto::epoch`], stays as published).
-        let matched = if self.recent_triggers.is_empty() {
-            // The whole schedule fires: nothing to match, no flight to work out.
-            None
-        } else {
-            let flight_ns = self.expected_flights(msg, hint);
-            let matched = self
-                .recent_triggers
-                .best_for(msg, &self.schedules, &flight_ns);
-            if matched
-                .as_ref()
-                .is_some_and(|m| m.clarity == Clarity::AwaitingNext)
-            {
-                matching_flights_ns = msg
-                    .arrivals
-                    .iter()
-                    .filter_map(|a| Some((a.tx_id, flight_ns(a.tx_id)?)))
-                    .collect();
-            }
-            matched
-        };
-        self.apply_due_control(matched.as_ref().map(|m| &m.trigger));
-        let trigger = matched.as_ref().map(|m| &m.trigger);
+        let mut matching = self.match_trigger(msg, hint);
+        self.apply_due_control(matching.matched.as_ref().map(|m| &m.trigger));
+        let trigger = matching.matched.as_ref().map(|m| &m.trigger);
         let published = match trigger {
             Some(t) => self.schedules.get(t.schedule_version),
             None => self.schedules.latest(),
@@ -354,7 +330,95 @@ impl FixSolver {
             .map(|(_, p)| p);
         let hint = own.or(hint.map(Vector2::from));
         let mut unmatched = cycle.rejected.clone();
-        let first = self.attempt(&signals, &displacements, hint)?;
+        let mut sol = match self.attempt_both(&signals, &displacements, hint, hidden)? {
+            Attempts::WithoutHidden(sol, hidden) => {
+                unmatched.extend(hidden.iter().map(|&k| cycle.signals[k].tx_id));
+                sol
+            }
+            Attempts::All(sol) => sol,
+            Attempts::NoFix => return no_fix(range_differences),
+        };
+        let sigma_m = sol.covariance_xy_m2().trace().max(0.0).sqrt();
+        // The fix is stamped with the cycle's mean arrival time over every
+        // arrival (exact in nanoseconds); its fusion time is that instant's
+        // exact image, so the wire stamp and the estimators agree.
+        sol.t_s = reference_s;
+        sol.heading_rad = self.heading_of(&sol, &cycle.signals);
+        if sol.quality != tdoa::Quality::Ambiguous {
+            self.last_fix = Some((cycle.stamp, sol.position_m.xy()));
+        }
+        if sol.quality == tdoa::Quality::Good {
+            // Only redundant fixes with every residual checked align the
+            // odometry: a wrong root would turn the motion the wrong way.
+            self.motion
+                .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
+            self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
+            // The clock offset serves the matching of later cycles.
+            if matching.matched.is_some() {
+                let from_fix = self.flights_from(Some([sol.position_m[0], sol.position_m[1]]));
+                matching.teach_clock(
+                    &mut self.recent_triggers,
+                    msg,
+                    &schedule.emissions,
+                    &from_fix,
+                );
+            }
+        }
+        let mut wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
+        wire.survey_version = self.survey.map_or(0, |(_, version)| version);
+        Ok(SolvedCycle {
+            fix: Some((sol, wire)),
+            range_differences,
+        })
+    }
+
+    /// The recent trigger that explains `msg` best (`None` when no trigger
+    /// was heard: the whole schedule fires), with the flight times the
+    /// choice was made with when it awaits the next trigger. A matched
+    /// trigger's firings and period replace the schedule's emissions for
+    /// that cycle (the schedule itself, under the rules of
+    /// [`ickon_proto::epoch`], stays as published).
+    fn match_trigger(&mut self, msg: &UltrasoundArrivals, hint: Option<[f64; 2]>) -> TriggerMatch {
+        // The flight times a choice awaiting the next trigger was made with.
+        let mut flights_ns = Vec::new();
+        let matched = if self.recent_triggers.is_empty() {
+            // The whole schedule fires: nothing to match, no flight to work out.
+            None
+        } else {
+            let flight_ns = self.expected_flights(msg, hint);
+            let matched = self
+                .recent_triggers
+                .best_for(msg, &self.schedules, &flight_ns);
+            if matched
+                .as_ref()
+                .is_some_and(|m| m.clarity == Clarity::AwaitingNext)
+            {
+                flights_ns = msg
+                    .arrivals
+                    .iter()
+                    .filter_map(|a| Some((a.tx_id, flight_ns(a.tx_id)?)))
+                    .collect();
+            }
+            matched
+        };
+        TriggerMatch {
+            matched,
+            flights_ns,
+        }
+    }
+
+    /// The fix of a cycle: a solve of every signal and, when it gives none
+    /// or a suspect one and some transmitters are `hidden`, a second solve
+    /// without them, kept when it is not suspect (with the indices it left
+    /// out).
+    fn attempt_both(
+        &self,
+        signals: &[tdoa::Signal],
+        displacements: &[Vector3<f64>],
+        hint: Option<Vector2<f64>>,
+        hidden: Vec<usize>,
+    ) -> Result<Attempts, MsuError> {
+        let first = self.attempt(signals, displacements, hint)?;
         let retry = first
             .as_ref()
             .is_none_or(|s| s.quality == tdoa::Quality::Suspect);
@@ -369,22 +433,18 @@ impl FixSolver {
                 .filter(|s| s.quality != tdoa::Quality::Suspect)
                 .map(|s| (s, hidden))
         };
-        let mut sol = match (first, second) {
-            (_, Some((sol, hidden))) => {
-                unmatched.extend(hidden.iter().map(|&k| cycle.signals[k].tx_id));
-                sol
-            }
-            (Some(sol), None) => sol,
-            (None, None) => return no_fix(range_differences),
-        };
-        let sigma_m = sol.covariance_xy_m2().trace().max(0.0).sqrt();
-        // The fix is stamped with the cycle's mean arrival time over every
-        // arrival (exact in nanoseconds); its fusion time is that instant's
-        // exact image, so the wire stamp and the estimators agree.
-        sol.t_s = reference_s;
-        // Seed 000 s3.1.3: heading from the first emitted signal used (eq. 4-6).
-        sol.heading_rad = sol.used_tx_ids.first().and_then(|id| {
-            let s = cycle.signals.iter().find(|s| s.tx_id == *id)?;
+        Ok(match (first, second) {
+            (_, Some((sol, hidden))) => Attempts::WithoutHidden(sol, hidden),
+            (Some(sol), None) => Attempts::All(sol),
+            (None, None) => Attempts::NoFix,
+        })
+    }
+
+    /// The robot's heading from the first emitted signal `sol` used
+    /// (seed 000 s3.1.3, eq. 4-6); `None` when its receiver gives none.
+    fn heading_of(&self, sol: &tdoa::Fix, signals: &[Signal]) -> Option<f64> {
+        sol.used_tx_ids.first().and_then(|id| {
+            let s = signals.iter().find(|s| s.tx_id == *id)?;
             tdoa::heading_from_first_receiver(
                 Vector2::new(s.tx_m[0], s.tx_m[1]),
                 sol.position_m.xy(),
@@ -392,38 +452,6 @@ impl FixSolver {
                 &self.config.receiver_angles_rad,
             )
             .ok()
-        });
-        if sol.quality != tdoa::Quality::Ambiguous {
-            self.last_fix = Some((cycle.stamp, sol.position_m.xy()));
-        }
-        if sol.quality == tdoa::Quality::Good {
-            // Only redundant fixes with every residual checked align the
-            // odometry: a wrong root would turn the motion the wrong way.
-            self.motion
-                .fix(reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m);
-            self.last_good = Some((reference_s, [sol.position_m[0], sol.position_m[1]], sigma_m));
-            // The clock offset serves the matching of later cycles.
-            if let Some(Matched { trigger, clarity }) = &matched {
-                let from_fix = self.flights_from(Some([sol.position_m[0], sol.position_m[1]]));
-                match (clarity, cycle_start_ns(msg, &schedule.emissions, &from_fix)) {
-                    (Clarity::Clear, Some(start_ns)) => {
-                        self.recent_triggers.learn_clock(trigger, start_ns)
-                    }
-                    (Clarity::AwaitingNext, Some(start_ns)) => self.recent_triggers.defer_learning(
-                        trigger,
-                        start_ns,
-                        msg,
-                        std::mem::take(&mut matching_flights_ns),
-                    ),
-                    _ => {}
-                }
-            }
-        }
-        let mut wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
-        wire.survey_version = self.survey.map_or(0, |(_, version)| version);
-        Ok(SolvedCycle {
-            fix: Some((sol, wire)),
-            range_differences,
         })
     }
 
@@ -572,6 +600,49 @@ impl FixSolver {
                 ]),
             })
             .collect()
+    }
+}
+
+/// What the solves of one cycle gave.
+enum Attempts {
+    /// A fix from every signal.
+    All(tdoa::Fix),
+    /// A fix without the signals of these indices (hidden transmitters).
+    WithoutHidden(tdoa::Fix, Vec<usize>),
+    /// No fix.
+    NoFix,
+}
+
+/// The trigger a cycle's arrivals were matched to, if any, and the flight
+/// times the choice was made with when it awaits the next trigger.
+struct TriggerMatch {
+    matched: Option<Matched>,
+    flights_ns: Vec<(u32, i64)>,
+}
+
+impl TriggerMatch {
+    /// After a good fix: teaches `triggers` the clock offset of the cycle's
+    /// start (`from_fix`: the flight times from the fix), at once when the
+    /// choice was clear, or once the next trigger confirms it.
+    fn teach_clock(
+        &mut self,
+        triggers: &mut RecentTriggers,
+        msg: &UltrasoundArrivals,
+        emissions: &[Emission],
+        from_fix: &dyn Fn(u32) -> Option<i64>,
+    ) {
+        if let Some(Matched { trigger, clarity }) = &self.matched {
+            match (clarity, cycle_start_ns(msg, emissions, from_fix)) {
+                (Clarity::Clear, Some(start_ns)) => triggers.learn_clock(trigger, start_ns),
+                (Clarity::AwaitingNext, Some(start_ns)) => triggers.defer_learning(
+                    trigger,
+                    start_ns,
+                    msg,
+                    std::mem::take(&mut self.flights_ns),
+                ),
+                _ => {}
+            }
+        }
     }
 }
 

@@ -311,218 +311,314 @@ pub fn run(
     config: &RunConfig,
     progress: &mut dyn FnMut(f64),
 ) -> Result<RunOutput, RunError> {
-    if config.tours == 0 {
-        return Err(RunError::NoTours);
+    let mut run = RouteRun::start(site, config)?;
+    while let Some((t, ev)) = run.q.pop() {
+        run.forward_control_plane(t);
+        match ev {
+            Event::Physics => {
+                if run.physics(t, progress) {
+                    run.out.virtual_s = t;
+                    break;
+                }
+            }
+            Event::Gyro => {
+                let imu = run.world.gyro(t, run.gyro_dt);
+                // A rejected sample leaves the estimator as it was; the driver counts it.
+                run.msu_driver.feed(MsuEvent::Imu(imu));
+                run.q.push(t + run.gyro_dt, Event::Gyro);
+            }
+            Event::Encoders => {
+                let odom = run.world.odometry(t);
+                run.msu_driver.feed(MsuEvent::Odometry(odom));
+                run.q.push(t + 1.0 / ENCODER_HZ, Event::Encoders);
+            }
+            Event::Ranges => {
+                let r = run.world.ranges(t);
+                run.msu_driver.feed(MsuEvent::Range(r));
+                run.q.push(t + 1.0 / RANGES_HZ, Event::Ranges);
+            }
+            Event::Deliver(k) => run.deliver(t, k),
+            Event::Trace => run.trace(t),
+        }
     }
-    let route = site
-        .route(&config.route)
-        .ok_or_else(|| RunError::UnknownRoute {
-            name: config.route.clone(),
-            known: site
-                .routes
-                .iter()
-                .map(|r| r.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-        })?;
-    let mut control =
-        ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
-    let schedule = control.central().latest_schedule().clone();
-    let mut world = World::new(site, route, &config.profile, config.seed);
-    let s0 = world.robot.state;
-    let start = [s0.x_m, s0.y_m, s0.theta_rad];
-    let wheels = world.drive.geometry();
-    let msu = msu_config(site, &config.profile, wheels);
-    // One MSU: each cycle solved once, every estimator fed the same fix.
-    let mut estimators = Vec::new();
-    for name in &config.estimators {
-        estimators.push(estimator::build(&estimator_config(
-            name,
-            start,
+    Ok(run.finish(progress))
+}
+
+/// One route run in progress: the control plane, the world, the MSU driver
+/// fed by both, the event queue and what has been recorded so far.
+struct RouteRun<'a> {
+    site: &'a Site,
+    config: &'a RunConfig,
+    control: ControlPlane,
+    world: World,
+    msu_driver: MsuDriver,
+    out: RunOutput,
+    /// The true emission times of each cycle's bursts, until it is delivered.
+    emissions: BTreeMap<u64, Vec<(u32, f64)>>,
+    q: Queue,
+    /// Seconds between two gyro samples.
+    gyro_dt: f64,
+    /// Seconds after a cycle's last burst by which every burst has been heard.
+    max_flight_s: f64,
+    route_len: f64,
+    /// Reference points per tour.
+    n_refs: usize,
+    /// Reference passages in the whole run.
+    total_refs: usize,
+    /// The next reference passage to sample, counted over all tours.
+    next_ref: usize,
+    /// The fraction done last told to `progress`.
+    last_progress_report: f64,
+}
+
+impl<'a> RouteRun<'a> {
+    /// Checks the configuration, builds the control plane, the world and the
+    /// MSU (which must accept the first schedule) and queues the first event
+    /// of each kind.
+    fn start(site: &'a Site, config: &'a RunConfig) -> Result<Self, RunError> {
+        if config.tours == 0 {
+            return Err(RunError::NoTours);
+        }
+        let route = site
+            .route(&config.route)
+            .ok_or_else(|| RunError::UnknownRoute {
+                name: config.route.clone(),
+                known: site
+                    .routes
+                    .iter()
+                    .map(|r| r.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?;
+        let control =
+            ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
+        let schedule = control.central().latest_schedule().clone();
+        let world = World::new(site, route, &config.profile, config.seed);
+        let s0 = world.robot.state;
+        let start = [s0.x_m, s0.y_m, s0.theta_rad];
+        let wheels = world.drive.geometry();
+        let msu = msu_config(site, &config.profile, wheels);
+        // One MSU: each cycle solved once, every estimator fed the same fix.
+        let mut estimators = Vec::new();
+        for name in &config.estimators {
+            estimators.push(estimator::build(&estimator_config(
+                name,
+                start,
+                site,
+                &config.profile,
+                config.filter,
+            )?)?);
+        }
+        let n_est = estimators.len();
+        let mut msu_driver = MsuDriver::new(MsuCore::with_estimators(msu.clone(), estimators));
+        msu_driver.feed(MsuEvent::Schedule(schedule.clone()));
+        if let Some(why) = msu_driver.first_refusal() {
+            return Err(RunError::Refused(why.to_string()));
+        }
+        let route_len = world.robot.route_length_m();
+        let n_refs = route.reference_points.len().max(1);
+        let total_refs = n_refs * config.tours as usize;
+        let max_flight_s = (config.profile.ultrasound.max_range_m
+            + config.profile.ultrasound.reflection_extra_m[1])
+            / site.speed_of_sound_m_s
+            + 0.005;
+
+        let out = RunOutput {
+            config: config.clone(),
+            refs: Vec::with_capacity(total_refs),
+            fixes: Vec::new(),
+            truth_trace: Vec::new(),
+            estimate_traces: vec![Vec::new(); n_est],
+            refs_per_tour: n_refs,
+            schedule: schedule.clone(),
+            virtual_s: 0.0,
+            timing_sigma_s: msu.timing_sigma_s,
+            cells: Vec::new(),
+            collisions: Default::default(),
+            refused_inputs: None,
+        };
+        let mut q = Queue::default();
+        let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
+        q.push(PHYSICS_DT_S, Event::Physics);
+        q.push(gyro_dt, Event::Gyro);
+        q.push(1.0 / ENCODER_HZ, Event::Encoders);
+        q.push(1.0 / RANGES_HZ, Event::Ranges);
+        q.push(0.0, Event::Trace);
+        Ok(Self {
             site,
-            &config.profile,
-            config.filter,
-        )?)?);
+            config,
+            control,
+            world,
+            msu_driver,
+            out,
+            emissions: BTreeMap::new(),
+            q,
+            gyro_dt,
+            max_flight_s,
+            route_len,
+            n_refs,
+            total_refs,
+            next_ref: 0,
+            last_progress_report: 0.0,
+        })
     }
-    let n_est = estimators.len();
-    let mut msu_driver = MsuDriver::new(MsuCore::with_estimators(msu.clone(), estimators));
-    msu_driver.feed(MsuEvent::Schedule(schedule.clone()));
-    if let Some(why) = msu_driver.first_refusal() {
-        return Err(RunError::Refused(why.to_string()));
-    }
-    let route_len = world.robot.route_length_m();
-    let n_refs = route.reference_points.len().max(1);
-    let total_refs = n_refs * config.tours as usize;
-    let max_flight_s = (config.profile.ultrasound.max_range_m
-        + config.profile.ultrasound.reflection_extra_m[1])
-        / site.speed_of_sound_m_s
-        + 0.005;
 
-    let mut out = RunOutput {
-        config: config.clone(),
-        refs: Vec::with_capacity(total_refs),
-        fixes: Vec::new(),
-        truth_trace: Vec::new(),
-        estimate_traces: vec![Vec::new(); n_est],
-        refs_per_tour: n_refs,
-        schedule: schedule.clone(),
-        virtual_s: 0.0,
-        timing_sigma_s: msu.timing_sigma_s,
-        cells: Vec::new(),
-        collisions: Default::default(),
-        refused_inputs: None,
-    };
-    // The true emission times of each cycle's bursts, until it is delivered.
-    let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
-    let mut q = Queue::default();
-    let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
-    q.push(PHYSICS_DT_S, Event::Physics);
-    q.push(gyro_dt, Event::Gyro);
-    q.push(1.0 / ENCODER_HZ, Event::Encoders);
-    q.push(1.0 / RANGES_HZ, Event::Ranges);
-    q.push(0.0, Event::Trace);
-    let mut next_ref = 0usize;
-    let mut last_progress_report = 0.0;
-
-    while let Some((t, ev)) = q.pop() {
+    /// Advances the control plane to `t` and hands the MSU what it sent
+    /// (cell statuses, surveys, triggers); queues each triggered cycle's
+    /// delivery and keeps its bursts' true emission times.
+    fn forward_control_plane(&mut self, t: f64) {
+        let control = &mut self.control;
         control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
         for status in control.take_statuses() {
-            msu_driver.feed(MsuEvent::CellStatus(status));
+            self.msu_driver.feed(MsuEvent::CellStatus(status));
         }
         for survey in control.take_surveys() {
-            msu_driver.feed(MsuEvent::Survey(survey));
+            self.msu_driver.feed(MsuEvent::Survey(survey));
         }
         for trigger in control.take_triggers() {
             // Every burst of the cycle has been heard by then.
             let period_s = trigger
                 .period(control.schedule_for(trigger.cycle))
                 .as_secs_f64();
-            q.push(
-                trigger.start.as_secs_f64() + period_s + max_flight_s,
+            self.q.push(
+                trigger.start.as_secs_f64() + period_s + self.max_flight_s,
                 Event::Deliver(trigger.cycle),
             );
             // As on the mesh: the MSU hears every trigger and matches its
             // arrivals to one itself (`ickon_msu::cycle_match`).
-            msu_driver.feed(MsuEvent::Trigger(trigger));
+            self.msu_driver.feed(MsuEvent::Trigger(trigger));
         }
         for b in control.take_fired() {
-            emissions
+            self.emissions
                 .entry(b.cycle)
                 .or_default()
                 .push((b.tx_id, b.actual.as_secs_f64()));
         }
-        match ev {
-            Event::Physics => {
-                let moving = t > REST_S;
-                world.step(t, PHYSICS_DT_S, moving);
-                while moving && next_ref < total_refs {
-                    let tour = next_ref / n_refs;
-                    let idx = next_ref % n_refs;
-                    let s_ref = tour as f64 * route_len + idx as f64 * route_len / n_refs as f64;
-                    if world.robot.progress_m < s_ref {
-                        break;
-                    }
-                    let poses: Vec<_> = (0..n_est).map(|i| msu_driver.core().pose_of(i)).collect();
-                    out.refs.push(RefSample {
-                        tour: u32::try_from(tour + 1).unwrap_or(u32::MAX),
-                        index: idx,
-                        truth: world.truth(t),
-                        estimates: poses
-                            .iter()
-                            .map(|p| p.as_ref().map(|p| [p.x_m, p.y_m, p.theta_rad]))
-                            .collect(),
-                        covariances: poses
-                            .iter()
-                            .map(|p| {
-                                p.as_ref()
-                                    .map(|p| [p.covariance[0], p.covariance[1], p.covariance[4]])
-                            })
-                            .collect(),
-                    });
-                    next_ref += 1;
-                }
-                let done = world.robot.progress_m / (route_len * f64::from(config.tours));
-                if done - last_progress_report > 0.01 {
-                    last_progress_report = done;
-                    progress(done.min(1.0));
-                }
-                if next_ref >= total_refs
-                    && world.robot.progress_m >= route_len * f64::from(config.tours)
-                {
-                    out.virtual_s = t;
-                    break;
-                }
-                q.push(t + PHYSICS_DT_S, Event::Physics);
+    }
+
+    /// One physics step at `t`: moves the world, samples the reference
+    /// points passed, tells `progress`; true when the last tour is done
+    /// (nothing more is queued then).
+    fn physics(&mut self, t: f64, progress: &mut dyn FnMut(f64)) -> bool {
+        let moving = t > REST_S;
+        self.world.step(t, PHYSICS_DT_S, moving);
+        if moving {
+            self.sample_references(t);
+        }
+        let tours = f64::from(self.config.tours);
+        let done = self.world.robot.progress_m / (self.route_len * tours);
+        if done - self.last_progress_report > 0.01 {
+            self.last_progress_report = done;
+            progress(done.min(1.0));
+        }
+        if self.next_ref >= self.total_refs && self.world.robot.progress_m >= self.route_len * tours
+        {
+            return true;
+        }
+        self.q.push(t + PHYSICS_DT_S, Event::Physics);
+        false
+    }
+
+    /// Records the truth and every estimate for each reference point the
+    /// robot has passed by `t`.
+    fn sample_references(&mut self, t: f64) {
+        let n_refs = self.n_refs;
+        let route_len = self.route_len;
+        while self.next_ref < self.total_refs {
+            let tour = self.next_ref / n_refs;
+            let idx = self.next_ref % n_refs;
+            let s_ref = tour as f64 * route_len + idx as f64 * route_len / n_refs as f64;
+            if self.world.robot.progress_m < s_ref {
+                break;
             }
-            Event::Gyro => {
-                let imu = world.gyro(t, gyro_dt);
-                // A rejected sample leaves the estimator as it was; the driver counts it.
-                msu_driver.feed(MsuEvent::Imu(imu));
-                q.push(t + gyro_dt, Event::Gyro);
-            }
-            Event::Encoders => {
-                let odom = world.odometry(t);
-                msu_driver.feed(MsuEvent::Odometry(odom));
-                q.push(t + 1.0 / ENCODER_HZ, Event::Encoders);
-            }
-            Event::Ranges => {
-                let r = world.ranges(t);
-                msu_driver.feed(MsuEvent::Range(r));
-                q.push(t + 1.0 / RANGES_HZ, Event::Ranges);
-            }
-            Event::Deliver(k) => {
-                // Cycles before `k` that never came to delivery are dropped with it.
-                let later = emissions.split_off(&(k + 1));
-                let fired = std::mem::replace(&mut emissions, later)
-                    .remove(&k)
-                    .unwrap_or_default();
-                if fired.is_empty() {
-                    continue;
-                }
-                let msg = world.arrivals_from_emissions(&fired);
-                msu_driver.feed(MsuEvent::Schedule(control.schedule_for(k).clone()));
-                if let Some(fix) = msu_driver.feed(MsuEvent::Arrivals(msg)).fix {
-                    control.send_to_central(ickon_central::core::Event::Fix {
-                        robot: ROBOT_ID.into(),
-                        fix: Box::new(fix.clone()),
-                    });
-                    let t_true = world.msu_clock.true_s(fix.stamp.as_secs_f64());
-                    let used_tx_m = fix
-                        .used
-                        .iter()
-                        .filter_map(|id| site.transmitter(*id).map(|t| t.position_m))
-                        .collect();
-                    out.fixes.push(FixRecord {
-                        truth: world.truth_at(t_true),
-                        fix,
-                        used_tx_m,
-                        available_s: t,
-                    });
-                }
-            }
-            Event::Trace => {
-                let tour = u32::try_from((world.robot.progress_m / route_len) as u64 + 1)
-                    .unwrap_or(u32::MAX);
-                let s = world.robot.state;
-                out.truth_trace.push(TracePoint {
-                    tour,
-                    xy_m: [s.x_m, s.y_m],
-                });
-                for (i, trace) in out.estimate_traces.iter_mut().enumerate() {
-                    if let Some(p) = msu_driver.core().pose_of(i) {
-                        trace.push(TracePoint {
-                            tour,
-                            xy_m: [p.x_m, p.y_m],
-                        });
-                    }
-                }
-                q.push(t + TRACE_DT_S, Event::Trace);
-            }
+            let n_est = self.out.estimate_traces.len();
+            let poses: Vec<_> = (0..n_est)
+                .map(|i| self.msu_driver.core().pose_of(i))
+                .collect();
+            self.out.refs.push(RefSample {
+                tour: u32::try_from(tour + 1).unwrap_or(u32::MAX),
+                index: idx,
+                truth: self.world.truth(t),
+                estimates: poses
+                    .iter()
+                    .map(|p| p.as_ref().map(|p| [p.x_m, p.y_m, p.theta_rad]))
+                    .collect(),
+                covariances: poses
+                    .iter()
+                    .map(|p| {
+                        p.as_ref()
+                            .map(|p| [p.covariance[0], p.covariance[1], p.covariance[4]])
+                    })
+                    .collect(),
+            });
+            self.next_ref += 1;
         }
     }
-    out.refused_inputs = msu_driver.refusal_summary();
-    out.cells = control.sync_reports();
-    out.collisions = world.collision_counts();
-    progress(1.0);
-    Ok(out)
+
+    /// Delivers cycle `k`'s arrivals to the MSU at `t` (with the schedule it
+    /// ran on); a fix goes to the central unit and is recorded with the
+    /// truth at its measurement time.
+    fn deliver(&mut self, t: f64, k: u64) {
+        // Cycles before `k` that never came to delivery are dropped with it.
+        let later = self.emissions.split_off(&(k + 1));
+        let fired = std::mem::replace(&mut self.emissions, later)
+            .remove(&k)
+            .unwrap_or_default();
+        if fired.is_empty() {
+            return;
+        }
+        let msg = self.world.arrivals_from_emissions(&fired);
+        self.msu_driver
+            .feed(MsuEvent::Schedule(self.control.schedule_for(k).clone()));
+        if let Some(fix) = self.msu_driver.feed(MsuEvent::Arrivals(msg)).fix {
+            self.control
+                .send_to_central(ickon_central::core::Event::Fix {
+                    robot: ROBOT_ID.into(),
+                    fix: Box::new(fix.clone()),
+                });
+            let t_true = self.world.msu_clock.true_s(fix.stamp.as_secs_f64());
+            let used_tx_m = fix
+                .used
+                .iter()
+                .filter_map(|id| self.site.transmitter(*id).map(|t| t.position_m))
+                .collect();
+            self.out.fixes.push(FixRecord {
+                truth: self.world.truth_at(t_true),
+                fix,
+                used_tx_m,
+                available_s: t,
+            });
+        }
+    }
+
+    /// Samples the true path and each estimator's path at `t`.
+    fn trace(&mut self, t: f64) {
+        let tour = u32::try_from((self.world.robot.progress_m / self.route_len) as u64 + 1)
+            .unwrap_or(u32::MAX);
+        let s = self.world.robot.state;
+        self.out.truth_trace.push(TracePoint {
+            tour,
+            xy_m: [s.x_m, s.y_m],
+        });
+        for (i, trace) in self.out.estimate_traces.iter_mut().enumerate() {
+            if let Some(p) = self.msu_driver.core().pose_of(i) {
+                trace.push(TracePoint {
+                    tour,
+                    xy_m: [p.x_m, p.y_m],
+                });
+            }
+        }
+        self.q.push(t + TRACE_DT_S, Event::Trace);
+    }
+
+    /// The run's record, with the MSU's refusals, the cells' sync and the
+    /// collisions; tells `progress` it is done.
+    fn finish(self, progress: &mut dyn FnMut(f64)) -> RunOutput {
+        let mut out = self.out;
+        out.refused_inputs = self.msu_driver.refusal_summary();
+        out.cells = self.control.sync_reports();
+        out.collisions = self.world.collision_counts();
+        progress(1.0);
+        out
+    }
 }

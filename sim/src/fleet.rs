@@ -90,6 +90,7 @@ pub struct FleetOutput {
     pub survey_fixes_taken: Option<u64>,
 }
 
+/// One robot of the fleet: its world, its MSU and what is scored of it.
 struct Member {
     id: String,
     route: String,
@@ -110,6 +111,23 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
     }
     let mut control =
         ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
+    let members = build_members(site, config, &mut control)?;
+    let mut fleet = Fleet::new(site, config, control, members);
+    let steps = (config.duration_s / PHYSICS_DT_S).ceil() as u64;
+    for step in 1..=steps {
+        fleet.step(step);
+    }
+    Ok(fleet.results())
+}
+
+/// One member per robot of the fleet (the first `config.robots` of the
+/// site), each on its route from its start, with its MSU on the control
+/// plane's schedule; the central unit is told each one is alive.
+fn build_members(
+    site: &Site,
+    config: &FleetConfig,
+    control: &mut ControlPlane,
+) -> Result<Vec<Member>, RunError> {
     let mut members = Vec::with_capacity(config.robots);
     for spec in site.robots.iter().take(config.robots) {
         let route = site
@@ -148,171 +166,271 @@ pub fn run_fleet(site: &Site, config: &FleetConfig) -> Result<FleetOutput, RunEr
             errors_mm: Vec::new(),
         });
     }
-    let max_flight_s = (config.profile.ultrasound.max_range_m
-        + config.profile.ultrasound.reflection_extra_m[1])
-        / site.speed_of_sound_m_s
-        + 0.005;
-    let gyro_every = ((1.0 / config.profile.gyro.rate_hz.max(1.0)) / PHYSICS_DT_S)
-        .round()
-        .max(1.0) as u64;
-    let encoder_every = ((1.0 / ENCODER_HZ) / PHYSICS_DT_S).round().max(1.0) as u64;
-    let pose_every = (POSE_DT_S / PHYSICS_DT_S).round().max(1.0) as u64;
-    let gyro_dt = gyro_every as f64 * PHYSICS_DT_S;
-    let mut triggers: BTreeMap<u64, CycleTrigger> = BTreeMap::new();
-    let mut due: BTreeMap<i64, Vec<u64>> = BTreeMap::new();
-    let mut emissions: BTreeMap<u64, Vec<(u32, f64)>> = BTreeMap::new();
-    let (mut counted_cycles, mut firing_sum) = (0u64, 0u64);
-    let steps = (config.duration_s / PHYSICS_DT_S).ceil() as u64;
-    for step in 1..=steps {
+    Ok(members)
+}
+
+/// A fleet run in progress: the shared control plane, the members, the
+/// cycles triggered and not yet delivered, and the trigger counts.
+struct Fleet<'a> {
+    config: &'a FleetConfig,
+    control: ControlPlane,
+    members: Vec<Member>,
+    /// Seconds after a cycle's last burst by which every burst has been heard.
+    max_flight_s: f64,
+    /// Physics steps between two gyro samples.
+    gyro_every: u64,
+    /// Physics steps between two odometry samples.
+    encoder_every: u64,
+    /// Physics steps between two poses sent to the central unit.
+    pose_every: u64,
+    /// Seconds between two gyro samples.
+    gyro_dt: f64,
+    /// Triggered cycles, until delivered or forgotten.
+    triggers: BTreeMap<u64, CycleTrigger>,
+    /// Cycles by the time (ns) every burst of theirs has been heard.
+    due: BTreeMap<i64, Vec<u64>>,
+    /// The true emission times of each cycle's bursts, until it is delivered.
+    emissions: BTreeMap<u64, Vec<(u32, f64)>>,
+    /// Cycles triggered after the warm-up.
+    counted_cycles: u64,
+    /// Transmitters those cycles named, added up.
+    firing_sum: u64,
+}
+
+impl<'a> Fleet<'a> {
+    /// The fleet at time zero, with the sensor rates in physics steps.
+    fn new(
+        site: &Site,
+        config: &'a FleetConfig,
+        control: ControlPlane,
+        members: Vec<Member>,
+    ) -> Self {
+        let max_flight_s = (config.profile.ultrasound.max_range_m
+            + config.profile.ultrasound.reflection_extra_m[1])
+            / site.speed_of_sound_m_s
+            + 0.005;
+        let gyro_every = ((1.0 / config.profile.gyro.rate_hz.max(1.0)) / PHYSICS_DT_S)
+            .round()
+            .max(1.0) as u64;
+        let encoder_every = ((1.0 / ENCODER_HZ) / PHYSICS_DT_S).round().max(1.0) as u64;
+        let pose_every = (POSE_DT_S / PHYSICS_DT_S).round().max(1.0) as u64;
+        let gyro_dt = gyro_every as f64 * PHYSICS_DT_S;
+        Self {
+            config,
+            control,
+            members,
+            max_flight_s,
+            gyro_every,
+            encoder_every,
+            pose_every,
+            gyro_dt,
+            triggers: BTreeMap::new(),
+            due: BTreeMap::new(),
+            emissions: BTreeMap::new(),
+            counted_cycles: 0,
+            firing_sum: 0,
+        }
+    }
+
+    /// Physics step number `step` (from 1): the control plane, the robots'
+    /// motion and sensors, the cycles due, and every few steps the poses.
+    fn step(&mut self, step: u64) {
         let t = step as f64 * PHYSICS_DT_S;
+        self.forward_control_plane(t);
+        let moving = t > REST_S;
+        let scoring = t > self.config.warm_up_s;
+        for m in &mut self.members {
+            m.world.step(t, PHYSICS_DT_S, moving);
+            if step % self.gyro_every == 0 {
+                let imu = m.world.gyro(t, self.gyro_dt);
+                m.msu.feed(MsuEvent::Imu(imu));
+            }
+            if step % self.encoder_every == 0 {
+                let odom = m.world.odometry(t);
+                m.msu.feed(MsuEvent::Odometry(odom));
+            }
+        }
+        self.deliver_due(t, scoring);
+        self.forget_stale(t);
+        if step % self.pose_every == 0 {
+            self.sample_poses(t, scoring);
+        }
+    }
+
+    /// Advances the control plane to `t` and hands every MSU what it sent
+    /// (cell statuses, surveys, triggers); counts the triggers after the
+    /// warm-up, notes when each cycle is due and keeps its bursts' true
+    /// emission times.
+    fn forward_control_plane(&mut self, t: f64) {
+        let control = &mut self.control;
         control.advance_to(Time::from_secs_f64(t));
         for status in control.take_statuses() {
-            for m in &mut members {
+            for m in &mut self.members {
                 m.msu.feed(MsuEvent::CellStatus(status.clone()));
             }
         }
         for survey in control.take_surveys() {
-            for m in &mut members {
+            for m in &mut self.members {
                 m.msu.feed(MsuEvent::Survey(survey.clone()));
             }
         }
         for trigger in control.take_triggers() {
             let schedule = control.schedule_for(trigger.cycle);
-            let end =
-                trigger.start.as_secs_f64() + trigger.period(schedule).as_secs_f64() + max_flight_s;
-            if trigger.start.as_secs_f64() > config.warm_up_s {
-                counted_cycles += 1;
-                firing_sum += trigger.emissions(schedule).len() as u64;
+            let end = trigger.start.as_secs_f64()
+                + trigger.period(schedule).as_secs_f64()
+                + self.max_flight_s;
+            if trigger.start.as_secs_f64() > self.config.warm_up_s {
+                self.counted_cycles += 1;
+                self.firing_sum += trigger.emissions(schedule).len() as u64;
             }
-            due.entry((end * 1e9) as i64)
+            self.due
+                .entry((end * 1e9) as i64)
                 .or_default()
                 .push(trigger.cycle);
             // As on the mesh: every MSU hears every trigger and matches its
             // arrivals to one itself (`ickon_msu::cycle_match`).
-            for m in &mut members {
+            for m in &mut self.members {
                 m.msu.feed(MsuEvent::Trigger(trigger.clone()));
             }
-            triggers.insert(trigger.cycle, trigger);
+            self.triggers.insert(trigger.cycle, trigger);
         }
         for b in control.take_fired() {
-            emissions
+            self.emissions
                 .entry(b.cycle)
                 .or_default()
                 .push((b.tx_id, b.actual.as_secs_f64()));
         }
-        let moving = t > REST_S;
-        let scoring = t > config.warm_up_s;
-        for m in &mut members {
-            m.world.step(t, PHYSICS_DT_S, moving);
-            if step % gyro_every == 0 {
-                let imu = m.world.gyro(t, gyro_dt);
-                m.msu.feed(MsuEvent::Imu(imu));
-            }
-            if step % encoder_every == 0 {
-                let odom = m.world.odometry(t);
-                m.msu.feed(MsuEvent::Odometry(odom));
-            }
-        }
+    }
+
+    /// Delivers every cycle due by `t` to every member; their fixes go to
+    /// the central unit and, when `scoring`, are counted.
+    fn deliver_due(&mut self, t: f64, scoring: bool) {
         let now_ns = (t * 1e9) as i64;
-        let ready: Vec<i64> = due.range(..=now_ns).map(|(k, _)| *k).collect();
+        let ready: Vec<i64> = self.due.range(..=now_ns).map(|(k, _)| *k).collect();
         for key in ready {
-            for k in due.remove(&key).unwrap_or_default() {
-                let fired = emissions.remove(&k).unwrap_or_default();
-                if triggers.remove(&k).is_none() {
+            for k in self.due.remove(&key).unwrap_or_default() {
+                let fired = self.emissions.remove(&k).unwrap_or_default();
+                if self.triggers.remove(&k).is_none() {
                     continue;
                 }
                 if fired.is_empty() {
                     continue;
                 }
-                let schedule = control.schedule_for(k).clone();
-                for m in &mut members {
-                    let msg = m.world.arrivals_from_emissions(&fired);
-                    m.msu.feed(MsuEvent::Schedule(schedule.clone()));
-                    if let Some(fix) = m.msu.feed(MsuEvent::Arrivals(msg)).fix {
-                        let calibrated = fix.survey_version != 0;
-                        control.send_to_central(CentralEvent::Fix {
-                            robot: m.id.clone(),
-                            fix: Box::new(fix),
-                        });
-                        if scoring {
-                            m.fixes += 1;
-                            m.calibrated_fixes += u64::from(calibrated);
-                        }
-                    }
-                }
-            }
-        }
-        // Cycles that never fired are forgotten after a second.
-        let stale = triggers
-            .keys()
-            .next()
-            .copied()
-            .filter(|&k| triggers[&k].start.as_secs_f64() < t - 1.0);
-        if let Some(k) = stale {
-            triggers.remove(&k);
-            emissions.remove(&k);
-        }
-        if step % pose_every == 0 {
-            for m in &mut members {
-                let Some(pose) = m.msu.core().pose() else {
-                    continue;
-                };
-                if scoring {
-                    let truth = m.world.truth(t);
-                    let err = (pose.x_m - truth.x_m).hypot(pose.y_m - truth.y_m);
-                    m.errors_mm.push(err * 1e3);
-                }
-                control.send_to_central(CentralEvent::Pose {
-                    robot: m.id.clone(),
-                    pose,
-                });
+                self.deliver_cycle(k, &fired, scoring);
             }
         }
     }
-    let scored_s = (config.duration_s - config.warm_up_s).max(1e-9);
-    let mut total = CollisionCounts::default();
-    let robots = members
-        .into_iter()
-        .map(|mut m| {
-            let c = m.world.collision_counts();
-            total.add(&c);
-            m.errors_mm.sort_by(f64::total_cmp);
-            let n = m.errors_mm.len();
-            RobotResult {
-                id: m.id,
-                route: m.route,
-                fixes_per_s: m.fixes as f64 / scored_s,
-                mean_err_mm: if n == 0 {
-                    f64::NAN
-                } else {
-                    m.errors_mm.iter().sum::<f64>() / n as f64
-                },
-                p95_err_mm: if n == 0 {
-                    f64::NAN
-                } else {
-                    m.errors_mm[((n as f64 * 0.95) as usize).min(n - 1)]
-                },
-                collisions: c,
-                calibrated_fixes: m.calibrated_fixes,
-                refused_inputs: m.msu.refusal_summary(),
+
+    /// Delivers cycle `k`, whose bursts `fired`, to every member.
+    fn deliver_cycle(&mut self, k: u64, fired: &[(u32, f64)], scoring: bool) {
+        let schedule = self.control.schedule_for(k).clone();
+        for m in &mut self.members {
+            let msg = m.world.arrivals_from_emissions(fired);
+            m.msu.feed(MsuEvent::Schedule(schedule.clone()));
+            if let Some(fix) = m.msu.feed(MsuEvent::Arrivals(msg)).fix {
+                let calibrated = fix.survey_version != 0;
+                self.control.send_to_central(CentralEvent::Fix {
+                    robot: m.id.clone(),
+                    fix: Box::new(fix),
+                });
+                if scoring {
+                    m.fixes += 1;
+                    m.calibrated_fixes += u64::from(calibrated);
+                }
             }
-        })
-        .collect();
-    Ok(FleetOutput {
-        robots,
-        cycles_per_s: counted_cycles as f64 / scored_s,
-        mean_firing: if counted_cycles == 0 {
-            0.0
-        } else {
-            firing_sum as f64 / counted_cycles as f64
-        },
-        transmitters: control.central().latest_schedule().emissions.len(),
-        collisions: total,
-        survey_fixes_taken: control
-            .central()
-            .survey()
-            .map(|p| p.calibration().fixes_taken()),
-    })
+        }
+    }
+
+    /// Forgets the oldest triggered cycle if it never fired within a second.
+    fn forget_stale(&mut self, t: f64) {
+        let stale = self
+            .triggers
+            .keys()
+            .next()
+            .copied()
+            .filter(|&k| self.triggers[&k].start.as_secs_f64() < t - 1.0);
+        if let Some(k) = stale {
+            self.triggers.remove(&k);
+            self.emissions.remove(&k);
+        }
+    }
+
+    /// Sends each member's pose to the central unit and, when `scoring`,
+    /// records its error against the truth at `t`.
+    fn sample_poses(&mut self, t: f64, scoring: bool) {
+        for m in &mut self.members {
+            let Some(pose) = m.msu.core().pose() else {
+                continue;
+            };
+            if scoring {
+                let truth = m.world.truth(t);
+                let err = (pose.x_m - truth.x_m).hypot(pose.y_m - truth.y_m);
+                m.errors_mm.push(err * 1e3);
+            }
+            self.control.send_to_central(CentralEvent::Pose {
+                robot: m.id.clone(),
+                pose,
+            });
+        }
+    }
+
+    /// The run's results, per robot and for the fleet.
+    fn results(self) -> FleetOutput {
+        let config = self.config;
+        let scored_s = (config.duration_s - config.warm_up_s).max(1e-9);
+        let mut total = CollisionCounts::default();
+        let robots = self
+            .members
+            .into_iter()
+            .map(|m| m.result(scored_s, &mut total))
+            .collect();
+        let counted_cycles = self.counted_cycles;
+        FleetOutput {
+            robots,
+            cycles_per_s: counted_cycles as f64 / scored_s,
+            mean_firing: if counted_cycles == 0 {
+                0.0
+            } else {
+                self.firing_sum as f64 / counted_cycles as f64
+            },
+            transmitters: self.control.central().latest_schedule().emissions.len(),
+            collisions: total,
+            survey_fixes_taken: self
+                .control
+                .central()
+                .survey()
+                .map(|p| p.calibration().fixes_taken()),
+        }
+    }
+}
+
+impl Member {
+    /// This robot's results over `scored_s` seconds; its collisions are
+    /// added to `total`.
+    fn result(mut self, scored_s: f64, total: &mut CollisionCounts) -> RobotResult {
+        let c = self.world.collision_counts();
+        total.add(&c);
+        self.errors_mm.sort_by(f64::total_cmp);
+        let n = self.errors_mm.len();
+        RobotResult {
+            id: self.id,
+            route: self.route,
+            fixes_per_s: self.fixes as f64 / scored_s,
+            mean_err_mm: if n == 0 {
+                f64::NAN
+            } else {
+                self.errors_mm.iter().sum::<f64>() / n as f64
+            },
+            p95_err_mm: if n == 0 {
+                f64::NAN
+            } else {
+                self.errors_mm[((n as f64 * 0.95) as usize).min(n - 1)]
+            },
+            collisions: c,
+            calibrated_fixes: self.calibrated_fixes,
+            refused_inputs: self.msu.refusal_summary(),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -17,7 +17,9 @@ use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, system_now, zerr};
 use zenoh::Session;
-use zenoh::pubsub::Publisher;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::pubsub::{Publisher, Subscriber};
+use zenoh::sample::Sample;
 
 use crate::profile::NoiseProfile;
 use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
@@ -82,19 +84,20 @@ pub async fn run(
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
     let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)
         .map_err(|e| NodeError::Setup(e.to_string()))?;
-    let schedule_sub = session
-        .declare_subscriber(keys.central_schedule())
-        .await
-        .map_err(zerr)?;
-    let bursts = session
-        .declare_subscriber(keys.cell_burst_all())
-        .await
-        .map_err(zerr)?;
-    // Which transmitters fire each cycle: a cycle is over when they have.
-    let triggers = session
-        .declare_subscriber(keys.central_cycle())
-        .await
-        .map_err(zerr)?;
+    let inputs = WorldInputs {
+        schedule: session
+            .declare_subscriber(keys.central_schedule())
+            .await
+            .map_err(zerr)?,
+        bursts: session
+            .declare_subscriber(keys.cell_burst_all())
+            .await
+            .map_err(zerr)?,
+        triggers: session
+            .declare_subscriber(keys.central_cycle())
+            .await
+            .map_err(zerr)?,
+    };
     if let Some(schedule) = fetch::<Schedule>(
         session,
         &keys.central_schedule(),
@@ -106,8 +109,34 @@ pub async fn run(
     {
         let _ = world.handle(system_now(), WorldEvent::Schedule(schedule));
     }
+    let mut pubs = robot_publishers(session, &keys, world.robot_ids(), settings.ros2).await?;
+    tracing::info!(
+        "world: {} robots on site {:?}, profile {}",
+        pubs.len(),
+        site.name,
+        settings.profile.name
+    );
+
+    let bursts_heard = serve(&mut world, &inputs, &mut pubs, &mut shutdown).await?;
+    if world.bursts_ignored() > 0 {
+        tracing::warn!(
+            "world: {} burst reports ignored (stamped more than 10 s from now)",
+            world.bursts_ignored()
+        );
+    }
+    Ok(bursts_heard)
+}
+
+/// Opens each robot's publishers (and with `ros2` its ROS 2 sensor
+/// publishers), in the order of `ids`.
+async fn robot_publishers(
+    session: &Session,
+    keys: &Keys,
+    ids: &[String],
+    ros2: bool,
+) -> Result<Vec<RobotPublishers>, NodeError> {
     let mut pubs = Vec::new();
-    for id in world.robot_ids() {
+    for id in ids {
         // Block, not drop, when a subscriber's link is full: a sample lost
         // to one subscriber only (the MSU or a recorder) would make a
         // recording differ from what the MSU saw. Not express: the world
@@ -134,7 +163,7 @@ pub async fn run(
                 .await
                 .map_err(zerr)?,
             truth: publisher(keys.sim_truth(id)?).await.map_err(zerr)?,
-            ros: if settings.ros2 {
+            ros: if ros2 {
                 let nid = u32::try_from(pubs.len()).unwrap_or(u32::MAX);
                 Some(RosSensorPublishers::open(session, id, nid).await?)
             } else {
@@ -142,28 +171,42 @@ pub async fn run(
             },
         });
     }
-    tracing::info!(
-        "world: {} robots on site {:?}, profile {}",
-        pubs.len(),
-        site.name,
-        settings.profile.name
-    );
+    Ok(pubs)
+}
 
+/// What the world hears.
+struct WorldInputs {
+    /// The central unit's schedules.
+    schedule: Subscriber<FifoChannelHandler<Sample>>,
+    /// Every cell's burst reports.
+    bursts: Subscriber<FifoChannelHandler<Sample>>,
+    /// Which transmitters fire each cycle: a cycle is over when they have.
+    triggers: Subscriber<FifoChannelHandler<Sample>>,
+}
+
+/// The event loop: feeds the world each input and each tick and publishes
+/// what it outputs, until `shutdown` completes; returns the bursts heard.
+async fn serve(
+    world: &mut RealtimeWorld,
+    inputs: &WorldInputs,
+    pubs: &mut [RobotPublishers],
+    shutdown: &mut (impl Future<Output = ()> + Unpin),
+) -> Result<u64, NodeError> {
     let mut tick = tokio::time::interval(TICK);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut bursts_heard = 0u64;
     let mut log_limit = LogLimiter::<&'static str>::default();
     loop {
         let event = tokio::select! {
-            _ = &mut shutdown => break,
-            Ok(s) = schedule_sub.recv_async() => {
+            _ = &mut *shutdown => break,
+            Ok(s) = inputs.schedule.recv_async() => {
                 decoded(&mut log_limit, "schedule", &s).map(WorldEvent::Schedule)
             }
-            Ok(s) = bursts.recv_async() => decoded(&mut log_limit, "burst", &s).map(|b| {
+            Ok(s) = inputs.bursts.recv_async() => decoded(&mut log_limit, "burst", &s).map(|b| {
                 bursts_heard += 1;
                 WorldEvent::Burst(b)
             }),
-            Ok(s) = triggers.recv_async() => {
+            Ok(s) = inputs.triggers.recv_async() => {
                 decoded(&mut log_limit, "cycle trigger", &s).map(WorldEvent::Trigger)
             }
             _ = tick.tick() => Some(WorldEvent::Tick),
@@ -172,14 +215,8 @@ pub async fn run(
         let outputs = world.handle(system_now(), event);
         let epoch = world.epoch().unwrap_or(Time::ZERO);
         for o in outputs {
-            publish(&mut pubs, o, epoch).await?;
+            publish(pubs, o, epoch).await?;
         }
-    }
-    if world.bursts_ignored() > 0 {
-        tracing::warn!(
-            "world: {} burst reports ignored (stamped more than 10 s from now)",
-            world.bursts_ignored()
-        );
     }
     Ok(bursts_heard)
 }

@@ -7,7 +7,7 @@ use ickon_fusion::estimator::tdoa_ekf::GroundNoise;
 use ickon_fusion::estimator::{EstimatorConfig, WheelGeometry, names};
 
 use super::apply::{self, Touched};
-use super::raw::{Num, RawMsuFile};
+use super::raw::{Num, RawFilter, RawMsuFile};
 use super::{ConfigIssue, MsuConfigError, MsuTuning, SolverTuning, pioneer_wheels};
 
 /// Where a value must lie, and in what unit it is named in messages.
@@ -170,19 +170,112 @@ pub(super) fn parse_and_validate(text: &str, file: &str) -> Result<MsuTuning, Ms
 /// Every value of the file, checked, and applied where the estimator uses it.
 fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
     let estimator = estimator(ctx, raw);
-    let filter = raw.filter.get_ref();
-    let name = filter.estimator.get_ref().clone();
-    let empty = toml::Table::new();
-    let params = filter.params.as_ref().map_or(&empty, |p| p.get_ref());
-
     // Every value is range-checked even when the estimator is unknown, so
     // that one run lists every problem.
-    let history = ctx.num(
-        &filter.history_s,
-        "filter.history_s",
-        non_negative(60.0, "s"),
-    );
-    let start = filter.start.as_ref().and_then(|s| {
+    let values = Values::check(ctx, raw);
+    let mut c = estimator?;
+    apply_to_estimator(ctx, &mut c, raw, &values);
+    let filter = raw.filter.get_ref();
+    if let Err(e) = c.validate() {
+        let span = filter
+            .params
+            .as_ref()
+            .map_or(raw.filter.span(), |p| p.span());
+        ctx.issue(span, "filter.params", e.to_string());
+    }
+
+    let sheet = pioneer_wheels();
+    let wheels = WheelGeometry {
+        wheel_base_m: values.wheel_base.map_or(sheet.wheel_base_m, |v| v.0),
+        left_m_per_tick: values
+            .m_per_tick
+            .as_ref()
+            .map_or(sheet.left_m_per_tick, |v| v.0),
+        right_m_per_tick: values
+            .m_per_tick
+            .as_ref()
+            .map_or(sheet.right_m_per_tick, |v| v.0),
+    };
+    let defaults = SolverTuning::default();
+    let fix = values.fix;
+    Some(MsuTuning {
+        estimator: c,
+        start: values.start,
+        solver: SolverTuning {
+            timing_sigma_s: fix.timing.map_or(defaults.timing_sigma_s, |v| v.0 * 1e-6),
+            residual_gate_m: fix.residual_gate.map(|v| v.0),
+            max_fix_sigma_m: fix.max_sigma.map_or(defaults.max_fix_sigma_m, |v| v.0),
+        },
+        wheels,
+        warnings: Vec::new(),
+        #[cfg(feature = "zenoh")]
+        ros2: raw.ros2.clone(),
+    })
+}
+
+/// A number of the file that is within its bounds, with where it is;
+/// `None` when absent or refused (the issue recorded).
+type Checked = Option<(f64, Range<usize>)>;
+
+/// Every number of the file, range-checked section by section.
+struct Values {
+    history: Checked,
+    /// `x, y, heading` (radians).
+    start: Option<[f64; 3]>,
+    wheel_base: Checked,
+    m_per_tick: Checked,
+    fix: FixValues,
+    range_differences: RangeDifferenceValues,
+    odometry: OdometryValues,
+    gyro: GyroValues,
+    heading_sigma: Checked,
+}
+
+impl Values {
+    /// Checks every number of `raw`, recording each problem in `ctx`.
+    fn check(ctx: &mut Ctx, raw: &RawMsuFile) -> Self {
+        let filter = raw.filter.get_ref();
+        let history = ctx.num(
+            &filter.history_s,
+            "filter.history_s",
+            non_negative(60.0, "s"),
+        );
+        let start = start_pose(ctx, filter);
+
+        let robot = raw.robot.as_ref().map(|r| r.get_ref());
+        let wheel_base =
+            robot.and_then(|r| ctx.num(&r.wheel_base_m, "robot.wheel_base_m", positive(10.0, "m")));
+        let m_per_tick =
+            robot.and_then(|r| ctx.num(&r.m_per_tick, "robot.m_per_tick", positive(1.0, "m")));
+
+        let fix = FixValues::check(ctx, raw);
+        let range_differences = RangeDifferenceValues::check(ctx, raw);
+        let odometry = OdometryValues::check(ctx, raw);
+        let gyro = GyroValues::check(ctx, raw);
+        let heading_sigma = raw.receiver_heading.as_ref().and_then(|h| {
+            ctx.num(
+                &h.get_ref().sigma_deg,
+                "receiver_heading.sigma_deg",
+                non_negative(360.0, "deg"),
+            )
+        });
+        Self {
+            history,
+            start,
+            wheel_base,
+            m_per_tick,
+            fix,
+            range_differences,
+            odometry,
+            gyro,
+            heading_sigma,
+        }
+    }
+}
+
+/// `filter.start` as `x, y, heading` in radians, if set and valid.
+fn start_pose(ctx: &mut Ctx, filter: &RawFilter) -> Option<[f64; 3]> {
+    filter.start.as_ref().and_then(|s| {
         let [x, y, heading_deg] = *s.get_ref();
         if [x, y, heading_deg].iter().all(|v| v.is_finite()) && heading_deg.abs() <= 360.0 {
             Some([x, y, heading_deg.to_radians()])
@@ -194,114 +287,179 @@ fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
             );
             None
         }
-    });
+    })
+}
 
-    let robot = raw.robot.as_ref().map(|r| r.get_ref());
-    let wheel_base =
-        robot.and_then(|r| ctx.num(&r.wheel_base_m, "robot.wheel_base_m", positive(10.0, "m")));
-    let m_per_tick =
-        robot.and_then(|r| ctx.num(&r.m_per_tick, "robot.m_per_tick", positive(1.0, "m")));
+/// The `[fix]` section, checked.
+struct FixValues {
+    timing: Checked,
+    residual_gate: Checked,
+    max_sigma: Checked,
+    sigma_floor: Checked,
+}
 
-    let fix = raw.fix.as_ref().map(|f| f.get_ref());
-    let timing = fix.and_then(|f| {
-        ctx.num(
-            &f.timing_sigma_us,
-            "fix.timing_sigma_us",
-            positive(10_000.0, "us"),
-        )
-    });
-    let residual_gate = fix.and_then(|f| {
-        ctx.num(
-            &f.residual_gate_m,
-            "fix.residual_gate_m",
-            positive(100.0, "m"),
-        )
-    });
-    let max_sigma =
-        fix.and_then(|f| ctx.num(&f.max_sigma_m, "fix.max_sigma_m", positive(100.0, "m")));
-    let sigma_floor = fix.and_then(|f| {
-        ctx.num(
-            &f.sigma_floor_mm,
-            "fix.sigma_floor_mm",
-            positive(10_000.0, "mm"),
-        )
-    });
+impl FixValues {
+    fn check(ctx: &mut Ctx, raw: &RawMsuFile) -> Self {
+        let fix = raw.fix.as_ref().map(|f| f.get_ref());
+        let timing = fix.and_then(|f| {
+            ctx.num(
+                &f.timing_sigma_us,
+                "fix.timing_sigma_us",
+                positive(10_000.0, "us"),
+            )
+        });
+        let residual_gate = fix.and_then(|f| {
+            ctx.num(
+                &f.residual_gate_m,
+                "fix.residual_gate_m",
+                positive(100.0, "m"),
+            )
+        });
+        let max_sigma =
+            fix.and_then(|f| ctx.num(&f.max_sigma_m, "fix.max_sigma_m", positive(100.0, "m")));
+        let sigma_floor = fix.and_then(|f| {
+            ctx.num(
+                &f.sigma_floor_mm,
+                "fix.sigma_floor_mm",
+                positive(10_000.0, "mm"),
+            )
+        });
+        Self {
+            timing,
+            residual_gate,
+            max_sigma,
+            sigma_floor,
+        }
+    }
+}
 
-    let rd = raw.range_differences.as_ref().map(|r| r.get_ref());
-    let gate_sigma = rd.and_then(|r| {
-        ctx.num(
-            &r.gate_sigma,
-            "range_differences.gate_sigma",
-            positive(100.0, "sigma"),
-        )
-    });
-    let late_soft = rd.and_then(|r| {
-        ctx.num(
-            &r.late_soft_sigma,
-            "range_differences.late_soft_sigma",
-            positive(100.0, "sigma"),
-        )
-    });
+/// The `[range_differences]` section, checked.
+struct RangeDifferenceValues {
+    gate_sigma: Checked,
+    late_soft: Checked,
+}
 
-    let odo = raw.odometry.as_ref().map(|o| o.get_ref());
-    let distance = odo.and_then(|o| {
-        ctx.num(
-            &o.distance_sigma_fraction,
-            "odometry.distance_sigma_fraction",
-            non_negative(1.0, ""),
-        )
-    });
-    let heading_per_m = odo.and_then(|o| {
-        ctx.num(
-            &o.heading_sigma_deg_per_m,
-            "odometry.heading_sigma_deg_per_m",
-            non_negative(360.0, "deg/m"),
-        )
-    });
-    let heading_per_turn = odo.and_then(|o| {
-        ctx.num(
-            &o.heading_sigma_per_turn,
-            "odometry.heading_sigma_per_turn",
-            non_negative(1.0, ""),
-        )
-    });
+impl RangeDifferenceValues {
+    fn check(ctx: &mut Ctx, raw: &RawMsuFile) -> Self {
+        let rd = raw.range_differences.as_ref().map(|r| r.get_ref());
+        let gate_sigma = rd.and_then(|r| {
+            ctx.num(
+                &r.gate_sigma,
+                "range_differences.gate_sigma",
+                positive(100.0, "sigma"),
+            )
+        });
+        let late_soft = rd.and_then(|r| {
+            ctx.num(
+                &r.late_soft_sigma,
+                "range_differences.late_soft_sigma",
+                positive(100.0, "sigma"),
+            )
+        });
+        Self {
+            gate_sigma,
+            late_soft,
+        }
+    }
+}
 
-    let gyro = raw.gyro.as_ref().map(|g| g.get_ref());
-    let white = gyro.and_then(|g| {
-        ctx.num(
-            &g.white_noise_deg_s,
-            "gyro.white_noise_deg_s",
-            positive(100.0, "deg/s"),
-        )
-    });
-    let rate = gyro.and_then(|g| ctx.num(&g.rate_hz, "gyro.rate_hz", positive(100_000.0, "Hz")));
-    let bias_sigma = gyro.and_then(|g| {
-        ctx.num(
-            &g.bias_sigma_deg_s,
-            "gyro.bias_sigma_deg_s",
-            positive(100.0, "deg/s"),
-        )
-    });
-    let bias_walk = gyro.and_then(|g| {
-        ctx.num(
-            &g.bias_walk_deg_s_sqrt_s,
-            "gyro.bias_walk_deg_s_sqrt_s",
-            non_negative(10.0, "deg/s/sqrt(s)"),
-        )
-    });
-    let scale =
-        gyro.and_then(|g| ctx.num(&g.scale_error, "gyro.scale_error", non_negative(1.0, "")));
-    let max_gap = gyro.and_then(|g| ctx.num(&g.max_gap_s, "gyro.max_gap_s", positive(60.0, "s")));
+/// The `[odometry]` section, checked.
+struct OdometryValues {
+    distance: Checked,
+    heading_per_m: Checked,
+    heading_per_turn: Checked,
+}
 
-    let heading_sigma = raw.receiver_heading.as_ref().and_then(|h| {
-        ctx.num(
-            &h.get_ref().sigma_deg,
-            "receiver_heading.sigma_deg",
-            non_negative(360.0, "deg"),
-        )
-    });
+impl OdometryValues {
+    fn check(ctx: &mut Ctx, raw: &RawMsuFile) -> Self {
+        let odo = raw.odometry.as_ref().map(|o| o.get_ref());
+        let distance = odo.and_then(|o| {
+            ctx.num(
+                &o.distance_sigma_fraction,
+                "odometry.distance_sigma_fraction",
+                non_negative(1.0, ""),
+            )
+        });
+        let heading_per_m = odo.and_then(|o| {
+            ctx.num(
+                &o.heading_sigma_deg_per_m,
+                "odometry.heading_sigma_deg_per_m",
+                non_negative(360.0, "deg/m"),
+            )
+        });
+        let heading_per_turn = odo.and_then(|o| {
+            ctx.num(
+                &o.heading_sigma_per_turn,
+                "odometry.heading_sigma_per_turn",
+                non_negative(1.0, ""),
+            )
+        });
+        Self {
+            distance,
+            heading_per_m,
+            heading_per_turn,
+        }
+    }
+}
 
-    let mut c = estimator?;
+/// The `[gyro]` section's numbers, checked.
+struct GyroValues {
+    white: Checked,
+    rate: Checked,
+    bias_sigma: Checked,
+    bias_walk: Checked,
+    scale: Checked,
+    max_gap: Checked,
+}
+
+impl GyroValues {
+    fn check(ctx: &mut Ctx, raw: &RawMsuFile) -> Self {
+        let gyro = raw.gyro.as_ref().map(|g| g.get_ref());
+        let white = gyro.and_then(|g| {
+            ctx.num(
+                &g.white_noise_deg_s,
+                "gyro.white_noise_deg_s",
+                positive(100.0, "deg/s"),
+            )
+        });
+        let rate =
+            gyro.and_then(|g| ctx.num(&g.rate_hz, "gyro.rate_hz", positive(100_000.0, "Hz")));
+        let bias_sigma = gyro.and_then(|g| {
+            ctx.num(
+                &g.bias_sigma_deg_s,
+                "gyro.bias_sigma_deg_s",
+                positive(100.0, "deg/s"),
+            )
+        });
+        let bias_walk = gyro.and_then(|g| {
+            ctx.num(
+                &g.bias_walk_deg_s_sqrt_s,
+                "gyro.bias_walk_deg_s_sqrt_s",
+                non_negative(10.0, "deg/s/sqrt(s)"),
+            )
+        });
+        let scale =
+            gyro.and_then(|g| ctx.num(&g.scale_error, "gyro.scale_error", non_negative(1.0, "")));
+        let max_gap =
+            gyro.and_then(|g| ctx.num(&g.max_gap_s, "gyro.max_gap_s", positive(60.0, "s")));
+        Self {
+            white,
+            rate,
+            bias_sigma,
+            bias_walk,
+            scale,
+            max_gap,
+        }
+    }
+}
+
+/// Applies each checked value to the estimator configuration `c`; warns of
+/// a value `c` does not use, and refuses one also set in `[filter.params]`.
+fn apply_to_estimator(ctx: &mut Ctx, c: &mut EstimatorConfig, raw: &RawMsuFile, v: &Values) {
+    let filter = raw.filter.get_ref();
+    let name = filter.estimator.get_ref().clone();
+    let empty = toml::Table::new();
+    let params = filter.params.as_ref().map_or(&empty, |p| p.get_ref());
     let put = |ctx: &mut Ctx, span: Range<usize>, field: &str, touched: Touched| {
         if touched.is_empty() {
             ctx.warn(
@@ -317,112 +475,90 @@ fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
             );
         }
     };
-    let mut each = |ctx: &mut Ctx,
-                    v: Option<(f64, Range<usize>)>,
-                    field: &str,
-                    f: fn(&mut EstimatorConfig, f64) -> Touched| {
-        if let Some((x, span)) = v {
-            let touched = f(&mut c, x);
-            put(ctx, span, field, touched);
-        }
-    };
-    each(ctx, history, "filter.history_s", apply::history_s);
+    let mut each =
+        |ctx: &mut Ctx, v: &Checked, field: &str, f: fn(&mut EstimatorConfig, f64) -> Touched| {
+            if let Some((x, span)) = v.clone() {
+                let touched = f(c, x);
+                put(ctx, span, field, touched);
+            }
+        };
+    let (fix, rd, odo, gyro) = (&v.fix, &v.range_differences, &v.odometry, &v.gyro);
+    each(ctx, &v.history, "filter.history_s", apply::history_s);
     each(
         ctx,
-        sigma_floor,
+        &fix.sigma_floor,
         "fix.sigma_floor_mm",
         apply::fix_sigma_floor_mm,
     );
     each(
         ctx,
-        gate_sigma,
+        &rd.gate_sigma,
         "range_differences.gate_sigma",
         apply::range_gate_sigma,
     );
     each(
         ctx,
-        late_soft,
+        &rd.late_soft,
         "range_differences.late_soft_sigma",
         apply::range_late_soft_sigma,
     );
     each(
         ctx,
-        distance,
+        &odo.distance,
         "odometry.distance_sigma_fraction",
         apply::odometry_distance,
     );
     each(
         ctx,
-        heading_per_m,
+        &odo.heading_per_m,
         "odometry.heading_sigma_deg_per_m",
         apply::odometry_heading_per_m,
     );
     each(
         ctx,
-        heading_per_turn,
+        &odo.heading_per_turn,
         "odometry.heading_sigma_per_turn",
         apply::odometry_heading_per_turn,
     );
     each(
         ctx,
-        bias_sigma,
+        &gyro.bias_sigma,
         "gyro.bias_sigma_deg_s",
         apply::gyro_bias_sigma,
     );
     each(
         ctx,
-        bias_walk,
+        &gyro.bias_walk,
         "gyro.bias_walk_deg_s_sqrt_s",
         apply::gyro_bias_walk,
     );
-    each(ctx, scale, "gyro.scale_error", apply::gyro_scale_error);
-    each(ctx, max_gap, "gyro.max_gap_s", apply::gyro_max_gap);
     each(
         ctx,
-        heading_sigma,
+        &gyro.scale,
+        "gyro.scale_error",
+        apply::gyro_scale_error,
+    );
+    each(ctx, &gyro.max_gap, "gyro.max_gap_s", apply::gyro_max_gap);
+    each(
+        ctx,
+        &v.heading_sigma,
         "receiver_heading.sigma_deg",
         apply::receiver_heading_sigma,
     );
+    let (white, rate) = (&gyro.white, &gyro.rate);
     if white.is_some() || rate.is_some() {
         // The two go together (the angle random walk is their ratio): one
         // without the other takes the data-sheet default of the other.
         let sheet = GroundNoise::default();
         let w = white.as_ref().map_or(sheet.gyro_white_deg_s, |v| v.0);
         let r = rate.as_ref().map_or(sheet.gyro_rate_hz, |v| v.0);
-        let span = white.or(rate).map(|v| v.1).unwrap_or(0..0);
-        let touched = apply::gyro_white_noise(&mut c, w, r);
+        let span = white.clone().or(rate.clone()).map(|v| v.1).unwrap_or(0..0);
+        let touched = apply::gyro_white_noise(c, w, r);
         put(ctx, span, "gyro.white_noise_deg_s", touched);
     }
-    if let Some(u) = gyro.and_then(|g| g.use_gyro.as_ref()) {
-        let touched = apply::gyro_use(&mut c, *u.get_ref());
+    let raw_gyro = raw.gyro.as_ref().map(|g| g.get_ref());
+    if let Some(u) = raw_gyro.and_then(|g| g.use_gyro.as_ref()) {
+        let touched = apply::gyro_use(c, *u.get_ref());
         put(ctx, u.span(), "gyro.use", touched);
     }
-    if let Err(e) = c.validate() {
-        let span = filter
-            .params
-            .as_ref()
-            .map_or(raw.filter.span(), |p| p.span());
-        ctx.issue(span, "filter.params", e.to_string());
-    }
-
-    let sheet = pioneer_wheels();
-    let wheels = WheelGeometry {
-        wheel_base_m: wheel_base.map_or(sheet.wheel_base_m, |v| v.0),
-        left_m_per_tick: m_per_tick.as_ref().map_or(sheet.left_m_per_tick, |v| v.0),
-        right_m_per_tick: m_per_tick.as_ref().map_or(sheet.right_m_per_tick, |v| v.0),
-    };
-    let defaults = SolverTuning::default();
-    Some(MsuTuning {
-        estimator: c,
-        start,
-        solver: SolverTuning {
-            timing_sigma_s: timing.map_or(defaults.timing_sigma_s, |v| v.0 * 1e-6),
-            residual_gate_m: residual_gate.map(|v| v.0),
-            max_fix_sigma_m: max_sigma.map_or(defaults.max_fix_sigma_m, |v| v.0),
-        },
-        wheels,
-        warnings: Vec::new(),
-        #[cfg(feature = "zenoh")]
-        ros2: raw.ros2.clone(),
-    })
 }

@@ -98,6 +98,72 @@ fn frame(field: &'static str, name: &str) -> Result<String, Ros2ConfigError> {
         .map_err(|source| Ros2ConfigError::Name { field, source })
 }
 
+/// The ROS domain id: the one of the options, else `ROS_DOMAIN_ID` as the
+/// environment has it (`env_domain`), else 0; at most [`MAX_DOMAIN_ID`].
+fn domain_id(option: Option<u32>, env_domain: Option<&str>) -> Result<u32, Ros2ConfigError> {
+    let domain = match (option, env_domain.map(str::trim)) {
+        (Some(d), _) => d,
+        (None, Some(s)) if !s.is_empty() => s
+            .parse::<u32>()
+            .map_err(|_| Ros2ConfigError::Domain(format!("ROS_DOMAIN_ID={s:?} is not a number")))?,
+        _ => 0,
+    };
+    if domain > MAX_DOMAIN_ID {
+        return Err(Ros2ConfigError::Domain(format!(
+            "{domain} is above {MAX_DOMAIN_ID}"
+        )));
+    }
+    Ok(domain)
+}
+
+/// The node's namespace: the options', else `/<robot>`; checked.
+fn namespace_of(options: &Ros2Options, robot: &str) -> Result<String, Ros2ConfigError> {
+    let namespace = options
+        .namespace
+        .clone()
+        .unwrap_or_else(|| format!("/{robot}"));
+    validate_namespace(&namespace).map_err(|source| Ros2ConfigError::Name {
+        field: "namespace",
+        source,
+    })?;
+    Ok(namespace)
+}
+
+/// Resolves the node's topics in its namespace to Zenoh keys.
+struct TopicPlanner<'a> {
+    namespace: &'a str,
+    keys: &'a RosKeys,
+}
+
+impl TopicPlanner<'_> {
+    /// Topic `name` (the option `field`, named in errors) of type
+    /// `type_name`, resolved in the namespace, with the key the node
+    /// subscribes to (`subscriber`) or publishes on.
+    fn topic(
+        &self,
+        field: &'static str,
+        name: &str,
+        type_name: &'static str,
+        type_hash: &'static str,
+        subscriber: bool,
+    ) -> Result<PlannedTopic, Ros2ConfigError> {
+        let err = |source| Ros2ConfigError::Name { field, source };
+        let name = resolve_topic(self.namespace, name).map_err(err)?;
+        let key = if subscriber {
+            self.keys.subscription_key(&name)
+        } else {
+            self.keys.data_key(&name, type_name, type_hash)
+        }
+        .map_err(err)?;
+        Ok(PlannedTopic {
+            name,
+            key,
+            type_name,
+            type_hash,
+        })
+    }
+}
+
 impl Ros2Plan {
     /// Validates `options` for robot `robot`; `env_domain` is `ROS_DOMAIN_ID`
     /// as the environment has it (read at the edge).
@@ -106,26 +172,8 @@ impl Ros2Plan {
         robot: &str,
         env_domain: Option<&str>,
     ) -> Result<Self, Ros2ConfigError> {
-        let domain = match (options.domain, env_domain.map(str::trim)) {
-            (Some(d), _) => d,
-            (None, Some(s)) if !s.is_empty() => s.parse::<u32>().map_err(|_| {
-                Ros2ConfigError::Domain(format!("ROS_DOMAIN_ID={s:?} is not a number"))
-            })?,
-            _ => 0,
-        };
-        if domain > MAX_DOMAIN_ID {
-            return Err(Ros2ConfigError::Domain(format!(
-                "{domain} is above {MAX_DOMAIN_ID}"
-            )));
-        }
-        let namespace = options
-            .namespace
-            .clone()
-            .unwrap_or_else(|| format!("/{robot}"));
-        validate_namespace(&namespace).map_err(|source| Ros2ConfigError::Name {
-            field: "namespace",
-            source,
-        })?;
+        let domain = domain_id(options.domain, env_domain)?;
+        let namespace = namespace_of(options, robot)?;
         // A node name is one ROS name token.
         frame("node_name", &options.node_name)?;
         if options.node_name.contains('/') {
@@ -140,26 +188,12 @@ impl Ros2Plan {
                 prefix: options.bridge_namespace.trim_matches('/').to_string(),
             },
         });
-        let topic = |field: &'static str,
-                     name: &str,
-                     type_name: &'static str,
-                     type_hash: &'static str,
-                     subscriber: bool|
-         -> Result<PlannedTopic, Ros2ConfigError> {
-            let err = |source| Ros2ConfigError::Name { field, source };
-            let name = resolve_topic(&namespace, name).map_err(err)?;
-            let key = if subscriber {
-                keys.subscription_key(&name)
-            } else {
-                keys.data_key(&name, type_name, type_hash)
-            }
-            .map_err(err)?;
-            Ok(PlannedTopic {
-                name,
-                key,
-                type_name,
-                type_hash,
-            })
+        let planner = TopicPlanner {
+            namespace: &namespace,
+            keys: &keys,
+        };
+        let topic = |field, name: &str, type_name, type_hash, subscriber| {
+            planner.topic(field, name, type_name, type_hash, subscriber)
         };
         type Pose = PoseWithCovarianceStamped;
         let pose = topic(

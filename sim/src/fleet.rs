@@ -2,7 +2,7 @@
 //! own world and MSU core, sharing one control plane (the central unit's
 //! and the cells' own cores). Each robot's pose goes to the central unit
 //! as the live agent publishes it, so occupancy-aware firing sees the
-//! fleet as it would on a site. Reports what issue 20 is measured by: each
+//! fleet as it would on a site. Reports what a site's update rate is judged by: each
 //! robot's achieved fix rate, its pose error against the truth, and what
 //! collisions cost; and the cycles the central unit triggered.
 

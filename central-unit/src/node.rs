@@ -19,10 +19,12 @@ use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{NodeArgs, NodeError, SimulatedClock, put_counted, zerr};
-use zenoh::pubsub::Publisher;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
-use zenoh::query::Query;
-use zenoh::sample::SampleKind;
+use zenoh::query::{Query, Queryable};
+use zenoh::sample::{Sample, SampleKind};
 use zenoh::{Session, Wait};
 
 use crate::core::{CentralConfig, CentralCore, Event, Output};
@@ -287,125 +289,21 @@ pub async fn run(
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&site.name)?;
-    // Another central unit active already (this one was restarted after
-    // the standby took over): stand by instead of taking the site back.
-    let active_seen = !standby
-        && ickon_runtime::token_present(session, &keys.alive_central(), ACTIVE_QUERY_TIMEOUT)
-            .await?;
-    if active_seen {
-        tracing::info!("another central unit is active: starting as its standby");
-    }
+    let active_seen = active_elsewhere(session, &keys, standby).await?;
     let mut core =
         CentralCore::starting(site, site_toml, config, clock.now(), standby, active_seen)
             .map_err(|e| NodeError::Setup(e.to_string()))?;
-    if let Some(saved) = &survey_file.saved {
-        // Checked against this site when the file was read.
-        if core.restore_survey(saved).is_ok() {
-            tracing::info!(
-                "survey calibration goes on from {} fixes kept in the file",
-                saved.fixes_taken
-            );
-        }
-    }
+    restore_survey(&mut core, &survey_file);
     let mut survey_saves = tokio::time::interval(SURVEY_SAVE_PERIOD);
     survey_saves.tick().await;
-    let s = core.latest_schedule();
-    tracing::info!(
-        "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",
-        s.version,
-        s.emissions.len(),
-        s.slot_length,
-        s.cycle_period,
-        crate::schedule::update_rate_hz(s)
-    );
-
-    let site_q = session
-        .declare_queryable(keys.central_site())
-        .await
-        .map_err(zerr)?;
-    let schedule_q = session
-        .declare_queryable(keys.central_schedule())
-        .await
-        .map_err(zerr)?;
-    // Clock requests are answered in Zenoh's receive path, not in the loop
-    // below: t2 must not wait for the loop to get round to the query. The
-    // answer names the epoch, which the loop may change.
-    // 0: a standby, which does not answer.
+    log_schedule(core.latest_schedule());
+    // 0: a standby, which does not answer clock requests.
     let epoch = Arc::new(AtomicU64::new(if core.is_active() {
         core.epoch()
     } else {
         0
     }));
-    let clock_epoch = epoch.clone();
-    let _clock_q = session
-        .declare_queryable(keys.central_clock())
-        .callback(move |q| answer_clock(&q, &clock, clock_epoch.load(Ordering::Relaxed)))
-        .await
-        .map_err(zerr)?;
-    let admin_q = session
-        .declare_queryable(keys.central_admin_all())
-        .await
-        .map_err(zerr)?;
-    let cycle_pub = session
-        .declare_publisher(keys.central_cycle())
-        .express(true)
-        .priority(Priority::RealTime)
-        .congestion_control(CongestionControl::Block)
-        .await
-        .map_err(zerr)?;
-    // Like the triggers (see the survey's below): a subscriber hears a
-    // schedule before the triggers that name it.
-    let schedule_pub = session
-        .declare_publisher(keys.central_schedule())
-        .express(true)
-        .priority(Priority::RealTime)
-        .congestion_control(CongestionControl::Block)
-        .await
-        .map_err(zerr)?;
-    // With the triggers' priority and, like them, sent at once: a
-    // subscriber then hears a calibration and the triggers in the order
-    // they were sent (one priority's queue keeps its order; another's may
-    // overtake it when a link is busy), and an MSU takes a calibration
-    // from the first cycle triggered after it, so that a recorder and the
-    // MSU agree on which cycle that is (`ickon_msu::control_timing`).
-    let survey_pub = session
-        .declare_publisher(keys.central_survey())
-        .express(true)
-        .priority(Priority::RealTime)
-        .congestion_control(CongestionControl::Block)
-        .await
-        .map_err(zerr)?;
-    let alive = session
-        .liveliness()
-        .declare_subscriber(keys.alive_all())
-        .history(true)
-        .await
-        .map_err(zerr)?;
-    let status_sub = session
-        .declare_subscriber(keys.cell_status_all())
-        .await
-        .map_err(zerr)?;
-    let burst_sub = session
-        .declare_subscriber(keys.cell_burst_all())
-        .await
-        .map_err(zerr)?;
-    let pose_sub = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
-        .await
-        .map_err(zerr)?;
-    let fix_sub = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Fix))
-        .await
-        .map_err(zerr)?;
-    // Its own keys, to notice what it did not send (its own puts come back too).
-    let cycle_sub = session
-        .declare_subscriber(keys.central_cycle())
-        .await
-        .map_err(zerr)?;
-    let schedule_sub = session
-        .declare_subscriber(keys.central_schedule())
-        .await
-        .map_err(zerr)?;
+    let ends = Endpoints::declare(session, &keys, clock, epoch.clone()).await?;
     // Declared last: whoever sees the token can query every queryable
     // above. A standby declares it when it takes over.
     let mut token = if core.is_active() {
@@ -436,93 +334,50 @@ pub async fn run(
                 if let Some(w) = web { w.publish(core.status(clock.now())); }
                 continue;
             }
-            Ok(q) = site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
-            Ok(q) = schedule_q.recv_async() => {
+            Ok(q) = ends.site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
+            Ok(q) = ends.schedule_q.recv_async() => {
                 if core.is_active() {
                     reply(&q, core.latest_schedule()).await;
                 }
                 continue;
             }
-            Ok(q) = admin_q.recv_async() => {
+            Ok(q) = ends.admin_q.recv_async() => {
                 let outputs = answer_admin(&keys, &mut core, &q, clock.now()).await;
-                failed_puts += publish([&cycle_pub, &schedule_pub, &survey_pub], outputs).await;
+                failed_puts += ends.publish(outputs).await;
                 continue;
             }
-            Ok(s) = alive.recv_async() => {
-                let up = s.kind() == SampleKind::Put;
-                match keys.parse(s.key_expr().as_str()) {
-                    Ok(Key::AliveCell(id)) => Event::CellAlive { id, up },
-                    Ok(Key::AliveRobot(id)) => Event::RobotAlive { id, up },
-                    Ok(Key::AliveCentral) if !up && !core.is_active() => Event::ActiveGone,
-                    _ => continue,
-                }
-            }
-            Ok(s) = status_sub.recv_async() => match decode::<CellStatus>(&s.payload().to_bytes()) {
-                Ok(st) => Event::CellStatus(st),
-                Err(e) => {
-                    undecodable += 1;
-                    tracing::debug!("undecodable status on {}: {e}", s.key_expr());
-                    continue;
-                }
+            Ok(s) = ends.alive.recv_async() => match alive_event(&keys, &s, core.is_active()) {
+                Some(e) => e,
+                None => continue,
             },
-            Ok(s) = burst_sub.recv_async() => match decode::<Burst>(&s.payload().to_bytes()) {
-                // A simulated driver reports the true emission time: on
-                // the master time base it is what this clock read then.
-                Ok(b) => Event::Burst(Burst { actual: clock.local(b.actual), ..b }),
-                Err(e) => {
-                    undecodable += 1;
-                    tracing::debug!("undecodable burst on {}: {e}", s.key_expr());
-                    continue;
-                }
+            Ok(s) = ends.status_sub.recv_async() => match status_event(&s, &mut undecodable) {
+                Some(e) => e,
+                None => continue,
             },
-            Ok(s) = pose_sub.recv_async() => {
-                match (keys.parse(s.key_expr().as_str()), decode::<RobotPose>(&s.payload().to_bytes())) {
-                    (Ok(Key::Robot(robot, _)), Ok(pose)) => Event::Pose { robot, pose },
-                    _ => continue,
-                }
-            }
-            Ok(s) = fix_sub.recv_async() => {
-                match (keys.parse(s.key_expr().as_str()), decode::<Fix>(&s.payload().to_bytes())) {
-                    (Ok(Key::Robot(robot, _)), Ok(fix)) => Event::Fix { robot, fix: Box::new(fix) },
-                    (_, Err(_)) => {
-                        undecodable += 1;
-                        continue;
-                    }
-                    _ => continue,
-                }
-            }
-            Ok(s) = cycle_sub.recv_async() => match decode::<CycleTrigger>(&s.payload().to_bytes()) {
-                Ok(t) => Event::TriggerSeen(t),
-                Err(_) => {
-                    undecodable += 1;
-                    continue;
-                }
+            Ok(s) = ends.burst_sub.recv_async() => match burst_event(&s, &clock, &mut undecodable) {
+                Some(e) => e,
+                None => continue,
             },
-            Ok(s) = schedule_sub.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
-                Ok(t) => Event::ScheduleSeen(t),
-                Err(_) => {
-                    undecodable += 1;
-                    continue;
-                }
+            Ok(s) = ends.pose_sub.recv_async() => match pose_event(&keys, &s) {
+                Some(e) => e,
+                None => continue,
+            },
+            Ok(s) = ends.fix_sub.recv_async() => match fix_event(&keys, &s, &mut undecodable) {
+                Some(e) => e,
+                None => continue,
+            },
+            Ok(s) = ends.cycle_sub.recv_async() => match decode_counted::<CycleTrigger>(&s, &mut undecodable) {
+                Some(t) => Event::TriggerSeen(t),
+                None => continue,
+            },
+            Ok(s) = ends.schedule_sub.recv_async() => match decode_counted::<Schedule>(&s, &mut undecodable) {
+                Some(t) => Event::ScheduleSeen(t),
+                None => continue,
             },
         };
         let outputs = core.handle(clock.now(), event);
-        epoch.store(
-            if core.is_active() { core.epoch() } else { 0 },
-            Ordering::Relaxed,
-        );
-        if core.is_active() != token.is_some() {
-            token = if core.is_active() {
-                session
-                    .liveliness()
-                    .declare_token(keys.alive_central())
-                    .await
-                    .ok()
-            } else {
-                None
-            };
-        }
-        failed_puts += publish([&cycle_pub, &schedule_pub, &survey_pub], outputs).await;
+        follow_role(session, &keys, &core, &epoch, &mut token).await;
+        failed_puts += ends.publish(outputs).await;
     }
     survey_file.save(&core);
     if failed_puts + undecodable > 0 {
@@ -531,6 +386,278 @@ pub async fn run(
         );
     }
     Ok(())
+}
+
+/// After the core took an event: the clock answers name its epoch (0 when
+/// it stands by), and the `alive/central` token is held exactly while it
+/// is active.
+async fn follow_role(
+    session: &Session,
+    keys: &Keys,
+    core: &CentralCore,
+    epoch: &AtomicU64,
+    token: &mut Option<LivelinessToken>,
+) {
+    epoch.store(
+        if core.is_active() { core.epoch() } else { 0 },
+        Ordering::Relaxed,
+    );
+    if core.is_active() != token.is_some() {
+        *token = if core.is_active() {
+            session
+                .liveliness()
+                .declare_token(keys.alive_central())
+                .await
+                .ok()
+        } else {
+            None
+        };
+    }
+}
+
+/// Whether another central unit is active already (this one was restarted
+/// after the standby took over): then this one stands by instead of taking
+/// the site back. Not asked when starting as a standby anyway.
+async fn active_elsewhere(
+    session: &Session,
+    keys: &Keys,
+    standby: bool,
+) -> Result<bool, NodeError> {
+    let active_seen = !standby
+        && ickon_runtime::token_present(session, &keys.alive_central(), ACTIVE_QUERY_TIMEOUT)
+            .await?;
+    if active_seen {
+        tracing::info!("another central unit is active: starting as its standby");
+    }
+    Ok(active_seen)
+}
+
+/// Goes on with the survey calibration kept in the file, if any.
+fn restore_survey(core: &mut CentralCore, survey_file: &SurveyFile) {
+    if let Some(saved) = &survey_file.saved {
+        // Checked against this site when the file was read.
+        if core.restore_survey(saved).is_ok() {
+            tracing::info!(
+                "survey calibration goes on from {} fixes kept in the file",
+                saved.fixes_taken
+            );
+        }
+    }
+}
+
+/// Logs the schedule the central unit starts with.
+fn log_schedule(s: &Schedule) {
+    tracing::info!(
+        "schedule v{}: {} emissions, slot {}, cycle {} ({:.2} Hz)",
+        s.version,
+        s.emissions.len(),
+        s.slot_length,
+        s.cycle_period,
+        crate::schedule::update_rate_hz(s)
+    );
+}
+
+/// A subscriber or queryable with its queue.
+type Queue<T> = FifoChannelHandler<T>;
+
+/// The central unit's queryables, publishers and subscribers.
+struct Endpoints {
+    site_q: Queryable<Queue<Query>>,
+    schedule_q: Queryable<Queue<Query>>,
+    /// Answers in Zenoh's receive path; kept only to stay declared.
+    _clock_q: Queryable<()>,
+    admin_q: Queryable<Queue<Query>>,
+    cycle_pub: Publisher<'static>,
+    schedule_pub: Publisher<'static>,
+    survey_pub: Publisher<'static>,
+    alive: Subscriber<Queue<Sample>>,
+    status_sub: Subscriber<Queue<Sample>>,
+    burst_sub: Subscriber<Queue<Sample>>,
+    pose_sub: Subscriber<Queue<Sample>>,
+    fix_sub: Subscriber<Queue<Sample>>,
+    /// Its own keys, to notice what it did not send (its own puts come
+    /// back too).
+    cycle_sub: Subscriber<Queue<Sample>>,
+    schedule_sub: Subscriber<Queue<Sample>>,
+}
+
+impl Endpoints {
+    /// Declares everything but the liveliness token. Clock requests are
+    /// answered with `clock` and the epoch in `epoch` (0: not at all).
+    async fn declare(
+        session: &Session,
+        keys: &Keys,
+        clock: SimulatedClock,
+        epoch: Arc<AtomicU64>,
+    ) -> Result<Self, NodeError> {
+        let site_q = session
+            .declare_queryable(keys.central_site())
+            .await
+            .map_err(zerr)?;
+        let schedule_q = session
+            .declare_queryable(keys.central_schedule())
+            .await
+            .map_err(zerr)?;
+        // Clock requests are answered in Zenoh's receive path, not in the
+        // node's loop: t2 must not wait for the loop to get round to the
+        // query. The answer names the epoch, which the loop may change.
+        let _clock_q = session
+            .declare_queryable(keys.central_clock())
+            .callback(move |q| answer_clock(&q, &clock, epoch.load(Ordering::Relaxed)))
+            .await
+            .map_err(zerr)?;
+        let admin_q = session
+            .declare_queryable(keys.central_admin_all())
+            .await
+            .map_err(zerr)?;
+        let cycle_pub = realtime_publisher(session, keys.central_cycle()).await?;
+        // Like the triggers (see the survey's below): a subscriber hears a
+        // schedule before the triggers that name it.
+        let schedule_pub = realtime_publisher(session, keys.central_schedule()).await?;
+        // With the triggers' priority and, like them, sent at once: a
+        // subscriber then hears a calibration and the triggers in the order
+        // they were sent (one priority's queue keeps its order; another's may
+        // overtake it when a link is busy), and an MSU takes a calibration
+        // from the first cycle triggered after it, so that a recorder and the
+        // MSU agree on which cycle that is (`ickon_msu::control_timing`).
+        let survey_pub = realtime_publisher(session, keys.central_survey()).await?;
+        let alive = session
+            .liveliness()
+            .declare_subscriber(keys.alive_all())
+            .history(true)
+            .await
+            .map_err(zerr)?;
+        Ok(Self {
+            site_q,
+            schedule_q,
+            _clock_q,
+            admin_q,
+            cycle_pub,
+            schedule_pub,
+            survey_pub,
+            alive,
+            status_sub: subscriber(session, keys.cell_status_all()).await?,
+            burst_sub: subscriber(session, keys.cell_burst_all()).await?,
+            pose_sub: subscriber(session, keys.robot_all(RobotTopic::Pose)).await?,
+            fix_sub: subscriber(session, keys.robot_all(RobotTopic::Fix)).await?,
+            cycle_sub: subscriber(session, keys.central_cycle()).await?,
+            schedule_sub: subscriber(session, keys.central_schedule()).await?,
+        })
+    }
+
+    /// Publishes the core's outputs; returns how many puts failed.
+    async fn publish(&self, outputs: Vec<Output>) -> u64 {
+        publish(
+            [&self.cycle_pub, &self.schedule_pub, &self.survey_pub],
+            outputs,
+        )
+        .await
+    }
+}
+
+/// A publisher sent at once with real-time priority, blocking rather than
+/// dropping when a link is busy.
+async fn realtime_publisher(
+    session: &Session,
+    key: String,
+) -> Result<Publisher<'static>, NodeError> {
+    session
+        .declare_publisher(key)
+        .express(true)
+        .priority(Priority::RealTime)
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(zerr)
+}
+
+/// A subscriber on `key` with the default queue.
+async fn subscriber(
+    session: &Session,
+    key: String,
+) -> Result<Subscriber<Queue<Sample>>, NodeError> {
+    session.declare_subscriber(key).await.map_err(zerr)
+}
+
+/// A liveliness change as an event for the core (`None`: nothing it
+/// follows). The active central unit's token going matters only to a
+/// standby.
+fn alive_event(keys: &Keys, s: &Sample, active: bool) -> Option<Event> {
+    let up = s.kind() == SampleKind::Put;
+    match keys.parse(s.key_expr().as_str()) {
+        Ok(Key::AliveCell(id)) => Some(Event::CellAlive { id, up }),
+        Ok(Key::AliveRobot(id)) => Some(Event::RobotAlive { id, up }),
+        Ok(Key::AliveCentral) if !up && !active => Some(Event::ActiveGone),
+        _ => None,
+    }
+}
+
+/// A cell's status report, counting one that does not decode.
+fn status_event(s: &Sample, undecodable: &mut u64) -> Option<Event> {
+    match decode::<CellStatus>(&s.payload().to_bytes()) {
+        Ok(st) => Some(Event::CellStatus(st)),
+        Err(e) => {
+            *undecodable += 1;
+            tracing::debug!("undecodable status on {}: {e}", s.key_expr());
+            None
+        }
+    }
+}
+
+/// A cell's burst report, counting one that does not decode.
+fn burst_event(s: &Sample, clock: &SimulatedClock, undecodable: &mut u64) -> Option<Event> {
+    match decode::<Burst>(&s.payload().to_bytes()) {
+        // A simulated driver reports the true emission time: on
+        // the master time base it is what this clock read then.
+        Ok(b) => Some(Event::Burst(Burst {
+            actual: clock.local(b.actual),
+            ..b
+        })),
+        Err(e) => {
+            *undecodable += 1;
+            tracing::debug!("undecodable burst on {}: {e}", s.key_expr());
+            None
+        }
+    }
+}
+
+/// A robot's pose (`None` when its key or payload does not parse).
+fn pose_event(keys: &Keys, s: &Sample) -> Option<Event> {
+    match (
+        keys.parse(s.key_expr().as_str()),
+        decode::<RobotPose>(&s.payload().to_bytes()),
+    ) {
+        (Ok(Key::Robot(robot, _)), Ok(pose)) => Some(Event::Pose { robot, pose }),
+        _ => None,
+    }
+}
+
+/// A robot's fix, counting one whose payload does not decode.
+fn fix_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
+    match (
+        keys.parse(s.key_expr().as_str()),
+        decode::<Fix>(&s.payload().to_bytes()),
+    ) {
+        (Ok(Key::Robot(robot, _)), Ok(fix)) => Some(Event::Fix {
+            robot,
+            fix: Box::new(fix),
+        }),
+        (_, Err(_)) => {
+            *undecodable += 1;
+            None
+        }
+        _ => None,
+    }
+}
+
+/// A sample's payload decoded, counting one that does not decode.
+fn decode_counted<T: serde::de::DeserializeOwned>(s: &Sample, undecodable: &mut u64) -> Option<T> {
+    match decode::<T>(&s.payload().to_bytes()) {
+        Ok(t) => Some(t),
+        Err(_) => {
+            *undecodable += 1;
+            None
+        }
+    }
 }
 
 /// Where the survey calibration is kept, and what was read from it.

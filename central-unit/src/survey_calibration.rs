@@ -375,58 +375,9 @@ impl SurveyCalibration {
         applied: &Applied,
         late: &AppliedLate,
     ) -> Result<(), FixSkipped> {
-        if fix.quality != FixQuality::Good {
-            return Err(FixSkipped::NotGood);
-        }
+        let receiver = checked_receiver(fix)?;
         let n = fix.used.len();
-        if n < MIN_USED {
-            return Err(FixSkipped::TooFewSignals);
-        }
-        let receiver = Vector3::new(fix.x_m, fix.y_m, fix.z_m);
-        if fix.residuals_m.len() != n
-            || !fix
-                .residuals_m
-                .iter()
-                .all(|e| e.is_finite() && e.abs() <= MAX_RESIDUAL_M)
-            || !receiver.iter().all(|v| v.abs() <= MAX_COORDINATE_M)
-        {
-            return Err(FixSkipped::Malformed);
-        }
-        if !fix.covariance.iter().all(|v| v.is_finite()) {
-            return Err(FixSkipped::Malformed);
-        }
-        let sigma_xy_m = (fix.covariance[0] + fix.covariance[4]).max(0.0).sqrt();
-        let reach_m = (LOS_SIGMAS * sigma_xy_m).max(LOS_MIN_REACH_M);
-        let places = [[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]]
-            .map(|[dx, dy]| [fix.x_m + reach_m * dx, fix.y_m + reach_m * dy, fix.z_m]);
-        let mut rows = Vec::with_capacity(n);
-        for &id in &fix.used {
-            let &(tx, cell) = self.index.get(&id).ok_or(FixSkipped::UnknownTransmitter)?;
-            let surveyed = self.surveyed_m[tx];
-            if places
-                .iter()
-                .any(|&p| !line_of_sight(&self.walls, &self.columns, p, surveyed.into()))
-            {
-                return Err(FixSkipped::MaybeReflected);
-            }
-            let offset = Vector3::from(applied.get(&id).copied().unwrap_or([0.0; 3]));
-            let to_tx = surveyed + offset - receiver;
-            let range = to_tx.norm();
-            if range < 1e-3 {
-                return Err(FixSkipped::Degenerate);
-            }
-            if !range.is_finite() || range > MAX_RANGE_M {
-                return Err(FixSkipped::Malformed);
-            }
-            rows.push(Row {
-                tx,
-                cell,
-                toward: to_tx / range,
-                offset,
-                late: late.get(&id).copied().unwrap_or(0.0),
-                range,
-            });
-        }
+        let rows = self.rows(fix, receiver, applied, late)?;
         // The fix's own unknowns: position (x, y) and the common offset.
         let a = DMatrix::from_fn(n, 3, |i, k| match k {
             0 => -rows[i].toward.x,
@@ -491,6 +442,54 @@ impl SurveyCalibration {
         Ok(())
     }
 
+    /// One row per signal of `fix` (received at `receiver`): its
+    /// transmitter, the direction to it with the correction `applied`, and
+    /// the lateness `late` the MSU solved with. Refuses a fix any of whose
+    /// signals may have been reflected (no line of sight from around the
+    /// receiver), or that is degenerate.
+    fn rows(
+        &self,
+        fix: &Fix,
+        receiver: Vector3<f64>,
+        applied: &Applied,
+        late: &AppliedLate,
+    ) -> Result<Vec<Row>, FixSkipped> {
+        let n = fix.used.len();
+        let sigma_xy_m = (fix.covariance[0] + fix.covariance[4]).max(0.0).sqrt();
+        let reach_m = (LOS_SIGMAS * sigma_xy_m).max(LOS_MIN_REACH_M);
+        let places = [[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]]
+            .map(|[dx, dy]| [fix.x_m + reach_m * dx, fix.y_m + reach_m * dy, fix.z_m]);
+        let mut rows = Vec::with_capacity(n);
+        for &id in &fix.used {
+            let &(tx, cell) = self.index.get(&id).ok_or(FixSkipped::UnknownTransmitter)?;
+            let surveyed = self.surveyed_m[tx];
+            if places
+                .iter()
+                .any(|&p| !line_of_sight(&self.walls, &self.columns, p, surveyed.into()))
+            {
+                return Err(FixSkipped::MaybeReflected);
+            }
+            let offset = Vector3::from(applied.get(&id).copied().unwrap_or([0.0; 3]));
+            let to_tx = surveyed + offset - receiver;
+            let range = to_tx.norm();
+            if range < 1e-3 {
+                return Err(FixSkipped::Degenerate);
+            }
+            if !range.is_finite() || range > MAX_RANGE_M {
+                return Err(FixSkipped::Malformed);
+            }
+            rows.push(Row {
+                tx,
+                cell,
+                toward: to_tx / range,
+                offset,
+                late: late.get(&id).copied().unwrap_or(0.0),
+                range,
+            });
+        }
+        Ok(rows)
+    }
+
     /// The corrections from everything taken so far, one per transmitter
     /// of the site, in the site's order.
     pub fn corrections(&self) -> Vec<TransmitterCorrection> {
@@ -539,6 +538,32 @@ impl SurveyCalibration {
             })
             .collect()
     }
+}
+
+/// The receiver's position of a fix fit to learn from: good, with enough
+/// signals and sane residuals, coordinates and covariance.
+fn checked_receiver(fix: &Fix) -> Result<Vector3<f64>, FixSkipped> {
+    if fix.quality != FixQuality::Good {
+        return Err(FixSkipped::NotGood);
+    }
+    let n = fix.used.len();
+    if n < MIN_USED {
+        return Err(FixSkipped::TooFewSignals);
+    }
+    let receiver = Vector3::new(fix.x_m, fix.y_m, fix.z_m);
+    if fix.residuals_m.len() != n
+        || !fix
+            .residuals_m
+            .iter()
+            .all(|e| e.is_finite() && e.abs() <= MAX_RESIDUAL_M)
+        || !receiver.iter().all(|v| v.abs() <= MAX_COORDINATE_M)
+    {
+        return Err(FixSkipped::Malformed);
+    }
+    if !fix.covariance.iter().all(|v| v.is_finite()) {
+        return Err(FixSkipped::Malformed);
+    }
+    Ok(receiver)
 }
 
 /// What is published of `c`, and whether it is what was learnt: an offset

@@ -49,11 +49,6 @@ impl NodeCommands {
         msus: &[sim_hook::MsuStart],
         security: Option<&SimSecurity>,
     ) -> anyhow::Result<Self> {
-        let credential = |cmd: &mut Command, who: Identity| {
-            if let Some(s) = security {
-                s.client(cmd, &who);
-            }
-        };
         // The clock steps of the plan (checked already), given to each node at
         // its start: it takes the next at each SIGUSR1 the plan sends.
         let plan = args
@@ -61,33 +56,26 @@ impl NodeCommands {
             .as_deref()
             .and_then(|p| faults::parse_plan(p).ok())
             .unwrap_or_default();
-        let clock_steps = |cmd: &mut Command, node: &str| {
-            if let Some(steps) = faults::clock_steps_flag(&plan, node) {
-                cmd.arg("--sim-clock-steps-us").arg(steps);
-            }
+        let b = Builder {
+            args,
+            site,
+            hub,
+            security,
+            plan,
         };
-        let (router, central_at) = match args.mesh {
-            Mesh::Router => {
-                let mut router = router_command(hub)?;
-                if let Some(s) = security {
-                    s.router(&mut router);
-                }
-                (Some(router), (hub, ""))
-            }
-            Mesh::Peer => (None, ("", hub)),
-        };
+        let (router, central_at) = b.router()?;
         let central_flags = central_flags(args, profile);
         let mut central = node_command(args, site, "central", central_at.0, central_at.1)?;
         central.args(&central_flags);
-        credential(&mut central, Identity::Central);
+        b.credential(&mut central, Identity::Central);
         let web = launch::http_flags(args, &mut central)?;
-        clock_steps(&mut central, "central");
+        b.clock_steps(&mut central, "central");
         let standby = if args.standby {
             // A second central unit that follows the first and takes over.
             let mut standby = node_command(args, site, "central", central_at.0, central_at.1)?;
             standby.arg("--standby").args(&central_flags);
-            clock_steps(&mut standby, "central standby");
-            credential(&mut standby, Identity::Central);
+            b.clock_steps(&mut standby, "central standby");
+            b.credential(&mut standby, Identity::Central);
             Some(standby)
         } else {
             None
@@ -100,20 +88,91 @@ impl NodeCommands {
             .filter(|_| args.mesh == Mesh::Peer)
             .flat_map(|e| ["--connect".to_string(), e.to_string()])
             .collect();
+        let cells = b.cells(&to_recorder)?;
+        let world = b.world(msus, &to_recorder)?;
+        let (agents, msu_file) = b.agents(profile, msus, &to_recorder)?;
+        Ok(Self {
+            router,
+            central,
+            standby,
+            cells,
+            world,
+            msus: agents,
+            web,
+            msu_file,
+        })
+    }
+}
+
+/// What every node's command line is built from.
+struct Builder<'a> {
+    args: &'a SimArgs,
+    site: &'a Site,
+    /// Where the nodes connect.
+    hub: &'a str,
+    security: Option<&'a SimSecurity>,
+    /// The faults of `--faults`, for each node's clock steps.
+    plan: Vec<faults::Fault>,
+}
+
+impl<'a> Builder<'a> {
+    /// Gives `cmd` the credential of `who`, with `--secure`.
+    fn credential(&self, cmd: &mut Command, who: Identity) {
+        if let Some(s) = self.security {
+            s.client(cmd, &who);
+        }
+    }
+
+    /// Gives `cmd` the clock steps the plan has for `node`, if any.
+    fn clock_steps(&self, cmd: &mut Command, node: &str) {
+        if let Some(steps) = faults::clock_steps_flag(&self.plan, node) {
+            cmd.arg("--sim-clock-steps-us").arg(steps);
+        }
+    }
+
+    /// The router (none in a full mesh of peers) and where the central
+    /// unit connects and listens.
+    fn router(&self) -> anyhow::Result<(Option<Command>, (&'a str, &'a str))> {
+        Ok(match self.args.mesh {
+            Mesh::Router => {
+                let mut router = router_command(self.hub)?;
+                if let Some(s) = self.security {
+                    s.router(&mut router);
+                }
+                (Some(router), (self.hub, ""))
+            }
+            Mesh::Peer => (None, ("", self.hub)),
+        })
+    }
+
+    /// One cell controller per cell, each with its own clock error drawn
+    /// from the run's seed.
+    fn cells(&self, to_recorder: &[String]) -> anyhow::Result<Vec<(String, Command)>> {
+        let (args, site) = (self.args, self.site);
         let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
         let mut cells = Vec::new();
         for cell in &site.cells {
-            let mut cmd = node_command(args, site, "cell", hub, "tcp/127.0.0.1:0")?;
+            let mut cmd = node_command(args, site, "cell", self.hub, "tcp/127.0.0.1:0")?;
             cmd.args(["--cell", &cell.id])
                 .args(clock_flags(&mut clocks))
-                .args(&to_recorder);
+                .args(to_recorder);
             let name = format!("cell {}", cell.id);
-            clock_steps(&mut cmd, &name);
-            credential(&mut cmd, Identity::Cell(cell.id.clone()));
+            self.clock_steps(&mut cmd, &name);
+            self.credential(&mut cmd, Identity::Cell(cell.id.clone()));
             cells.push((name, cmd));
         }
+        Ok(cells)
+    }
+
+    /// The simulated world, driving the robots of `msus`.
+    fn world(
+        &self,
+        msus: &[sim_hook::MsuStart],
+        to_recorder: &[String],
+    ) -> anyhow::Result<Command> {
+        let args = self.args;
         let robots: Vec<&str> = msus.iter().map(|m| m.robot.as_str()).collect();
-        let mut world = node_command(args, site, "world", hub, "tcp/127.0.0.1:0")?;
+        let mut world = node_command(args, self.site, "world", self.hub, "tcp/127.0.0.1:0")?;
         world.args([
             "--robots",
             &robots.join(","),
@@ -122,11 +181,22 @@ impl NodeCommands {
             "--seed",
             &args.seed.to_string(),
         ]);
-        world.args(&to_recorder);
-        credential(&mut world, Identity::World);
+        world.args(to_recorder);
+        self.credential(&mut world, Identity::World);
         if args.ros2 {
             world.arg("--ros2");
         }
+        Ok(world)
+    }
+
+    /// One MSU agent per robot, with the configuration file they all read.
+    fn agents(
+        &self,
+        profile: &NoiseProfile,
+        msus: &[sim_hook::MsuStart],
+        to_recorder: &[String],
+    ) -> anyhow::Result<(Vec<(String, Command)>, tempfile::NamedTempFile)> {
+        let (args, site) = (self.args, self.site);
         // Every agent reads one configuration file, as a deployed one does: the
         // estimator as `ickon eval` sets it up for the profile's data sheet,
         // the simulated robots' nominal drive, the arrivals' timing noise (the
@@ -146,23 +216,14 @@ impl NodeCommands {
         )?)?;
         let mut agents = Vec::new();
         for msu in msus {
-            let mut cmd = node_command(args, site, "msu", hub, "tcp/127.0.0.1:0")?;
+            let mut cmd = node_command(args, site, "msu", self.hub, "tcp/127.0.0.1:0")?;
             cmd.args(["--robot", &msu.robot, "--config"])
                 .arg(msu_file.path())
-                .args(&to_recorder);
-            credential(&mut cmd, Identity::Robot(msu.robot.clone()));
+                .args(to_recorder);
+            self.credential(&mut cmd, Identity::Robot(msu.robot.clone()));
             agents.push((format!("msu {}", msu.robot), cmd));
         }
-        Ok(Self {
-            router,
-            central,
-            standby,
-            cells,
-            world,
-            msus: agents,
-            web,
-            msu_file,
-        })
+        Ok((agents, msu_file))
     }
 }
 

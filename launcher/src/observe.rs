@@ -1,13 +1,15 @@
 //! Watching the mesh of `ickon sim` with the launcher's own Zenoh session:
 //! liveliness, bursts, arrivals, fixes, poses and the truth, into [`RunStats`].
 
+use std::collections::{HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::control::{Burst, CycleTrigger};
 use ickon_proto::msg::robot::{RobotPose, Truth, UltrasoundArrivals};
 use ickon_proto::site::Site;
-use zenoh::sample::SampleKind;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::sample::{Sample, SampleKind};
 
 use crate::args::Mesh;
 use crate::args::SimArgs;
@@ -67,90 +69,22 @@ pub(crate) async fn observe(
     keys: &Keys,
     session: &zenoh::Session,
     hub: &str,
-    alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    alive: &Sub,
     sup: &mut supervisor::Supervisor,
     quiet: bool,
     credential: Option<&std::path::Path>,
     shutdown: &mut (impl std::future::Future<Output = ()> + Unpin),
 ) -> anyhow::Result<(RunStats, Option<String>)> {
-    let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
-    let bursts = session
-        .declare_subscriber(keys.cell_burst_all())
-        .await
-        .map_err(z)?;
-    let arrivals = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Ultrasound))
-        .await
-        .map_err(z)?;
-    let fixes = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Fix))
-        .await
-        .map_err(z)?;
-    let poses = session
-        .declare_subscriber(keys.robot_all(RobotTopic::Pose))
-        .await
-        .map_err(z)?;
-    let truth = session
-        .declare_subscriber(keys.sim_truth_all())
-        .await
-        .map_err(z)?;
-    let triggers = session
-        .declare_subscriber(keys.central_cycle())
-        .await
-        .map_err(z)?;
-
-    // The plain one-hop latency: a second session in this process subscribes
-    // to probes the observer publishes; both share this process's clock.
-    let probe_session = match open_observer(hub, args.mesh, credential).await {
-        Ok(s) => s,
-        // The router died between the nodes' start and this session (a
-        // test kills it as soon as the run is up): say which node, as the
-        // run would have a moment later, not only that nothing connects.
-        Err(e) => match sup.first_dead() {
-            Some(dead) => anyhow::bail!(
-                "node {} {} while the simulation was starting ({e})",
-                dead.name,
-                dead.status
-            ),
-            None => return Err(e),
-        },
-    };
-    let probe_sub = probe_session
-        .declare_subscriber(keys.sim_probe())
-        .await
-        .map_err(z)?;
-    let probe_pub = session
-        .declare_publisher(keys.sim_probe())
-        .express(true)
-        .await
-        .map_err(z)?;
-    let mut probes_sent: std::collections::HashMap<u64, Instant> = Default::default();
-    let mut probe_seq = 0u64;
-
-    let mut stats = RunStats {
-        tx_cells: site
-            .transmitters
-            .iter()
-            .map(|t| (t.id, t.cell.clone()))
-            .collect(),
-        ..RunStats::default()
-    };
-    for r in site.robots.iter().take(args.robots) {
-        stats.robots.insert(r.id.clone(), Default::default());
-    }
+    let subs = MeshSubs::declare(session, keys).await?;
+    let mut probe = Probe::open(args, hub, credential, sup, session, keys).await?;
+    let mut stats = new_stats(site, args.robots);
     let started = Instant::now();
     let end = tokio::time::Instant::now() + Duration::from_secs_f64(args.duration);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
     let mut probe_tick = tokio::time::interval(Duration::from_millis(100));
-    let mut last_burst: std::collections::HashMap<String, Instant> = Default::default();
+    let mut last_burst: HashMap<String, Instant> = Default::default();
     // Faults of `--faults`, in time order, and the SIGCONTs they owe.
-    let mut plan: std::collections::VecDeque<crate::faults::Fault> = args
-        .faults
-        .as_deref()
-        .map(crate::faults::parse_plan)
-        .transpose()?
-        .unwrap_or_default()
-        .into();
+    let mut plan = fault_plan(args)?;
     let mut resume: Vec<(Instant, String)> = Vec::new();
     let mut fault_tick = tokio::time::interval(Duration::from_millis(20));
     let failure = loop {
@@ -165,64 +99,14 @@ pub(crate) async fn observe(
                     tracing::warn!("{} went away", s.key_expr());
                 }
             }
-            Ok(s) = bursts.recv_async() => {
-                let key = s.key_expr().as_str().to_string();
-                if let Some(b) = decode_or_count::<Burst>(&mut stats, &key, &s.payload().to_bytes()) {
-                    last_burst.insert(b.cell_id.clone(), Instant::now());
-                    stats.cells.entry(b.cell_id.clone()).or_default().on_burst(&b);
-                }
-            }
-            Ok(s) = arrivals.recv_async() => {
-                let at = Instant::now();
-                let key = s.key_expr().as_str().to_string();
-                if let (Ok(Key::Robot(id, _)), Some(m)) = (keys.parse(&key), decode_or_count::<UltrasoundArrivals>(&mut stats, &key, &s.payload().to_bytes())) {
-                    stats.robots.entry(id).or_default().on_arrivals(m.seq, at);
-                }
-            }
-            Ok(s) = fixes.recv_async() => {
-                let at = Instant::now();
-                let key = s.key_expr().as_str().to_string();
-                if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
-                    if decode_or_count::<ickon_proto::msg::robot::Fix>(&mut stats, &key, &s.payload().to_bytes()).is_some() {
-                        stats.robots.entry(id).or_default().on_fix(at);
-                    }
-                }
-            }
-            Ok(s) = poses.recv_async() => {
-                let at = Instant::now();
-                let key = s.key_expr().as_str().to_string();
-                if let (Ok(Key::Robot(id, _)), Some(p)) = (keys.parse(&key), decode_or_count::<RobotPose>(&mut stats, &key, &s.payload().to_bytes())) {
-                    stats.robots.entry(id).or_default().on_pose(&p, at);
-                }
-            }
-            Ok(s) = triggers.recv_async() => {
-                let key = s.key_expr().as_str().to_string();
-                if let Some(t) = decode_or_count::<CycleTrigger>(&mut stats, &key, &s.payload().to_bytes()) {
-                    stats.on_trigger(&t, Instant::now());
-                }
-            }
-            Ok(s) = truth.recv_async() => {
-                let key = s.key_expr().as_str().to_string();
-                if let (Ok(Key::SimTruth(id)), Some(t)) = (keys.parse(&key), decode_or_count::<Truth>(&mut stats, &key, &s.payload().to_bytes())) {
-                    stats.robots.entry(id).or_default().on_truth(t);
-                }
-            }
-            Ok(s) = probe_sub.recv_async() => {
-                let at = Instant::now();
-                if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes()) {
-                    if let Some(sent) = probes_sent.remove(&seq) {
-                        stats.hop_latencies_us.push(at.duration_since(sent).as_secs_f64() * 1e6);
-                    }
-                }
-            }
-            _ = probe_tick.tick() => {
-                probe_seq += 1;
-                probes_sent.insert(probe_seq, Instant::now());
-                if let Ok(bytes) = ickon_proto::encode(&probe_seq) {
-                    let _ = probe_pub.put(bytes).await;
-                }
-                probes_sent.retain(|_, t| t.elapsed() < Duration::from_secs(5));
-            }
+            Ok(s) = subs.bursts.recv_async() => note_burst(&s, &mut stats, &mut last_burst),
+            Ok(s) = subs.arrivals.recv_async() => note_arrivals(keys, &s, &mut stats),
+            Ok(s) = subs.fixes.recv_async() => note_fix(keys, &s, &mut stats),
+            Ok(s) = subs.poses.recv_async() => note_pose(keys, &s, &mut stats),
+            Ok(s) = subs.triggers.recv_async() => note_trigger(&s, &mut stats),
+            Ok(s) = subs.truth.recv_async() => note_truth(keys, &s, &mut stats),
+            Ok(s) = probe.sub.recv_async() => probe.received(&s, &mut stats),
+            _ = probe_tick.tick() => probe.send().await,
             _ = fault_tick.tick(), if args.restart || !plan.is_empty() || !resume.is_empty() => {
                 inject_due(&mut plan, &mut resume, sup, args.restart, started, &mut stats);
                 // A dead node is started again within a tick, as systemd would at once.
@@ -239,13 +123,7 @@ pub(crate) async fn observe(
                     break Some(format!("node {} {} while the simulation was running", dead.name, dead.status));
                 }
                 if !quiet {
-                    let line = status_line(&stats, &last_burst, site.cells.len(), started);
-                    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-                        eprint!("\r{line}");
-                    } else if started.elapsed().as_secs() % 5 == 0 {
-                        // A log, not a terminal: a line every five seconds.
-                        eprintln!("{}", line.trim_end());
-                    }
+                    print_status(&status_line(&stats, &last_burst, site.cells.len(), started), started);
                 }
             }
         }
@@ -255,12 +133,264 @@ pub(crate) async fn observe(
     }
     // Undeclared before the sessions close, so that nothing arrives for a
     // subscriber a closing session no longer knows.
-    for s in [bursts, arrivals, fixes, poses, truth, triggers, probe_sub] {
-        let _ = s.undeclare().await;
-    }
-    let _ = probe_pub.undeclare().await;
-    let _ = probe_session.close().await;
+    subs.undeclare(probe.sub).await;
+    let _ = probe.publisher.undeclare().await;
+    let _ = probe.session.close().await;
     Ok((stats, failure))
+}
+
+/// A subscriber with its queue.
+pub(crate) type Sub = zenoh::pubsub::Subscriber<FifoChannelHandler<Sample>>;
+
+/// The observer's subscribers to what the mesh publishes.
+struct MeshSubs {
+    bursts: Sub,
+    arrivals: Sub,
+    fixes: Sub,
+    poses: Sub,
+    truth: Sub,
+    triggers: Sub,
+}
+
+impl MeshSubs {
+    /// Subscribes to the bursts, arrivals, fixes, poses, truth and cycle
+    /// triggers of the site named by `keys`.
+    async fn declare(session: &zenoh::Session, keys: &Keys) -> anyhow::Result<Self> {
+        let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        let bursts = session
+            .declare_subscriber(keys.cell_burst_all())
+            .await
+            .map_err(z)?;
+        let arrivals = session
+            .declare_subscriber(keys.robot_all(RobotTopic::Ultrasound))
+            .await
+            .map_err(z)?;
+        let fixes = session
+            .declare_subscriber(keys.robot_all(RobotTopic::Fix))
+            .await
+            .map_err(z)?;
+        let poses = session
+            .declare_subscriber(keys.robot_all(RobotTopic::Pose))
+            .await
+            .map_err(z)?;
+        let truth = session
+            .declare_subscriber(keys.sim_truth_all())
+            .await
+            .map_err(z)?;
+        let triggers = session
+            .declare_subscriber(keys.central_cycle())
+            .await
+            .map_err(z)?;
+        Ok(Self {
+            bursts,
+            arrivals,
+            fixes,
+            poses,
+            truth,
+            triggers,
+        })
+    }
+
+    /// Undeclares every subscriber, then `probe_sub`.
+    async fn undeclare(self, probe_sub: Sub) {
+        let Self {
+            bursts,
+            arrivals,
+            fixes,
+            poses,
+            truth,
+            triggers,
+        } = self;
+        for s in [bursts, arrivals, fixes, poses, truth, triggers, probe_sub] {
+            let _ = s.undeclare().await;
+        }
+    }
+}
+
+/// The plain one-hop latency: a second session in this process subscribes
+/// to probes the observer publishes; both share this process's clock.
+struct Probe {
+    session: zenoh::Session,
+    sub: Sub,
+    publisher: zenoh::pubsub::Publisher<'static>,
+    /// When each probe still awaited was sent, by sequence number.
+    sent: HashMap<u64, Instant>,
+    seq: u64,
+}
+
+impl Probe {
+    /// Opens the second session and declares the probe's subscriber on it
+    /// and its publisher on `session`.
+    async fn open(
+        args: &SimArgs,
+        hub: &str,
+        credential: Option<&std::path::Path>,
+        sup: &mut supervisor::Supervisor,
+        session: &zenoh::Session,
+        keys: &Keys,
+    ) -> anyhow::Result<Self> {
+        let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+        let probe_session = match open_observer(hub, args.mesh, credential).await {
+            Ok(s) => s,
+            // The router died between the nodes' start and this session (a
+            // test kills it as soon as the run is up): say which node, as the
+            // run would have a moment later, not only that nothing connects.
+            Err(e) => match sup.first_dead() {
+                Some(dead) => anyhow::bail!(
+                    "node {} {} while the simulation was starting ({e})",
+                    dead.name,
+                    dead.status
+                ),
+                None => return Err(e),
+            },
+        };
+        let sub = probe_session
+            .declare_subscriber(keys.sim_probe())
+            .await
+            .map_err(z)?;
+        let publisher = session
+            .declare_publisher(keys.sim_probe())
+            .express(true)
+            .await
+            .map_err(z)?;
+        Ok(Self {
+            session: probe_session,
+            sub,
+            publisher,
+            sent: Default::default(),
+            seq: 0,
+        })
+    }
+
+    /// Records the latency of a probe that came back.
+    fn received(&mut self, s: &Sample, stats: &mut RunStats) {
+        let at = Instant::now();
+        if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes()) {
+            if let Some(sent) = self.sent.remove(&seq) {
+                stats
+                    .hop_latencies_us
+                    .push(at.duration_since(sent).as_secs_f64() * 1e6);
+            }
+        }
+    }
+
+    /// Sends the next probe and forgets those lost for five seconds.
+    async fn send(&mut self) {
+        self.seq += 1;
+        self.sent.insert(self.seq, Instant::now());
+        if let Ok(bytes) = ickon_proto::encode(&self.seq) {
+            let _ = self.publisher.put(bytes).await;
+        }
+        self.sent
+            .retain(|_, t| t.elapsed() < Duration::from_secs(5));
+    }
+}
+
+/// Empty statistics for the site's transmitters and its first `robots` robots.
+fn new_stats(site: &Site, robots: usize) -> RunStats {
+    let mut stats = RunStats {
+        tx_cells: site
+            .transmitters
+            .iter()
+            .map(|t| (t.id, t.cell.clone()))
+            .collect(),
+        ..RunStats::default()
+    };
+    for r in site.robots.iter().take(robots) {
+        stats.robots.insert(r.id.clone(), Default::default());
+    }
+    stats
+}
+
+/// The faults of `--faults`, in time order (none without it).
+fn fault_plan(args: &SimArgs) -> anyhow::Result<VecDeque<crate::faults::Fault>> {
+    Ok(args
+        .faults
+        .as_deref()
+        .map(crate::faults::parse_plan)
+        .transpose()?
+        .unwrap_or_default()
+        .into())
+}
+
+/// Prints the status line: in place on a terminal, every five seconds to
+/// a log.
+fn print_status(line: &str, started: Instant) {
+    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        eprint!("\r{line}");
+    } else if started.elapsed().as_secs() % 5 == 0 {
+        // A log, not a terminal: a line every five seconds.
+        eprintln!("{}", line.trim_end());
+    }
+}
+
+/// A cell's burst: when its cell last fired, and its statistics.
+fn note_burst(s: &Sample, stats: &mut RunStats, last_burst: &mut HashMap<String, Instant>) {
+    let key = s.key_expr().as_str().to_string();
+    if let Some(b) = decode_or_count::<Burst>(stats, &key, &s.payload().to_bytes()) {
+        last_burst.insert(b.cell_id.clone(), Instant::now());
+        stats
+            .cells
+            .entry(b.cell_id.clone())
+            .or_default()
+            .on_burst(&b);
+    }
+}
+
+/// A robot's ultrasound arrivals.
+fn note_arrivals(keys: &Keys, s: &Sample, stats: &mut RunStats) {
+    let at = Instant::now();
+    let key = s.key_expr().as_str().to_string();
+    if let (Ok(Key::Robot(id, _)), Some(m)) = (
+        keys.parse(&key),
+        decode_or_count::<UltrasoundArrivals>(stats, &key, &s.payload().to_bytes()),
+    ) {
+        stats.robots.entry(id).or_default().on_arrivals(m.seq, at);
+    }
+}
+
+/// A robot's fix.
+fn note_fix(keys: &Keys, s: &Sample, stats: &mut RunStats) {
+    let at = Instant::now();
+    let key = s.key_expr().as_str().to_string();
+    if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
+        if decode_or_count::<ickon_proto::msg::robot::Fix>(stats, &key, &s.payload().to_bytes())
+            .is_some()
+        {
+            stats.robots.entry(id).or_default().on_fix(at);
+        }
+    }
+}
+
+/// A robot's pose.
+fn note_pose(keys: &Keys, s: &Sample, stats: &mut RunStats) {
+    let at = Instant::now();
+    let key = s.key_expr().as_str().to_string();
+    if let (Ok(Key::Robot(id, _)), Some(p)) = (
+        keys.parse(&key),
+        decode_or_count::<RobotPose>(stats, &key, &s.payload().to_bytes()),
+    ) {
+        stats.robots.entry(id).or_default().on_pose(&p, at);
+    }
+}
+
+/// A cycle trigger of the central unit.
+fn note_trigger(s: &Sample, stats: &mut RunStats) {
+    let key = s.key_expr().as_str().to_string();
+    if let Some(t) = decode_or_count::<CycleTrigger>(stats, &key, &s.payload().to_bytes()) {
+        stats.on_trigger(&t, Instant::now());
+    }
+}
+
+/// A robot's true pose from the simulation.
+fn note_truth(keys: &Keys, s: &Sample, stats: &mut RunStats) {
+    let key = s.key_expr().as_str().to_string();
+    if let (Ok(Key::SimTruth(id)), Some(t)) = (
+        keys.parse(&key),
+        decode_or_count::<Truth>(stats, &key, &s.payload().to_bytes()),
+    ) {
+        stats.robots.entry(id).or_default().on_truth(t);
+    }
 }
 
 /// Carries out every planned fault whose time has come (times from

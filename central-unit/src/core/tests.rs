@@ -1,4 +1,5 @@
 use super::*;
+use ickon_proto::msg::admin::CoverageReport;
 use ickon_proto::msg::robot::FixQuality;
 
 fn core() -> CentralCore {

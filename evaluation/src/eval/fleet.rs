@@ -6,7 +6,7 @@ use ickon_central::core::{CentralConfig, SchedulePolicy};
 use ickon_central::occupancy::FiringConfig;
 use ickon_proto::site::Site;
 use ickon_sim::NoiseProfile;
-use ickon_sim::fleet::{FleetConfig, run_fleet};
+use ickon_sim::fleet::{FleetConfig, FleetOutput, run_fleet};
 
 use super::EvalArgs;
 use ickon_runtime::CommandError;
@@ -21,6 +21,38 @@ pub fn run(
     robots: usize,
     args: &EvalArgs,
 ) -> Result<(), CommandError> {
+    let (config, firing) = fleet_config(site, profile, robots, args)?;
+    let out = match run_fleet(site, &config) {
+        Ok(o) => o,
+        Err(e @ ickon_sim::RunError::FleetSize { .. }) => {
+            return Err(CommandError::bad_input(format!("{e}")));
+        }
+        Err(e) => {
+            return Err(CommandError::failure(format!("{e}")));
+        }
+    };
+    for r in &out.robots {
+        if let Some(refused) = &r.refused_inputs {
+            eprintln!("warning: robot {}: the MSU core {refused}", r.id);
+        }
+    }
+    if args.json {
+        print_json(site, &config, firing, args, &out);
+    } else {
+        print_report(site, &config, firing, args, &out);
+    }
+    Ok(())
+}
+
+/// The fleet run `args` ask for, and the name of its firing plan; refuses
+/// an unknown schedule or firing plan, a fire range outside (0, 100] m and
+/// a run no longer than the warm-up.
+fn fleet_config<'a>(
+    site: &Site,
+    profile: NoiseProfile,
+    robots: usize,
+    args: &'a EvalArgs,
+) -> Result<(FleetConfig, &'a str), CommandError> {
     let schedule = match args.schedule.as_str() {
         "tight" => SchedulePolicy::Tight,
         "uniform" => SchedulePolicy::Uniform,
@@ -79,36 +111,37 @@ pub fn run(
         },
         filter: super::filter_options(args),
     };
-    let out = match run_fleet(site, &config) {
-        Ok(o) => o,
-        Err(e @ ickon_sim::RunError::FleetSize { .. }) => {
-            return Err(CommandError::bad_input(format!("{e}")));
-        }
-        Err(e) => {
-            return Err(CommandError::failure(format!("{e}")));
-        }
-    };
-    for r in &out.robots {
-        if let Some(refused) = &r.refused_inputs {
-            eprintln!("warning: robot {}: the MSU core {refused}", r.id);
-        }
-    }
-    if args.json {
-        let doc = serde_json::json!({
-            "site": site.name,
-            "robots": robots,
-            "duration_s": duration,
-            "schedule": args.schedule,
-            "firing": firing,
-            "estimator": config.estimator,
-            "seed": args.seed,
-            "profile": config.profile.name,
-            "fleet": out,
-            "collision_loss_share": out.collisions.lost_share(),
-        });
-        println!("{doc}");
-        return Ok(());
-    }
+    Ok((config, firing))
+}
+
+/// The run as one JSON document on stdout.
+fn print_json(site: &Site, config: &FleetConfig, firing: &str, args: &EvalArgs, out: &FleetOutput) {
+    let (robots, duration) = (config.robots, config.duration_s);
+    let doc = serde_json::json!({
+        "site": site.name,
+        "robots": robots,
+        "duration_s": duration,
+        "schedule": args.schedule,
+        "firing": firing,
+        "estimator": config.estimator,
+        "seed": args.seed,
+        "profile": config.profile.name,
+        "fleet": out,
+        "collision_loss_share": out.collisions.lost_share(),
+    });
+    println!("{doc}");
+}
+
+/// The run as a table on stdout: each robot's fix rate, error and losses
+/// to collisions, and their means.
+fn print_report(
+    site: &Site,
+    config: &FleetConfig,
+    firing: &str,
+    args: &EvalArgs,
+    out: &FleetOutput,
+) {
+    let (robots, duration) = (config.robots, config.duration_s);
     println!(
         "{} robots on {} for {:.0} s (3 s warm-up), schedule {}, firing {}, {} ({}), seed {}",
         robots,
@@ -162,5 +195,4 @@ pub fn run(
         c.blocked_lost,
         c.blocked_detected
     );
-    Ok(())
 }

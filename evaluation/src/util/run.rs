@@ -81,13 +81,9 @@ fn antenna(row: &TruthRow) -> TruthRow {
 pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
     let anchors = dataset::read_anchors(&args.anchors, args.constellation)?;
     let mut reader = UtilReader::open(&args.data)?;
-    let bad_input = |message: String| InputError::Malformed {
-        path: args.data.clone(),
-        line: 1,
-        message,
-    };
     if args.imu && !reader.has_imu() {
         return Err(bad_input(
+            args,
             "--imu needs the IMU columns (t_acc, acc_*, t_gyro, gyro_*)".into(),
         ));
     }
@@ -95,150 +91,230 @@ pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
     let volume = match args.bounds {
         Some(v) => v,
         None => FlightVolume::around(&positions, VOLUME_MARGIN_M)
-            .map_err(|e| bad_input(e.to_string()))?,
+            .map_err(|e| bad_input(args, e.to_string()))?,
     };
     let streams = read_streams(args, &mut reader)?;
-    let start_m = estimators::centroid(&anchors);
-    let guard = estimators::util_guard_params();
-    let overrides = estimators::Overrides {
-        accel_psd_m2_s3: args.accel_psd_m2_s3,
-        shadow_m: args.shadow_m,
-        shadow_prior_sigma_m: args.shadow_prior_sigma_m,
-    };
-    let cv_params = estimators::util_cv_params(overrides);
-    let cv = CvFilter::new(cv_params).map_err(|e| bad_input(e.to_string()))?;
-    let mut ours = CvRunner::new(cv, volume, guard);
-    let mut baseline = EkfRunner::new(estimators::baseline_params(), start_m);
-    let mut window = WindowRunner::new(start_m);
-    let mut imu = match args.imu {
-        true => {
-            let params = estimators::util_imu_params(
-                ANTENNA_BODY_M,
-                args.initial_yaw_deg.to_radians(),
-                overrides,
-            );
-            let filter = ImuFilter::new(params).map_err(|e| bad_input(e.to_string()))?;
-            Some(ImuRunner::new(filter, volume, guard))
-        }
-        false => None,
-    };
-    let n_tracks = 3 + usize::from(imu.is_some());
-    let plot = args.plot.is_some();
-    let mut tracks: Vec<Track> = (0..n_tracks).map(|_| Track::new(plot)).collect();
-    let mut walls = vec![Duration::ZERO; n_tracks];
-    let mut attitude = AttitudeTrack::default();
-    let mut next_imu = 0;
-    for &(line, m) in &streams.tdoa {
-        let sample = sample(&anchors, &m, &reader, line)?;
-        let mut timed = |k: usize, f: &mut dyn FnMut() -> Option<(f64, [f64; 3])>| {
-            let t0 = Instant::now();
-            let out = f();
-            walls[k] += t0.elapsed();
-            if let Some((t, p)) = out {
-                tracks[k].push(t, p);
-            }
-            out.is_some()
-        };
-        timed(0, &mut || ours.step(&sample));
-        timed(1, &mut || baseline.step(&sample));
-        timed(2, &mut || window.step(&sample));
-        if let Some(r) = &mut imu {
-            let published = timed(3, &mut || {
-                while let Some(s) = streams.imu.get(next_imu).filter(|s| s.t_s <= m.t_s) {
-                    r.filter_mut().imu(&ImuSample {
-                        t_s: s.t_s,
-                        accel_m_s2: s.accel_m_s2,
-                        gyro_rad_s: s.gyro_rad_s,
-                    });
-                    next_imu += 1;
-                }
-                r.step(&sample)
-            });
-            if published {
-                attitude.push_estimate(m.t_s, r.filter().attitude_xyzw());
-            }
-        }
-    }
-    if let Some((t, p)) = window.finish() {
-        tracks[2].push(t, p);
-    }
-    let mut truth = Truth::new([0.0; 3]);
-    {
-        let mut refs: Vec<&mut Track> = tracks.iter_mut().collect();
-        for row in &streams.truth {
-            truth.push(antenna(row), &mut refs);
-            if let Some(q) = row.attitude_xyzw {
-                attitude.push_truth(row.t_s, q);
-            }
-        }
-        truth.finish(&mut refs);
-    }
+    let mut runners = Runners::new(args, &anchors, volume)?;
+    let mut runs = runners.run(&streams, &anchors, &reader, args.plot.is_some())?;
+    score(&streams, &mut runs);
     let measurements = streams.tdoa.len() as u64;
     let first_s = streams.tdoa.first().map(|m| m.1.t_s);
     let duration_s = streams.tdoa.last().map_or(0.0, |m| m.1.t_s) - first_s.unwrap_or(0.0);
-    let began = |t: Option<f64>| t.zip(first_s).map(|(t, f)| t - f);
-    let shadow = |s: (f64, f64)| Some(s.0);
-    let mut reports = vec![
-        EstimatorReport {
-            guard: Some(ours.counts()),
-            shadow_m: shadow(ours.filter().shadow_m()),
-            ..report(
-                "tdoa-ekf",
-                &tracks[0],
-                measurements,
-                duration_s,
-                ours.rejections,
-                walls[0],
-            )
-        },
-        EstimatorReport {
-            recoveries: baseline.recoveries(),
-            output_began_s: Some(0.0),
-            ..report(
-                "cv-ekf",
-                &tracks[1],
-                measurements,
-                duration_s,
-                baseline.rejections,
-                walls[1],
-            )
-        },
-        EstimatorReport {
-            output_began_s: began(tracks[2].first_s()),
-            ..report(
-                "window-gn",
-                &tracks[2],
-                measurements,
-                duration_s,
-                window.rejections,
-                walls[2],
-            )
-        },
-    ];
-    reports[0].output_began_s = began(ours.first_published_s);
-    if let Some(r) = &imu {
-        reports.push(EstimatorReport {
-            guard: Some(r.counts()),
-            shadow_m: shadow(r.filter().shadow_m()),
-            attitude: attitude.summary(),
-            output_began_s: began(r.first_published_s),
-            ..report(
-                "imu-eskf",
-                &tracks[3],
-                measurements,
-                duration_s,
-                r.rejections,
-                walls[3],
-            )
-        });
-    }
+    let reports = runners.reports(&runs, measurements, duration_s, first_s);
     Ok(Replayed {
         measurements,
         duration_s,
         volume,
         reports,
-        tracks,
+        tracks: runs.tracks,
     })
+}
+
+/// A complaint about the data file as a whole.
+fn bad_input(args: &UtilArgs, message: String) -> InputError {
+    InputError::Malformed {
+        path: args.data.clone(),
+        line: 1,
+        message,
+    }
+}
+
+/// The estimators a replay runs side by side: ours, the plain baseline,
+/// the sliding window, and with `--imu` the IMU filter.
+struct Runners {
+    ours: CvRunner,
+    baseline: EkfRunner,
+    window: WindowRunner,
+    imu: Option<ImuRunner>,
+}
+
+/// What the estimators produced over the flight: one track each (in the
+/// order of [`Runners`]), the time each took, and the IMU filter's
+/// attitude.
+struct Runs {
+    tracks: Vec<Track>,
+    walls: Vec<Duration>,
+    attitude: AttitudeTrack,
+}
+
+impl Runners {
+    /// Every estimator, set up for the anchors and the flight volume.
+    fn new(
+        args: &UtilArgs,
+        anchors: &HashMap<u32, [f64; 3]>,
+        volume: FlightVolume,
+    ) -> Result<Self, InputError> {
+        let start_m = estimators::centroid(anchors);
+        let guard = estimators::util_guard_params();
+        let overrides = estimators::Overrides {
+            accel_psd_m2_s3: args.accel_psd_m2_s3,
+            shadow_m: args.shadow_m,
+            shadow_prior_sigma_m: args.shadow_prior_sigma_m,
+        };
+        let cv_params = estimators::util_cv_params(overrides);
+        let cv = CvFilter::new(cv_params).map_err(|e| bad_input(args, e.to_string()))?;
+        let ours = CvRunner::new(cv, volume, guard);
+        let baseline = EkfRunner::new(estimators::baseline_params(), start_m);
+        let window = WindowRunner::new(start_m);
+        let imu = match args.imu {
+            true => {
+                let params = estimators::util_imu_params(
+                    ANTENNA_BODY_M,
+                    args.initial_yaw_deg.to_radians(),
+                    overrides,
+                );
+                let filter = ImuFilter::new(params).map_err(|e| bad_input(args, e.to_string()))?;
+                Some(ImuRunner::new(filter, volume, guard))
+            }
+            false => None,
+        };
+        Ok(Self {
+            ours,
+            baseline,
+            window,
+            imu,
+        })
+    }
+
+    /// Feeds every range difference to every estimator in time order (the
+    /// IMU filter gets the IMU samples up to each first), timing each;
+    /// `plot` keeps the tracks' points for a plot.
+    fn run(
+        &mut self,
+        streams: &Streams,
+        anchors: &HashMap<u32, [f64; 3]>,
+        reader: &UtilReader,
+        plot: bool,
+    ) -> Result<Runs, InputError> {
+        let n_tracks = 3 + usize::from(self.imu.is_some());
+        let mut tracks: Vec<Track> = (0..n_tracks).map(|_| Track::new(plot)).collect();
+        let mut walls = vec![Duration::ZERO; n_tracks];
+        let mut attitude = AttitudeTrack::default();
+        let mut next_imu = 0;
+        for &(line, m) in &streams.tdoa {
+            let sample = sample(anchors, &m, reader, line)?;
+            let mut timed = |k: usize, f: &mut dyn FnMut() -> Option<(f64, [f64; 3])>| {
+                let t0 = Instant::now();
+                let out = f();
+                walls[k] += t0.elapsed();
+                if let Some((t, p)) = out {
+                    tracks[k].push(t, p);
+                }
+                out.is_some()
+            };
+            timed(0, &mut || self.ours.step(&sample));
+            timed(1, &mut || self.baseline.step(&sample));
+            timed(2, &mut || self.window.step(&sample));
+            if let Some(r) = &mut self.imu {
+                let published = timed(3, &mut || {
+                    while let Some(s) = streams.imu.get(next_imu).filter(|s| s.t_s <= m.t_s) {
+                        r.filter_mut().imu(&ImuSample {
+                            t_s: s.t_s,
+                            accel_m_s2: s.accel_m_s2,
+                            gyro_rad_s: s.gyro_rad_s,
+                        });
+                        next_imu += 1;
+                    }
+                    r.step(&sample)
+                });
+                if published {
+                    attitude.push_estimate(m.t_s, r.filter().attitude_xyzw());
+                }
+            }
+        }
+        if let Some((t, p)) = self.window.finish() {
+            tracks[2].push(t, p);
+        }
+        Ok(Runs {
+            tracks,
+            walls,
+            attitude,
+        })
+    }
+
+    /// Each estimator's report over `measurements` range differences and
+    /// `duration_s` seconds from the first at `first_s`.
+    fn reports(
+        &self,
+        runs: &Runs,
+        measurements: u64,
+        duration_s: f64,
+        first_s: Option<f64>,
+    ) -> Vec<EstimatorReport> {
+        let (tracks, walls) = (&runs.tracks, &runs.walls);
+        let (ours, baseline, window) = (&self.ours, &self.baseline, &self.window);
+        let began = |t: Option<f64>| t.zip(first_s).map(|(t, f)| t - f);
+        let shadow = |s: (f64, f64)| Some(s.0);
+        let mut reports = vec![
+            EstimatorReport {
+                guard: Some(ours.counts()),
+                shadow_m: shadow(ours.filter().shadow_m()),
+                ..report(
+                    "tdoa-ekf",
+                    &tracks[0],
+                    measurements,
+                    duration_s,
+                    ours.rejections,
+                    walls[0],
+                )
+            },
+            EstimatorReport {
+                recoveries: baseline.recoveries(),
+                output_began_s: Some(0.0),
+                ..report(
+                    "cv-ekf",
+                    &tracks[1],
+                    measurements,
+                    duration_s,
+                    baseline.rejections,
+                    walls[1],
+                )
+            },
+            EstimatorReport {
+                output_began_s: began(tracks[2].first_s()),
+                ..report(
+                    "window-gn",
+                    &tracks[2],
+                    measurements,
+                    duration_s,
+                    window.rejections,
+                    walls[2],
+                )
+            },
+        ];
+        reports[0].output_began_s = began(ours.first_published_s);
+        if let Some(r) = &self.imu {
+            reports.push(EstimatorReport {
+                guard: Some(r.counts()),
+                shadow_m: shadow(r.filter().shadow_m()),
+                attitude: runs.attitude.summary(),
+                output_began_s: began(r.first_published_s),
+                ..report(
+                    "imu-eskf",
+                    &tracks[3],
+                    measurements,
+                    duration_s,
+                    r.rejections,
+                    walls[3],
+                )
+            });
+        }
+        reports
+    }
+}
+
+/// Scores every track against the truth (at the antenna) and gives the
+/// attitude track its true attitudes.
+fn score(streams: &Streams, runs: &mut Runs) {
+    let mut truth = Truth::new([0.0; 3]);
+    let mut refs: Vec<&mut Track> = runs.tracks.iter_mut().collect();
+    for row in &streams.truth {
+        truth.push(antenna(row), &mut refs);
+        if let Some(q) = row.attitude_xyzw {
+            runs.attitude.push_truth(row.t_s, q);
+        }
+    }
+    truth.finish(&mut refs);
 }
 
 /// The range difference of a TDOA row, with its anchors looked up.

@@ -84,6 +84,10 @@ pub struct Ros2Scope {
 }
 
 /// Everything `identity` may do, as (verb, key expressions).
+///
+/// One piece on purpose: it is the access table of the whole mesh, one
+/// arm per identity, and reviewing who may do what means reading every
+/// identity's rules side by side.
 fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, Vec<String>)> {
     use Verb::*;
     let p = keys.prefix();

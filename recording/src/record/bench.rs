@@ -104,7 +104,7 @@ fn feed<W: std::io::Write + std::io::Seek>(
     robots: usize,
     duration_s: f64,
 ) -> Result<(), super::RecordError> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let mut rng = Rng8::seed_from_u64(1);
     let t0 = 1_764_000_000_000_000_000i64;
     let ids: Vec<String> = (1..=robots).map(|i| format!("r{i}")).collect();
     let topic = |id: &str, t: RobotTopic| keys.robot(id, t).unwrap_or_default();
@@ -139,175 +139,269 @@ fn feed<W: std::io::Write + std::io::Seek>(
             next_cycle += cycle_ns;
             cycle += 1;
             seq += 1;
-            let trigger = CycleTrigger {
-                cycle,
-                start: now,
-                schedule_version: 1,
-                epoch: 1,
-                firing: Vec::new(),
-                cycle_period: ickon_proto::time::Duration::ZERO,
-            };
-            put(recorder, &keys.central_cycle(), &trigger, now)?;
-            for (c, cell) in cells.iter().enumerate() {
-                for tx in 0..4u32 {
-                    let burst = Burst {
-                        cell_id: cell.clone(),
-                        tx_id: c as u32 * 4 + tx,
-                        cycle,
-                        scheduled: Time::from_nanos(now_ns + i64::from(tx) * 40_000_000),
-                        actual: Time::from_nanos(
-                            now_ns + i64::from(tx) * 40_000_000 + rng.random_range(-30_000..30_000),
-                        ),
-                        epoch: 1,
-                    };
-                    put(
-                        recorder,
-                        &keys.cell_burst(cell).unwrap_or_default(),
-                        &burst,
-                        now,
-                    )?;
-                }
-            }
+        }
+        let tick = Tick {
+            step,
+            now_ns,
+            now,
+            t_s,
+            is_cycle,
+            cycle,
+            seq,
+        };
+        if is_cycle {
+            put_cycle(recorder, keys, &cells, &tick, &mut rng)?;
         }
         if step % 100 == 0 {
-            for cell in &cells {
-                let status = CellStatus {
-                    cell_id: cell.clone(),
-                    stamp: now,
-                    offset_ns: rng.random_range(-50_000_000..50_000_000),
-                    drift_ppb: rng.random_range(-20_000..20_000),
-                    offset_sigma_ns: 5_000,
-                    sync_samples: 8,
-                    last_cycle_fired: cycle,
-                    cycles_fired: cycle,
-                    slots_skipped: 0,
-                    faults: Vec::new(),
-                    inputs_refused: 0,
-                };
-                put(
-                    recorder,
-                    &keys.cell_status(cell).unwrap_or_default(),
-                    &status,
-                    now,
-                )?;
-            }
+            put_cell_status(recorder, keys, &cells, &tick, &mut rng)?;
         }
         for (i, k) in robot_keys.iter().enumerate() {
-            let phase = i as f64 * 0.7;
-            let a = 0.1 * t_s + phase;
-            let (x, y, theta) = (
-                3.0 + 2.0 * a.cos(),
-                3.0 + 2.0 * a.sin(),
-                a + std::f64::consts::FRAC_PI_2,
-            );
-            let noise = |rng: &mut rand_chacha::ChaCha8Rng, s: f64| rng.random_range(-s..s);
-            put(
-                recorder,
-                &k[0],
-                &Imu {
-                    stamp: now,
-                    gyro_z_rad_s: 0.1 + noise(&mut rng, 0.002),
-                },
-                now,
-            )?;
-            if step % 2 == 0 {
-                let ticks = (t_s * 0.2 / 3.2e-5) as i64;
-                put(
-                    recorder,
-                    &k[1],
-                    &Odometry {
-                        stamp: now,
-                        x_m: x + noise(&mut rng, 0.01),
-                        y_m: y + noise(&mut rng, 0.01),
-                        theta_rad: theta,
-                        left_ticks: ticks,
-                        right_ticks: ticks + (t_s * 100.0) as i64,
-                    },
-                    now,
-                )?;
-                let pose = RobotPose {
-                    stamp: now,
-                    x_m: x + noise(&mut rng, 0.02),
-                    y_m: y + noise(&mut rng, 0.02),
-                    theta_rad: theta.sin().atan2(theta.cos()),
-                    covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
-                    estimator: "tdoa-ekf".into(),
-                    fix_seq: seq,
-                    status: ickon_proto::msg::robot::PoseStatus::Tracking,
-                };
-                put(recorder, &k[2], &pose, now)?;
-                let truth = Truth {
-                    stamp: now,
-                    robot_clock: Time::from_nanos(now_ns + 12_345_678),
-                    x_m: x,
-                    y_m: y,
-                    theta_rad: theta.sin().atan2(theta.cos()),
-                    v_m_s: 0.2,
-                    omega_rad_s: 0.1,
-                };
-                put(recorder, &k[6], &truth, now)?;
-            }
-            if step % 10 == 0 {
-                let ranges = ObstacleRanges {
-                    stamp: now,
-                    left_m: 1.0 + noise(&mut rng, 0.5),
-                    left_valid: true,
-                    right_m: 2.0 + noise(&mut rng, 0.5),
-                    right_valid: true,
-                    left_ir_m: 0.0,
-                    left_ir_valid: false,
-                    right_ir_m: 0.0,
-                    right_ir_valid: false,
-                };
-                put(recorder, &k[3], &ranges, now)?;
-            }
-            if is_cycle {
-                let arrivals = UltrasoundArrivals {
-                    seq,
-                    arrivals: (0..ARRIVALS_PER_CYCLE)
-                        .map(|tx| Arrival {
-                            tx_id: tx,
-                            receiver_id: (tx % 6) as u8,
-                            t_arrival: Time::from_nanos(
-                                now_ns
-                                    + i64::from(tx) * 40_000_000
-                                    + rng.random_range(0..15_000_000),
-                            ),
-                        })
-                        .collect(),
-                };
-                put(recorder, &k[4], &arrivals, now)?;
-                let fix = Fix {
-                    stamp: now,
-                    arrivals_seq: seq,
-                    x_m: x + noise(&mut rng, 0.05),
-                    y_m: y + noise(&mut rng, 0.05),
-                    z_m: 0.5,
-                    covariance: [1e-3, 1e-5, 0.0, 1e-5, 1e-3, 0.0, 0.0, 0.0, 1e-6],
-                    heading_rad: theta,
-                    heading_valid: true,
-                    used: (0..ARRIVALS_PER_CYCLE).collect(),
-                    rejected: Vec::new(),
-                    residuals_m: (0..ARRIVALS_PER_CYCLE)
-                        .map(|_| noise(&mut rng, 0.01))
-                        .collect(),
-                    quality: FixQuality::Good,
-                    survey_version: 0,
-                };
-                put(recorder, &k[5], &fix, now)?;
-                let pose = RobotPose {
-                    stamp: now,
-                    x_m: x,
-                    y_m: y,
-                    theta_rad: theta.sin().atan2(theta.cos()),
-                    covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
-                    estimator: "tdoa-ekf".into(),
-                    fix_seq: seq,
-                    status: ickon_proto::msg::robot::PoseStatus::Tracking,
-                };
-                put(recorder, &k[2], &pose, now)?;
-            }
+            put_robot(recorder, k, i, &tick, &mut rng)?;
         }
     }
     Ok(())
+}
+
+/// The random numbers of the fed messages.
+type Rng8 = rand_chacha::ChaCha8Rng;
+
+/// One step of the fed site time.
+struct Tick {
+    /// Its index.
+    step: i64,
+    /// Site time, nanoseconds and as a time.
+    now_ns: i64,
+    now: Time,
+    /// Seconds since the first step.
+    t_s: f64,
+    /// Whether a cycle is triggered at this step.
+    is_cycle: bool,
+    /// The last cycle triggered, and the arrivals' sequence number.
+    cycle: u64,
+    seq: u64,
+}
+
+/// A noise draw uniform in `(-s, s)`.
+fn noise(rng: &mut Rng8, s: f64) -> f64 {
+    rng.random_range(-s..s)
+}
+
+/// The central unit's trigger of a new cycle and every cell's bursts in it.
+fn put_cycle<W: std::io::Write + std::io::Seek>(
+    recorder: &mut Recorder<W>,
+    keys: &Keys,
+    cells: &[String],
+    tick: &Tick,
+    rng: &mut Rng8,
+) -> Result<(), super::RecordError> {
+    let (now, now_ns, cycle) = (tick.now, tick.now_ns, tick.cycle);
+    let trigger = CycleTrigger {
+        cycle,
+        start: now,
+        schedule_version: 1,
+        epoch: 1,
+        firing: Vec::new(),
+        cycle_period: ickon_proto::time::Duration::ZERO,
+    };
+    put(recorder, &keys.central_cycle(), &trigger, now)?;
+    for (c, cell) in cells.iter().enumerate() {
+        for tx in 0..4u32 {
+            let burst = Burst {
+                cell_id: cell.clone(),
+                tx_id: c as u32 * 4 + tx,
+                cycle,
+                scheduled: Time::from_nanos(now_ns + i64::from(tx) * 40_000_000),
+                actual: Time::from_nanos(
+                    now_ns + i64::from(tx) * 40_000_000 + rng.random_range(-30_000..30_000),
+                ),
+                epoch: 1,
+            };
+            put(
+                recorder,
+                &keys.cell_burst(cell).unwrap_or_default(),
+                &burst,
+                now,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// Every cell's status report.
+fn put_cell_status<W: std::io::Write + std::io::Seek>(
+    recorder: &mut Recorder<W>,
+    keys: &Keys,
+    cells: &[String],
+    tick: &Tick,
+    rng: &mut Rng8,
+) -> Result<(), super::RecordError> {
+    let (now, cycle) = (tick.now, tick.cycle);
+    for cell in cells {
+        let status = CellStatus {
+            cell_id: cell.clone(),
+            stamp: now,
+            offset_ns: rng.random_range(-50_000_000..50_000_000),
+            drift_ppb: rng.random_range(-20_000..20_000),
+            offset_sigma_ns: 5_000,
+            sync_samples: 8,
+            last_cycle_fired: cycle,
+            cycles_fired: cycle,
+            slots_skipped: 0,
+            faults: Vec::new(),
+            inputs_refused: 0,
+        };
+        put(
+            recorder,
+            &keys.cell_status(cell).unwrap_or_default(),
+            &status,
+            now,
+        )?;
+    }
+    Ok(())
+}
+
+/// The messages of robot `i` (its keys `k`) at one step: it drives a
+/// circle, each robot a little further round it.
+fn put_robot<W: std::io::Write + std::io::Seek>(
+    recorder: &mut Recorder<W>,
+    k: &[String; 7],
+    i: usize,
+    tick: &Tick,
+    rng: &mut Rng8,
+) -> Result<(), super::RecordError> {
+    let (step, now, t_s) = (tick.step, tick.now, tick.t_s);
+    let phase = i as f64 * 0.7;
+    let a = 0.1 * t_s + phase;
+    let (x, y, theta) = (
+        3.0 + 2.0 * a.cos(),
+        3.0 + 2.0 * a.sin(),
+        a + std::f64::consts::FRAC_PI_2,
+    );
+    put(
+        recorder,
+        &k[0],
+        &Imu {
+            stamp: now,
+            gyro_z_rad_s: 0.1 + noise(rng, 0.002),
+        },
+        now,
+    )?;
+    if step % 2 == 0 {
+        put_drive(recorder, k, tick, [x, y, theta], rng)?;
+    }
+    if step % 10 == 0 {
+        let ranges = ObstacleRanges {
+            stamp: now,
+            left_m: 1.0 + noise(rng, 0.5),
+            left_valid: true,
+            right_m: 2.0 + noise(rng, 0.5),
+            right_valid: true,
+            left_ir_m: 0.0,
+            left_ir_valid: false,
+            right_ir_m: 0.0,
+            right_ir_valid: false,
+        };
+        put(recorder, &k[3], &ranges, now)?;
+    }
+    if tick.is_cycle {
+        put_robot_cycle(recorder, k, tick, [x, y, theta], rng)?;
+    }
+    Ok(())
+}
+
+/// A robot's odometry, pose and true pose at `[x, y, theta]`.
+fn put_drive<W: std::io::Write + std::io::Seek>(
+    recorder: &mut Recorder<W>,
+    k: &[String; 7],
+    tick: &Tick,
+    [x, y, theta]: [f64; 3],
+    rng: &mut Rng8,
+) -> Result<(), super::RecordError> {
+    let (now, now_ns, t_s) = (tick.now, tick.now_ns, tick.t_s);
+    let ticks = (t_s * 0.2 / 3.2e-5) as i64;
+    put(
+        recorder,
+        &k[1],
+        &Odometry {
+            stamp: now,
+            x_m: x + noise(rng, 0.01),
+            y_m: y + noise(rng, 0.01),
+            theta_rad: theta,
+            left_ticks: ticks,
+            right_ticks: ticks + (t_s * 100.0) as i64,
+        },
+        now,
+    )?;
+    let pose = RobotPose {
+        stamp: now,
+        x_m: x + noise(rng, 0.02),
+        y_m: y + noise(rng, 0.02),
+        theta_rad: theta.sin().atan2(theta.cos()),
+        covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
+        estimator: "tdoa-ekf".into(),
+        fix_seq: tick.seq,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
+    };
+    put(recorder, &k[2], &pose, now)?;
+    let truth = Truth {
+        stamp: now,
+        robot_clock: Time::from_nanos(now_ns + 12_345_678),
+        x_m: x,
+        y_m: y,
+        theta_rad: theta.sin().atan2(theta.cos()),
+        v_m_s: 0.2,
+        omega_rad_s: 0.1,
+    };
+    put(recorder, &k[6], &truth, now)
+}
+
+/// A robot's arrivals, fix and pose of a new cycle, at `[x, y, theta]`.
+fn put_robot_cycle<W: std::io::Write + std::io::Seek>(
+    recorder: &mut Recorder<W>,
+    k: &[String; 7],
+    tick: &Tick,
+    [x, y, theta]: [f64; 3],
+    rng: &mut Rng8,
+) -> Result<(), super::RecordError> {
+    let (now, now_ns, seq) = (tick.now, tick.now_ns, tick.seq);
+    let arrivals = UltrasoundArrivals {
+        seq,
+        arrivals: (0..ARRIVALS_PER_CYCLE)
+            .map(|tx| Arrival {
+                tx_id: tx,
+                receiver_id: (tx % 6) as u8,
+                t_arrival: Time::from_nanos(
+                    now_ns + i64::from(tx) * 40_000_000 + rng.random_range(0..15_000_000),
+                ),
+            })
+            .collect(),
+    };
+    put(recorder, &k[4], &arrivals, now)?;
+    let fix = Fix {
+        stamp: now,
+        arrivals_seq: seq,
+        x_m: x + noise(rng, 0.05),
+        y_m: y + noise(rng, 0.05),
+        z_m: 0.5,
+        covariance: [1e-3, 1e-5, 0.0, 1e-5, 1e-3, 0.0, 0.0, 0.0, 1e-6],
+        heading_rad: theta,
+        heading_valid: true,
+        used: (0..ARRIVALS_PER_CYCLE).collect(),
+        rejected: Vec::new(),
+        residuals_m: (0..ARRIVALS_PER_CYCLE).map(|_| noise(rng, 0.01)).collect(),
+        quality: FixQuality::Good,
+        survey_version: 0,
+    };
+    put(recorder, &k[5], &fix, now)?;
+    let pose = RobotPose {
+        stamp: now,
+        x_m: x,
+        y_m: y,
+        theta_rad: theta.sin().atan2(theta.cos()),
+        covariance: [4e-4, 1e-6, 0.0, 1e-6, 4e-4, 0.0, 0.0, 0.0, 1e-3],
+        estimator: "tdoa-ekf".into(),
+        fix_seq: seq,
+        status: ickon_proto::msg::robot::PoseStatus::Tracking,
+    };
+    put(recorder, &k[2], &pose, now)
 }

@@ -1,0 +1,152 @@
+//! What the admin CLI asks: status, coverage, pause, and reloading the
+//! site.
+
+use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
+use ickon_proto::msg::control::Schedule;
+use ickon_proto::site::Site;
+use ickon_proto::time::Time;
+
+use crate::survey_calibration::SurveyPublisher;
+
+use super::{CentralCore, Output, make_schedule};
+
+impl CentralCore {
+    /// The answer to `status`, `cells`, `robots` and `sync`.
+    pub fn status(&self, now: Time) -> StatusReport {
+        let schedule = self.schedule_for(self.last_cycle());
+        StatusReport {
+            site: self.site.name.clone(),
+            cycle: self.last_cycle(),
+            stamp: now,
+            paused: self.paused,
+            schedule_version: schedule.version,
+            update_rate_hz: crate::schedule::update_rate_hz(schedule),
+            cells: self.cells.iter().map(|(id, c)| c.health(id)).collect(),
+            robots: self
+                .robots
+                .iter()
+                .map(|(id, r)| r.health(id, now))
+                .collect(),
+            epoch: self.epoch,
+            foreign_control: self.foreign_control,
+            active: self.standby.is_none(),
+        }
+    }
+
+    /// The answer to `coverage`: the floor as the transmitters of the
+    /// schedule in force cover it, on a grid of about `resolution_m`.
+    pub fn coverage(&self, resolution_m: f64) -> CoverageReport {
+        let schedule = self.schedule_for(self.next_cycle);
+        crate::coverage::coverage(
+            &self.site,
+            &schedule.active_cells,
+            resolution_m,
+            schedule.version,
+        )
+    }
+
+    /// Stops (`true`) or resumes cycle triggers; cycle numbers keep counting.
+    pub fn set_paused(&mut self, paused: bool) -> AdminAck {
+        let was = self.paused;
+        self.paused = paused;
+        let word = if paused { "paused" } else { "resumed" };
+        AdminAck {
+            ok: true,
+            messages: vec![if was == paused {
+                format!("cycles already {word}")
+            } else {
+                format!("cycles {word} from cycle {}", self.next_cycle)
+            }],
+        }
+    }
+
+    /// Replaces the site with a new file if it is valid; a bad file is refused
+    /// with every reason and the running site stays.
+    pub fn reload(
+        &mut self,
+        toml_text: &str,
+        file_name: &str,
+        now: Time,
+    ) -> (AdminAck, Option<Output>) {
+        let refuse = |messages: Vec<String>| {
+            (
+                AdminAck {
+                    ok: false,
+                    messages,
+                },
+                None,
+            )
+        };
+        let site = match Site::from_toml(toml_text, file_name) {
+            Ok(s) => s,
+            Err(ickon_proto::site::SiteError::Invalid { issues, file }) => {
+                return refuse(
+                    issues
+                        .iter()
+                        .map(|i| {
+                            format!("{file}:{}:{}: {}: {}", i.line, i.column, i.field, i.message)
+                        })
+                        .collect(),
+                );
+            }
+            Err(other) => return refuse(vec![other.to_string()]),
+        };
+        if site.name != self.site.name {
+            return refuse(vec![format!(
+                "site name {:?} differs from the running site {:?}: start a new central unit for another site",
+                site.name, self.site.name
+            )]);
+        }
+        let live: Vec<String> = site
+            .cells
+            .iter()
+            .filter(|c| !self.any_cell_seen || self.cells.get(&c.id).is_some_and(|s| s.alive))
+            .map(|c| c.id.clone())
+            .collect();
+        let active = if live.is_empty() {
+            site.cells.iter().map(|c| c.id.clone()).collect()
+        } else {
+            live
+        };
+        let Some(version) = self.latest_schedule().version.checked_add(1) else {
+            return refuse(vec![format!(
+                "no schedule version left in epoch {}",
+                self.epoch
+            )]);
+        };
+        let effective = self.first_announceable_cycle(now);
+        let schedule = match make_schedule(self.config.schedule, &site, &active, version, effective)
+        {
+            Ok(s) => Schedule {
+                epoch: self.epoch,
+                ..s
+            },
+            Err(e) => return refuse(vec![e.to_string()]),
+        };
+        for c in &site.cells {
+            self.cells.entry(c.id.clone()).or_default();
+        }
+        self.cells.retain(|id, _| site.cell(id).is_some());
+        self.robots
+            .retain(|id, _| site.robots.iter().any(|r| &r.id == id));
+        if let Some(c) = self.config.survey {
+            // Other transmitters, or the same ones moved: start again.
+            self.survey = Some(SurveyPublisher::new(&site, c));
+        }
+        self.site = site;
+        self.table = None;
+        self.site_toml = toml_text.to_string();
+        self.site_version += 1;
+        self.push_schedule(schedule.clone());
+        (
+            AdminAck {
+                ok: true,
+                messages: vec![format!(
+                    "site {file_name} loaded as version {}; schedule v{version} from cycle {effective}",
+                    self.site_version
+                )],
+            },
+            Some(Output::Schedule(schedule)),
+        )
+    }
+}

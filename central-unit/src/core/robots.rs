@@ -1,0 +1,121 @@
+//! The robots: liveliness, poses and fixes, their share of the survey
+//! calibration, and the clock replies they ask for.
+
+use std::collections::BTreeMap;
+
+use ickon_proto::msg::control::ClockReply;
+use ickon_proto::msg::robot::{Fix, RobotPose};
+use ickon_proto::time::Time;
+
+use crate::health::RobotTracker;
+use crate::survey_calibration::{FixSkipped, SavedCalibration, SavedMismatch, SurveyPublisher};
+
+use super::CentralCore;
+
+impl CentralCore {
+    /// Gives a robot's fix to the survey calibration (a fix of a robot not
+    /// on the site is counted by the health books, and still a fix of
+    /// the site's transmitters), within the robot's share of the
+    /// calibration: one fix a cycle (every robot the site does not list
+    /// shares one such share).
+    pub(super) fn survey_fix(&mut self, robot: &str, fix: &Fix) {
+        let key = if self.on_site(robot) { robot } else { "" };
+        let Some(publisher) = self.survey.as_mut() else {
+            return;
+        };
+        let taken = match self.survey_fix_rate.admit(key, self.cycles_heard) {
+            Ok(()) => publisher.take_fix(fix),
+            Err(refused) => {
+                if refused.is_power_of_two() {
+                    let who = if key.is_empty() {
+                        "robots the site does not list".to_string()
+                    } else {
+                        format!("robot {key}")
+                    };
+                    tracing::warn!(
+                        "{who} sent more fixes than one a cycle: {refused} kept from the survey \
+                         calibration so far (a broken MSU, or fixes forged under its name)"
+                    );
+                }
+                Err(FixSkipped::OverRate)
+            }
+        };
+        if let Err(skipped) = taken {
+            *self.survey_skipped.entry(skipped.label()).or_default() += 1;
+        }
+    }
+
+    /// The survey calibration learnt so far, `None` when it is off.
+    pub fn survey(&self) -> Option<&SurveyPublisher> {
+        self.survey.as_ref()
+    }
+
+    /// What to keep of the survey calibration across a restart (`None`
+    /// when it is off).
+    pub fn survey_saved(&self) -> Option<SavedCalibration> {
+        self.survey.as_ref().map(|p| p.saved(&self.site))
+    }
+
+    /// Goes on from a survey calibration kept across a restart; `Ok(false)`
+    /// when the calibration is off.
+    pub fn restore_survey(&mut self, saved: &SavedCalibration) -> Result<bool, SavedMismatch> {
+        match self.survey.as_mut() {
+            Some(p) => p.restore(&self.site, saved).map(|()| true),
+            None => Ok(false),
+        }
+    }
+
+    /// Fixes the survey calibration did not take, by reason.
+    pub fn survey_skipped(&self) -> &BTreeMap<&'static str, u64> {
+        &self.survey_skipped
+    }
+
+    /// A robot's liveliness token appeared or disappeared.
+    pub(super) fn robot_alive(&mut self, id: &str, up: bool) {
+        if let Some(r) = self.robot_mut(id) {
+            r.alive = up;
+        }
+    }
+
+    /// The tracker of robot `id` if the site has it. Robots the site does
+    /// not know are counted, not tracked: the table stays as large as the
+    /// site, whatever anyone publishes.
+    /// Whether `id` is one of the site's robots.
+    fn on_site(&self, id: &str) -> bool {
+        self.site.robots.iter().any(|r| r.id == id)
+    }
+
+    fn robot_mut(&mut self, id: &str) -> Option<&mut RobotTracker> {
+        if self.on_site(id) {
+            Some(self.robots.entry(id.to_string()).or_default())
+        } else {
+            self.unknown_robot_messages += 1;
+            None
+        }
+    }
+
+    /// Messages from robot ids the site does not know, ignored so far.
+    pub fn unknown_robot_messages(&self) -> u64 {
+        self.unknown_robot_messages
+    }
+
+    /// A robot published a pose, received at `now`.
+    pub(super) fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
+        if let Some(r) = self.robot_mut(id) {
+            r.on_pose(pose, now);
+        }
+    }
+
+    /// A robot published a fix at `now`.
+    pub(super) fn on_fix(&mut self, id: &str, now: Time) {
+        if let Some(r) = self.robot_mut(id) {
+            r.on_fix(now);
+        }
+    }
+
+    /// The reply of the central unit of `epoch` to a clock request that
+    /// arrived at `t2` and leaves at `t3`.
+    pub fn clock_reply(epoch: u64, t1: Time, t2: Time, t3: Time) -> ClockReply {
+        ClockReply { t1, t2, t3, epoch }
+    }
+}

@@ -49,7 +49,7 @@ pub enum SchedulePolicy {
     /// Each transmitter as early as the geometry lets it ([`compute_schedule`]).
     #[default]
     Tight,
-    /// The schedule from before issue 20, to measure against
+    /// One slot per emission, cells coloured apart, to measure against
     /// ([`crate::schedule::compute_uniform_schedule`]).
     Uniform,
 }

@@ -44,7 +44,7 @@ pub struct CentralArgs {
     #[arg(long)]
     pub standby: bool,
     /// Which transmitters fire each cycle: `occupancy` (only where robots
-    /// may be, issue 20; the whole schedule while no robot is known; the
+    /// may be; the whole schedule while no robot is known; the
     /// MSU agents follow the cycle triggers' firing sets) or `all` (the
     /// whole schedule every cycle).
     #[arg(long, value_enum, default_value_t = Firing::Occupancy)]

@@ -575,13 +575,8 @@ fn checked_receiver(fix: &Fix) -> Result<Vector3<f64>, FixSkipped> {
 /// estimate with the survey and the sync as its prior already shrinks what
 /// the fleet has not shown towards zero.
 ///
-/// (Until the tenth stop a coordinate under two of its sigmas was published
-/// as 0: in the `ideal` world the small offsets learnt from what the solver
-/// does not model moved every second and the ground filter, which then
-/// took each microsecond arrival at its own sigma, ran 76 mm off on `lab`'s
-/// `eight`. Since no arrival is taken below the survey's sigma that run
-/// gives 7.8 mm either way, and the test cost up to 10 mm on `warehouse`'s
-/// routes: seed 2 `aisle-3` 45.6 mm with it, 36.0 without.)
+/// Why small offsets are not held at 0:
+/// [docs/decisions/0017-small-survey-offsets-published.md](../../docs/decisions/0017-small-survey-offsets-published.md).
 fn publishable(c: TransmitterCorrection, config: &CalibrationConfig) -> (TransmitterOffset, bool) {
     let position_plausible = c.offset_m.iter().all(|v| v.abs() <= MAX_SURVEY_OFFSET_M)
         && c.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0);

@@ -1,7 +1,9 @@
 //! The documentation cannot drift from the code: the CLI reference
 //! (`docs/cli.md`) is generated from the clap definitions, every command
-//! line shown in README.md and docs/ parses with them, and every relative
-//! link and repository path they name exists.
+//! line shown in README.md and docs/ parses with them, every relative
+//! link and repository path they name exists, and every key of the
+//! shipped sites, MSU configuration and noise profiles is in the
+//! configuration reference.
 //!
 //! `ICKON_WRITE_CLI_REFERENCE=1 cargo test -p ickon docs_check` writes the
 //! reference anew after a change to the command line.
@@ -303,5 +305,88 @@ fn the_checks_find_what_they_look_for() {
     assert_eq!(
         code_spans("a `deploy/sites/lab.toml` b `x`"),
         vec!["deploy/sites/lab.toml", "x"]
+    );
+}
+
+/// The keys docs/configuration.md documents: the first cell of its tables
+/// and the tables named in its headings (`[filter.params]`, `[[cells]]`).
+fn documented_keys() -> std::collections::HashSet<String> {
+    let text = std::fs::read_to_string(root().join("docs/configuration.md")).expect("readable");
+    let mut keys = std::collections::HashSet::new();
+    for line in text.lines() {
+        if let Some(cell) = line.strip_prefix("| `") {
+            keys.extend(cell.split('`').next().map(str::to_string));
+        } else if line.starts_with('#') {
+            for span in code_spans(line) {
+                keys.insert(span.trim_matches(['[', ']']).to_string());
+            }
+        }
+    }
+    keys
+}
+
+/// Every key of `table` as a dotted path (a key of an array of tables
+/// under the array's name), tables by their keys alone.
+fn dotted_keys(table: &toml::Table, prefix: &str, out: &mut Vec<String>) {
+    for (key, value) in table {
+        let path = if prefix.is_empty() {
+            key.clone()
+        } else {
+            format!("{prefix}.{key}")
+        };
+        match value {
+            // A table is documented by its keys.
+            toml::Value::Table(inner) => {
+                dotted_keys(inner, &path, out);
+                continue;
+            }
+            toml::Value::Array(items) => {
+                for item in items {
+                    if let toml::Value::Table(inner) = item {
+                        dotted_keys(inner, &path, out);
+                    }
+                }
+            }
+            _ => {}
+        }
+        out.push(path);
+    }
+}
+
+#[test]
+fn every_key_of_the_shipped_files_is_in_the_configuration_reference() {
+    let documented = documented_keys();
+    let mut files = vec![
+        root().join("deploy/sites/lab.toml"),
+        root().join("deploy/sites/warehouse.toml"),
+        root().join("deploy/msu.toml"),
+    ];
+    for entry in std::fs::read_dir(root().join("deploy/profiles"))
+        .expect("profiles")
+        .flatten()
+    {
+        files.extend(Some(entry.path()).filter(|p| p.extension().is_some_and(|e| e == "toml")));
+    }
+    let mut missing = Vec::new();
+    for file in &files {
+        let text = std::fs::read_to_string(file).expect("readable");
+        let table: toml::Table = text.parse().expect("a shipped file parses");
+        let mut keys = Vec::new();
+        dotted_keys(&table, "", &mut keys);
+        for key in keys {
+            // Documented under its table: any tail of the dotted path.
+            let parts: Vec<&str> = key.split('.').collect();
+            let known = (0..parts.len()).any(|k| documented.contains(&parts[k..].join(".")));
+            if !known {
+                missing.push(format!("{}: {key}", file.display()));
+            }
+        }
+    }
+    missing.sort();
+    missing.dedup();
+    assert!(
+        missing.is_empty(),
+        "keys of shipped files that docs/configuration.md does not document:\n{}",
+        missing.join("\n")
     );
 }

@@ -1,6 +1,6 @@
 //! `ickon eval --robots N`: the first N robots of the site at once, in
 //! virtual time, each robot's achieved fix rate and error, and what
-//! collisions cost (issue 20's measurements).
+//! collisions cost.
 
 use ickon_central::core::{CentralConfig, SchedulePolicy};
 use ickon_central::occupancy::FiringConfig;

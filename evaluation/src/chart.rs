@@ -11,6 +11,19 @@ use plotters::coord::CoordTranslate;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
+/// Series colours, in the order of the series (estimators in a report):
+/// one palette, so that an estimator has the same colour in every picture.
+pub const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+
 /// The family name pictures ask for.
 pub const FAMILY: &str = "sans-serif";
 

@@ -10,18 +10,9 @@ use ickon_sim::{RunOutput, Score};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-type Error = Box<dyn std::error::Error>;
+use crate::chart::PALETTE;
 
-const PALETTE: [RGBColor; 8] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-];
+type Error = Box<dyn std::error::Error>;
 
 /// Writes every picture into `dir`.
 pub fn write_all(

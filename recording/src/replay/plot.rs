@@ -10,18 +10,9 @@ use plotters::prelude::*;
 
 use super::feed::Published;
 use super::score::truth_at;
-use ickon_evaluation::chart::{DrawError, FAMILY, axes, legend};
+use ickon_evaluation::chart::{DrawError, FAMILY, PALETTE, axes, legend};
 use ickon_evaluation::chart::{gridlines, span};
 
-const PALETTE: [RGBColor; 7] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-];
 const GRID: RGBColor = RGBColor(220, 220, 220);
 /// Errors above this are drawn at it (a lost estimator would flatten the rest).
 const ERROR_TOP_M: f64 = 0.5;

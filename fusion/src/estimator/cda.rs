@@ -205,7 +205,7 @@ impl CdaChain {
                 Some(self.relative(inc))
             }
             // cda has no absolute positioning: fixes and range differences are ignored.
-            Input::Fix(_) | Input::RangeDifference(_) => None,
+            Input::Fix(_) | Input::RangeDifference(_) | Input::BeaconRange(_) => None,
         }
     }
 

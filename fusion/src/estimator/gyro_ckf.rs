@@ -233,7 +233,7 @@ impl InOrderFilter for GyroCkf {
                 }
                 self.position.correct(fix);
             }
-            Input::Range(_) | Input::RangeDifference(_) => return,
+            Input::Range(_) | Input::RangeDifference(_) | Input::BeaconRange(_) => return,
         }
         self.t_s = self.t_s.max(input.t_s());
     }

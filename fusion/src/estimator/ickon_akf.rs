@@ -180,7 +180,10 @@ impl InOrderFilter for IckonAkf {
                 }
             }
             Input::Fix(fix) => self.fusion.fix(fix),
-            Input::Gyro(_) | Input::Range(_) | Input::RangeDifference(_) => {}
+            Input::Gyro(_)
+            | Input::Range(_)
+            | Input::RangeDifference(_)
+            | Input::BeaconRange(_) => {}
         }
     }
 

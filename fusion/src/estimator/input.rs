@@ -98,6 +98,23 @@ pub struct RangeDifferenceSample {
     pub clocks: Option<[TransmitterClock; 2]>,
 }
 
+/// One distance from a beacon to the receiver, measured by the time of
+/// flight of a signal whose emission time the receiver knows (a Marvelmind
+/// hedgehog's raw distances; a radio ranging radio). Unlike a
+/// [`RangeDifferenceSample`] it carries no unknown emission offset, so each
+/// one constrains the position on its own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeaconRangeSample {
+    /// Time of the measurement, in seconds.
+    pub t_s: f64,
+    /// Position of the beacon in the world frame, metres.
+    pub beacon_m: [f64; 3],
+    /// Distance from the beacon to the receiver, metres.
+    pub range_m: f64,
+    /// Standard deviation of `range_m`, metres.
+    pub sigma_m: f64,
+}
+
 /// The clock a transmitter fires by, and how well that clock is said to be
 /// synchronised.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -155,6 +172,8 @@ pub enum Input {
     Range(RangeSample),
     /// One range difference between two transmitters (tightly coupled).
     RangeDifference(RangeDifferenceSample),
+    /// One distance to a beacon (tightly coupled).
+    BeaconRange(BeaconRangeSample),
 }
 
 impl Input {
@@ -167,6 +186,7 @@ impl Input {
             Input::Fix(s) => s.t_s,
             Input::Range(s) => s.t_s,
             Input::RangeDifference(s) => s.t_s,
+            Input::BeaconRange(s) => s.t_s,
         }
     }
 
@@ -233,6 +253,14 @@ impl Input {
                     finite("b_m", v)?;
                 }
                 finite("d_m", s.d_m)?;
+                positive("sigma_m", s.sigma_m)
+            }
+            Input::BeaconRange(s) => {
+                finite("t_s", s.t_s)?;
+                for v in s.beacon_m {
+                    finite("beacon_m", v)?;
+                }
+                positive("range_m", s.range_m)?;
                 positive("sigma_m", s.sigma_m)
             }
         }

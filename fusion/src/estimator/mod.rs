@@ -63,8 +63,8 @@ mod tests;
 pub use config_check::InvalidParameter;
 pub use dead_reckoning::{DeadReckoningNoise, Increment, IncrementTracker, arc_step};
 pub use input::{
-    EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample, RangeSample,
-    TransmitterClock, WheelGeometry,
+    BeaconRangeSample, EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
+    RangeSample, TransmitterClock, WheelGeometry,
 };
 pub use registry::{
     EstimatorConfig, UnknownEstimator, build, build_by_name, names, two_sensor_heading,

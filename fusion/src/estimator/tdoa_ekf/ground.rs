@@ -25,8 +25,11 @@
 //!   fixes, as a heading measurement with its honest `heading_sigma_deg`
 //!   (30 deg: half a 60 deg sector plus the beams' overlap); the fixes'
 //!   positions are not fused (the filter already has their arrivals).
-//! - Absolute ranges to radio beacons ([`TdoaEkf::range`]) with the range
-//!   bias estimated, for robots that range instead of timing differences.
+//! - Absolute ranges to beacons ([`TdoaEkf::range`] for radio beacons at
+//!   the antenna's height, [`crate::estimator::Input::BeaconRange`] for
+//!   beacons anywhere, e.g. a Marvelmind kit's ultrasonic distances) with
+//!   the ranges' bias and scale estimated, for robots that range instead
+//!   of timing differences.
 //! - A floor plan (`floor`), when given: a state outside it is impossible
 //!   and projected back onto it; a re-initialisation outside it is refused.
 //! - Recovery: when most recent arrivals that were not late (accepted, or
@@ -460,6 +463,13 @@ impl InOrderFilter for TdoaEkf {
                 if outcome.is_accepted() {
                     self.heard_lately.note(m.t_s, m.a_m);
                     self.heard_lately.note(m.t_s, m.b_m);
+                }
+                self.last_outcome = Some(outcome);
+            }
+            Input::BeaconRange(r) => {
+                let outcome = self.range_update(r.t_s, r.beacon_m, r.range_m, r.sigma_m);
+                if outcome.is_accepted() {
+                    self.heard_lately.note(r.t_s, r.beacon_m);
                 }
                 self.last_outcome = Some(outcome);
             }

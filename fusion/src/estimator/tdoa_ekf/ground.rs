@@ -73,6 +73,7 @@ mod beacons;
 mod floor;
 mod gate;
 mod predict;
+mod range_start;
 mod reinit;
 mod start;
 
@@ -228,6 +229,8 @@ pub struct TdoaEkf {
     speed_m_s: f64,
     /// Transmitters heard before the start (no start pose).
     heard: Vec<[f64; 3]>,
+    /// Ranges to beacons heard before the start (no start pose).
+    range_start: range_start::RangeStart,
     /// Last gyro sample `(t_s, rate)`, the turn integrated since the last
     /// step and the time it spans.
     gyro: Option<(f64, f64)>,
@@ -325,6 +328,7 @@ impl TdoaEkf {
             state_t_s: f64::NEG_INFINITY,
             speed_m_s: 0.0,
             heard: Vec::new(),
+            range_start: range_start::RangeStart::default(),
             gyro: None,
             gyro_turn_rad: 0.0,
             gyro_time_s: 0.0,
@@ -467,6 +471,9 @@ impl InOrderFilter for TdoaEkf {
                 self.last_outcome = Some(outcome);
             }
             Input::BeaconRange(r) => {
+                if self.state.is_none() {
+                    self.start_from_ranges(r);
+                }
                 let outcome = self.range_update(r.t_s, r.beacon_m, r.range_m, r.sigma_m);
                 if outcome.is_accepted() {
                     self.heard_lately.note(r.t_s, r.beacon_m);

@@ -3,11 +3,30 @@
 //! Marvelmind kit's stationary beacons, on walls or the ceiling, measured
 //! from the receiver at its height above the floor).
 
-use super::TdoaEkf;
-use crate::estimator::tdoa_ekf::ground_state::{self as gs, RANGE_BIAS, RANGE_SCALE, Row, X, Y};
+use std::f64::consts::PI;
+
+use super::{TdoaEkf, prior};
+use crate::estimator::BeaconRangeSample;
+use crate::estimator::tdoa_ekf::ground_state::{
+    self as gs, RANGE_BIAS, RANGE_SCALE, Row, State, X, Y,
+};
 use crate::estimator::tdoa_ekf::observation::{Outcome, Rejection};
 
 impl TdoaEkf {
+    /// Without a start pose: starts where the ranges heard together put
+    /// the receiver, heading unknown (found from the track, as after a
+    /// start from arrivals).
+    pub(in crate::estimator::tdoa_ekf) fn start_from_ranges(&mut self, r: &BeaconRangeSample) {
+        let Some(fix) = self.range_start.add(r, self.params.receiver_height_m) else {
+            return;
+        };
+        let mut x = State::zeros();
+        x[X] = fix.x_m;
+        x[Y] = fix.y_m;
+        self.state = Some((x, prior(&self.params, fix.sigma_m, PI)));
+        self.heading_from_track = Some(None);
+    }
+
     /// Fuses one absolute range `range_m` (standard deviation `sigma_m`)
     /// to a beacon at `beacon_m` (`x, y`, same height as the antenna),
     /// measured at `t_s`, read as `(1 + scale) d + bias` with both estimated. Late (long)
@@ -95,7 +114,7 @@ mod tests {
     use rand_distr::{Distribution, Normal};
 
     use crate::estimator::history::InOrderFilter;
-    use crate::estimator::tdoa_ekf::{TdoaEkf, TdoaEkfParams};
+    use crate::estimator::tdoa_ekf::{GroundNoise, TdoaEkf, TdoaEkfParams};
     use crate::estimator::{BeaconRangeSample, InitialPose, Input};
 
     /// A robot driving a 4 m circle under four ceiling beacons at 3 m, its
@@ -174,6 +193,51 @@ mod tests {
             Some(d + noise.sample(&mut rng))
         });
         assert!(mean < 0.03 && worst < 0.1, "mean {mean} m, worst {worst} m");
+    }
+
+    #[test]
+    fn without_a_start_pose_the_filter_starts_from_the_beacons_it_ranges() {
+        // An ultrasonic kit's ranges: a bias of centimetres, a scale error
+        // of the speed of sound's change over a few kelvin (0.18 %/K). With
+        // a radio's priors (metres, 10 %) a robot standing still mistakes
+        // part of the ranges' bias and scale for its position (7 cm here).
+        let sensors = GroundNoise {
+            range_bias_sigma_m: 0.05,
+            range_scale_sigma: 0.005,
+            ..GroundNoise::default()
+        };
+        let params = TdoaEkfParams {
+            receiver_height_m: 0.3,
+            initial_pose: None,
+            sensors,
+            ..TdoaEkfParams::default()
+        };
+        let beacons = [
+            [0.0, 0.0, 3.0],
+            [6.0, 0.0, 3.0],
+            [6.0, 6.0, 3.0],
+            [0.0, 6.0, 3.0],
+        ];
+        let mut f = TdoaEkf::new(&params);
+        let at = Vector3::new(1.5, 4.0, 0.3);
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let noise = Normal::new(0.0, 0.02).expect("valid sigma");
+        for k in 0..80 {
+            let b = beacons[k % 4];
+            let t = 0.125 * k as f64;
+            f.step(&Input::BeaconRange(BeaconRangeSample {
+                t_s: t,
+                beacon_m: b,
+                range_m: (at - Vector3::from(b)).norm() + noise.sample(&mut rng),
+                sigma_m: 0.02,
+            }));
+            if k < 2 {
+                assert!(f.pose().is_none(), "started from {} beacon(s)", k + 1);
+            }
+        }
+        let p = f.pose().expect("started from three beacons");
+        let e = (p.x_m - at.x).hypot(p.y_m - at.y);
+        assert!(e < 0.05, "{e} m off after 10 s of ranges: {p:?}");
     }
 
     #[test]

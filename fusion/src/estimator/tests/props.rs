@@ -7,8 +7,8 @@ use proptest::prelude::*;
 
 use super::runs::config;
 use crate::estimator::{
-    EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample, RangeSample,
-    WheelGeometry, build, names,
+    BeaconRangeSample, EncoderSample, GyroSample, Input, OdometrySample, RangeDifferenceSample,
+    RangeSample, WheelGeometry, build, names,
 };
 use crate::tdoa::Fix;
 
@@ -109,6 +109,16 @@ fn input(t_s: f64) -> BoxedStrategy<Input> {
                     clocks: None,
                 })
             }),
+        ([number(), number(), number()], number(), number()).prop_map(
+            move |(beacon_m, range_m, sigma_m)| {
+                Input::BeaconRange(BeaconRangeSample {
+                    t_s,
+                    beacon_m,
+                    range_m,
+                    sigma_m,
+                })
+            }
+        ),
     ]
     .boxed()
 }

@@ -8,4 +8,5 @@
 
 pub mod angle;
 pub mod estimator;
+pub mod ranging;
 pub mod tdoa;

@@ -1,29 +1,21 @@
 //! A start from ranges to beacons, for a robot that ranges instead of
 //! timing differences and has no start pose: the position that best
-//! explains the ranges to three or more beacons heard together, by
-//! Gauss-Newton from their centroid.
+//! explains the ranges to three or more beacons heard together
+//! ([`crate::ranging::trilaterate`]).
 //!
 //! Starting at the centroid with a wide covariance and fusing the ranges
 //! one by one does not do: the first updates linearise metres from the
 //! truth, the covariance collapses before the position gets there, and
 //! later ranges are gated out of a confident, wrong filter.
 
-use nalgebra::{Matrix2, Vector2, Vector3};
-
 use crate::estimator::BeaconRangeSample;
+use crate::ranging;
 
 /// Ranges this much older than the newest are dropped, seconds: a
 /// Marvelmind kit ranges up to four beacons per cycle at 1-16 Hz, so half
 /// a second holds a cycle at the slowest useful rate, and a robot at
 /// walking speed moves under a metre meanwhile.
 const WINDOW_S: f64 = 0.5;
-
-/// Distinct beacons needed: three ranges fix a position on the floor.
-const MIN_BEACONS: usize = 3;
-
-/// Gauss-Newton iterations (it converges in a handful from the centroid
-/// when the receiver is under the beacons).
-const ITERATIONS: usize = 20;
 
 /// A start is refused when the ranges disagree with its position by more
 /// than this RMS, beyond three of their sigmas, metres: what a robot at
@@ -59,7 +51,7 @@ impl RangeStart {
         self.ranges.push(*r);
         let newest = self.ranges.iter().map(|o| o.t_s).fold(f64::MIN, f64::max);
         self.ranges.retain(|o| o.t_s >= newest - WINDOW_S);
-        if self.ranges.len() < MIN_BEACONS {
+        if self.ranges.len() < ranging::MIN_BEACONS {
             return None;
         }
         let fix = solve(&self.ranges, height_m)?;
@@ -69,54 +61,24 @@ impl RangeStart {
 }
 
 fn solve(ranges: &[BeaconRangeSample], height_m: f64) -> Option<StartFix> {
-    let n = ranges.len() as f64;
-    let mut p = Vector2::new(
-        ranges.iter().map(|r| r.beacon_m[0]).sum::<f64>() / n,
-        ranges.iter().map(|r| r.beacon_m[1]).sum::<f64>() / n,
-    );
-    let mut normal = Matrix2::zeros();
-    let mut rms = f64::INFINITY;
-    for _ in 0..ITERATIONS {
-        let (mut jtj, mut jtr, mut sq) = (Matrix2::zeros(), Vector2::zeros(), 0.0);
-        for r in ranges {
-            let d = Vector3::new(p.x, p.y, height_m) - Vector3::from(r.beacon_m);
-            let dist = d.norm();
-            if dist < 1e-6 {
-                return None;
-            }
-            let w = 1.0 / (r.sigma_m * r.sigma_m);
-            let j = Vector2::new(d.x / dist, d.y / dist);
-            let res = dist - r.range_m;
-            jtj += w * j * j.transpose();
-            jtr += w * j * res;
-            sq += res * res;
-        }
-        rms = (sq / n).sqrt();
-        normal = jtj;
-        let step = jtj.try_inverse()? * jtr;
-        p -= step;
-        if !p.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        if step.norm() < 1e-6 {
-            break;
-        }
-    }
+    let fix = ranging::trilaterate(ranges, height_m)?;
     let worst_sigma = ranges.iter().map(|r| r.sigma_m).fold(0.0, f64::max);
-    if rms > 3.0 * worst_sigma + MOTION_ALLOWANCE_M {
+    if fix.rms_residual_m > 3.0 * worst_sigma + MOTION_ALLOWANCE_M {
         return None;
     }
-    let cov = normal.try_inverse()?;
+    let cov = fix.covariance_xy_m2;
     let sigma_m = (cov[(0, 0)].max(cov[(1, 1)]) + MOTION_ALLOWANCE_M.powi(2)).sqrt();
     sigma_m.is_finite().then_some(StartFix {
-        x_m: p.x,
-        y_m: p.y,
+        x_m: fix.x_m,
+        y_m: fix.y_m,
         sigma_m,
     })
 }
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Vector3;
+
     use super::*;
 
     fn range(t_s: f64, beacon_m: [f64; 3], at: [f64; 3]) -> BeaconRangeSample {

@@ -477,6 +477,9 @@ impl MsuCore {
 }
 
 #[cfg(test)]
+mod beacon_tests;
+mod beacons;
+#[cfg(test)]
 mod firing_tests;
 #[cfg(test)]
 mod hidden_tests;

@@ -41,6 +41,17 @@ pub enum MsuError {
         /// What is wrong with it.
         reason: String,
     },
+    /// Distances to beacons that the site cannot explain (the good ones of
+    /// the same reading were used).
+    #[error("{refused} of {of} distance(s) refused; {reason}")]
+    BeaconDistances {
+        /// How many were refused.
+        refused: usize,
+        /// How many the reading had.
+        of: usize,
+        /// Why the first was refused.
+        reason: String,
+    },
     /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
     #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
     FromTheFuture {

@@ -10,6 +10,7 @@
 use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
 
+use crate::beacons::BeaconDistances;
 use crate::core::MsuCore;
 use crate::error::MsuError;
 
@@ -32,6 +33,8 @@ pub enum Event {
     CellStatus(CellStatus),
     /// The fleet's survey calibration from the central unit.
     Survey(SurveyCalibration),
+    /// Distances to beacons from a ranging source.
+    BeaconDistances(BeaconDistances),
 }
 
 /// Which kind of input an [`Output::Refused`] concerns.
@@ -51,6 +54,8 @@ pub enum InputKind {
     CellStatus,
     /// A survey calibration.
     Survey,
+    /// A reading of distances to beacons.
+    BeaconDistances,
 }
 
 /// What the core asks its adapter to do.
@@ -107,6 +112,12 @@ impl MsuCore {
                 if let Err(e) = self.on_cell_status(&status) {
                     out.push(refused(InputKind::CellStatus, e));
                 }
+            }
+            Event::BeaconDistances(msg) => {
+                if let Err(e) = self.on_beacon_distances(&msg) {
+                    out.push(refused(InputKind::BeaconDistances, e));
+                }
+                out.extend(self.pose().map(Output::Pose));
             }
             Event::Survey(survey) => {
                 if let Err(e) = self.on_survey_calibration(&survey) {

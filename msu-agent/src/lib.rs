@@ -9,6 +9,7 @@
 //! of `ickon-sim` drive the same core.
 
 pub mod assembly;
+pub mod beacons;
 mod config;
 pub mod config_file;
 pub mod control_timing;

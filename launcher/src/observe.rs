@@ -45,6 +45,9 @@ pub(crate) async fn open_observer(
 }
 
 /// Decodes a payload, counting what cannot be decoded instead of failing.
+/// Logged like the nodes log bad input (the first of each message type,
+/// then one line per window with the count held back): anyone on the
+/// mesh can put garbage, and a line per message would flood the log.
 pub(crate) fn decode_or_count<T: serde::de::DeserializeOwned>(
     stats: &mut RunStats,
     key: &str,
@@ -53,8 +56,16 @@ pub(crate) fn decode_or_count<T: serde::de::DeserializeOwned>(
     match ickon_proto::decode(payload) {
         Ok(v) => Some(v),
         Err(e) => {
-            tracing::warn!("undecodable message on {key}: {e}");
-            *stats.bad_messages.entry(key.to_string()).or_default() += 1;
+            let kind = std::any::type_name::<T>()
+                .rsplit("::")
+                .next()
+                .unwrap_or("message");
+            if let Some(held) = stats.bad_log.admit(kind, Instant::now()) {
+                tracing::warn!(
+                    "undecodable {kind} on {key}: {e} ({held} more undecodable {kind} since the last report)"
+                );
+            }
+            stats.count_bad_message(key);
             None
         }
     }

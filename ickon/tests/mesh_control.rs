@@ -595,20 +595,10 @@ fn reloads_of_huge_files_leave_the_cycles_alone(mesh: &mut Mesh) {
     let huge = mesh.dir.path().join("huge.toml");
     let numbers = (ickon_proto::site::MAX_SITE_FILE_BYTES as usize - 8 * 1024) / 2;
     std::fs::write(&huge, format!("x = [{}0]\n", "1,".repeat(numbers))).unwrap();
+    let period_ms = mesh.admin_json("schedule")["period_ms"].as_f64().unwrap();
+    let period = Duration::from_secs_f64(period_ms / 1e3);
     mesh.rec.drain();
-    let (last, _) = mesh
-        .rec
-        .triggers
-        .values()
-        .next_back()
-        .expect("cycles before")
-        .clone();
-    let period = mesh
-        .rec
-        .schedule(&mesh.observer, last.schedule_version)
-        .cycle_period
-        .to_std();
-    let from = last.cycle;
+    let from = mesh.rec.last_cycle().expect("cycles before");
     let (endpoint, site) = (mesh.central_endpoint.clone(), mesh.site.clone());
     let rec = &mut mesh.rec;
     let outs: Vec<Output> = std::thread::scope(|s| {

@@ -244,13 +244,18 @@ impl CentralCore {
         }
     }
 
-    /// The cells owning a transmitter `trigger` fires.
-    fn cells_due(&self, trigger: &CycleTrigger) -> BTreeSet<String> {
-        trigger
-            .firing
+    /// The cells owning a transmitter `trigger` fires (a trigger naming
+    /// none fires its whole schedule).
+    pub(super) fn cells_due(&self, trigger: &CycleTrigger) -> BTreeSet<String> {
+        let schedule = self
+            .schedules
             .iter()
-            .filter_map(|f| self.site.transmitters.iter().find(|t| t.id == f.tx_id))
-            .map(|t| t.cell.clone())
+            .find(|s| s.version == trigger.schedule_version)
+            .unwrap_or_else(|| self.schedule_for(trigger.cycle));
+        trigger
+            .emissions(schedule)
+            .into_iter()
+            .map(|e| e.cell_id)
             .collect()
     }
 }

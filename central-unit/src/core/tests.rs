@@ -720,3 +720,18 @@ fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes
     assert!(!off.tick(now).iter().any(|o| matches!(o, Output::Survey(_))));
     assert!(off.survey().is_none());
 }
+
+#[test]
+fn the_cells_due_are_those_a_trigger_names_or_all_when_it_names_none() {
+    let mut c = all_alive();
+    run_cycles(&mut c, 2);
+    let mut t = c.last_trigger().expect("triggered").clone();
+    t.firing.clear();
+    assert_eq!(c.cells_due(&t).len(), 4, "the whole schedule fires");
+    t.firing = vec![ickon_proto::msg::control::Firing {
+        tx_id: 11,
+        offset: Duration::ZERO,
+    }];
+    let due: Vec<String> = c.cells_due(&t).into_iter().collect();
+    assert_eq!(due, vec!["c1".to_string()]);
+}

@@ -198,7 +198,8 @@ function renderPanel(snap) {
   const robots = document.querySelector("#robots tbody");
   robots.replaceChildren(...snap.robots.map(r => row([
     [r.id], [r.state, r.state === "down" ? "down" : ""], [r.estimator || "-", "txt"],
-    [fmt(r.fixes_per_s, 1)], [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)],
+    [fmt(r.fixes_per_s, 1)], [String(r.fixes_over_rate), r.fixes_over_rate > 0 ? "down" : ""],
+    [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)],
   ])));
   const cells = document.querySelector("#cells tbody");
   cells.replaceChildren(...snap.cells.map(c => {

@@ -431,6 +431,13 @@ impl CellCore {
     /// Takes a schedule if the rules of [`ickon_proto::epoch`] allow it, and
     /// follows its epoch if that is newer.
     fn on_schedule(&mut self, s: Schedule, now: Time) {
+        // Checked before its epoch is noted: a schedule no cell could fire,
+        // of a newer epoch, would otherwise fence the real central unit off.
+        if let Err(e) = ickon_proto::epoch::check_schedule(&s) {
+            self.counters.schedules_refused += 1;
+            tracing::debug!("cell {}: {e}", self.cell_id);
+            return;
+        }
         let before = self.gate.epoch();
         // An epoch is a central unit's start: one in the future is forged.
         let future = self

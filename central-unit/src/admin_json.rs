@@ -15,7 +15,9 @@ use serde::Serialize;
 pub struct CellJson {
     /// Cell id.
     pub id: String,
-    /// `up` or `down`.
+    /// `up` (due to fire in the last cycle), `idle` (alive, not due: no
+    /// robot near it under occupancy-aware firing) or `down` (its token
+    /// or its reports stopped, or it did not fire when due).
     pub state: &'static str,
     /// The last triggered cycle when `state` last changed.
     pub state_since_cycle: u64,
@@ -35,7 +37,7 @@ pub struct CellJson {
     pub cycles_fired: u64,
     /// Last cycle it fired.
     pub last_cycle_fired: u64,
-    /// Scheduled cycles it did not fire.
+    /// Cycles it was due to fire in and did not.
     pub cycles_missed: u64,
     /// Slots it skipped (its own count).
     pub slots_skipped: u64,
@@ -48,7 +50,7 @@ impl From<&CellHealth> for CellJson {
         let measured = c.residual_samples > 0;
         Self {
             id: c.id.clone(),
-            state: if c.up { "up" } else { "down" },
+            state: c.state.name(),
             state_since_cycle: c.state_since_cycle,
             sync_error_us: measured.then_some(c.residual_max_ns as f64 / 1e3),
             sync_error_rms_us: measured.then_some(c.residual_rms_ns as f64 / 1e3),
@@ -88,6 +90,8 @@ pub struct RobotJson {
     pub stale: Option<String>,
     /// Fixes per second over the last few seconds.
     pub fixes_per_s: f64,
+    /// Its fixes kept out of the survey calibration as over its rate.
+    pub fixes_over_rate: u64,
     /// Estimator named in its last pose.
     pub estimator: Option<String>,
     /// Its last pose, if any.
@@ -105,6 +109,7 @@ impl From<&RobotHealth> for RobotJson {
             },
             stale: (!r.stale.is_empty()).then(|| r.stale.clone()),
             fixes_per_s: r.fixes_per_s,
+            fixes_over_rate: r.fixes_over_rate,
             estimator: (!r.estimator.is_empty()).then(|| r.estimator.clone()),
             pose: r.pose_valid.then_some(PoseJson {
                 x_m: r.x_m,

@@ -10,12 +10,18 @@
 //! [`CentralConfig::schedule_announce`] away, so that every cell has it
 //! before it is used and all switch at the same cycle.
 //!
-//! A cell is reported `up` while its token is present, it takes part in
-//! the schedule of the last triggered cycle and it has not missed
-//! [`crate::health::MISSED_IN_A_ROW_FOR_DOWN`] scheduled cycles in a row (a
-//! hung cell keeps its token until the link lease expires; it stays in the
-//! schedule, so that it is up again as soon as it fires); the cycle at which that last
-//! changed is kept, so that the admin sees when a cell went down or came back.
+//! A cell is reported `down` when its token is absent, it takes no part in
+//! the schedule of the last triggered cycle, it has missed
+//! [`crate::health::MISSED_IN_A_ROW_FOR_DOWN`] cycles in a row that it was
+//! due to fire in, or its reports (status, bursts) stopped for
+//! [`crate::health::REPORTS_SILENT_FOR_DOWN`] (a hung cell keeps its token
+//! until the link lease expires; it stays in the schedule, so that it is
+//! back as soon as it reports). Otherwise it is `up` when the last
+//! triggered cycle named one of its transmitters, `idle` when it did not
+//! (occupancy-aware firing leaves cells no robot can hear quiet: not firing
+//! is what they were asked to do). Missed cycles count only the cycles a
+//! cell was due in. The cycle at which the state last changed is kept, so
+//! that the admin sees when a cell went down or came back.
 //!
 //! Epochs ([`ickon_proto::epoch`]): every trigger and schedule carries the
 //! central unit's epoch, its start on the master time base, so that a
@@ -29,7 +35,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use ickon_proto::epoch::{epoch_of, plausible_epoch};
+use ickon_proto::epoch::{check_schedule, epoch_of, plausible_epoch};
 use ickon_proto::msg::control::{
     Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
@@ -320,11 +326,11 @@ impl CentralCore {
                 Vec::new()
             }
             Event::CellStatus(status) => {
-                self.on_cell_status(status);
+                self.on_cell_status(status, now);
                 Vec::new()
             }
             Event::Burst(burst) => {
-                self.on_burst(&burst);
+                self.on_burst(&burst, now);
                 Vec::new()
             }
             Event::Pose { robot, pose } => {
@@ -347,7 +353,12 @@ impl CentralCore {
             // A newer epoch beyond the horizon was forged: counted as
             // foreign control below, not a reason to stand by.
             Event::ScheduleSeen(schedule) => {
-                if schedule.epoch > self.epoch && plausible_epoch(schedule.epoch, now) {
+                // A schedule no cell could fire is no sign of another
+                // central unit: only counted as foreign control.
+                if schedule.epoch > self.epoch
+                    && plausible_epoch(schedule.epoch, now)
+                    && check_schedule(&schedule).is_ok()
+                {
                     self.step_down(&schedule);
                     return Vec::new();
                 }
@@ -381,6 +392,7 @@ impl CentralCore {
 }
 
 mod admin;
+pub use admin::parse_reloaded_site;
 mod cycles;
 mod foreign;
 mod membership;

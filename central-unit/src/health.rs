@@ -11,7 +11,7 @@
 
 use std::collections::{BTreeSet, VecDeque};
 
-use ickon_proto::msg::admin::{CellHealth, RobotHealth};
+use ickon_proto::msg::admin::{CellHealth, CellState, RobotHealth};
 use ickon_proto::msg::control::{Burst, CellStatus};
 use ickon_proto::msg::robot::{PoseStatus, RobotPose};
 use ickon_proto::time::{Duration, Time};
@@ -20,10 +20,16 @@ use crate::pose_track::{PoseTrack, Velocity};
 
 /// Fired cycles remembered per cell, to count missed ones.
 const FIRED_MEMORY: usize = 64;
-/// A live cell that fired nothing in this many scheduled cycles in a row is
-/// reported down (hung: its process stopped but its link, and so its
-/// liveliness token, lives on until the link lease expires).
+/// A live cell that fired nothing in this many cycles in a row that it was
+/// due to fire in is reported down (hung: its process stopped but its
+/// link, and so its liveliness token, lives on until the link lease expires).
 pub const MISSED_IN_A_ROW_FOR_DOWN: u32 = 2;
+/// A cell that has reported before and then reported nothing (no status,
+/// no burst) for this long is reported down, due or not: three periods of
+/// the cell's status report (one a second by default), so that one or two
+/// lost reports do not page anyone, and a hung cell that is never due
+/// (no robot near it) is still seen within seconds.
+pub const REPORTS_SILENT_FOR_DOWN: Duration = Duration::from_millis(3_000);
 /// Bursts behind the residual figures of a cell.
 pub const RESIDUAL_WINDOW: usize = 64;
 /// Fixes per second are counted over this window.
@@ -38,10 +44,14 @@ pub const POSE_STALE_AFTER: Duration = Duration::from_millis(1_000);
 pub struct CellTracker {
     /// Whether its liveliness token is present.
     pub alive: bool,
-    /// The state last reported (token present and scheduled).
-    pub up: bool,
-    /// The last triggered cycle when `up` last changed.
+    /// The state last reported.
+    pub state: CellState,
+    /// The last triggered cycle when `state` last changed.
     pub state_since_cycle: u64,
+    /// Whether the last triggered cycle named one of its transmitters.
+    pub due_in_last_cycle: bool,
+    /// When it last reported (a status or a burst), central unit's clock.
+    reported_at: Option<Time>,
     status: Option<CellStatus>,
     fired: BTreeSet<u64>,
     last_cycle_fired: u64,
@@ -52,8 +62,9 @@ pub struct CellTracker {
 }
 
 impl CellTracker {
-    /// A burst of this cell; `burst.actual` on the master time base.
-    pub fn on_burst(&mut self, burst: &Burst) {
+    /// A burst of this cell received at `now`; `burst.actual` on the master time base.
+    pub fn on_burst(&mut self, burst: &Burst, now: Time) {
+        self.reported_at = Some(now);
         if self.residuals_ns.len() == RESIDUAL_WINDOW {
             self.residuals_ns.pop_front();
         }
@@ -72,13 +83,16 @@ impl CellTracker {
         }
     }
 
-    /// The cell's own status report.
-    pub fn on_status(&mut self, status: CellStatus) {
+    /// The cell's own status report, received at `now`.
+    pub fn on_status(&mut self, status: CellStatus, now: Time) {
         self.status = Some(status);
+        self.reported_at = Some(now);
     }
 
-    /// `cycle` is over and the cell was scheduled in it: counts it as missed
-    /// if the cell is alive and fired nothing in it.
+    /// `cycle` is over and the cell was due to fire in it (its trigger
+    /// named one of the cell's transmitters): counts it as missed if the
+    /// cell is alive and fired nothing in it. Cycles it was not due in are
+    /// never checked: not firing in them is what it was asked to do.
     pub fn check_fired(&mut self, cycle: u64) {
         if self.fired.contains(&cycle) {
             self.missed_in_a_row = 0;
@@ -88,9 +102,36 @@ impl CellTracker {
         }
     }
 
-    /// Whether the cell has gone quiet while its token is present.
-    pub fn hung(&self) -> bool {
-        self.missed_in_a_row >= MISSED_IN_A_ROW_FOR_DOWN
+    /// Why the cell is down at `now`, if it is; `scheduled` tells whether
+    /// it takes part in the schedule of the last triggered cycle. A hung
+    /// cell keeps its token: it shows by missing the cycles it was due in,
+    /// or, when it is due in none, by its reports stopping.
+    pub fn down_reason(&self, now: Time, scheduled: bool) -> Option<&'static str> {
+        if !self.alive {
+            Some("its liveliness token is gone")
+        } else if !scheduled {
+            Some("not in the schedule in force")
+        } else if self.missed_in_a_row >= MISSED_IN_A_ROW_FOR_DOWN {
+            Some("it fired nothing in the cycles it was due in")
+        } else if self
+            .reported_at
+            .is_some_and(|at| now.since(at) > REPORTS_SILENT_FOR_DOWN)
+        {
+            Some("its reports stopped")
+        } else {
+            None
+        }
+    }
+
+    /// The state at `now` (see [`down_reason`](Self::down_reason)).
+    pub fn state_at(&self, now: Time, scheduled: bool) -> CellState {
+        if self.down_reason(now, scheduled).is_some() {
+            CellState::Down
+        } else if self.due_in_last_cycle {
+            CellState::Up
+        } else {
+            CellState::Idle
+        }
     }
 
     /// The admin view of this cell.
@@ -116,7 +157,7 @@ impl CellTracker {
         let status = self.status.as_ref();
         CellHealth {
             id: id.to_string(),
-            up: self.up,
+            state: self.state,
             state_since_cycle: self.state_since_cycle,
             sync_sigma_ns: status.map_or(0, |s| s.offset_sigma_ns),
             offset_ns: status.map_or(0, |s| s.offset_ns),
@@ -217,6 +258,8 @@ impl RobotTracker {
             y_m: pose.map_or(0.0, |p| p.y_m),
             theta_rad: pose.map_or(0.0, |p| p.theta_rad),
             stale: self.stale(now).unwrap_or_default(),
+            // Counted by the survey calibration's share, not here.
+            fixes_over_rate: 0,
         }
     }
 }
@@ -241,15 +284,21 @@ mod tests {
     #[test]
     fn a_burst_scheduled_at_the_start_of_time_saturates_its_residual() {
         let mut c = CellTracker::default();
-        c.on_burst(&Burst {
-            scheduled: Time(i64::MIN),
-            ..burst(1, 0)
-        });
-        c.on_burst(&Burst {
-            actual: Time(i64::MIN),
-            scheduled: Time(i64::MAX),
-            ..burst(2, 0)
-        });
+        c.on_burst(
+            &Burst {
+                scheduled: Time(i64::MIN),
+                ..burst(1, 0)
+            },
+            Time(0),
+        );
+        c.on_burst(
+            &Burst {
+                actual: Time(i64::MIN),
+                scheduled: Time(i64::MAX),
+                ..burst(2, 0)
+            },
+            Time(0),
+        );
         let h = c.health("c1");
         assert_eq!(h.residual_max_ns, i64::MAX);
         assert!(h.residual_rms_ns > 0);
@@ -258,9 +307,10 @@ mod tests {
     #[test]
     fn residuals_are_actual_minus_scheduled_over_the_recent_bursts() {
         let mut c = CellTracker::default();
-        c.on_burst(&burst(1, 300_000)); // an early bad burst, later pushed out
+        c.on_burst(&burst(1, 300_000), Time(0)); // an early bad burst, later pushed out
         for k in 0..RESIDUAL_WINDOW as u64 {
-            c.on_burst(&burst(2 + k / 4, if k % 2 == 0 { 30_000 } else { -40_000 }));
+            let error_ns = if k % 2 == 0 { 30_000 } else { -40_000 };
+            c.on_burst(&burst(2 + k / 4, error_ns), Time(0));
         }
         let h = c.health("c1");
         assert_eq!(h.residual_samples, RESIDUAL_WINDOW as u32);
@@ -274,7 +324,7 @@ mod tests {
     fn a_cell_that_never_fired_has_no_residual() {
         let h = CellTracker::default().health("c9");
         assert_eq!((h.residual_samples, h.residual_max_ns), (0, 0));
-        assert!(!h.up);
+        assert_eq!(h.state, CellState::Down);
     }
 
     #[test]
@@ -282,10 +332,43 @@ mod tests {
         let mut c = CellTracker::default();
         c.check_fired(3);
         c.alive = true;
-        c.on_burst(&burst(4, 0));
+        c.on_burst(&burst(4, 0), Time(0));
         c.check_fired(4);
         c.check_fired(5);
         assert_eq!(c.health("c1").cycles_missed, 1);
+    }
+
+    #[test]
+    fn a_live_cell_is_idle_when_not_due_and_down_when_its_reports_stop() {
+        let mut c = CellTracker {
+            alive: true,
+            ..CellTracker::default()
+        };
+        assert_eq!(c.state_at(Time(0), true), CellState::Idle);
+        c.due_in_last_cycle = true;
+        assert_eq!(c.state_at(Time(0), true), CellState::Up);
+        assert_eq!(c.state_at(Time(0), false), CellState::Down, "not scheduled");
+        c.due_in_last_cycle = false;
+        c.on_burst(&burst(4, 0), Time(1_000_000_000));
+        let quiet_until = Time(1_000_000_000) + REPORTS_SILENT_FOR_DOWN;
+        assert_eq!(c.state_at(quiet_until, true), CellState::Idle);
+        let too_long = quiet_until + Duration::from_millis(1);
+        assert_eq!(c.state_at(too_long, true), CellState::Down);
+        let status = CellStatus {
+            cell_id: "c1".into(),
+            stamp: too_long,
+            offset_ns: 0,
+            drift_ppb: 0,
+            offset_sigma_ns: 0,
+            sync_samples: 0,
+            last_cycle_fired: 4,
+            cycles_fired: 1,
+            slots_skipped: 0,
+            faults: Vec::new(),
+            inputs_refused: 0,
+        };
+        c.on_status(status, too_long);
+        assert_eq!(c.state_at(too_long, true), CellState::Idle);
     }
 
     #[test]

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::admin::{AdminAck, CoverageRequest, ReloadRequest};
+use ickon_proto::msg::admin::CoverageRequest;
 use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, RobotPose};
 
@@ -321,6 +321,7 @@ pub async fn run(
 
     let (mut failed_puts, mut undecodable) = (0u64, 0u64);
     let mut web_ticks = tokio::time::interval(crate::http::feed::SNAPSHOT_PERIOD);
+    let mut reloads = reload::Reloads::new();
     loop {
         let wake = core.next_wake().since(clock.now()).to_std();
         let event = tokio::select! {
@@ -342,8 +343,28 @@ pub async fn run(
                 continue;
             }
             Ok(q) = ends.admin_q.recv_async() => {
-                let outputs = answer_admin(&keys, &mut core, &q, clock.now()).await;
-                failed_puts += ends.publish(outputs).await;
+                if matches!(keys.parse(q.key_expr().as_str()), Ok(Key::CentralAdmin(c)) if c == "reload") {
+                    if reloads.in_flight() {
+                        reply(&q, &reload::busy()).await;
+                    } else {
+                        reloads.start(q);
+                    }
+                } else {
+                    answer_admin(&keys, &mut core, &q, clock.now()).await;
+                }
+                continue;
+            }
+            Some(checked) = reloads.done.recv() => {
+                reloads.finished();
+                let ack = match checked.result {
+                    Ok((site, toml, file_name)) => {
+                        let (ack, out) = core.reload_site(site, &toml, &file_name, clock.now());
+                        failed_puts += ends.publish(out.into_iter().collect()).await;
+                        ack
+                    }
+                    Err(refused) => refused,
+                };
+                reply(&checked.query, &ack).await;
                 continue;
             }
             Ok(s) = ends.alive.recv_async() => match alive_event(&keys, &s, core.is_active()) {
@@ -718,12 +739,11 @@ fn answer_clock(q: &Query, clock: &SimulatedClock, epoch: u64) {
     }
 }
 
-/// Answers one admin query; returns what the command makes the node publish.
-async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time) -> Vec<Output> {
+/// Answers one admin query (`reload` excepted: see [`reload`]).
+async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time) {
     let Ok(Key::CentralAdmin(command)) = keys.parse(q.key_expr().as_str()) else {
-        return Vec::new();
+        return;
     };
-    let mut outputs = Vec::new();
     match command.as_str() {
         "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
         "schedule" => reply(q, &core.current_firing()).await,
@@ -737,25 +757,11 @@ async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time)
         }
         "pause" => reply(q, &core.set_paused(true)).await,
         "resume" => reply(q, &core.set_paused(false)).await,
-        "reload" => {
-            let request = q.payload().map(|p| decode::<ReloadRequest>(&p.to_bytes()));
-            let ack = match request {
-                Some(Ok(r)) => {
-                    let (ack, out) = core.reload(&r.site_toml, &r.file_name, now);
-                    outputs.extend(out);
-                    ack
-                }
-                _ => AdminAck {
-                    ok: false,
-                    messages: vec!["reload needs a ReloadRequest payload".into()],
-                },
-            };
-            reply(q, &ack).await;
-        }
         other => tracing::warn!("unknown admin command {other:?}"),
     }
-    outputs
 }
+
+mod reload;
 
 #[cfg(test)]
 mod survey_file_tests;

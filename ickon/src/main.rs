@@ -22,6 +22,7 @@ fn main() -> ExitCode {
 /// `RUST_LOG` overrides the default level. Zenoh's own warnings (scouting
 /// delays at start-up, late data at shutdown) are routine in a mesh that
 /// starts and ends at once, so only its errors are shown by default.
+/// Colour codes only on a terminal.
 fn init_tracing() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
         tracing_subscriber::EnvFilter::new("warn,zenoh=error,zenoh_transport=error")
@@ -29,5 +30,6 @@ fn init_tracing() {
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(ickon_runtime::stderr_is_terminal())
         .init();
 }

@@ -564,6 +564,7 @@ fn admin_serves_coverage_refuses_a_bad_site_file_and_pauses_cycles() {
     assert!(String::from_utf8_lossy(&accepted.stdout).contains("loaded as version 2"));
     let version_after = mesh.admin_json("schedule")["version"].as_u64().unwrap();
     assert_eq!(version_after, version_before + 1);
+    reloads_of_huge_files_leave_the_cycles_alone(&mut mesh);
 
     // Pause: no trigger while paused; resume: triggers again.
     let paused = mesh.admin(&["pause"]);
@@ -584,6 +585,64 @@ fn admin_serves_coverage_refuses_a_bad_site_file_and_pauses_cycles() {
         (r.last_cycle() != last).then_some(())
     });
     mesh.assert_running(&[]);
+}
+
+/// Five `reload`s at once of a site file as large as allowed and as costly
+/// to parse as can be (two million one-digit numbers): each refused, and
+/// the central unit triggers its cycles on time meanwhile (the file is
+/// checked off its loop).
+fn reloads_of_huge_files_leave_the_cycles_alone(mesh: &mut Mesh) {
+    let huge = mesh.dir.path().join("huge.toml");
+    let numbers = (ickon_proto::site::MAX_SITE_FILE_BYTES as usize - 8 * 1024) / 2;
+    std::fs::write(&huge, format!("x = [{}0]\n", "1,".repeat(numbers))).unwrap();
+    let period_ms = mesh.admin_json("schedule")["period_ms"].as_f64().unwrap();
+    let period = Duration::from_secs_f64(period_ms / 1e3);
+    mesh.rec.drain();
+    let from = mesh.rec.last_cycle().expect("cycles before");
+    let (endpoint, site) = (mesh.central_endpoint.clone(), mesh.site.clone());
+    let rec = &mut mesh.rec;
+    let outs: Vec<Output> = std::thread::scope(|s| {
+        let runs: Vec<_> = (0..5)
+            .map(|_| {
+                s.spawn(|| {
+                    Command::new(ICKON)
+                        .args(["admin", "reload", huge.to_str().unwrap()])
+                        .args(["-e", &endpoint, "--no-multicast-scouting"])
+                        .args(["--site-name", &site, "--timeout-ms", ADMIN_TIMEOUT_MS])
+                        .output()
+                        .expect("ickon admin runs")
+                })
+            })
+            .collect();
+        // Triggers are stamped when drained: drained often meanwhile.
+        while runs.iter().any(|r| !r.is_finished()) {
+            rec.drain();
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        runs.into_iter().map(|r| r.join().unwrap()).collect()
+    });
+    for out in &outs {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains("refused"), "{stderr}");
+    }
+    mesh.rec.drain();
+    let to = mesh.rec.last_cycle().expect("cycles after");
+    let arrivals: Vec<Instant> = (from..=to)
+        .map(|c| mesh.rec.triggers.get(&c).map(|(_, at)| *at))
+        .collect::<Option<_>>()
+        .unwrap_or_else(|| panic!("a cycle between {from} and {to} was not triggered"));
+    let longest = arrivals
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .max()
+        .unwrap_or_default();
+    // A trigger a period after the last, give or take the machine's load;
+    // a parse on the loop held them for seconds.
+    assert!(
+        longest < period * 3,
+        "{longest:?} between two triggers (period {period:?}) while reloads were checked"
+    );
 }
 
 #[test]

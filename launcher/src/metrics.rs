@@ -299,8 +299,11 @@ pub struct RunStats {
     pub cells: BTreeMap<String, CellStats>,
     /// One-hop Zenoh latencies measured alongside, us.
     pub hop_latencies_us: Vec<f64>,
-    /// Messages that could not be decoded, per key.
+    /// Messages that could not be decoded, per key (at most
+    /// [`BAD_MESSAGE_KEYS`] keys; the rest under [`OTHER_KEYS`]).
     pub bad_messages: HashMap<String, u64>,
+    /// The log budget of undecodable messages, per message type.
+    pub bad_log: ickon_runtime::LogLimiter<&'static str>,
     /// Cycles the central unit triggered while the run was watched.
     pub cycles_triggered: BTreeSet<CycleKey>,
     /// Nodes restarted after they died (`--restart`), by name.
@@ -320,7 +323,24 @@ pub struct RunStats {
     pub whole_schedule_cycles: BTreeSet<CycleKey>,
 }
 
+/// Keys whose undecodable messages are counted apart: forged puts may
+/// name any number of keys under a wildcard, and must not grow the count.
+pub const BAD_MESSAGE_KEYS: usize = 64;
+/// Where undecodable messages of further keys are counted.
+pub const OTHER_KEYS: &str = "(other keys)";
+
 impl RunStats {
+    /// Counts an undecodable message on `key`.
+    pub fn count_bad_message(&mut self, key: &str) {
+        let bucket =
+            if self.bad_messages.len() < BAD_MESSAGE_KEYS || self.bad_messages.contains_key(key) {
+                key
+            } else {
+                OTHER_KEYS
+            };
+        *self.bad_messages.entry(bucket.to_string()).or_default() += 1;
+    }
+
     /// Notes a cycle trigger received at `at`.
     pub fn on_trigger(&mut self, trigger: &ickon_proto::msg::control::CycleTrigger, at: Instant) {
         let key = (trigger.epoch, trigger.cycle);
@@ -375,6 +395,24 @@ pub fn completed_cycles(triggered: &BTreeSet<CycleKey>) -> BTreeSet<CycleKey> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn undecodable_messages_are_all_counted_under_a_bounded_number_of_keys() {
+        let mut stats = RunStats::default();
+        for k in 0..80_000 {
+            let key = format!("site/lab/robot/forged{k}/fix");
+            let got = crate::observe::decode_or_count::<Burst>(&mut stats, &key, b"garbage");
+            assert!(got.is_none());
+        }
+        assert_eq!(stats.bad_messages.len(), BAD_MESSAGE_KEYS + 1);
+        assert_eq!(stats.bad_messages.values().sum::<u64>(), 80_000);
+        assert_eq!(
+            stats.bad_messages[OTHER_KEYS],
+            80_000 - BAD_MESSAGE_KEYS as u64
+        );
+        // One line was written, the rest held back for the next window.
+        assert_eq!(stats.bad_log.admit("Burst", Instant::now()), None);
+    }
 
     fn truth(t_s: f64, x: f64) -> Truth {
         Truth {

@@ -45,6 +45,9 @@ pub(crate) async fn open_observer(
 }
 
 /// Decodes a payload, counting what cannot be decoded instead of failing.
+/// Logged like the nodes log bad input (the first of each message type,
+/// then one line per window with the count held back): anyone on the
+/// mesh can put garbage, and a line per message would flood the log.
 pub(crate) fn decode_or_count<T: serde::de::DeserializeOwned>(
     stats: &mut RunStats,
     key: &str,
@@ -53,8 +56,16 @@ pub(crate) fn decode_or_count<T: serde::de::DeserializeOwned>(
     match ickon_proto::decode(payload) {
         Ok(v) => Some(v),
         Err(e) => {
-            tracing::warn!("undecodable message on {key}: {e}");
-            *stats.bad_messages.entry(key.to_string()).or_default() += 1;
+            let kind = std::any::type_name::<T>()
+                .rsplit("::")
+                .next()
+                .unwrap_or("message");
+            if let Some(held) = stats.bad_log.admit(kind, Instant::now()) {
+                tracing::warn!(
+                    "undecodable {kind} on {key}: {e} ({held} more undecodable {kind} since the last report)"
+                );
+            }
+            stats.count_bad_message(key);
             None
         }
     }
@@ -286,7 +297,9 @@ impl Probe {
     }
 }
 
-/// Empty statistics for the site's transmitters and its first `robots` robots.
+/// Empty statistics for the site's transmitters and its first `robots`
+/// robots: the only robots whose messages are counted (anyone on the mesh
+/// can put under other ids).
 fn new_stats(site: &Site, robots: usize) -> RunStats {
     let mut stats = RunStats {
         tx_cells: site
@@ -328,6 +341,11 @@ fn print_status(line: &str, started: Instant) {
 fn note_burst(s: &Sample, stats: &mut RunStats, last_burst: &mut HashMap<String, Instant>) {
     let key = s.key_expr().as_str().to_string();
     if let Some(b) = decode_or_count::<Burst>(stats, &key, &s.payload().to_bytes()) {
+        // Only a transmitter of the site fired by its own cell: made-up
+        // ids, however many, grow nothing.
+        if stats.tx_cells.get(&b.tx_id) != Some(&b.cell_id) {
+            return;
+        }
         last_burst.insert(b.cell_id.clone(), Instant::now());
         stats
             .cells
@@ -345,7 +363,9 @@ fn note_arrivals(keys: &Keys, s: &Sample, stats: &mut RunStats) {
         keys.parse(&key),
         decode_or_count::<UltrasoundArrivals>(stats, &key, &s.payload().to_bytes()),
     ) {
-        stats.robots.entry(id).or_default().on_arrivals(m.seq, at);
+        if let Some(r) = stats.robots.get_mut(&id) {
+            r.on_arrivals(m.seq, at);
+        }
     }
 }
 
@@ -357,7 +377,9 @@ fn note_fix(keys: &Keys, s: &Sample, stats: &mut RunStats) {
         if decode_or_count::<ickon_proto::msg::robot::Fix>(stats, &key, &s.payload().to_bytes())
             .is_some()
         {
-            stats.robots.entry(id).or_default().on_fix(at);
+            if let Some(r) = stats.robots.get_mut(&id) {
+                r.on_fix(at);
+            }
         }
     }
 }
@@ -370,7 +392,9 @@ fn note_pose(keys: &Keys, s: &Sample, stats: &mut RunStats) {
         keys.parse(&key),
         decode_or_count::<RobotPose>(stats, &key, &s.payload().to_bytes()),
     ) {
-        stats.robots.entry(id).or_default().on_pose(&p, at);
+        if let Some(r) = stats.robots.get_mut(&id) {
+            r.on_pose(&p, at);
+        }
     }
 }
 
@@ -389,7 +413,9 @@ fn note_truth(keys: &Keys, s: &Sample, stats: &mut RunStats) {
         keys.parse(&key),
         decode_or_count::<Truth>(stats, &key, &s.payload().to_bytes()),
     ) {
-        stats.robots.entry(id).or_default().on_truth(t);
+        if let Some(r) = stats.robots.get_mut(&id) {
+            r.on_truth(t);
+        }
     }
 }
 

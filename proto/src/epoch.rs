@@ -13,9 +13,11 @@
 //!   the newest known that was never seen ([`ScheduleRefused::Backwards`]).
 //!   The same schedule again (the central unit re-announces it
 //!   periodically) is a [`ScheduleOffer::Repeat`].
-//! - A schedule whose numbers cannot be real (no or a huge cycle period,
-//!   emissions outside the cycle, more emissions than a site can have) is
-//!   refused before anything else ([`ScheduleRefused::Invalid`]).
+//! - A schedule that cannot be fired (no or a huge cycle period, no
+//!   emission, emissions outside the cycle or of cells it does not include,
+//!   more emissions than a site can have) is refused before anything else
+//!   ([`ScheduleRefused::Invalid`]), by every receiver: cells, MSUs and a
+//!   standby central unit alike.
 
 use std::collections::BTreeMap;
 
@@ -130,8 +132,19 @@ pub fn check_schedule(s: &Schedule) -> Result<(), ScheduleRefused> {
     if s.slot_length <= Duration::ZERO || s.slot_length > s.cycle_period {
         return Err(invalid("slot length out of range"));
     }
+    if s.emissions.is_empty() {
+        return Err(invalid("no emission: a cycle of it fires nothing"));
+    }
     if s.emissions.len() > MAX_EMISSIONS {
         return Err(invalid("too many emissions"));
+    }
+    if s.emissions
+        .iter()
+        .any(|e| !s.active_cells.contains(&e.cell_id))
+    {
+        return Err(invalid(
+            "an emission belongs to a cell the schedule does not include",
+        ));
     }
     if s.emissions
         .iter()

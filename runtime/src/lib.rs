@@ -36,7 +36,7 @@ pub use clock::{SimulatedClock, system_now};
 pub use command::CommandError;
 pub use error::{NodeError, zerr};
 pub use log_limit::LogLimiter;
-pub use process::{block_on, init_tracing, run_node};
+pub use process::{block_on, init_tracing, run_node, stderr_is_terminal};
 pub use publish::put_counted;
 pub use query::{Stamped, fetch, query_once, query_stamped, token_present, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};

@@ -6,14 +6,22 @@ use std::process::ExitCode;
 
 use crate::NodeError;
 
+/// Whether stderr is a terminal: only then do log lines carry colour
+/// codes (in a file, a journal or a pipe they are noise).
+pub fn stderr_is_terminal() -> bool {
+    std::io::IsTerminal::is_terminal(&std::io::stderr())
+}
+
 /// Sets up `tracing` for a binary: the `RUST_LOG` filter when set, else
-/// `default` (e.g. `"info"`), written to stderr so stdout stays clean.
+/// `default` (e.g. `"info"`), written to stderr so stdout stays clean,
+/// coloured only on a terminal.
 pub fn init_tracing(default: &str) {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(stderr_is_terminal())
         .init();
 }
 

@@ -689,6 +689,7 @@ mod tests {
             offset: Duration::ZERO,
             slot: 0,
         });
+        schedule.active_cells.push("ghost".into());
         world.set_schedule(schedule.clone()).unwrap();
         world.on_burst((E, 5), 31, 3.0);
         let mut out = Vec::new();

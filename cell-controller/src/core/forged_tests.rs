@@ -48,6 +48,19 @@ fn an_empty_schedule_under_the_current_version_is_refused_and_the_cell_fires_on(
 }
 
 #[test]
+fn a_schedule_of_a_newer_epoch_with_nothing_to_fire_is_refused_and_the_cell_fires_on() {
+    let (mut core, now, start) = firing_cell();
+    let mut empty = schedule(1);
+    empty.epoch = EPOCH + 1;
+    empty.emissions.clear();
+    core.handle(now, Event::Schedule(empty));
+    assert_eq!(core.counters().schedules_refused, 1);
+    let period = Duration::from_millis(200);
+    let fired = fire(&mut core, now, EPOCH, 1, start + period);
+    assert_eq!(fired.len(), 2, "the epoch followed is unchanged");
+}
+
+#[test]
 fn a_trigger_with_cycle_2_pow_62_is_refused_and_the_count_goes_on() {
     let (mut core, now, start) = firing_cell();
     let period = Duration::from_millis(200);

@@ -1,7 +1,7 @@
 //! What the admin CLI asks: status, coverage, pause, and reloading the
 //! site.
 
-use ickon_proto::msg::admin::{AdminAck, CoverageReport, StatusReport};
+use ickon_proto::msg::admin::{AdminAck, CoverageReport, RobotHealth, StatusReport};
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -25,7 +25,10 @@ impl CentralCore {
             robots: self
                 .robots
                 .iter()
-                .map(|(id, r)| r.health(id, now))
+                .map(|(id, r)| RobotHealth {
+                    fixes_over_rate: self.survey_fix_rate.refused(id),
+                    ..r.health(id, now)
+                })
                 .collect(),
             epoch: self.epoch,
             foreign_control: self.foreign_control,
@@ -68,6 +71,21 @@ impl CentralCore {
         file_name: &str,
         now: Time,
     ) -> (AdminAck, Option<Output>) {
+        match parse_reloaded_site(toml_text, file_name) {
+            Ok(site) => self.reload_site(site, toml_text, file_name, now),
+            Err(refused) => (refused, None),
+        }
+    }
+
+    /// [`reload`](Self::reload) with the file already parsed and validated
+    /// by [`parse_reloaded_site`] (the node does that off its loop).
+    pub fn reload_site(
+        &mut self,
+        site: Site,
+        toml_text: &str,
+        file_name: &str,
+        now: Time,
+    ) -> (AdminAck, Option<Output>) {
         let refuse = |messages: Vec<String>| {
             (
                 AdminAck {
@@ -76,20 +94,6 @@ impl CentralCore {
                 },
                 None,
             )
-        };
-        let site = match Site::from_toml(toml_text, file_name) {
-            Ok(s) => s,
-            Err(ickon_proto::site::SiteError::Invalid { issues, file }) => {
-                return refuse(
-                    issues
-                        .iter()
-                        .map(|i| {
-                            format!("{file}:{}:{}: {}: {}", i.line, i.column, i.field, i.message)
-                        })
-                        .collect(),
-                );
-            }
-            Err(other) => return refuse(vec![other.to_string()]),
         };
         if site.name != self.site.name {
             return refuse(vec![format!(
@@ -148,5 +152,26 @@ impl CentralCore {
             },
             Some(Output::Schedule(schedule)),
         )
+    }
+}
+
+/// Parses and validates a site file sent to `reload`: the costly part of a
+/// reload (a site file may be [`ickon_proto::site::MAX_SITE_FILE_BYTES`]),
+/// apart so that the node can run it off its loop. A bad file is refused
+/// with every reason.
+pub fn parse_reloaded_site(toml_text: &str, file_name: &str) -> Result<Site, AdminAck> {
+    let refuse = |messages: Vec<String>| AdminAck {
+        ok: false,
+        messages,
+    };
+    match Site::from_toml(toml_text, file_name) {
+        Ok(s) => Ok(s),
+        Err(ickon_proto::site::SiteError::Invalid { issues, file }) => Err(refuse(
+            issues
+                .iter()
+                .map(|i| format!("{file}:{}:{}: {}: {}", i.line, i.column, i.field, i.message))
+                .collect(),
+        )),
+        Err(other) => Err(refuse(vec![other.to_string()])),
     }
 }

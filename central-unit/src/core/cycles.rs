@@ -1,6 +1,8 @@
 //! Cycles: when the next trigger is due, triggering it (skipping cycles
 //! too late to fire), planning its firings and counting missed ones.
 
+use std::collections::BTreeSet;
+
 use ickon_proto::msg::control::{CycleTrigger, Firing, Schedule};
 use ickon_proto::msg::robot::PoseStatus;
 use ickon_proto::time::{Duration, Time};
@@ -62,6 +64,8 @@ impl CentralCore {
                 out.push(Output::Trigger(trigger.clone()));
                 self.count_missed(cycle);
             }
+            // A paused cycle asks no cell to fire: all are idle.
+            self.note_due(if self.paused { None } else { Some(&trigger) });
             self.last_trigger = Some(trigger);
             self.next_cycle = self.next_cycle.saturating_add(1);
             self.cycles_heard = self.cycles_heard.saturating_add(1);
@@ -79,7 +83,7 @@ impl CentralCore {
             out.push(Output::Survey(survey));
         }
         out.extend(self.reconcile_membership(now));
-        self.update_states();
+        self.update_states(now);
         out
     }
 
@@ -215,17 +219,44 @@ impl CentralCore {
     }
 
     /// Counts, for the cycle two before `cycle` (its bursts have had time to
-    /// arrive), the scheduled cells that did not fire.
+    /// arrive), the cells due in it that did not fire. A cycle not sent
+    /// (paused) had no cell due.
     fn count_missed(&mut self, cycle: u64) {
         let Some(checked) = cycle.checked_sub(2) else {
             return;
         };
-        let active = self.schedule_for(checked).active_cells.clone();
-        for id in active {
+        let Some(trigger) = self.sent_triggers.iter().find(|t| t.cycle == checked) else {
+            return;
+        };
+        let due = self.cells_due(trigger);
+        for id in due {
             if let Some(c) = self.cells.get_mut(&id) {
                 c.check_fired(checked);
             }
         }
+    }
+
+    /// Notes which cells the trigger sent asks to fire (the others are idle).
+    fn note_due(&mut self, sent: Option<&CycleTrigger>) {
+        let due = sent.map(|t| self.cells_due(t)).unwrap_or_default();
+        for (id, c) in &mut self.cells {
+            c.due_in_last_cycle = due.contains(id);
+        }
+    }
+
+    /// The cells owning a transmitter `trigger` fires (a trigger naming
+    /// none fires its whole schedule).
+    pub(super) fn cells_due(&self, trigger: &CycleTrigger) -> BTreeSet<String> {
+        let schedule = self
+            .schedules
+            .iter()
+            .find(|s| s.version == trigger.schedule_version)
+            .unwrap_or_else(|| self.schedule_for(trigger.cycle));
+        trigger
+            .emissions(schedule)
+            .into_iter()
+            .map(|e| e.cell_id)
+            .collect()
     }
 }
 

@@ -68,6 +68,29 @@ fn an_empty_schedule_under_the_current_version_is_counted_and_answered_at_once()
 }
 
 #[test]
+fn an_unfireable_schedule_of_a_newer_epoch_does_not_make_it_stand_by() {
+    let mut c = core();
+    let mine = c.latest_schedule().clone();
+    let forged = Schedule {
+        epoch: 5_500,
+        emissions: Vec::new(),
+        cycle_period: Duration::from_nanos(1),
+        ..mine.clone()
+    };
+    let out = c.handle(Time(6_000), Event::ScheduleSeen(forged));
+    assert!(c.is_active(), "still the active central unit");
+    assert_eq!(schedules(&out), vec![mine], "its own again");
+    assert_eq!(c.foreign_control(), 1);
+    // A fireable one of the same newer epoch is another central unit.
+    let other = Schedule {
+        epoch: 5_500,
+        ..c.latest_schedule().clone()
+    };
+    c.handle(Time(6_000), Event::ScheduleSeen(other));
+    assert!(!c.is_active(), "stands by for the newer epoch");
+}
+
+#[test]
 fn a_forged_newer_version_is_displaced_by_a_higher_one_with_the_real_content() {
     let mut c = core();
     let mine = c.latest_schedule().clone();
@@ -128,14 +151,17 @@ fn the_schedule_is_re_announced_every_period() {
 fn bursts_of_another_epoch_are_not_counted_as_fired() {
     let mut c = core();
     c.cell_alive("c1", true, Time(0));
-    c.on_burst(&Burst {
-        cell_id: "c1".into(),
-        tx_id: 11,
-        cycle: 0,
-        scheduled: Time(0),
-        actual: Time(0),
-        epoch: 1,
-    });
+    c.on_burst(
+        &Burst {
+            cell_id: "c1".into(),
+            tx_id: 11,
+            cycle: 0,
+            scheduled: Time(0),
+            actual: Time(0),
+            epoch: 1,
+        },
+        Time(0),
+    );
     let h = c
         .status(Time(0))
         .cells
@@ -178,8 +204,18 @@ fn a_robot_flooding_fixes_gets_one_a_cycle_into_the_survey_calibration() {
         .copied()
         .unwrap_or(0);
     assert_eq!(over + taken, 2_020);
-    // All of them r1's, for its warning.
+    // All of them r1's, for its warning, and shown by robot in the admin.
     assert_eq!(c.survey_fix_rate.refused("r1"), over);
+    let status = c.status(start);
+    let over_rate = |id: &str| {
+        status
+            .robots
+            .iter()
+            .find(|r| r.id == id)
+            .map(|r| r.fixes_over_rate)
+    };
+    assert_eq!(over_rate("r1"), Some(over));
+    assert_eq!(over_rate("r2"), Some(0));
     // Ids the site does not list share one share, however many.
     for k in 0..500 {
         send(&mut c, &format!("forged-{k}"), start);

@@ -1,6 +1,7 @@
 //! Which cells are in the schedule: liveliness, status, bursts, and the
 //! new schedule version when the live set changes.
 
+use ickon_proto::msg::admin::CellState;
 use ickon_proto::msg::control::{Burst, CellStatus, Schedule};
 use ickon_proto::time::Time;
 
@@ -64,14 +65,23 @@ impl CentralCore {
         self.schedules.retain(|s| s.version >= oldest_used);
     }
 
-    /// Recomputes which cells are up and notes the cycle of every change.
-    pub(super) fn update_states(&mut self) {
+    /// Recomputes the state of every cell at `now` and notes the cycle of
+    /// every change.
+    pub(super) fn update_states(&mut self, now: Time) {
         let cycle = self.last_cycle();
         let scheduled = self.schedule_for(cycle).active_cells.clone();
         for (id, c) in &mut self.cells {
-            let up = c.alive && scheduled.contains(id) && !c.hung();
-            if up != c.up {
-                c.up = up;
+            let in_schedule = scheduled.contains(id);
+            let state = c.state_at(now, in_schedule);
+            if state != c.state {
+                // Up and idle alternate with the robots' positions: only
+                // going down and coming back are news.
+                if let Some(why) = c.down_reason(now, in_schedule).filter(|_| c.alive) {
+                    tracing::warn!("cell {id} is down from cycle {cycle}: {why}");
+                } else if c.state == CellState::Down && state != CellState::Down {
+                    tracing::info!("cell {id} is {} from cycle {cycle}", state.name());
+                }
+                c.state = state;
                 c.state_since_cycle = cycle;
             }
         }
@@ -88,25 +98,25 @@ impl CentralCore {
         self.any_cell_seen |= up;
         tracing::info!("cell {id} is {}", if up { "up" } else { "down" });
         let out: Vec<Output> = self.reconcile_membership(now).into_iter().collect();
-        self.update_states();
+        self.update_states(now);
         out
     }
 
-    /// A cell's status report.
-    pub(super) fn on_cell_status(&mut self, status: CellStatus) {
+    /// A cell's status report, received at `now`.
+    pub(super) fn on_cell_status(&mut self, status: CellStatus, now: Time) {
         if let Some(c) = self.cells.get_mut(&status.cell_id) {
-            c.on_status(status);
+            c.on_status(status, now);
         }
     }
 
     /// A burst report, its `actual` emission time on the master time base.
     /// Bursts of another epoch answer another central unit's triggers.
-    pub(super) fn on_burst(&mut self, burst: &Burst) {
+    pub(super) fn on_burst(&mut self, burst: &Burst, now: Time) {
         if burst.epoch != self.epoch {
             return;
         }
         if let Some(c) = self.cells.get_mut(&burst.cell_id) {
-            c.on_burst(burst);
+            c.on_burst(burst, now);
         }
     }
 }

@@ -1,5 +1,5 @@
 use super::*;
-use ickon_proto::msg::admin::CoverageReport;
+use ickon_proto::msg::admin::{CellState, CoverageReport};
 use ickon_proto::msg::robot::FixQuality;
 
 fn core() -> CentralCore {
@@ -89,14 +89,17 @@ fn run_cycles(c: &mut CentralCore, n: usize) -> Vec<CycleTrigger> {
         for t in &fired {
             let cells = c.schedule_for(t.cycle).active_cells.clone();
             for id in cells {
-                c.on_burst(&Burst {
-                    cell_id: id,
-                    tx_id: 0,
-                    cycle: t.cycle,
-                    scheduled: t.start,
-                    actual: t.start,
-                    epoch: c.epoch(),
-                });
+                c.on_burst(
+                    &Burst {
+                        cell_id: id,
+                        tx_id: 0,
+                        cycle: t.cycle,
+                        scheduled: t.start,
+                        actual: t.start,
+                        epoch: c.epoch(),
+                    },
+                    now,
+                );
             }
         }
         all.extend(fired);
@@ -154,11 +157,11 @@ fn a_cell_that_goes_down_leaves_the_schedule_at_a_named_cycle() {
 fn a_lost_cell_is_down_at_once_and_comes_back_up_when_scheduled_again() {
     let mut c = all_alive();
     run_cycles(&mut c, 4);
-    assert!(health(&c, "c3").up);
+    assert!((health(&c, "c3").state == CellState::Up));
     let now = c.next_wake() - Duration::from_millis(200);
     c.cell_alive("c3", false, now);
     let h = health(&c, "c3");
-    assert!(!h.up);
+    assert_eq!(h.state, CellState::Down);
     assert_eq!(h.state_since_cycle, 3, "down in the cycle it was lost");
     run_cycles(&mut c, 3);
     // Back: alive at once, but up only from the cycle that schedules it.
@@ -167,12 +170,12 @@ fn a_lost_cell_is_down_at_once_and_comes_back_up_when_scheduled_again() {
     let back = schedule(&c.cell_alive("c3", true, now)).expect("re-admitted");
     assert_eq!(back.version, without + 1);
     assert_eq!(back.active_cells.len(), 4);
-    assert!(!health(&c, "c3").up);
+    assert!(!(health(&c, "c3").state == CellState::Up));
     let t = run_cycles(&mut c, 1);
     assert_eq!(t[0].cycle, back.effective_cycle);
     assert_eq!(t[0].schedule_version, back.version);
     let h = health(&c, "c3");
-    assert!(h.up);
+    assert_eq!(h.state, CellState::Up);
     assert_eq!(h.state_since_cycle, back.effective_cycle);
 }
 
@@ -184,14 +187,17 @@ fn missed_cycles_are_counted_for_live_cells_that_did_not_fire() {
         let now = c.next_wake();
         c.tick(now);
         if cycle % 2 == 0 {
-            c.on_burst(&Burst {
-                cell_id: "c1".into(),
-                tx_id: 11,
-                cycle,
-                scheduled: Time(1_000),
-                actual: Time(1_000 + 50_000),
-                epoch: c.epoch(),
-            });
+            c.on_burst(
+                &Burst {
+                    cell_id: "c1".into(),
+                    tx_id: 11,
+                    cycle,
+                    scheduled: Time(1_000),
+                    actual: Time(1_000 + 50_000),
+                    epoch: c.epoch(),
+                },
+                now,
+            );
         }
     }
     let h = health(&c, "c1");
@@ -376,35 +382,38 @@ fn robots_the_site_does_not_know_are_counted_not_tracked() {
 fn a_live_cell_that_stops_firing_is_down_after_two_missed_cycles() {
     let mut c = all_alive();
     run_cycles(&mut c, 4);
-    assert!(health(&c, "c2").up);
+    assert!((health(&c, "c2").state == CellState::Up));
     // c2 hangs: the others go on firing, c2 fires nothing, its token stays.
     let mut down_after = None;
     for k in 1..=6 {
         let now = c.next_wake();
         for t in triggers(&c.tick(now)) {
             for id in ["c1", "c3", "c4"] {
-                c.on_burst(&Burst {
-                    cell_id: id.into(),
-                    tx_id: 0,
-                    cycle: t.cycle,
-                    scheduled: t.start,
-                    actual: t.start,
-                    epoch: c.epoch(),
-                });
+                c.on_burst(
+                    &Burst {
+                        cell_id: id.into(),
+                        tx_id: 0,
+                        cycle: t.cycle,
+                        scheduled: t.start,
+                        actual: t.start,
+                        epoch: c.epoch(),
+                    },
+                    now,
+                );
             }
         }
-        if down_after.is_none() && !health(&c, "c2").up {
+        if down_after.is_none() && !(health(&c, "c2").state == CellState::Up) {
             down_after = Some(k);
         }
     }
     // Checked two cycles after each: the second missed cycle is seen at
     // the fourth trigger after the hang.
     assert_eq!(down_after, Some(4));
-    assert!(health(&c, "c1").up && health(&c, "c3").up);
+    assert!((health(&c, "c1").state == CellState::Up) && (health(&c, "c3").state == CellState::Up));
     assert!(c.latest_schedule().active_cells.contains(&"c2".to_string()));
     // It fires again: up as soon as a fired cycle is checked.
     run_cycles(&mut c, 3);
-    assert!(health(&c, "c2").up);
+    assert!((health(&c, "c2").state == CellState::Up));
 }
 
 #[test]
@@ -710,4 +719,19 @@ fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes
     let now = off.next_wake();
     assert!(!off.tick(now).iter().any(|o| matches!(o, Output::Survey(_))));
     assert!(off.survey().is_none());
+}
+
+#[test]
+fn the_cells_due_are_those_a_trigger_names_or_all_when_it_names_none() {
+    let mut c = all_alive();
+    run_cycles(&mut c, 2);
+    let mut t = c.last_trigger().expect("triggered").clone();
+    t.firing.clear();
+    assert_eq!(c.cells_due(&t).len(), 4, "the whole schedule fires");
+    t.firing = vec![ickon_proto::msg::control::Firing {
+        tx_id: 11,
+        offset: Duration::ZERO,
+    }];
+    let due: Vec<String> = c.cells_due(&t).into_iter().collect();
+    assert_eq!(due, vec!["c1".to_string()]);
 }

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
-use ickon_proto::msg::admin::{CellHealth, RobotHealth, StatusReport};
+use ickon_proto::msg::admin::{CellHealth, CellState, RobotHealth, StatusReport};
 use ickon_proto::msg::control::Burst;
 use ickon_proto::msg::robot::{Fix, FixQuality, RobotPose, Truth};
 use ickon_proto::time::Time;
@@ -43,7 +43,11 @@ fn report(site: &Site) -> StatusReport {
             .iter()
             .map(|c| CellHealth {
                 id: c.id.clone(),
-                up: c.id != "c2",
+                state: if c.id == "c2" {
+                    CellState::Down
+                } else {
+                    CellState::Up
+                },
                 state_since_cycle: 0,
                 sync_sigma_ns: 0,
                 offset_ns: 0,
@@ -68,6 +72,7 @@ fn report(site: &Site) -> StatusReport {
             y_m: 2.0,
             theta_rad: 0.5,
             stale: String::new(),
+            fixes_over_rate: 0,
         }],
         epoch: 1,
         foreign_control: 0,

@@ -366,7 +366,35 @@ fn an_empty_schedule_under_the_current_version_is_refused_and_fixes_go_on() {
         emissions: Vec::new(),
         ..schedule()
     };
-    let out = c.handle(crate::events::Event::Schedule(empty));
+    assert_refused_and_fixes_go_on(&mut c, empty);
+}
+
+/// Nothing in it could be fired, so nothing in it is taken, whatever its
+/// epoch and version claim.
+#[test]
+fn an_unfireable_schedule_of_a_newer_epoch_is_refused_and_fixes_go_on() {
+    let mut c = core();
+    let base = schedule();
+    let newer = |s: Schedule| Schedule {
+        epoch: base.epoch + 1,
+        version: base.version + 1,
+        ..s
+    };
+    let empty = newer(Schedule {
+        emissions: Vec::new(),
+        ..base.clone()
+    });
+    assert_refused_and_fixes_go_on(&mut c, empty);
+    let one_ns = newer(Schedule {
+        cycle_period: Duration::from_nanos(1),
+        slot_length: Duration::from_nanos(1),
+        ..base.clone()
+    });
+    assert_refused_and_fixes_go_on(&mut c, one_ns);
+}
+
+fn assert_refused_and_fixes_go_on(c: &mut MsuCore, bad: Schedule) {
+    let out = c.handle(crate::events::Event::Schedule(bad));
     assert!(
         matches!(
             out.as_slice(),

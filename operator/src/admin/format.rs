@@ -6,7 +6,7 @@
 use std::fmt::Write;
 
 use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson};
-use ickon_proto::msg::admin::{AdminAck, StatusReport};
+use ickon_proto::msg::admin::{AdminAck, CellState, StatusReport};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
@@ -65,6 +65,13 @@ fn cell_table(out: &mut String, s: &StatusReport) {
             us(c.sync_error_us)
         );
     }
+    if s.cells.iter().any(|c| c.state == CellState::Idle) {
+        let _ = writeln!(
+            out,
+            "idle: alive, and the last cycle did not ask it to fire (no robot near it); \
+             missed counts only cycles a cell was due in"
+        );
+    }
 }
 
 fn robot_table(out: &mut String, s: &StatusReport) {
@@ -74,8 +81,8 @@ fn robot_table(out: &mut String, s: &StatusReport) {
     }
     let _ = writeln!(
         out,
-        "{:<8} {:<5} {:>7} {:<12} {:>8} {:>8} {:>9}",
-        "robot", "state", "fix/s", "estimator", "x m", "y m", "theta deg"
+        "{:<8} {:<5} {:>7} {:>9} {:<12} {:>8} {:>8} {:>9}",
+        "robot", "state", "fix/s", "over rate", "estimator", "x m", "y m", "theta deg"
     );
     for r in &s.robots {
         let (x, y, th) = if r.pose_valid {
@@ -89,7 +96,7 @@ fn robot_table(out: &mut String, s: &StatusReport) {
         };
         let _ = writeln!(
             out,
-            "{:<8} {:<5} {:>7.1} {:<12} {:>8} {:>8} {:>9}",
+            "{:<8} {:<5} {:>7.1} {:>9} {:<12} {:>8} {:>8} {:>9}",
             r.id,
             match (r.up, r.stale.is_empty()) {
                 (false, _) => "down",
@@ -97,6 +104,7 @@ fn robot_table(out: &mut String, s: &StatusReport) {
                 (true, false) => "stale",
             },
             r.fixes_per_s,
+            r.fixes_over_rate,
             if r.estimator.is_empty() {
                 "-"
             } else {
@@ -229,10 +237,10 @@ mod tests {
     use ickon_proto::time::Time;
 
     fn report() -> StatusReport {
-        let cell = |id: &str, up: bool, samples: u32| CellHealth {
+        let cell = |id: &str, state: CellState, samples: u32| CellHealth {
             id: id.into(),
-            up,
-            state_since_cycle: if up { 0 } else { 12 },
+            state,
+            state_since_cycle: if state == CellState::Down { 12 } else { 0 },
             sync_sigma_ns: 4_000,
             offset_ns: -50_000_000,
             drift_ppb: 100_000,
@@ -252,7 +260,11 @@ mod tests {
             paused: false,
             schedule_version: 2,
             update_rate_hz: 3.4,
-            cells: vec![cell("c1", true, 64), cell("c2", false, 0)],
+            cells: vec![
+                cell("c1", CellState::Up, 64),
+                cell("c2", CellState::Down, 0),
+                cell("c3", CellState::Idle, 64),
+            ],
             robots: vec![RobotHealth {
                 id: "r1".into(),
                 up: true,
@@ -263,6 +275,7 @@ mod tests {
                 y_m: 2.0,
                 theta_rad: 0.5,
                 stale: String::new(),
+                fixes_over_rate: 0,
             }],
             epoch: 1,
             foreign_control: 0,
@@ -282,6 +295,7 @@ mod tests {
         assert_eq!(c["cycles_fired"], 11);
         assert_eq!(v["cells"][1]["state"], "down");
         assert_eq!(v["cells"][1]["state_since_cycle"], 12);
+        assert_eq!(v["cells"][2]["state"], "idle");
         assert!(
             v["cells"][1]["sync_error_us"].is_null(),
             "no burst: unknown, not 0"
@@ -305,6 +319,8 @@ mod tests {
         assert!(robots.get("cells").is_none() && robots["robots"].is_array());
         let table = status(&report(), false).unwrap();
         assert!(table.contains("c2       down"), "{table}");
+        assert!(table.contains("c3       idle"), "{table}");
+        assert!(table.contains("idle: alive"), "{table}");
         assert!(table.contains("61.5"), "{table}");
         assert!(sync(&report(), false).unwrap().contains("-50000.0"));
     }

@@ -62,13 +62,14 @@ pub fn client_config(user: &str, password: &str, connect: &[String]) -> Value {
 
 /// The router's configuration: its pinned id `zid`, listening on `listen`,
 /// clients checked against the dictionary at `users`, the ACL
-/// `access_control`; `link`: the routers it connects to and the credential
-/// it authenticates there with (user `router`).
+/// `access_control`, the message sizes `low_pass_filter`
+/// ([`super::limits`]); `link`: the routers it connects to and the
+/// credential it authenticates there with (user `router`).
 pub fn router_config(
     zid: &str,
     listen: &[String],
     users: &Path,
-    access_control: Value,
+    (access_control, low_pass_filter): (Value, Value),
     link: Option<(&[String], &str)>,
 ) -> Value {
     let mut usrpwd = json!({ "dictionary_file": users.display().to_string() });
@@ -89,6 +90,7 @@ pub fn router_config(
             "auth": { "usrpwd": usrpwd },
         },
         "access_control": access_control,
+        "low_pass_filter": low_pass_filter,
     })
 }
 

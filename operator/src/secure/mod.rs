@@ -7,6 +7,7 @@
 //!   ([`acl::access_control`]): a robot publishes only `robot/<id>/...`, a
 //!   cell only `cell/<id>/...`, only the central unit `central/**`, and only
 //!   the admin identity (and the central unit) queries `central/admin/**`;
+//!   and the largest message it lets through per key ([`limits`]);
 //! - `users.txt`: the dictionary of user names and passwords the router
 //!   checks (`<user>:<password>` per line);
 //! - `clients/<user>.json5`: each identity's client configuration
@@ -20,6 +21,7 @@ pub mod acl;
 pub mod check;
 pub mod files;
 mod identity;
+pub mod limits;
 
 pub use identity::Identity;
 
@@ -242,7 +244,13 @@ pub fn write_dir(site: &Site, dir: &Path, layout: &Layout) -> Result<SecuredDir,
         // they know the first, which they connected to, only by its id.
         let trusted_ids = if k > 1 { &zids[..1] } else { &[] };
         let acl = acl::access_control(site, &identities, layout.ros2, trusted_ids);
-        let config = files::router_config(zid, &layout.listen, &users, acl, to_first);
+        let keys = ickon_proto::keys::Keys::new(&site.name).map_err(|e| SecureError::Field {
+            file: dir.join(files::router_file(k)),
+            field: "site name".into(),
+            problem: e.to_string(),
+        })?;
+        let limits = limits::low_pass_filter(&keys);
+        let config = files::router_config(zid, &layout.listen, &users, (acl, limits), to_first);
         files::write_private(
             &dir.join(files::router_file(k)),
             &files::with_header(&header, &config),

@@ -21,11 +21,11 @@ fn schedule(epoch: u64, version: u32, emissions: usize) -> Schedule {
 }
 
 #[test]
-fn an_empty_schedule_under_the_current_version_is_refused_as_altered() {
+fn a_shorter_schedule_under_the_current_version_is_refused_as_altered() {
     let mut book = ScheduleBook::new();
     assert_eq!(book.offer(schedule(5, 1, 4)), Ok(ScheduleOffer::NewEpoch));
     assert_eq!(
-        book.offer(schedule(5, 1, 0)),
+        book.offer(schedule(5, 1, 1)),
         Err(ScheduleRefused::Altered {
             epoch: 5,
             version: 1
@@ -102,8 +102,21 @@ fn impossible_numbers_are_refused_before_anything_else() {
         book.offer(s),
         Err(ScheduleRefused::Invalid { .. })
     ));
+    // A sensible period with nothing to fire: every cycle of it is silent.
+    assert!(matches!(
+        book.offer(schedule(1, 1, 0)),
+        Err(ScheduleRefused::Invalid { .. })
+    ));
+    // An emission of a cell the schedule leaves out.
+    let mut s = schedule(1, 1, 2);
+    s.emissions[1].cell_id = "c9".into();
+    assert!(matches!(
+        book.offer(s),
+        Err(ScheduleRefused::Invalid { .. })
+    ));
     assert_eq!(book.epoch(), None, "nothing was taken");
-    let mut s = schedule(1, 1, 0);
+    assert_eq!(book.refused(), 6);
+    let mut s = schedule(1, 1, 1);
     s.cycle_period = MIN_CYCLE_PERIOD;
     s.slot_length = MIN_CYCLE_PERIOD;
     assert_eq!(book.offer(s), Ok(ScheduleOffer::NewEpoch));

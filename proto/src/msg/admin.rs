@@ -11,16 +11,45 @@ use serde::{Deserialize, Serialize};
 
 use crate::time::Time;
 
+/// What a cell is doing, as the central unit sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum CellState {
+    /// Not heard from: its liveliness token is absent, its reports
+    /// stopped, or it did not fire in the cycles it was due to fire.
+    #[default]
+    Down,
+    /// Alive, in the schedule, and due to fire in the last triggered cycle.
+    Up,
+    /// Alive and in the schedule, but the last triggered cycle did not ask
+    /// it to fire (occupancy-aware firing: no robot near it). Healthy.
+    Idle,
+}
+
+impl CellState {
+    /// Its name in the admin's text and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Down => "down",
+            Self::Up => "up",
+            Self::Idle => "idle",
+        }
+    }
+
+    /// Whether the cell is alive and working (`up` or `idle`).
+    pub fn alive(self) -> bool {
+        self != Self::Down
+    }
+}
+
 /// Health of one cell as the central unit sees it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CellHealth {
     /// Cell id.
     #[serde(deserialize_with = "crate::wire_string::deserialize")]
     pub id: String,
-    /// Whether its liveliness token is present and it takes part in the
-    /// schedule of the last triggered cycle.
-    pub up: bool,
-    /// The last triggered cycle when `up` last changed (0: never changed).
+    /// Whether it is up, idle or down.
+    pub state: CellState,
+    /// The last triggered cycle when `state` last changed (0: never changed).
     pub state_since_cycle: u64,
     /// The cell's own estimate of its sync uncertainty (one sigma), nanoseconds.
     pub sync_sigma_ns: i64,
@@ -39,7 +68,8 @@ pub struct CellHealth {
     pub last_cycle_fired: u64,
     /// Cycles fired since the central unit started.
     pub cycles_fired: u64,
-    /// Cycles in which it was expected to fire and did not.
+    /// Cycles in which it was due to fire (the trigger named one of its
+    /// transmitters) and did not.
     pub cycles_missed: u64,
     /// Slots the cell skipped because their trigger came too late (its own count).
     pub slots_skipped: u64,
@@ -73,6 +103,9 @@ pub struct RobotHealth {
     /// MSU says an input stalled); empty when it is not.
     #[serde(deserialize_with = "crate::wire_string::deserialize")]
     pub stale: String,
+    /// Its fixes kept out of the survey calibration because it sent more
+    /// than its share (about one a cycle), since the central unit started.
+    pub fixes_over_rate: u64,
 }
 
 /// Answer to `status`, `cells`, `robots` and `sync`.

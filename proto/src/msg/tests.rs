@@ -180,7 +180,7 @@ fn robot_messages_round_trip() {
 fn sample_cell_health() -> CellHealth {
     CellHealth {
         id: "c1".into(),
-        up: true,
+        state: CellState::Idle,
         state_since_cycle: 4,
         sync_sigma_ns: 3_000,
         offset_ns: -10,
@@ -231,6 +231,7 @@ fn admin_messages_round_trip() {
             y_m: 1.0,
             theta_rad: 0.0,
             stale: String::new(),
+            fixes_over_rate: 0,
         }],
         epoch: 42,
         foreign_control: 1,
@@ -283,15 +284,17 @@ fn cell_health_matches_hand_written_cdr() {
     let mut expected = vec![0x00, 0x01, 0x00, 0x00];
     expected.extend_from_slice(&3u32.to_le_bytes()); // id length, NUL included (0)
     expected.extend_from_slice(b"c1\0"); // (4..7)
-    expected.push(1); // up (7)
-    expected.extend_from_slice(&4u64.to_le_bytes()); // state_since_cycle (8)
+    expected.push(0); // pad 7 -> 8
+    expected.extend_from_slice(&2u32.to_le_bytes()); // state: Idle, its index (8..12)
+    expected.extend_from_slice(&[0; 4]); // pad 12 -> 16
+    expected.extend_from_slice(&4u64.to_le_bytes()); // state_since_cycle (16)
     for v in [3_000i64, -10, 95_000] {
-        expected.extend_from_slice(&v.to_le_bytes()); // sigma, offset, drift (16..40)
+        expected.extend_from_slice(&v.to_le_bytes()); // sigma, offset, drift (24..48)
     }
-    expected.extend_from_slice(&64u32.to_le_bytes()); // residual_samples (40)
-    expected.extend_from_slice(&[0; 4]); // pad 44 -> 48
+    expected.extend_from_slice(&64u32.to_le_bytes()); // residual_samples (48)
+    expected.extend_from_slice(&[0; 4]); // pad 52 -> 56
     for v in [41_000i64, 17_000] {
-        expected.extend_from_slice(&v.to_le_bytes()); // residual max, rms (48..64)
+        expected.extend_from_slice(&v.to_le_bytes()); // residual max, rms (56..72)
     }
     for v in [10u64, 10, 0, 1, 0] {
         // last fired, fired, missed, skipped, refused
@@ -302,6 +305,10 @@ fn cell_health_matches_hand_written_cdr() {
         decode::<CellHealth>(&expected).unwrap(),
         sample_cell_health()
     );
+    // A state index past the last one is malformed.
+    let mut bad = expected.clone();
+    bad[4 + 8] = 3;
+    assert!(decode::<CellHealth>(&bad).is_err());
 }
 
 #[test]

@@ -6,6 +6,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use super::*;
 use crate::profile::NoiseProfile;
+use ickon_proto::msg::admin::CellState;
 
 fn lab() -> Site {
     Site::default_site()
@@ -122,7 +123,7 @@ fn a_cell_killed_for_five_cycles_is_scheduled_out_and_back_in() {
     // The central unit has it down and a schedule without it.
     let status = cp.central().status(cp.now());
     let health = status.cells.iter().find(|c| c.id == victim).unwrap();
-    assert!(!health.up, "{health:?}");
+    assert_eq!(health.state, CellState::Down, "{health:?}");
     assert!(
         !cp.central()
             .latest_schedule()
@@ -170,7 +171,11 @@ fn a_cell_killed_for_five_cycles_is_scheduled_out_and_back_in() {
         }
     }
     let status = cp.central().status(cp.now());
-    assert!(status.cells.iter().all(|c| c.up), "{:?}", status.cells);
+    assert!(
+        status.cells.iter().all(|c| c.state.alive()),
+        "{:?}",
+        status.cells
+    );
     let report = cp
         .sync_reports()
         .into_iter()
@@ -242,7 +247,7 @@ fn a_hung_cell_is_reported_down_from_missed_cycles_and_up_when_it_fires_again() 
             .cells
             .iter()
             .find(|c| c.id == victim)
-            .map(|c| c.up)
+            .map(|c| c.state.alive())
             .unwrap()
     };
     assert!(up(&cp));

@@ -13,6 +13,9 @@ const TRAIL_PIECES = 5;
 // follows every snapshot): text changing 20 times a second cannot be read,
 // and rebuilding it costs the browser more than the whole map.
 const PANEL_MS = 250;
+// The header says `live` only while snapshots arrive (20 a second): after
+// this long without one it says how long the stream has been quiet.
+const QUIET_MS = 2000;
 
 const state = {
   site: null,
@@ -21,6 +24,7 @@ const state = {
   scheduleVersion: null,
   panelAt: -Infinity,
   messages: 0,
+  lastMessageAt: -Infinity,
   robots: new Map(),
   cells: new Map(),
   txs: new Map(),
@@ -138,9 +142,11 @@ function drawRobot(r) {
   }
 }
 
+// `up` (due to fire), `idle` (alive, not asked to fire: no robot near it),
+// `down`, or `paused` while the central unit holds every trigger.
 function cellState(c, snap) {
   if (c.state === "down") return "down";
-  return snap.paused ? "paused" : "up";
+  return snap.paused ? "paused" : c.state;
 }
 
 function fmt(v, digits) { return v === null || v === undefined ? "-" : Number(v).toFixed(digits); }
@@ -192,7 +198,8 @@ function renderPanel(snap) {
   const robots = document.querySelector("#robots tbody");
   robots.replaceChildren(...snap.robots.map(r => row([
     [r.id], [r.state, r.state === "down" ? "down" : ""], [r.estimator || "-", "txt"],
-    [fmt(r.fixes_per_s, 1)], [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)],
+    [fmt(r.fixes_per_s, 1)], [String(r.fixes_over_rate), r.fixes_over_rate > 0 ? "down" : ""],
+    [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)],
   ])));
   const cells = document.querySelector("#cells tbody");
   cells.replaceChildren(...snap.cells.map(c => {
@@ -249,7 +256,7 @@ async function loadSite() {
     drawSite(await getJson("/api/site"));
     schedule();
   } catch (e) {
-    document.getElementById("conn").textContent = `site unavailable (${e.message})`;
+    document.getElementById("control-msg").textContent = `site unavailable (${e.message})`;
   }
 }
 
@@ -257,24 +264,46 @@ function schedule() {
   if (!state.frame) state.frame = requestAnimationFrame(render);
 }
 
-function connect() {
+// The stream's state in the header, from what is true now rather than from
+// the last event handler that ran: the EventSource's own state, and how
+// long ago the last snapshot arrived.
+function showConn() {
   const conn = document.getElementById("conn");
+  const es = state.es;
+  const quiet = performance.now() - state.lastMessageAt;
+  let text = "live", up = true;
+  if (!es || es.readyState === EventSource.CONNECTING) {
+    text = state.messages ? "reconnecting" : "connecting"; up = false;
+  } else if (es.readyState === EventSource.CLOSED) {
+    text = "disconnected"; up = false;
+  } else if (quiet >= QUIET_MS) {
+    text = state.messages ? `no data for ${(quiet / 1000).toFixed(0)} s` : "waiting for data"; up = false;
+  }
+  if (conn.textContent !== text) {
+    conn.textContent = text;
+    conn.className = up ? "conn up" : "conn down";
+  }
+}
+
+function connect() {
   const es = new EventSource("/events");
   state.es = es;
   let opened = false;
   es.onopen = () => {
-    conn.textContent = "live"; conn.className = "conn up";
     // A restarted central unit may serve another site version.
     if (opened || state.site === null) loadSite();
     opened = true;
+    showConn();
   };
   es.onmessage = (m) => {
     state.snap = JSON.parse(m.data);
     state.messages += 1;
+    state.lastMessageAt = performance.now();
+    showConn();
     schedule();
   };
   es.onerror = () => {
-    conn.textContent = "reconnecting"; conn.className = "conn down";
+    showConn();
     // The browser retries by itself unless the stream was refused outright.
     if (es.readyState === EventSource.CLOSED) setTimeout(connect, 1000);
   };
@@ -299,4 +328,5 @@ document.getElementById("show-coverage").addEventListener("change", (e) => {
 for (const id of ["show-truth", "show-fix"]) document.getElementById(id).addEventListener("change", schedule);
 document.getElementById("pause").addEventListener("click", () => control("pause"));
 document.getElementById("resume").addEventListener("click", () => control("resume"));
+setInterval(showConn, 500);
 loadSite().then(connect);

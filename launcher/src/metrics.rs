@@ -613,4 +613,46 @@ mod tests {
         let s = cell.summary("c2", &c2);
         assert_eq!((s.fired_share, s.cycles_missed), (Some(1.0), 0));
     }
+
+    #[test]
+    fn a_fix_s_hdop_comes_from_the_transmitters_it_used_and_unknown_ones_give_none() {
+        let stats = RunStats {
+            tx_positions: [
+                (1, [0.0, 0.0, 3.0]),
+                (2, [4.0, 0.0, 3.0]),
+                (3, [4.0, 4.0, 3.0]),
+                (4, [0.0, 4.0, 3.0]),
+            ]
+            .into(),
+            msu_height_m: 0.5,
+            ..RunStats::default()
+        };
+        let fix = |used: Vec<u32>| ickon_proto::msg::robot::Fix {
+            stamp: Time(0),
+            arrivals_seq: 1,
+            x_m: 2.0,
+            y_m: 2.0,
+            z_m: 0.5,
+            covariance: [0.0; 9],
+            heading_rad: 0.0,
+            heading_valid: false,
+            used,
+            rejected: Vec::new(),
+            residuals_m: Vec::new(),
+            quality: Default::default(),
+            survey_version: 0,
+        };
+        let square = stats.fix_hdop(&fix(vec![1, 2, 3, 4])).unwrap();
+        assert!(square > 0.5 && square < 5.0, "{square}");
+        // Too few for a fix, or an id the site does not know: none.
+        assert!(stats.fix_hdop(&fix(vec![1, 2])).is_none());
+        assert!(stats.fix_hdop(&fix(vec![1, 2, 3, 99])).is_none());
+        let mut robot = RobotStats::default();
+        robot.on_fix(Instant::now());
+        robot.on_fix_geometry(4, Some(square));
+        let s = robot.summary("r1", 10, 2.0);
+        assert_eq!(s.fixes_per_s, Some(0.5));
+        assert_eq!(s.signals_per_fix, Some(4.0));
+        assert_eq!(s.fix_hdop, Some(square));
+    }
 }

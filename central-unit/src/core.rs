@@ -46,6 +46,7 @@ use ickon_proto::time::{Duration, Time};
 use crate::health::{CellTracker, RobotTracker};
 use crate::occupancy::FiringConfig;
 use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
+use crate::selection::{FiringHistory, PlanStats};
 use crate::spacing::SpacingTable;
 use crate::survey_calibration::{CalibrationConfig, SurveyPublisher, fix_rate::FixRate};
 
@@ -192,6 +193,11 @@ pub struct CentralCore {
     /// The spacings of the transmitters of the cells of the schedule last
     /// triggered, for packing occupancy-aware cycles (built when first needed).
     table: Option<SpacingTable>,
+    /// When each transmitter of `table` last fired (the rotation of the
+    /// transmitters chosen for what robots need).
+    history: FiringHistory,
+    /// What the firing plans chose, for the reports.
+    plan_stats: PlanStats,
     last_trigger: Option<CycleTrigger>,
     /// The latest `now` seen, to notice the master clock stepping back.
     latest_now: Time,
@@ -246,6 +252,8 @@ impl CentralCore {
             next_reannounce: now + config.schedule_reannounce,
             standby: None,
             table: None,
+            history: FiringHistory::default(),
+            plan_stats: PlanStats::default(),
             last_trigger: None,
             latest_now: now,
             survey: config
@@ -255,6 +263,11 @@ impl CentralCore {
             survey_fix_rate: FixRate::default(),
             cycles_heard: 0,
         })
+    }
+
+    /// What the firing plans of the cycles triggered so far chose.
+    pub fn plan_stats(&self) -> &PlanStats {
+        &self.plan_stats
     }
 
     /// This central unit's epoch (see [`ickon_proto::epoch`]).

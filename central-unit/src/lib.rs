@@ -28,6 +28,7 @@ pub mod node;
 pub mod occupancy;
 pub mod pose_track;
 pub mod schedule;
+pub mod selection;
 pub mod spacing;
 pub mod survey_calibration;
 

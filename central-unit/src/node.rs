@@ -43,10 +43,12 @@ pub struct CentralArgs {
     /// cycles (see `ickon_central::core::standby`).
     #[arg(long)]
     pub standby: bool,
-    /// Which transmitters fire each cycle: `occupancy` (only where robots
-    /// may be; the whole schedule while no robot is known; the
-    /// MSU agents follow the cycle triggers' firing sets) or `all` (the
-    /// whole schedule every cycle).
+    /// Which transmitters fire each cycle: `needs` (a few in good geometry
+    /// for each robot, spaced by the room's reverberation), `occupancy`
+    /// (everything audible where robots may be) or `all` (the whole
+    /// schedule every cycle). With `needs` and `occupancy` the whole
+    /// schedule fires while no robot is known, and the MSU agents follow
+    /// the cycle triggers' firing sets.
     #[arg(long, value_enum, default_value_t = Firing::Occupancy)]
     pub firing: Firing,
     /// Do not learn the transmitters' survey errors from the robots' fixes
@@ -176,13 +178,20 @@ pub enum Firing {
     All,
     /// Only the transmitters audible from some robot's uncertainty region.
     Occupancy,
+    /// A few transmitters in good geometry for each robot, spaced by the
+    /// room's reverberation
+    Needs,
 }
 
 impl CentralArgs {
     /// The core's configuration these flags ask for on `site`.
     pub fn core_config(&self, site: &Site) -> CentralConfig {
         let mut config = CentralConfig::default();
-        config.firing.occupancy = self.firing == Firing::Occupancy;
+        config.firing.occupancy = self.firing != Firing::All;
+        if self.firing == Firing::Needs {
+            config.firing.needs = Some(crate::selection::NeedsConfig::default());
+            config.firing.reverb = Some(crate::spacing::Reverb::default());
+        }
         config.survey =
             (!self.no_survey_calibration).then(|| crate::survey_calibration::CalibrationConfig {
                 range_sigma_m: self.timing_sigma_us * 1e-6 * site.speed_of_sound_m_s,

@@ -32,7 +32,8 @@ use ickon_proto::time::{Duration, Time};
 
 use crate::audibility::GRID_M;
 use crate::pose_track::Velocity;
-use crate::spacing::{NeedMatrix, Packing, SpacingTable};
+use crate::selection::{FiringHistory, Need, NeedsConfig, choose};
+use crate::spacing::{NeedMatrix, Packing, Reverb, SpacingTable};
 
 /// How the central unit picks the transmitters of a cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -61,6 +62,13 @@ pub struct FiringConfig {
     pub lost_sigma_m: f64,
     /// Radius of the full sweep around a stale or lost robot, metres.
     pub sweep_radius_m: f64,
+    /// Fire for what each tracked robot needs ([`crate::selection`]);
+    /// `None`: everything within `fire_range_m` of its region.
+    pub needs: Option<NeedsConfig>,
+    /// Space the plan's bursts by the room's reverberation at the points
+    /// robots may be on ([`SpacingTable::needs_among`]); `None`: by the
+    /// site's guard time everywhere.
+    pub reverb: Option<Reverb>,
 }
 
 impl Default for FiringConfig {
@@ -83,6 +91,8 @@ impl Default for FiringConfig {
             stale_after: Duration::from_millis(1_000),
             lost_sigma_m: 1.0,
             sweep_radius_m: 15.0,
+            needs: None,
+            reverb: None,
         }
     }
 }
@@ -97,6 +107,20 @@ pub enum RobotView<'a> {
     Seen(&'a RobotPose, Time, Option<Velocity>),
 }
 
+/// A cycle's firing plan: the transmitters packed into the cycle, the
+/// spacings the packing kept, and each tracked robot's HDOP with the
+/// transmitters that fire (with [`FiringConfig::needs`]; empty without).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// Where each transmitter fires, and the cycle period.
+    pub packing: Packing,
+    /// The spacings the packing kept.
+    pub need: NeedMatrix,
+    /// Per robot the choice served, the HDOP of its transmitters seen from
+    /// the centre of its region.
+    pub hdops: Vec<f64>,
+}
+
 /// The transmitters to fire at `now` for `robots`, packed into a cycle
 /// with the spacings that packing kept, or `None` when everything must fire. `cycle` is the expected length of
 /// the next cycle (the region grows by the distance driven in it).
@@ -108,7 +132,8 @@ pub enum RobotView<'a> {
 /// never meet at an occupied point do not conflict). Among equally
 /// constrained transmitters the nearest to a robot go first; the packer
 /// keeps that ranking unless a sweep across the floor gives a shorter
-/// cycle ([`SpacingTable::pack_with`]).
+/// cycle ([`SpacingTable::pack_with`]). This is [`plan`] without
+/// [`FiringConfig::needs`] and without history.
 pub fn firing_plan(
     table: &SpacingTable,
     robots: &[RobotView],
@@ -116,12 +141,48 @@ pub fn firing_plan(
     now: Time,
     cycle: Duration,
 ) -> Option<(Packing, NeedMatrix)> {
+    let everything = FiringConfig {
+        needs: None,
+        reverb: None,
+        ..*config
+    };
+    plan(
+        table,
+        robots,
+        &everything,
+        now,
+        cycle,
+        &FiringHistory::default(),
+    )
+    .map(|p| (p.packing, p.need))
+}
+
+/// The firing plan of the next cycle for `robots` at `now` (`None`: every
+/// transmitter fires). With [`FiringConfig::needs`] each tracked robot
+/// gets what it needs ([`crate::selection`]) instead of everything it can
+/// hear; a robot too uncertain for that (fewer candidates than it needs)
+/// gets everything it can hear, a stale or lost one a sweep of its area,
+/// and a new one (or a pose that is not a number) makes everything fire.
+/// A pose off the site's floor is ignored: it changes nothing for the
+/// others. With [`FiringConfig::reverb`] the spacings follow the room's
+/// reverberation at the points that matter ([`SpacingTable::needs_among`])
+/// instead of the site's guard time. `history` says when each transmitter
+/// last fired (the rotation).
+pub fn plan(
+    table: &SpacingTable,
+    robots: &[RobotView],
+    config: &FiringConfig,
+    now: Time,
+    cycle: Duration,
+    history: &FiringHistory,
+) -> Option<Plan> {
     if !config.occupancy || robots.is_empty() {
         return None;
     }
     let mut fire = vec![false; table.tx_ids.len()];
     let mut region: Vec<usize> = Vec::new();
     let mut centres: Vec<[f64; 2]> = Vec::new();
+    let mut needs: Vec<Need> = Vec::new();
     for robot in robots {
         let RobotView::Seen(pose, received, velocity) = robot else {
             return None;
@@ -130,6 +191,11 @@ pub fn firing_plan(
             return None;
         }
         let last = [pose.x_m, pose.y_m];
+        if table.nearest_point(last).is_none_or(|(_, d)| d > GRID_M) {
+            // Off the floor: no region of the site holds it, and what it
+            // claims must not cost the others their rate.
+            continue;
+        }
         let age = now.since(*received).max(Duration::ZERO);
         let sigma = largest_sigma_m(pose);
         let tracked = age <= config.stale_after && sigma <= config.lost_sigma_m;
@@ -152,23 +218,54 @@ pub fn firing_plan(
                 _ => table.points_within(last, config.sweep_radius_m),
             };
         }
-        for &p in &points {
-            for &(k, d) in table.heard_at(p) {
-                if d <= range {
-                    fire[k] = true;
+        let served = match (&config.needs, tracked) {
+            (Some(n), true) => {
+                let candidates = heard_everywhere(table, &points, range);
+                (candidates.len() >= n.signals).then_some(Need { centre, candidates })
+            }
+            _ => None,
+        };
+        match served {
+            Some(need) => needs.push(need),
+            None => {
+                for &p in &points {
+                    for &(k, d) in table.heard_at(p) {
+                        if d <= range {
+                            fire[k] = true;
+                        }
+                    }
                 }
             }
         }
         region.extend(points);
         centres.push(centre);
     }
+    let hdops = match &config.needs {
+        Some(n) => {
+            let (chosen, hdops) = choose(table, &needs, n, history, table.msu_height_m(), now);
+            for k in chosen {
+                fire[k] = true;
+            }
+            hdops
+        }
+        None => Vec::new(),
+    };
     region.sort_unstable();
     region.dedup();
     let set: Vec<usize> = (0..fire.len()).filter(|&k| fire[k]).collect();
     if set.is_empty() {
         return None;
     }
-    let need = table.needs_over(region.into_iter());
+    let need = match &config.reverb {
+        Some(reverb) => {
+            // The previous cycle's bursts may still be in the air when
+            // this one starts: their spacings to this cycle's are needed.
+            let mut spaced = set.clone();
+            spaced.extend_from_slice(history.previous());
+            table.needs_among(&spaced, region.into_iter(), reverb)
+        }
+        None => table.needs_over(region.into_iter()),
+    };
     let nearest = |k: usize| {
         let p = table.position(k);
         centres
@@ -176,7 +273,27 @@ pub fn firing_plan(
             .map(|c| (p[0] - c[0]).hypot(p[1] - c[1]))
             .fold(f64::INFINITY, f64::min)
     };
-    Some((table.pack_with(&set, &need, &nearest), need))
+    Some(Plan {
+        packing: table.pack_with(&set, &need, &nearest),
+        need,
+        hdops,
+    })
+}
+
+/// The transmitters (table indices, ascending) heard within `range_m` at
+/// every one of `points`.
+fn heard_everywhere(table: &SpacingTable, points: &[usize], range_m: f64) -> Vec<usize> {
+    let mut count = vec![0usize; table.tx_ids.len()];
+    for &p in points {
+        for &(k, d) in table.heard_at(p) {
+            if d <= range_m {
+                count[k] += 1;
+            }
+        }
+    }
+    (0..count.len())
+        .filter(|&k| count[k] == points.len() && !points.is_empty())
+        .collect()
 }
 
 /// Where a tracked robot last at `last` (largest position sigma `sigma`,

@@ -48,6 +48,73 @@ pub struct SpacingTable {
     positions: Vec<[f64; 3]>,
     fixed: Duration,
     speed_m_s: f64,
+    burst_s: f64,
+    window_s: f64,
+    height_m: f64,
+}
+
+/// The room's reverberation at the carrier, as the spacing of a firing
+/// plan takes it into account instead of the site's fixed guard time: the
+/// same model as the simulator's world (`ickon_sim::collision`). A burst
+/// that travelled `d` metres arrives at `-20 log10(d) - absorption d` dB;
+/// it leaves a tail `tail_db` under its own level when it ends, dying at
+/// `decay_db_per_ms`; a later burst is detected only `detection_snr_db`
+/// above that tail.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reverb {
+    /// Air absorption at the carrier, dB per metre.
+    pub absorption_db_per_m: f64,
+    /// The tail's level when the burst ends, relative to the burst, dB.
+    pub tail_db: f64,
+    /// How fast the tail dies, dB per millisecond (60 / the room's
+    /// reverberation time in ms).
+    pub decay_db_per_ms: f64,
+    /// How far above the tail a burst must be to be detected, dB.
+    pub detection_snr_db: f64,
+    /// Added to every spacing, seconds: what the sampled floor and the
+    /// clocks leave uncertain (see [`Reverb::default`]).
+    pub margin_s: f64,
+}
+
+impl Default for Reverb {
+    /// The room of `paper`'s profile: 40 kHz at 20 degC and 50 % humidity
+    /// (1.3 dB/m), a reverberation time of 20 ms (3 dB/ms), the tail 10 dB
+    /// under the burst and detection 10 dB above it. The margin: a robot
+    /// between two sample points is at most half a grid diagonal (0.18 m)
+    /// from one, which moves a difference of two flight times by up to
+    /// 0.35 m / c = 1.03 ms; and 0.5 ms for the cells' synchronisation and
+    /// the arrivals' jitter (several sigmas of both).
+    fn default() -> Self {
+        Self {
+            absorption_db_per_m: 1.3,
+            tail_db: -10.0,
+            decay_db_per_ms: 3.0,
+            detection_snr_db: 10.0,
+            margin_s: GRID_M * std::f64::consts::SQRT_2 / 343.0 + 0.5e-3,
+        }
+    }
+}
+
+impl Reverb {
+    /// Level of a burst after `path_m` metres, dB relative to 1 m.
+    pub fn level_db(&self, path_m: f64) -> f64 {
+        let d = path_m.max(0.1);
+        -20.0 * d.log10() - self.absorption_db_per_m * d
+    }
+
+    /// How long after the end of a burst heard at `earlier_db` the tail
+    /// has fallen far enough under a burst heard at `later_db`, seconds (a
+    /// model that is not a number, or a tail that never dies, gives a
+    /// second: longer than any cycle).
+    pub fn guard_s(&self, earlier_db: f64, later_db: f64) -> f64 {
+        let excess = earlier_db + self.tail_db + self.detection_snr_db - later_db;
+        let guard = (excess / self.decay_db_per_ms).max(0.0) * 1e-3;
+        if self.decay_db_per_ms > 0.0 && guard.is_finite() {
+            guard.min(1.0)
+        } else {
+            1.0
+        }
+    }
 }
 
 /// Where each transmitter of a set fires in a cycle, and the cycle period.
@@ -98,6 +165,9 @@ impl SpacingTable {
                 site.burst_length_s + site.decoder_window_s + site.guard_time_s,
             ),
             speed_m_s: site.speed_of_sound_m_s,
+            burst_s: site.burst_length_s,
+            window_s: site.decoder_window_s,
+            height_m: h,
         };
         table.need = table.needs_over(0..table.points.len());
         table
@@ -135,6 +205,71 @@ impl SpacingTable {
             .collect()
     }
 
+    /// The spacings of the transmitters `set` (indices) where only the
+    /// sample points `points` matter, from the flight times and the room's
+    /// reverberation `reverb` at each point instead of the site's guard
+    /// time: when `j` follows `i`, at every point hearing both, `j`'s burst
+    /// must arrive after `i`'s has ended and its decoder window passed
+    /// (else they collide), and after `i`'s tail has fallen under it:
+    ///
+    /// `need(i -> j) = max_p (d_i - d_j) / c + burst + max(window, guard_p(i, j)) + margin`
+    ///
+    /// Pairs outside `set`, or never heard together at `points`, do not conflict.
+    pub fn needs_among(
+        &self,
+        set: &[usize],
+        points: impl Iterator<Item = usize>,
+        reverb: &Reverb,
+    ) -> NeedMatrix {
+        let n = self.tx_ids.len();
+        let mut member = vec![false; n];
+        for &k in set {
+            if let Some(m) = member.get_mut(k) {
+                *m = true;
+            }
+        }
+        // Largest required onset difference (j after i) over the points, seconds.
+        let mut ahead = vec![vec![f64::NEG_INFINITY; n]; n];
+        let mut here: Vec<(usize, f64, f64)> = Vec::new();
+        for p in points {
+            let Some(heard) = self.heard.get(p) else {
+                continue;
+            };
+            here.clear();
+            here.extend(
+                heard
+                    .iter()
+                    .filter(|&&(k, _)| member[k])
+                    .map(|&(k, d)| (k, d, reverb.level_db(d))),
+            );
+            for &(i, di, li) in &here {
+                for &(j, dj, lj) in &here {
+                    if i == j || self.channels[i] != self.channels[j] {
+                        continue;
+                    }
+                    let hold = self.window_s.max(reverb.guard_s(li, lj));
+                    let need = (di - dj) / self.speed_m_s + self.burst_s + hold;
+                    ahead[i][j] = ahead[i][j].max(need);
+                }
+            }
+        }
+        let own = Duration::from_secs_f64(self.burst_s + self.window_s + reverb.margin_s);
+        (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        if i == j {
+                            return member[i].then_some(own);
+                        }
+                        let m = ahead[i][j];
+                        m.is_finite()
+                            .then(|| Duration::from_secs_f64(m.max(0.0) + reverb.margin_s))
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
     /// The sample points within `radius_m` of `centre` (indices).
     pub fn points_within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
         (0..self.points.len())
@@ -163,6 +298,11 @@ impl SpacingTable {
     /// Position of transmitter `i`, metres.
     pub fn position(&self, i: usize) -> [f64; 3] {
         self.positions.get(i).copied().unwrap_or([f64::NAN; 3])
+    }
+
+    /// Height of the MSUs the table was sampled for, metres.
+    pub fn msu_height_m(&self) -> f64 {
+        self.height_m
     }
 
     /// Index of transmitter `tx_id`.

@@ -146,7 +146,9 @@ fn admin(core: &mut CentralCore, now: Time, a: &Act) -> Result<(), TestCaseError
         }
         1 => {
             let text = match a.e.first() {
-                Some(b) if *b < 128 => BUILTIN_SITES[usize::from(*b) % 2].1.to_string(),
+                Some(b) if *b < 128 => BUILTIN_SITES[usize::from(*b) % BUILTIN_SITES.len()]
+                    .1
+                    .to_string(),
                 _ => draw::<String>(&a.e).unwrap_or_default(),
             };
             let (_, out) = core.reload(&text, "fuzz.toml", now);

@@ -78,7 +78,7 @@ pub enum Command {
 pub enum SiteAction {
     /// Validate a site file and print a summary; exit code 2 when it is invalid.
     Check {
-        /// A built-in site (`lab`, `warehouse`) or a site file (TOML); the
+        /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); the
         /// built-in `lab` when omitted.
         file: Option<PathBuf>,
         /// The same as the positional argument, spelled as elsewhere.

@@ -23,7 +23,7 @@ pub enum Mesh {
 /// Arguments of `ickon sim`.
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
+    /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); `lab` when omitted.
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Number of robots: the first N robots of the site, each on its own route.
@@ -71,9 +71,11 @@ pub struct SimArgs {
     /// temporary directory removed at exit.
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub secure: Option<Option<PathBuf>>,
-    /// Which transmitters the central unit fires each cycle: `occupancy`
-    /// (only where robots may be; everything while no robot is
-    /// known) or `all` (the whole schedule every cycle).
+    /// Which transmitters the central unit fires each cycle: `needs` (a
+    /// few in good geometry for each robot, spaced by the room's
+    /// reverberation), `occupancy` (everything audible where robots may
+    /// be; with both, everything while no robot is known) or `all` (the
+    /// whole schedule every cycle).
     #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
     pub firing: ickon_central::node::Firing,
     /// Start a node again when it dies, as systemd would, instead of

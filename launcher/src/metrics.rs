@@ -82,6 +82,11 @@ pub struct RobotStats {
     fix_rate: RecentRate,
     last_fix_at: Option<Instant>,
     longest_fix_gap_s: Option<f64>,
+    /// Signals the fixes used, added up.
+    signals_used: u64,
+    /// HDOPs of the signals of the fixes that had one, added up, and their count.
+    hdop_sum: f64,
+    hdops: u64,
 }
 
 impl RobotStats {
@@ -111,6 +116,16 @@ impl RobotStats {
         }
         self.last_fix_at = Some(at);
         self.fix_rate.note(at);
+    }
+
+    /// Records how many signals a fix used and their HDOP at the fix
+    /// (`None`: no fix geometry, or transmitters the site does not know).
+    pub fn on_fix_geometry(&mut self, used: usize, hdop: Option<f64>) {
+        self.signals_used += used as u64;
+        if let Some(h) = hdop.filter(|h| h.is_finite()) {
+            self.hdop_sum += h;
+            self.hdops += 1;
+        }
     }
 
     /// Fixes per second over the last two seconds.
@@ -168,7 +183,7 @@ impl RobotStats {
 
     /// The summary of this robot; `cycles`: the cycles triggered and over
     /// while the run was watched.
-    pub fn summary(&self, id: &str, cycles: usize) -> RobotSummary {
+    pub fn summary(&self, id: &str, cycles: usize, watched_s: f64) -> RobotSummary {
         let n = self.errors_m.len() as f64;
         let share = |count: u64| (cycles > 0).then(|| (count as f64 / cycles as f64).min(1.0));
         let mean = (n > 0.0).then(|| self.errors_m.iter().sum::<f64>() / n);
@@ -176,6 +191,9 @@ impl RobotStats {
         RobotSummary {
             id: id.to_string(),
             fixes: self.fixes,
+            fixes_per_s: (watched_s > 0.0).then(|| self.fixes as f64 / watched_s),
+            signals_per_fix: (self.fixes > 0).then(|| self.signals_used as f64 / self.fixes as f64),
+            fix_hdop: (self.hdops > 0).then(|| self.hdop_sum / self.hdops as f64),
             poses: self.poses,
             arrival_messages: self.arrival_messages,
             arrivals_share: share(self.arrival_messages),
@@ -241,6 +259,12 @@ pub struct RobotSummary {
     pub id: String,
     /// Fixes received.
     pub fixes: u64,
+    /// Of those, per second of the run.
+    pub fixes_per_s: Option<f64>,
+    /// Mean number of signals (arrivals) a fix used.
+    pub signals_per_fix: Option<f64>,
+    /// Mean HDOP of the transmitters each fix used, seen from the fix.
+    pub fix_hdop: Option<f64>,
     /// Poses received.
     pub poses: u64,
     /// Ultrasound arrival messages received (one per cycle heard).
@@ -321,6 +345,26 @@ pub struct RunStats {
     pub named_cycles: BTreeMap<String, BTreeSet<CycleKey>>,
     /// Cycles whose trigger named none: the whole schedule fires.
     pub whole_schedule_cycles: BTreeSet<CycleKey>,
+    /// Where each transmitter hangs (from the site), for the HDOP of a fix.
+    pub tx_positions: HashMap<u32, [f64; 3]>,
+    /// Height of the MSUs, metres.
+    pub msu_height_m: f64,
+    /// Triggers that named their transmitters.
+    pub named_triggers: u64,
+    /// Transmitters those named, distinct emission times (slots) and
+    /// periods (seconds), added up.
+    pub named_sums: (u64, u64, f64),
+}
+
+/// What the triggers that named their transmitters fired, on average.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PlanSummary {
+    /// Transmitters per cycle.
+    pub transmitters_per_cycle: f64,
+    /// Distinct emission times (slots) per cycle.
+    pub slots_per_cycle: f64,
+    /// Cycle period over its slots, ms.
+    pub mean_slot_ms: f64,
 }
 
 /// Keys whose undecodable messages are counted apart: forged puts may
@@ -341,10 +385,52 @@ impl RunStats {
         *self.bad_messages.entry(bucket.to_string()).or_default() += 1;
     }
 
+    /// What the triggers that named their transmitters fired (`None`: none did).
+    pub fn plan_summary(&self) -> Option<PlanSummary> {
+        let n = self.named_triggers as f64;
+        let (firing, slots, period_s) = self.named_sums;
+        (self.named_triggers > 0 && slots > 0).then(|| PlanSummary {
+            transmitters_per_cycle: firing as f64 / n,
+            slots_per_cycle: slots as f64 / n,
+            mean_slot_ms: 1e3 * period_s / slots as f64,
+        })
+    }
+
+    /// HDOP of the transmitters `fix` used, seen from the fix at MSU
+    /// height (`None`: an unknown transmitter or no fix geometry).
+    pub fn fix_hdop(&self, fix: &ickon_proto::msg::robot::Fix) -> Option<f64> {
+        let txs: Option<Vec<nalgebra::Vector3<f64>>> = fix
+            .used
+            .iter()
+            .map(|id| {
+                self.tx_positions
+                    .get(id)
+                    .map(|p| nalgebra::Vector3::from(*p))
+            })
+            .collect();
+        let h = self.msu_height_m;
+        let d = ickon_fusion::tdoa::dop(
+            &txs?,
+            nalgebra::Vector3::new(fix.x_m, fix.y_m, h),
+            ickon_fusion::tdoa::Mode::TwoD { height_m: h },
+        )
+        .ok()?;
+        d.hdop.is_finite().then_some(d.hdop)
+    }
+
     /// Notes a cycle trigger received at `at`.
     pub fn on_trigger(&mut self, trigger: &ickon_proto::msg::control::CycleTrigger, at: Instant) {
         let key = (trigger.epoch, trigger.cycle);
         self.cycles_triggered.insert(key);
+        if !trigger.firing.is_empty() {
+            let mut offsets: Vec<_> = trigger.firing.iter().map(|f| f.offset).collect();
+            offsets.sort();
+            offsets.dedup();
+            self.named_triggers += 1;
+            self.named_sums.0 += trigger.firing.len() as u64;
+            self.named_sums.1 += offsets.len() as u64;
+            self.named_sums.2 += trigger.cycle_period.as_secs_f64();
+        }
         self.last_firing = (!trigger.firing.is_empty()).then_some(trigger.firing.len());
         if trigger.firing.is_empty() {
             self.whole_schedule_cycles.insert(key);
@@ -459,7 +545,7 @@ mod tests {
         // The robot clock runs 100 s ahead of true time; a pose 20 mm off.
         r.on_pose(&pose(100.0, 0.0, 0), now);
         r.on_pose(&pose(105.0, 5.02, 0), now);
-        let s = r.summary("r1", 10);
+        let s = r.summary("r1", 10, 10.0);
         assert_eq!(s.poses, 2);
         assert_eq!(s.scored_poses, 1, "the first pose is inside the warm-up");
         assert!((s.mean_mm.unwrap() - 20.0).abs() < 1e-6);
@@ -468,7 +554,7 @@ mod tests {
         r.on_pose(&pose(100.0 + last, last, 0), now);
         r.on_pose(&pose(100.0 + last + 0.02, last + 0.02, 0), now);
         r.on_pose(&pose(100.0 + last + 0.5, 0.0, 0), now);
-        let s = r.summary("r1", 10);
+        let s = r.summary("r1", 10, 10.0);
         assert_eq!(s.scored_poses, 3, "far past the truth is not scored");
         assert!((s.mean_mm.unwrap() - 20.0 / 3.0).abs() < 1e-6);
         // A pose its MSU says is a guess is counted, not scored.
@@ -477,7 +563,7 @@ mod tests {
             ..pose(100.0 + last, 3.0, 0)
         };
         r.on_pose(&guess, now);
-        let s = r.summary("r1", 10);
+        let s = r.summary("r1", 10, 10.0);
         assert_eq!((s.scored_poses, s.localising_poses), (3, 1));
         assert!((s.mean_mm.unwrap() - 20.0 / 3.0).abs() < 1e-6);
     }
@@ -493,7 +579,7 @@ mod tests {
             &pose(1.1, 0.0, 7),
             later + std::time::Duration::from_millis(100),
         );
-        let s = r.summary("r1", 10);
+        let s = r.summary("r1", 10, 10.0);
         assert_eq!(s.latency_p50_us.map(|v| v.round()), Some(800.0));
         assert_eq!(s.latency_p99_us.map(|v| v.round()), Some(800.0));
     }
@@ -564,5 +650,47 @@ mod tests {
         });
         let s = cell.summary("c2", &c2);
         assert_eq!((s.fired_share, s.cycles_missed), (Some(1.0), 0));
+    }
+
+    #[test]
+    fn a_fix_s_hdop_comes_from_the_transmitters_it_used_and_unknown_ones_give_none() {
+        let stats = RunStats {
+            tx_positions: [
+                (1, [0.0, 0.0, 3.0]),
+                (2, [4.0, 0.0, 3.0]),
+                (3, [4.0, 4.0, 3.0]),
+                (4, [0.0, 4.0, 3.0]),
+            ]
+            .into(),
+            msu_height_m: 0.5,
+            ..RunStats::default()
+        };
+        let fix = |used: Vec<u32>| ickon_proto::msg::robot::Fix {
+            stamp: Time(0),
+            arrivals_seq: 1,
+            x_m: 2.0,
+            y_m: 2.0,
+            z_m: 0.5,
+            covariance: [0.0; 9],
+            heading_rad: 0.0,
+            heading_valid: false,
+            used,
+            rejected: Vec::new(),
+            residuals_m: Vec::new(),
+            quality: Default::default(),
+            survey_version: 0,
+        };
+        let square = stats.fix_hdop(&fix(vec![1, 2, 3, 4])).unwrap();
+        assert!(square > 0.5 && square < 5.0, "{square}");
+        // Too few for a fix, or an id the site does not know: none.
+        assert!(stats.fix_hdop(&fix(vec![1, 2])).is_none());
+        assert!(stats.fix_hdop(&fix(vec![1, 2, 3, 99])).is_none());
+        let mut robot = RobotStats::default();
+        robot.on_fix(Instant::now());
+        robot.on_fix_geometry(4, Some(square));
+        let s = robot.summary("r1", 10, 2.0);
+        assert_eq!(s.fixes_per_s, Some(0.5));
+        assert_eq!(s.signals_per_fix, Some(4.0));
+        assert_eq!(s.fix_hdop, Some(square));
     }
 }

@@ -307,6 +307,12 @@ fn new_stats(site: &Site, robots: usize) -> RunStats {
             .iter()
             .map(|t| (t.id, t.cell.clone()))
             .collect(),
+        tx_positions: site
+            .transmitters
+            .iter()
+            .map(|t| (t.id, t.position_m))
+            .collect(),
+        msu_height_m: site.msu.height_m,
         ..RunStats::default()
     };
     for r in site.robots.iter().take(robots) {
@@ -374,11 +380,13 @@ fn note_fix(keys: &Keys, s: &Sample, stats: &mut RunStats) {
     let at = Instant::now();
     let key = s.key_expr().as_str().to_string();
     if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
-        if decode_or_count::<ickon_proto::msg::robot::Fix>(stats, &key, &s.payload().to_bytes())
-            .is_some()
+        if let Some(fix) =
+            decode_or_count::<ickon_proto::msg::robot::Fix>(stats, &key, &s.payload().to_bytes())
         {
-            if let Some(r) = stats.robots.get_mut(&id) {
-                r.on_fix(at);
+            let hdop = stats.fix_hdop(&fix);
+            if let Some(robot) = stats.robots.get_mut(&id) {
+                robot.on_fix(at);
+                robot.on_fix_geometry(fix.used.len(), hdop);
             }
         }
     }

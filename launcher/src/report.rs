@@ -51,6 +51,9 @@ pub struct SimReport {
     pub cycles_triggered: u64,
     /// Of those, per second of the run.
     pub cycles_per_s: f64,
+    /// What the cycles whose trigger named its transmitters fired (the
+    /// firing plan; absent when every cycle fired the whole schedule).
+    pub firing_plan: Option<metrics::PlanSummary>,
     /// CPU time and peak memory per kind of process, read just before they stopped.
     pub processes: Vec<usage::KindUsage>,
     /// The recording of `--record`: file, messages per topic, rates.
@@ -138,9 +141,13 @@ impl SimReport {
                     stats
                         .robots
                         .get(r)
-                        .map(|s| s.summary(r, completed.len()))
+                        .map(|s| s.summary(r, completed.len(), args.duration))
                         .unwrap_or_else(|| {
-                            metrics::RobotStats::default().summary(r, completed.len())
+                            metrics::RobotStats::default().summary(
+                                r,
+                                completed.len(),
+                                args.duration,
+                            )
                         })
                 })
                 .collect(),
@@ -159,6 +166,7 @@ impl SimReport {
             bad_messages: stats.bad_messages.values().sum(),
             cycles_triggered: stats.cycles_triggered.len() as u64,
             cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
+            firing_plan: stats.plan_summary(),
             processes: facts.processes,
             recorded: facts.recorded,
             faults_done: stats.faults_done.clone(),
@@ -177,11 +185,21 @@ pub(crate) fn render_report(r: &SimReport) -> String {
         "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s, {:.2} cycles/s",
         r.site, r.estimator, r.profile, r.seed, r.duration_s, r.update_rate_hz
     );
+    if let Some(p) = &r.firing_plan {
+        let _ = writeln!(
+            out,
+            "firing plan: {:.1} transmitters per cycle in {:.1} slots of {:.1} ms",
+            p.transmitters_per_cycle, p.slots_per_cycle, p.mean_slot_ms
+        );
+    }
     let _ = writeln!(
         out,
-        "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
+        "{:<6} {:>6} {:>7} {:>8} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
         "robot",
         "fixes",
+        "fixes/s",
+        "signals",
+        "hdop",
         "poses",
         "mean mm",
         "rmse mm",
@@ -193,9 +211,13 @@ pub(crate) fn render_report(r: &SimReport) -> String {
     for x in &r.robots {
         let _ = writeln!(
             out,
-            "{:<6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
+            "{:<6} {:>6} {:>7} {:>8} {:>6} {:>6} {:>8} {:>8} {:>8} {:>12} {:>12} {:>14}",
             x.id,
             x.fixes,
+            x.fixes_per_s.map_or("-".to_string(), |v| format!("{v:.2}")),
+            x.signals_per_fix
+                .map_or("-".to_string(), |v| format!("{v:.1}")),
+            x.fix_hdop.map_or("-".to_string(), |v| format!("{v:.2}")),
             x.poses,
             mm(x.mean_mm),
             mm(x.rmse_mm),

@@ -138,7 +138,7 @@ pub struct NodeArgs {
     /// Site name, the `<site>` of every key.
     #[arg(long, default_value = "lab")]
     pub site_name: String,
-    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); the central
+    /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); the central
     /// unit serves it, the built-in `lab` when omitted. Other nodes take the
     /// site from the central unit.
     #[arg(long)]

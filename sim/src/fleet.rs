@@ -9,6 +9,7 @@
 use std::collections::BTreeMap;
 
 use ickon_central::core::{CentralConfig, Event as CentralEvent};
+use ickon_central::selection::PlanStats;
 use ickon_fusion::estimator;
 use ickon_msu::{Event as MsuEvent, MsuCore, MsuDriver};
 use ickon_proto::msg::control::CycleTrigger;
@@ -57,6 +58,8 @@ pub struct RobotResult {
     pub route: String,
     /// Raw fixes per second after the warm-up.
     pub fixes_per_s: f64,
+    /// Mean number of signals (arrivals) each of those fixes used.
+    pub signals_per_fix: f64,
     /// Mean error of the fused pose against the truth, sampled every 0.1 s after the warm-up, mm.
     pub mean_err_mm: f64,
     /// 95th percentile of the same, mm.
@@ -81,6 +84,13 @@ pub struct FleetOutput {
     pub cycles_per_s: f64,
     /// Mean number of transmitters a trigger named after the warm-up.
     pub mean_firing: f64,
+    /// Mean number of distinct emission times (slots) of those triggers.
+    pub slots_per_cycle: f64,
+    /// Mean length of a slot, ms: the cycle period over its slots.
+    pub mean_slot_ms: f64,
+    /// What the central unit's firing plans chose (the HDOP of each
+    /// robot's transmitters), over the whole run.
+    pub plan: PlanStats,
     /// Transmitters of the schedule.
     pub transmitters: usize,
     /// Every robot's collisions added up.
@@ -97,6 +107,8 @@ struct Member {
     world: World,
     msu: MsuDriver,
     fixes: u64,
+    /// Signals those fixes used, added up.
+    signals_used: u64,
     calibrated_fixes: u64,
     errors_mm: Vec<f64>,
 }
@@ -162,6 +174,7 @@ fn build_members(
             world,
             msu,
             fixes: 0,
+            signals_used: 0,
             calibrated_fixes: 0,
             errors_mm: Vec::new(),
         });
@@ -195,6 +208,10 @@ struct Fleet<'a> {
     counted_cycles: u64,
     /// Transmitters those cycles named, added up.
     firing_sum: u64,
+    /// Their distinct emission times, added up.
+    slot_sum: u64,
+    /// Their periods added up, seconds.
+    period_sum_s: f64,
 }
 
 impl<'a> Fleet<'a> {
@@ -229,6 +246,8 @@ impl<'a> Fleet<'a> {
             emissions: BTreeMap::new(),
             counted_cycles: 0,
             firing_sum: 0,
+            slot_sum: 0,
+            period_sum_s: 0.0,
         }
     }
 
@@ -281,7 +300,13 @@ impl<'a> Fleet<'a> {
                 + self.max_flight_s;
             if trigger.start.as_secs_f64() > self.config.warm_up_s {
                 self.counted_cycles += 1;
-                self.firing_sum += trigger.emissions(schedule).len() as u64;
+                let emissions = trigger.emissions(schedule);
+                self.firing_sum += emissions.len() as u64;
+                let mut offsets: Vec<_> = emissions.iter().map(|e| e.offset).collect();
+                offsets.sort();
+                offsets.dedup();
+                self.slot_sum += offsets.len() as u64;
+                self.period_sum_s += trigger.period(schedule).as_secs_f64();
             }
             self.due
                 .entry((end * 1e9) as i64)
@@ -329,26 +354,31 @@ impl<'a> Fleet<'a> {
             m.msu.feed(MsuEvent::Schedule(schedule.clone()));
             if let Some(fix) = m.msu.feed(MsuEvent::Arrivals(msg)).fix {
                 let calibrated = fix.survey_version != 0;
+                let used = fix.used.len() as u64;
                 self.control.send_to_central(CentralEvent::Fix {
                     robot: m.id.clone(),
                     fix: Box::new(fix),
                 });
                 if scoring {
                     m.fixes += 1;
+                    m.signals_used += used;
                     m.calibrated_fixes += u64::from(calibrated);
                 }
             }
         }
     }
 
-    /// Forgets the oldest triggered cycle if it never fired within a second.
+    /// Forgets the oldest triggered cycle if it never fired within a
+    /// second of its end (a whole schedule may take longer than a second
+    /// on a large open site: counting from its start would drop every one).
     fn forget_stale(&mut self, t: f64) {
-        let stale = self
-            .triggers
-            .keys()
-            .next()
-            .copied()
-            .filter(|&k| self.triggers[&k].start.as_secs_f64() < t - 1.0);
+        let stale = self.triggers.keys().next().copied().filter(|&k| {
+            let trigger = &self.triggers[&k];
+            let end = trigger.start.as_secs_f64()
+                + trigger.period(self.control.schedule_for(k)).as_secs_f64()
+                + self.max_flight_s;
+            end < t - 1.0
+        });
         if let Some(k) = stale {
             self.triggers.remove(&k);
             self.emissions.remove(&k);
@@ -385,14 +415,24 @@ impl<'a> Fleet<'a> {
             .map(|m| m.result(scored_s, &mut total))
             .collect();
         let counted_cycles = self.counted_cycles;
+        let per_cycle = |sum: f64| {
+            if counted_cycles == 0 {
+                0.0
+            } else {
+                sum / counted_cycles as f64
+            }
+        };
         FleetOutput {
             robots,
             cycles_per_s: counted_cycles as f64 / scored_s,
-            mean_firing: if counted_cycles == 0 {
+            mean_firing: per_cycle(self.firing_sum as f64),
+            slots_per_cycle: per_cycle(self.slot_sum as f64),
+            mean_slot_ms: if self.slot_sum == 0 {
                 0.0
             } else {
-                self.firing_sum as f64 / counted_cycles as f64
+                1e3 * self.period_sum_s / self.slot_sum as f64
             },
+            plan: *self.control.central().plan_stats(),
             transmitters: self.control.central().latest_schedule().emissions.len(),
             collisions: total,
             survey_fixes_taken: self
@@ -416,6 +456,11 @@ impl Member {
             id: self.id,
             route: self.route,
             fixes_per_s: self.fixes as f64 / scored_s,
+            signals_per_fix: if self.fixes == 0 {
+                0.0
+            } else {
+                self.signals_used as f64 / self.fixes as f64
+            },
             mean_err_mm: if n == 0 {
                 f64::NAN
             } else {

@@ -7,7 +7,7 @@ use ickon_proto::msg::control::{CycleTrigger, Firing, Schedule};
 use ickon_proto::msg::robot::PoseStatus;
 use ickon_proto::time::{Duration, Time};
 
-use crate::occupancy::{RobotView, firing_plan};
+use crate::occupancy::{RobotView, plan};
 use crate::spacing::SpacingTable;
 
 use super::{CentralCore, Output};
@@ -135,6 +135,7 @@ impl CentralCore {
             .is_none_or(|t| !same_cells(t, &schedule.active_cells))
         {
             self.table = Some(SpacingTable::new(&self.site, &schedule.active_cells));
+            self.history.clear();
         }
         let Some(table) = self.table.as_ref() else {
             return (all(), schedule.cycle_period);
@@ -155,19 +156,29 @@ impl CentralCore {
             .last_trigger
             .as_ref()
             .map_or(schedule.cycle_period, |t| t.period(schedule));
-        let (offsets, period, need) =
-            match firing_plan(table, &views, &self.config.firing, now, guess) {
-                Some((p, need)) => (p.offsets, p.period, Some(need)),
-                None => (
-                    schedule
-                        .emissions
-                        .iter()
-                        .filter_map(|e| Some((table.index_of(e.tx_id)?, e.offset)))
-                        .collect(),
-                    schedule.cycle_period,
-                    None,
-                ),
-            };
+        let planned = plan(
+            table,
+            &views,
+            &self.config.firing,
+            now,
+            guess,
+            &self.history,
+        );
+        if let Some(p) = &planned {
+            self.plan_stats.note(&p.hdops);
+        }
+        let (offsets, period, need) = match planned {
+            Some(p) => (p.packing.offsets, p.packing.period, Some(p.need)),
+            None => (
+                schedule
+                    .emissions
+                    .iter()
+                    .filter_map(|e| Some((table.index_of(e.tx_id)?, e.offset)))
+                    .collect(),
+                schedule.cycle_period,
+                None,
+            ),
+        };
         let spacing = |j: usize, i: usize| match &need {
             Some(n) => n.get(j).and_then(|r| r.get(i)).copied().flatten(),
             None => table.need(j, i),
@@ -192,6 +203,8 @@ impl CentralCore {
                 }
             }
         }
+        self.history
+            .note(offsets.iter().map(|&(i, _)| i), self.next_start);
         let firing = offsets
             .iter()
             .map(|&(i, offset)| Firing {

@@ -4,6 +4,8 @@
 
 use ickon_central::core::{CentralConfig, SchedulePolicy};
 use ickon_central::occupancy::FiringConfig;
+use ickon_central::selection::NeedsConfig;
+use ickon_central::spacing::Reverb;
 use ickon_proto::site::Site;
 use ickon_sim::NoiseProfile;
 use ickon_sim::fleet::{FleetConfig, FleetOutput, run_fleet};
@@ -67,15 +69,26 @@ fn fleet_config<'a>(
         .fire_range_m
         .unwrap_or(FiringConfig::default().fire_range_m);
     let duration = args.duration.unwrap_or(DEFAULT_DURATION_S);
-    let occupancy = match firing {
-        "occupancy" => true,
-        "all" => false,
+    let (occupancy, needs) = match firing {
+        "needs" => (true, true),
+        "occupancy" => (true, false),
+        "all" => (false, false),
         other => {
             return Err(CommandError::bad_input(format!(
-                "unknown firing `{other}` (known: occupancy, all)"
+                "unknown firing `{other}` (known: needs, occupancy, all)"
             )));
         }
     };
+    // The central unit spaces the bursts by the room the world simulates,
+    // as a site's operator configures the reverberation time measured there.
+    let room = &profile.ultrasound.collisions;
+    let reverb = needs.then(|| Reverb {
+        absorption_db_per_m: room.absorption_db_per_m,
+        tail_db: room.reverb_tail_db,
+        decay_db_per_ms: room.reverb_decay_db_per_ms,
+        detection_snr_db: room.detection_snr_db,
+        ..Reverb::default()
+    });
     let estimator = if args.estimator == "all" {
         "tdoa-ekf".to_string()
     } else {
@@ -104,6 +117,8 @@ fn fleet_config<'a>(
             firing: FiringConfig {
                 occupancy,
                 fire_range_m,
+                needs: needs.then(NeedsConfig::default),
+                reverb,
                 ..FiringConfig::default()
             },
             survey,
@@ -128,6 +143,8 @@ fn print_json(site: &Site, config: &FleetConfig, firing: &str, args: &EvalArgs, 
         "profile": config.profile.name,
         "fleet": out,
         "collision_loss_share": out.collisions.lost_share(),
+        "median_robot_mean_err_mm": median(out.robots.iter().map(|r| r.mean_err_mm)),
+        "mean_hdop": out.plan.mean_hdop(),
     });
     println!("{doc}");
 }
@@ -154,23 +171,30 @@ fn print_report(
         args.seed
     );
     println!(
-        "cycles: {:.2}/s, {:.1} of {} transmitters fired per cycle on average",
-        out.cycles_per_s, out.mean_firing, out.transmitters
+        "cycles: {:.2}/s, {:.1} of {} transmitters fired per cycle on average in {:.1} slots of {:.1} ms",
+        out.cycles_per_s, out.mean_firing, out.transmitters, out.slots_per_cycle, out.mean_slot_ms
     );
+    if let Some(mean) = out.plan.mean_hdop() {
+        println!(
+            "firing plan: HDOP of each robot's transmitters {:.2} on average, {:.2} at worst ({} of {} robot-cycles without a fix geometry)",
+            mean, out.plan.hdop_worst, out.plan.no_geometry, out.plan.robots_served
+        );
+    }
     match out.survey_fixes_taken {
         Some(n) => println!("survey calibration: learnt from {n} of the fleet's fixes"),
         None => println!("survey calibration: off"),
     }
     println!(
-        "{:>6} {:>9} {:>8} {:>10} {:>10} {:>9}",
-        "robot", "route", "fixes/s", "mean mm", "p95 mm", "lost %"
+        "{:>6} {:>9} {:>8} {:>8} {:>10} {:>10} {:>9}",
+        "robot", "route", "fixes/s", "signals", "mean mm", "p95 mm", "lost %"
     );
     for r in &out.robots {
         println!(
-            "{:>6} {:>9} {:>8.2} {:>10.1} {:>10.1} {:>9.2}",
+            "{:>6} {:>9} {:>8.2} {:>8.1} {:>10.1} {:>10.1} {:>9.2}",
             r.id,
             r.route,
             r.fixes_per_s,
+            r.signals_per_fix,
             r.mean_err_mm,
             r.p95_err_mm,
             100.0 * r.collisions.lost_share()
@@ -179,13 +203,15 @@ fn print_report(
     let n = out.robots.len().max(1) as f64;
     let c = &out.collisions;
     println!(
-        "mean over robots: {:.2} fixes/s (lowest {:.2}), {:.1} mm; collisions: {} of {} direct detections lost ({:.2} %: {} collided, {} of them misdecoded, {} masked); {} of {} detections of blocked transmitters (reflections only) lost",
+        "mean over robots: {:.2} fixes/s (lowest {:.2}), {:.1} signals per fix, {:.1} mm (median robot {:.1} mm); collisions: {} of {} direct detections lost ({:.2} %: {} collided, {} of them misdecoded, {} masked); {} of {} detections of blocked transmitters (reflections only) lost",
         out.robots.iter().map(|r| r.fixes_per_s).sum::<f64>() / n,
         out.robots
             .iter()
             .map(|r| r.fixes_per_s)
             .fold(f64::INFINITY, f64::min),
+        out.robots.iter().map(|r| r.signals_per_fix).sum::<f64>() / n,
         out.robots.iter().map(|r| r.mean_err_mm).sum::<f64>() / n,
+        median(out.robots.iter().map(|r| r.mean_err_mm)),
         c.lost(),
         c.detected,
         100.0 * c.lost_share(),
@@ -195,4 +221,15 @@ fn print_report(
         c.blocked_lost,
         c.blocked_detected
     );
+}
+
+/// The median of `values` (NaN for none; the mean of the middle two for an even count).
+fn median(values: impl Iterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = values.collect();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }

@@ -25,7 +25,7 @@ use ickon_runtime::CommandError;
 /// Arguments of `ickon eval`.
 #[derive(Debug, Clone, Args)]
 pub struct EvalArgs {
-    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
+    /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); `lab` when omitted.
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Estimator name, or `all`.
@@ -59,11 +59,13 @@ pub struct EvalArgs {
     /// The central unit's schedule: `tight` (from the geometry) or `uniform` (one slot per emission, cells coloured apart; kept to compare).
     #[arg(long, default_value = "tight")]
     pub schedule: String,
-    /// Which transmitters fire in a `--robots` run: `occupancy` (where the
-    /// robots are) or `all` [default: occupancy].
+    /// Which transmitters fire in a `--robots` run: `needs` (what each
+    /// robot needs: a few in good geometry, spaced by the room's
+    /// reverberation), `occupancy` (everything audible where the robots
+    /// are) or `all` [default: occupancy].
     #[arg(long, requires = "robots")]
     pub firing: Option<String>,
-    /// With `--firing occupancy`: a transmitter fires when it is this close
+    /// With `--firing occupancy` or `needs`: a transmitter fires when it is this close
     /// to a robot's uncertainty region, metres.
     /// [default: the central unit's, 8.5]
     #[arg(long, requires = "robots")]

@@ -27,7 +27,7 @@ pub enum BenchCommand {
 /// Arguments of `ickon bench scale`.
 #[derive(Debug, Args)]
 pub struct ScaleArgs {
-    /// A built-in site (`lab`, `warehouse`) or a site file.
+    /// A built-in site (`lab`, `warehouse`, `hall`) or a site file.
     #[arg(long, default_value = "warehouse")]
     pub site: PathBuf,
     /// Fleet sizes, comma-separated: the first N robots of the site each.

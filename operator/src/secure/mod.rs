@@ -93,7 +93,7 @@ impl SecureError {
 /// Arguments of `ickon site secure`.
 #[derive(Debug, Args)]
 pub struct SecureArgs {
-    /// A built-in site (`lab`, `warehouse`) or a site file (TOML); `lab` when omitted.
+    /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); `lab` when omitted.
     pub site: Option<PathBuf>,
     /// A new (or empty) directory to write into.
     #[arg(long)]

@@ -20,6 +20,8 @@ pub mod admin_json;
 mod audibility;
 pub mod core;
 pub mod coverage;
+#[cfg(feature = "zenoh")]
+pub mod foxglove;
 pub mod health;
 #[cfg(feature = "zenoh")]
 pub mod http;

@@ -10,6 +10,8 @@ struct Cli {
 }
 
 fn main() -> std::process::ExitCode {
-    ickon_runtime::init_tracing("info");
+    // The Foxglove SDK logs every client's coming and going and every bad
+    // message a client sends, unbounded: off unless RUST_LOG asks for it.
+    ickon_runtime::init_tracing("info,foxglove=off");
     ickon_central::node::main_with(Cli::parse().args)
 }

@@ -38,6 +38,9 @@ pub struct CentralArgs {
     /// The web map's flags.
     #[command(flatten)]
     pub http: crate::http::HttpArgs,
+    /// The Foxglove live server's flag.
+    #[command(flatten)]
+    pub foxglove: crate::foxglove::FoxgloveArgs,
     /// Start as a hot standby: follow the active central unit and take
     /// over when its liveliness token goes or its triggers stop for two
     /// cycles (see `ickon_central::core::standby`).
@@ -235,6 +238,10 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
         let web = crate::http::WebMap::start(&session, &keys, &site, &args.http)
             .await
             .map_err(|e| NodeError::Setup(e.to_string()))?;
+        let foxglove = crate::foxglove::FoxgloveLive::start(&session, &keys, &site, &args.foxglove)
+            .await
+            .map_err(|e| NodeError::Setup(e.to_string()))?;
+        let viewers = Viewers { web, foxglove };
         let clock = args.node.clock();
         args.node.listen_for_clock_steps(clock)?;
         let r = run(
@@ -242,7 +249,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             site,
             text,
             clock,
-            web.as_ref(),
+            &viewers,
             args.standby,
             config,
             SurveyFile {
@@ -255,6 +262,33 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
         let _ = session.close().await;
         r
     })
+}
+
+/// Whoever watches the central unit's status live: the web map
+/// (`--http`) and the Foxglove server (`--foxglove`), each optional.
+#[derive(Default)]
+pub struct Viewers {
+    /// The web map.
+    pub web: Option<crate::http::WebMap>,
+    /// The Foxglove live server.
+    pub foxglove: Option<crate::foxglove::FoxgloveLive>,
+}
+
+impl Viewers {
+    /// Whether there is any.
+    pub fn any(&self) -> bool {
+        self.web.is_some() || self.foxglove.is_some()
+    }
+
+    /// Hands `status` to each (never waits).
+    pub fn publish(&self, status: ickon_proto::msg::admin::StatusReport) {
+        if let Some(f) = &self.foxglove {
+            f.publish(status.clone());
+        }
+        if let Some(w) = &self.web {
+            w.publish(status);
+        }
+    }
 }
 
 /// Answers a query. A requester that went away is its own problem: the
@@ -279,7 +313,8 @@ const ACTIVE_QUERY_TIMEOUT: std::time::Duration = std::time::Duration::from_mill
 
 /// Serves `site` until `shutdown` completes. `clock` is the master time base
 /// (the system clock, with an injected offset and drift in a simulation);
-/// `web`, when given, is handed the status several times a second. With
+/// `viewers` (the web map, the Foxglove server) are handed the status
+/// several times a second. With
 /// `standby`, or when another central unit is active at its start, it
 /// follows the active central unit until it takes over: until
 /// then it answers no clock or schedule query and holds no `alive/central`
@@ -290,7 +325,7 @@ pub async fn run(
     site: Site,
     site_toml: String,
     clock: SimulatedClock,
-    web: Option<&crate::http::WebMap>,
+    viewers: &Viewers,
     standby: bool,
     config: CentralConfig,
     survey_file: SurveyFile,
@@ -340,8 +375,8 @@ pub async fn run(
                 survey_file.save(&core);
                 continue;
             }
-            _ = web_ticks.tick(), if web.is_some() => {
-                if let Some(w) = web { w.publish(core.status(clock.now())); }
+            _ = web_ticks.tick(), if viewers.any() => {
+                viewers.publish(core.status(clock.now()));
                 continue;
             }
             Ok(q) = ends.site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }

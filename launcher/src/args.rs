@@ -56,6 +56,11 @@ pub struct SimArgs {
     /// File with the token that allows pause, resume and reload over HTTP.
     #[arg(long, value_name = "FILE", requires = "http")]
     pub http_token_file: Option<PathBuf>,
+    /// Serve the run live to the Foxglove app (read-only; docs/foxglove.md)
+    /// from the central unit on ADDR, or the next free port above it (with
+    /// no ADDR: 127.0.0.1:8765); the address is printed.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = ickon_central::foxglove::DEFAULT_ADDR)]
+    pub foxglove: Option<std::net::SocketAddr>,
     /// How the nodes reach each other: through a router, as on a site, or
     /// as a full mesh of peers (the layout before routers, to compare).
     #[arg(long, value_enum, default_value = "router")]

@@ -137,6 +137,22 @@ pub(crate) fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
     ]
 }
 
+/// Adds `--foxglove` of `ickon sim --foxglove` to the central unit's
+/// command; the address it will serve, if any: the one asked for, or the
+/// next free port above it when it is taken (the address is printed).
+pub(crate) fn foxglove_flag(
+    args: &SimArgs,
+    central: &mut Command,
+) -> anyhow::Result<Option<std::net::SocketAddr>> {
+    let Some(wanted) = args.foxglove else {
+        return Ok(None);
+    };
+    let addr = ickon_central::http::first_free_addr(wanted)
+        .ok_or_else(|| anyhow::anyhow!("no free port for the Foxglove server from {wanted}"))?;
+    central.arg("--foxglove").arg(addr.to_string());
+    Ok(Some(addr))
+}
+
 /// Adds the web map's flags of `ickon sim --http` to the central unit's
 /// command; the address it will serve, if any: the one asked for, or the
 /// next free port above it when it is taken (the URL is printed).

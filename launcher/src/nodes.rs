@@ -33,6 +33,8 @@ pub(crate) struct NodeCommands {
     pub msus: Vec<(String, Command)>,
     /// Where the central unit serves the live map, with `--http`.
     pub web: Option<std::net::SocketAddr>,
+    /// Where the central unit serves Foxglove, with `--foxglove`.
+    pub foxglove: Option<std::net::SocketAddr>,
     /// The agents' configuration file, removed when the run is over.
     pub msu_file: tempfile::NamedTempFile,
 }
@@ -69,6 +71,7 @@ impl NodeCommands {
         central.args(&central_flags);
         b.credential(&mut central, Identity::Central);
         let web = launch::http_flags(args, &mut central)?;
+        let foxglove = launch::foxglove_flag(args, &mut central)?;
         b.clock_steps(&mut central, "central");
         let standby = if args.standby {
             // A second central unit that follows the first and takes over.
@@ -99,6 +102,7 @@ impl NodeCommands {
             world,
             msus: agents,
             web,
+            foxglove,
             msu_file,
         })
     }

@@ -189,6 +189,8 @@ struct StartedMesh {
     recorder: Option<(zenoh::Session, SimRecording)>,
     /// The URL of the live map, if one is served.
     web: Option<std::net::SocketAddr>,
+    /// The address of the Foxglove server, if one is served.
+    foxglove: Option<std::net::SocketAddr>,
     /// The agents' configuration file, kept until the run is over.
     _msu_file: tempfile::NamedTempFile,
 }
@@ -273,6 +275,7 @@ async fn start_mesh(
         session,
         recorder,
         web: commands.web,
+        foxglove: commands.foxglove,
         _msu_file: commands.msu_file,
     };
     let spawned = spawn_all(sup, commands.cells)
@@ -429,6 +432,9 @@ async fn observe_run(
     }
     if let Some(addr) = mesh.web {
         eprintln!("ickon sim: live map at http://{addr}/");
+    }
+    if let Some(addr) = mesh.foxglove {
+        eprintln!("ickon sim: Foxglove live server at ws://{addr}");
     }
     if let (Some(s), false) = (security, quiet) {
         eprintln!("ickon sim: {}", s.admin_hint());

@@ -12,7 +12,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use ickon_proto::msg::admin::StatusReport;
 use ickon_proto::msg::control::Burst;
-use ickon_proto::msg::robot::{Fix, RobotPose, Truth};
+use ickon_proto::msg::robot::{Fix, PoseStatus, RobotPose, Truth};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 use serde::Serialize;
@@ -81,6 +81,8 @@ pub struct FixView {
     pub y_m: f64,
     /// Its 2-sigma ellipse, when the covariance is one.
     pub ellipse: Option<Ellipse>,
+    /// Heading from the MSU's receivers, radians, when the fix has one.
+    pub heading_rad: Option<f64>,
     /// Quality flag, as the MSU named it.
     pub quality: String,
     /// Transmitters used.
@@ -99,10 +101,19 @@ pub struct RobotSnapshot {
     pub health: RobotJson,
     /// Its fused pose (from its last `pose` message).
     pub fused: Option<PoseView>,
+    /// The 2-sigma ellipse of the fused pose's position covariance.
+    pub fused_ellipse: Option<Ellipse>,
+    /// One sigma of the fused heading, radians (`None`: not a variance).
+    pub fused_heading_sigma_rad: Option<f64>,
+    /// What the MSU says of its inputs in the last pose (`tracking`,
+    /// `no_fixes`, `no_odometry`, `localising`).
+    pub pose_status: Option<&'static str>,
     /// Its latest raw fix.
     pub fix: Option<FixView>,
     /// The truth (simulation only).
     pub truth: Option<PoseView>,
+    /// The truth at the fused pose's own time (simulation only).
+    pub truth_at_pose: Option<PoseView>,
     /// Distance of the fused pose from the truth at the pose's time, mm.
     pub err_mm: Option<f64>,
     /// Since its last pose arrived, milliseconds (`None`: never).
@@ -325,14 +336,38 @@ fn pose_view(x_m: f64, y_m: f64, theta_rad: f64) -> PoseView {
     }
 }
 
+/// The 2-sigma ellipse of the x/y block of a 3x3 row-major covariance,
+/// rounded for the page.
+fn rounded_ellipse(covariance: &[f64; 9]) -> Option<Ellipse> {
+    Ellipse::two_sigma(covariance[0], covariance[1], covariance[4]).map(|e| Ellipse {
+        a_m: round(e.a_m, 1e4),
+        b_m: round(e.b_m, 1e4),
+        angle_rad: round(e.angle_rad, 1e3),
+    })
+}
+
+/// The name of a pose status, as the snapshot gives it.
+fn pose_status_name(status: PoseStatus) -> &'static str {
+    match status {
+        PoseStatus::Tracking => "tracking",
+        PoseStatus::NoFixes => "no_fixes",
+        PoseStatus::NoOdometry => "no_odometry",
+        PoseStatus::Localising => "localising",
+    }
+}
+
 fn robot_snapshot(health: RobotJson, state: Option<&RobotState>, now: Time) -> RobotSnapshot {
     let ms = |t: Time| round(now.since(t).as_secs_f64() * 1e3, 1.0);
     let Some(r) = state else {
         return RobotSnapshot {
             health,
             fused: None,
+            fused_ellipse: None,
+            fused_heading_sigma_rad: None,
+            pose_status: None,
             fix: None,
             truth: None,
+            truth_at_pose: None,
             err_mm: None,
             staleness_ms: None,
             trail: Vec::new(),
@@ -342,16 +377,21 @@ fn robot_snapshot(health: RobotJson, state: Option<&RobotState>, now: Time) -> R
         .pose
         .as_ref()
         .map(|(p, _)| pose_view(p.x_m, p.y_m, p.theta_rad));
+    let fused_ellipse = r
+        .pose
+        .as_ref()
+        .and_then(|(p, _)| rounded_ellipse(&p.covariance));
+    let fused_heading_sigma_rad = r.pose.as_ref().and_then(|(p, _)| {
+        let var = p.covariance[8];
+        (var.is_finite() && var >= 0.0).then(|| round(var.sqrt(), 1e5))
+    });
+    let pose_status = r.pose.as_ref().map(|(p, _)| pose_status_name(p.status));
     let fix = r.fix.as_ref().map(|(f, at)| FixView {
         x_m: round(f.x_m, 1e3),
         y_m: round(f.y_m, 1e3),
-        ellipse: Ellipse::two_sigma(f.covariance[0], f.covariance[1], f.covariance[4]).map(|e| {
-            Ellipse {
-                a_m: round(e.a_m, 1e4),
-                b_m: round(e.b_m, 1e4),
-                angle_rad: round(e.angle_rad, 1e3),
-            }
-        }),
+        ellipse: rounded_ellipse(&f.covariance),
+        heading_rad: (f.heading_valid && f.heading_rad.is_finite())
+            .then(|| round(f.heading_rad, 1e3)),
         quality: format!("{:?}", f.quality).to_lowercase(),
         used: f.used.len(),
         rejected: f.rejected.len(),
@@ -363,17 +403,22 @@ fn robot_snapshot(health: RobotJson, state: Option<&RobotState>, now: Time) -> R
         .map(|t| pose_view(t.x_m, t.y_m, t.theta_rad));
     // The truth at the pose's own time (both on the robot's clock), so that
     // a pose that is a few ms old is not charged for the motion since.
-    let err_mm = r.pose.as_ref().and_then(|(p, _)| {
+    let matched = r.pose.as_ref().and_then(|(p, _)| {
         let gap = |t: &Truth| t.robot_clock.as_nanos().abs_diff(p.stamp.as_nanos());
         let t = r.truths.iter().min_by_key(|t| gap(t))?;
-        (gap(t) <= TRUTH_MATCH.as_nanos().unsigned_abs())
-            .then(|| round((p.x_m - t.x_m).hypot(p.y_m - t.y_m) * 1e3, 10.0))
+        (gap(t) <= TRUTH_MATCH.as_nanos().unsigned_abs()).then_some((p, t))
     });
+    let err_mm = matched.map(|(p, t)| round((p.x_m - t.x_m).hypot(p.y_m - t.y_m) * 1e3, 10.0));
+    let truth_at_pose = matched.map(|(_, t)| pose_view(t.x_m, t.y_m, t.theta_rad));
     RobotSnapshot {
         health,
         fused,
+        fused_ellipse,
+        fused_heading_sigma_rad,
+        pose_status,
         fix,
         truth,
+        truth_at_pose,
         err_mm,
         staleness_ms: r.pose.as_ref().map(|(_, at)| ms(*at)),
         trail: r

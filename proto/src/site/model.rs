@@ -267,10 +267,10 @@ pub fn line_of_sight(walls: &[Wall], columns: &[Column], a: [f64; 3], b: [f64; 3
     let (pa, pb) = ([a[0], a[1]], [b[0], b[1]]);
     let height_at = |t: f64| a[2] + t * (b[2] - a[2]);
     for w in walls {
-        if let Some(t) = geometry::segment_crossing(pa, pb, w.from, w.to) {
-            if height_at(t) < w.height_m {
-                return false;
-            }
+        if let Some(t) = geometry::segment_crossing(pa, pb, w.from, w.to)
+            && height_at(t) < w.height_m
+        {
+            return false;
         }
     }
     for c in columns {
@@ -278,10 +278,9 @@ pub fn line_of_sight(walls: &[Wall], columns: &[Column], a: [f64; 3], b: [f64; 3
         for i in 0..n {
             if let Some(t) =
                 geometry::segment_crossing(pa, pb, c.polygon[i], c.polygon[(i + 1) % n])
+                && height_at(t) < c.height_m
             {
-                if height_at(t) < c.height_m {
-                    return false;
-                }
+                return false;
             }
         }
     }

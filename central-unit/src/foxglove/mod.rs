@@ -1,0 +1,322 @@
+//! The Foxglove live server of the central unit (`--foxglove [ADDR]`): the
+//! site, the fleet and every fix, live in the Foxglove app's standard
+//! panels, over Foxglove's WebSocket protocol (`foxglove.websocket.v1`,
+//! served by Foxglove's own SDK) with Foxglove's own schemas.
+//!
+//! It is fed as the web map is: its own Zenoh subscribers fill a
+//! [`LiveView`] ([`crate::http::feed::Feed`]) and the central unit's loop
+//! hands it the status ([`FoxgloveLive::publish`], a non-blocking
+//! replace); a ticker turns both into messages [`TICK_PERIOD`] apart. The
+//! topics are listed in [`topics`] and in `docs/foxglove.md`.
+//!
+//! Read-only: the server advertises no capability (no client publishing,
+//! no parameters, no services), so a client can subscribe to what is
+//! listed and do nothing else. It binds to loopback unless told otherwise.
+
+pub mod layout;
+pub mod plots;
+pub mod scene;
+pub mod site_log;
+pub mod topics;
+
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use clap::Args;
+use foxglove::messages::{FrameTransform, FrameTransforms, Timestamp, Vector3};
+use foxglove::{Channel, Context, RawChannel, WebSocketServerHandle};
+use ickon_proto::keys::Keys;
+use ickon_proto::msg::admin::StatusReport;
+use ickon_proto::site::Site;
+use tokio::sync::watch;
+use tokio::task::JoinHandle;
+use zenoh::Session;
+
+use crate::http::feed::{Feed, SharedView, Stopwatch};
+use crate::http::view::{LiveView, Snapshot};
+use topics::{CellChannels, RobotChannels};
+
+/// The address `--foxglove` binds with no value: loopback, Foxglove's
+/// usual port.
+pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
+
+/// How often the fleet, the cells and the plots are sent: 10 Hz, the rate
+/// a site's poses come at, so a pose is rarely held back more than one tick.
+pub const TICK_PERIOD: Duration = Duration::from_millis(100);
+
+/// The site's fixed scene is sent again every this many ticks (1 s), for
+/// clients that join later: a scene entity stays until it is replaced.
+const SITE_SCENE_EVERY_TICKS: u64 = 10;
+
+/// The Foxglove flag of the central unit.
+#[derive(Debug, Clone, Default, Args)]
+pub struct FoxgloveArgs {
+    /// Serve the site, the fleet and every fix live to the Foxglove app on
+    /// ADDR (with no ADDR: 127.0.0.1:8765), read-only and without
+    /// authentication: whoever reaches the port sees them (docs/foxglove.md).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_ADDR)]
+    pub foxglove: Option<SocketAddr>,
+}
+
+/// Why the Foxglove server could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum FoxgloveError {
+    /// The server could not start on the address.
+    #[error("cannot serve Foxglove on {addr}: {reason}")]
+    Start {
+        /// The address.
+        addr: SocketAddr,
+        /// Why.
+        reason: String,
+    },
+    /// Zenoh refused a subscriber.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+}
+
+/// The running Foxglove server. Dropping it stops the server and the feed.
+pub struct FoxgloveLive {
+    addr: SocketAddr,
+    status: watch::Sender<Option<StatusReport>>,
+    server: Option<WebSocketServerHandle>,
+    ticker: JoinHandle<()>,
+    _feed: Feed,
+}
+
+impl FoxgloveLive {
+    /// Starts serving `site` as `args` say (`None` when `--foxglove` is absent).
+    pub async fn start(
+        session: &Session,
+        keys: &Keys,
+        site: &Site,
+        args: &FoxgloveArgs,
+    ) -> Result<Option<Self>, FoxgloveError> {
+        let Some(wanted) = args.foxglove else {
+            return Ok(None);
+        };
+        let context = Context::new();
+        let channels = Channels::new(&context, site);
+        let server = context
+            .websocket_server()
+            .name(format!("ickon-central {}", site.name))
+            .bind(wanted.ip().to_string(), wanted.port())
+            .start()
+            .await
+            .map_err(|e| FoxgloveError::Start {
+                addr: wanted,
+                reason: e.to_string(),
+            })?;
+        let addr = SocketAddr::new(wanted.ip(), server.port());
+        let clock = Stopwatch::start();
+        let view = SharedView::new(LiveView::new(site));
+        let feed = Feed::start(session, keys, &view, clock)
+            .await
+            .map_err(|e| FoxgloveError::Zenoh(e.to_string()))?;
+        let (status_tx, status_rx) = watch::channel(None);
+        let ticker = tokio::spawn(tick(
+            Ticker {
+                context,
+                site: site.clone(),
+                channels,
+                log: site_log::SiteLog::default(),
+            },
+            view,
+            status_rx,
+            clock,
+        ));
+        tracing::info!("Foxglove live server at ws://{addr} (read-only)");
+        Ok(Some(Self {
+            addr,
+            status: status_tx,
+            server: Some(server),
+            ticker,
+            _feed: feed,
+        }))
+    }
+
+    /// The address being served.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Hands the central unit's latest status to the server (never waits).
+    pub fn publish(&self, status: StatusReport) {
+        self.status.send_replace(Some(status));
+    }
+}
+
+impl Drop for FoxgloveLive {
+    fn drop(&mut self) {
+        self.ticker.abort();
+        if let Some(server) = self.server.take() {
+            // The shutdown goes on in the server's own tasks.
+            drop(server.stop());
+        }
+    }
+}
+
+/// The channels of the whole site, and those made for each robot and cell.
+struct Channels {
+    site_scene: Channel<foxglove::messages::SceneUpdate>,
+    cells_scene: Channel<foxglove::messages::SceneUpdate>,
+    robots_scene: Channel<foxglove::messages::SceneUpdate>,
+    tf: Channel<FrameTransforms>,
+    log: Channel<foxglove::messages::Log>,
+    status: Arc<RawChannel>,
+    robots: BTreeMap<String, RobotChannels>,
+    cells: BTreeMap<String, CellChannels>,
+}
+
+impl Channels {
+    /// Every channel of `site`, advertised at once so that a client sees
+    /// the whole list when it connects.
+    fn new(context: &Arc<Context>, site: &Site) -> Self {
+        let mut channels = Self {
+            site_scene: context.channel_builder(topics::SITE_SCENE).build(),
+            cells_scene: context.channel_builder(topics::CELLS_SCENE).build(),
+            robots_scene: context.channel_builder(topics::ROBOTS_SCENE).build(),
+            tf: context.channel_builder(topics::TF).build(),
+            log: context.channel_builder(topics::LOG).build(),
+            status: plots::status_channel(context),
+            robots: BTreeMap::new(),
+            cells: BTreeMap::new(),
+        };
+        for r in &site.robots {
+            channels.robot(context, &r.id);
+        }
+        for c in &site.cells {
+            channels.cell(context, &c.id);
+        }
+        channels
+    }
+
+    fn robot(&mut self, context: &Arc<Context>, id: &str) -> &RobotChannels {
+        self.robots
+            .entry(id.to_string())
+            .or_insert_with(|| RobotChannels::new(context, id))
+    }
+
+    fn cell(&mut self, context: &Arc<Context>, id: &str) -> &CellChannels {
+        self.cells
+            .entry(id.to_string())
+            .or_insert_with(|| CellChannels::new(context, id))
+    }
+}
+
+/// What the ticker owns.
+struct Ticker {
+    context: Arc<Context>,
+    site: Site,
+    channels: Channels,
+    log: site_log::SiteLog,
+}
+
+impl Ticker {
+    /// Sends everything one snapshot shows.
+    fn send(&mut self, snapshot: &Snapshot, tick: u64) {
+        let stamp = Timestamp::now();
+        if tick.is_multiple_of(SITE_SCENE_EVERY_TICKS) {
+            // Routes only in a simulation: there they are what the robots drive.
+            let simulated = snapshot.robots.iter().any(|r| r.truth.is_some());
+            let scene = scene::site_scene(&self.site, simulated, stamp);
+            self.channels.site_scene.log(&scene);
+        }
+        self.channels
+            .cells_scene
+            .log(&scene::cells_scene(&self.site, snapshot, stamp));
+        self.channels
+            .robots_scene
+            .log(&scene::robots_scene(snapshot, stamp));
+        let transforms = snapshot
+            .robots
+            .iter()
+            .filter_map(|r| {
+                let p = r.fused.as_ref()?;
+                Some(FrameTransform {
+                    timestamp: Some(stamp),
+                    parent_frame_id: scene::MAP_FRAME.into(),
+                    child_frame_id: r.health.id.clone(),
+                    translation: Some(Vector3 {
+                        x: p.x_m,
+                        y: p.y_m,
+                        z: 0.0,
+                    }),
+                    rotation: Some(scene::yaw_quaternion(p.theta_rad)),
+                })
+            })
+            .collect();
+        self.channels.tf.log(&FrameTransforms { transforms });
+        plots::log_status(&self.channels.status, snapshot);
+        let period = scene::cycle_period_ms(snapshot.update_rate_hz);
+        for r in &snapshot.robots {
+            self.channels
+                .robot(&self.context, &r.health.id)
+                .send(r, stamp);
+        }
+        for c in &snapshot.cells {
+            self.channels
+                .cell(&self.context, &c.health.id)
+                .send(c, period);
+        }
+        for entry in self.log.update(snapshot, stamp) {
+            self.channels.log.log(&entry);
+        }
+    }
+}
+
+/// Makes and sends a snapshot every [`TICK_PERIOD`] until the status
+/// channel closes.
+async fn tick(
+    mut ticker: Ticker,
+    view: SharedView,
+    mut status: watch::Receiver<Option<StatusReport>>,
+    clock: Stopwatch,
+) {
+    let mut ticks = tokio::time::interval(TICK_PERIOD);
+    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut count = 0u64;
+    loop {
+        ticks.tick().await;
+        if status.has_changed().is_err() {
+            return;
+        }
+        let Some(report) = status.borrow_and_update().clone() else {
+            continue;
+        };
+        let snapshot = view.lock().snapshot(&report, clock.now(), 0, 0);
+        ticker.send(&snapshot, count);
+        count = count.wrapping_add(1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: FoxgloveArgs,
+    }
+
+    fn parse(argv: &[&str]) -> Result<Option<SocketAddr>, clap::Error> {
+        Cli::try_parse_from(std::iter::once("central").chain(argv.iter().copied()))
+            .map(|c| c.args.foxglove)
+    }
+
+    #[test]
+    fn the_server_binds_to_loopback_unless_an_address_is_given() {
+        assert_eq!(parse(&[]).unwrap(), None);
+        let default = parse(&["--foxglove"]).unwrap().unwrap();
+        assert!(default.ip().is_loopback(), "{default}");
+        assert_eq!(default.port(), 8765);
+        assert_eq!(
+            parse(&["--foxglove", "0.0.0.0:9000"]).unwrap(),
+            Some("0.0.0.0:9000".parse().unwrap())
+        );
+        assert!(parse(&["--foxglove", "not-an-address"]).is_err());
+    }
+}

@@ -98,6 +98,7 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             mesh: args.mesh,
             http: None,
             http_token_file: None,
+            foxglove: None,
             record: None,
             ros2: false,
             secure: args.secure.then_some(None),

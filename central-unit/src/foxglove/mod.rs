@@ -1,7 +1,8 @@
 //! The Foxglove live server of the central unit (`--foxglove [ADDR]`): the
 //! site, the fleet and every fix, live in the Foxglove app's standard
-//! panels, over Foxglove's WebSocket protocol (`foxglove.websocket.v1`,
-//! served by Foxglove's own SDK) with Foxglove's own schemas.
+//! panels, over Foxglove's WebSocket protocol (subprotocol
+//! `foxglove.sdk.v1`, served by Foxglove's own SDK) with Foxglove's own
+//! schemas.
 //!
 //! It is fed as the web map is: its own Zenoh subscribers fill a
 //! [`LiveView`] ([`crate::http::feed::Feed`]) and the central unit's loop

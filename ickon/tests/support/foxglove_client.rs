@@ -1,5 +1,5 @@
 //! A small client of Foxglove's published WebSocket protocol
-//! (`foxglove.websocket.v1`), written on `tungstenite` alone so that it
+//! (subprotocol `foxglove.sdk.v1`), written on `tungstenite` alone so that it
 //! shares no code with the server it tests: it reads the advertised
 //! channels, subscribes by topic and splits the binary message frames
 //! (opcode 1: subscription id u32 LE, log time u64 LE, payload).
@@ -14,7 +14,7 @@ use tungstenite::client::IntoClientRequest;
 use tungstenite::{Message, WebSocket};
 
 /// The subprotocol the client asks for.
-pub const SUBPROTOCOL: &str = "foxglove.websocket.v1";
+pub const SUBPROTOCOL: &str = "foxglove.sdk.v1";
 
 /// One advertised channel.
 #[derive(Debug, Clone)]

@@ -166,10 +166,23 @@ impl BoardClock {
 
     fn refit(&self) -> Option<Fit> {
         let mut quick: Vec<&ClockExchange> = self.exchanges.iter().collect();
-        quick.sort_by(|a, b| a.delay_ns().total_cmp(&b.delay_ns()));
+        // Quickest first; of equally quick ones, the newest.
+        quick.sort_by(|a, b| {
+            a.delay_ns()
+                .total_cmp(&b.delay_ns())
+                .then(b.t1_host_ns.cmp(&a.t1_host_ns))
+        });
         quick.truncate(quick.len().div_ceil(2));
-        let best = *quick.first()?;
-        let bound_ns = best.delay_ns() / 2.0;
+        let quickest = *quick.first()?;
+        let bound_ns = quickest.delay_ns() / 2.0;
+        // Without a drift, the newest of the exchanges nearly as quick as
+        // the quickest: an old offset is wrong by the drift times its age.
+        let best = quick
+            .iter()
+            .filter(|x| x.delay_ns() <= quickest.delay_ns() * 1.5 + 10_000.0)
+            .max_by_key(|x| x.t1_host_ns)
+            .copied()
+            .unwrap_or(quickest);
         let mid = |x: &ClockExchange| x.t1_host_ns / 2 + x.t4_host_ns / 2;
         let (first, last) = quick
             .iter()

@@ -96,6 +96,10 @@ pub fn cobs_encode(raw: &[u8]) -> Vec<u8> {
 
 /// Decodes one COBS-encoded frame (without its delimiter).
 pub fn cobs_decode(encoded: &[u8]) -> Result<Vec<u8>, FrameError> {
+    if encoded.is_empty() {
+        // Even an empty input encodes to one code byte.
+        return Err(FrameError::BadEncoding);
+    }
     let mut out = Vec::with_capacity(encoded.len());
     let mut i = 0;
     while i < encoded.len() {

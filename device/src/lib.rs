@@ -9,18 +9,22 @@
 //! - [`message`]: the messages of both boards and their bodies;
 //! - [`stream`]: a [`Decoder`] from bytes to messages that counts what it
 //!   refuses, and an [`Encoder`] that numbers and frames;
-//! - [`clock`]: the board's clock against the host's, from clock exchanges.
+//! - [`clock`]: the board's clock against the host's, from clock exchanges;
+//! - [`host`]: the host's side of a link as a state machine ([`BoardHost`]):
+//!   handshake, clock exchanges, armed bursts, arrival groups, health.
 //!
 //! Nothing here does I/O or reads a clock: the links and the nodes that use
 //! them sit at the edge (`ickon_runtime::link`).
 
 pub mod clock;
 pub mod frame;
+pub mod host;
 pub mod message;
 pub mod stream;
 
 pub use clock::{BoardClock, ClockExchange};
 pub use frame::{FrameError, FrameReader, encode_frame};
+pub use host::{BoardHost, DeviceReport, HostArrival, HostEvent, HostState};
 pub use message::{
     BoardArrival, BoardKind, Identify, Message, MessageError, RefusedReason, VERSION,
 };

@@ -103,6 +103,11 @@ impl Encoder {
         Self::default()
     }
 
+    /// The sequence number the next frame will carry.
+    pub fn next_seq(&self) -> u8 {
+        self.seq
+    }
+
     /// The wire bytes of `message`, numbered with the next sequence number.
     pub fn frame(&mut self, message: &Message) -> Vec<u8> {
         let bytes = encode_frame(&message.encode(self.seq));

@@ -9,6 +9,8 @@
 //! of `ickon-sim` drive the same core.
 
 pub mod assembly;
+#[cfg(feature = "zenoh")]
+pub mod board_receivers;
 mod config;
 pub mod config_file;
 pub mod control_timing;

@@ -1,6 +1,6 @@
 //! What sits between the cell's timer and its transmitters. The driver is
-//! chosen when the cell starts (`--driver`); the simulation's stands in for
-//! the hardware today, and a hardware driver implements the same trait.
+//! chosen when the cell starts (`--driver`): the simulation's, or a
+//! transmitter board over a serial line or TCP (`crate::device`).
 
 use ickon_proto::msg::control::Burst;
 
@@ -21,9 +21,10 @@ pub enum DriverError {
 pub trait TransmitterDriver: Send {
     /// Programs transmitter `burst.tx_id` to fire at local time `burst.local`
     /// (a little ahead: the hardware keeps the time; `master` is when it was
-    /// scheduled on the master time base), and returns the emission report
-    /// to publish on `cell/<id>/burst`.
-    fn program(&mut self, burst: &PlannedBurst) -> Result<Burst, DriverError>;
+    /// scheduled on the master time base). Returns the emission report to
+    /// publish on `cell/<id>/burst` when it is known at once, or `None` when
+    /// the hardware reports the firing later (a board's `Fired`).
+    fn program(&mut self, burst: &PlannedBurst) -> Result<Option<Burst>, DriverError>;
 }
 
 /// The simulation's transmitters: a burst is emitted exactly when the cell's
@@ -50,14 +51,14 @@ impl<F> TransmitterDriver for SimulatedDriver<F>
 where
     F: Fn(ickon_proto::time::Time) -> ickon_proto::time::Time + Send,
 {
-    fn program(&mut self, b: &PlannedBurst) -> Result<Burst, DriverError> {
-        Ok(Burst {
+    fn program(&mut self, b: &PlannedBurst) -> Result<Option<Burst>, DriverError> {
+        Ok(Some(Burst {
             cell_id: self.cell_id.clone(),
             tx_id: b.tx_id,
             cycle: b.cycle,
             scheduled: b.master,
             actual: (self.true_time)(b.local),
             epoch: b.epoch,
-        })
+        }))
     }
 }

@@ -5,9 +5,12 @@
 //! transmitters at `cycle start + offset` on the master time base
 //! ([`timer`]), taking only the triggers [`trigger_gate`] admits. [`core`] is the whole controller as a sans-IO state
 //! machine; the Zenoh node (feature `zenoh`) and the virtual-time engine
-//! drive it, and [`driver`] reaches the transmitters.
+//! drive it, and [`driver`] reaches the transmitters (the simulated ones, or
+//! a transmitter board of the device protocol: `device`, feature `zenoh`).
 
 pub mod core;
+#[cfg(feature = "zenoh")]
+pub mod device;
 pub mod driver;
 #[cfg(test)]
 mod fixtures;

@@ -9,7 +9,7 @@ use std::future::Future;
 use std::process::ExitCode;
 use std::time::Duration as StdDuration;
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::control::{ClockReply, ClockRequest, CycleTrigger, Schedule};
 use ickon_proto::{decode, encode};
@@ -23,16 +23,42 @@ use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SampleKind;
 
 use crate::core::{CellConfig, CellCore, Event, Output};
+use crate::device::BoardTransmitters;
 use crate::driver::{SimulatedDriver, TransmitterDriver};
 use crate::sync::ClockSample;
+use ickon_runtime::link::LinkAddress;
 
 /// Which transmitter driver the cell uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub enum DriverKind {
     /// The simulated transmitters of `ickon sim` (bursts reported at their
     /// true emission time, for the simulated world to hear).
     #[default]
     Sim,
+    /// A transmitter board of the device protocol at this address.
+    Board(LinkAddress),
+}
+
+impl std::str::FromStr for DriverKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "sim" {
+            return Ok(DriverKind::Sim);
+        }
+        s.parse()
+            .map(DriverKind::Board)
+            .map_err(|e| format!("{e} (or `sim`)"))
+    }
+}
+
+impl std::fmt::Display for DriverKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DriverKind::Sim => f.write_str("sim"),
+            DriverKind::Board(a) => a.fmt(f),
+        }
+    }
 }
 
 /// Arguments of `ickon-cell` (and `ickon node cell`).
@@ -44,8 +70,10 @@ pub struct CellArgs {
     /// The cell this controller drives.
     #[arg(long)]
     pub cell: String,
-    /// The transmitter driver.
-    #[arg(long, value_enum, default_value_t = DriverKind::Sim)]
+    /// The transmitter driver: `sim` (the simulated transmitters), or a
+    /// transmitter board of the ICKON device protocol at `serial:PATH[@BAUD]`
+    /// (115200 baud when not given) or `tcp:HOST:PORT`.
+    #[arg(long, default_value_t = DriverKind::Sim, value_name = "sim|serial:PATH[@BAUD]|tcp:HOST:PORT")]
     pub driver: DriverKind,
 }
 
@@ -68,12 +96,41 @@ pub fn main_with(args: CellArgs) -> ExitCode {
     })
 }
 
-/// The driver `kind` for `cell` on `clock`.
-fn driver(kind: DriverKind, cell: &str, clock: SimulatedClock) -> Box<dyn TransmitterDriver> {
-    match kind {
-        DriverKind::Sim => Box::new(SimulatedDriver::new(cell, move |local| {
-            clock.true_time(local)
-        })),
+/// The cell's transmitters: simulated, or a board (whose reports come
+/// through [`BoardTransmitters::next`]).
+enum Transmitters {
+    Sim(Box<dyn TransmitterDriver>),
+    Board(Box<BoardTransmitters>),
+}
+
+impl Transmitters {
+    /// The driver `kind` for `cell` on `clock`.
+    fn open(kind: &DriverKind, cell: &str, clock: SimulatedClock) -> Self {
+        match kind {
+            DriverKind::Sim => Self::Sim(Box::new(SimulatedDriver::new(cell, move |local| {
+                clock.true_time(local)
+            }))),
+            DriverKind::Board(address) => Self::Board(Box::new(BoardTransmitters::open(
+                cell,
+                address.clone(),
+                clock,
+            ))),
+        }
+    }
+
+    fn driver(&mut self) -> &mut dyn TransmitterDriver {
+        match self {
+            Self::Sim(d) => d.as_mut(),
+            Self::Board(b) => b.as_mut(),
+        }
+    }
+
+    /// The board's next emission reports; never, for simulated transmitters.
+    async fn reports(&mut self) -> Vec<ickon_proto::msg::control::Burst> {
+        match self {
+            Self::Sim(_) => std::future::pending().await,
+            Self::Board(b) => b.next().await,
+        }
     }
 }
 
@@ -132,7 +189,7 @@ pub async fn run(
     let cell = args.cell.as_str();
     let clock = args.node.clock();
     args.node.listen_for_clock_steps(clock)?;
-    let driver = driver(args.driver, cell, clock);
+    let driver = Transmitters::open(&args.driver, cell, clock);
     let mut core = CellCore::new(cell, CellConfig::default(), clock.now());
     let triggers = session
         .declare_subscriber(keys.central_cycle())
@@ -175,7 +232,7 @@ pub async fn run(
         .await
         .map_err(zerr)?;
     tracing::info!(
-        "cell {cell}: up, driver {:?}, clock offset {} us, drift {} ppm",
+        "cell {cell}: up, driver {}, clock offset {} us, drift {} ppm",
         args.driver,
         args.node.clock_offset_us,
         args.node.clock_drift_ppm
@@ -202,6 +259,12 @@ pub async fn run(
             }
             _ = tokio::time::sleep(wake) => Event::Tick,
             Some(ev) = replies.recv() => ev,
+            reports = outlets.driver.reports() => {
+                for report in reports {
+                    outlets.publish_burst(&report).await;
+                }
+                continue;
+            }
             Ok(s) = central_alive.recv_async() => Event::CentralAlive(s.kind() != SampleKind::Delete),
             Ok(s) = schedules.recv_async() => match decode::<Schedule>(&s.payload().to_bytes()) {
                 Ok(schedule) => Event::Schedule(schedule),
@@ -239,7 +302,7 @@ struct Outlets<'a> {
     keys: &'a Keys,
     cell: &'a str,
     clock: SimulatedClock,
-    driver: Box<dyn TransmitterDriver>,
+    driver: Transmitters,
     burst_pub: Publisher<'static>,
     status_pub: Publisher<'static>,
     replies_tx: mpsc::UnboundedSender<Event>,
@@ -247,18 +310,22 @@ struct Outlets<'a> {
 }
 
 impl Outlets<'_> {
+    /// Publishes an emission report.
+    async fn publish_burst(&mut self, report: &ickon_proto::msg::control::Burst) {
+        if !put_counted(&self.burst_pub, report).await {
+            self.failures.puts += 1;
+        }
+    }
+
     /// Carries out one output of `core`: programs a burst and publishes its
     /// report, publishes a status, or starts a clock exchange or a schedule
     /// query.
     async fn carry_out(&mut self, output: Output, core: &CellCore) {
         let cell = self.cell;
         match output {
-            Output::Fire(b) => match self.driver.program(&b) {
-                Ok(report) => {
-                    if !put_counted(&self.burst_pub, &report).await {
-                        self.failures.puts += 1;
-                    }
-                }
+            Output::Fire(b) => match self.driver.driver().program(&b) {
+                Ok(Some(report)) => self.publish_burst(&report).await,
+                Ok(None) => {}
                 Err(e) => {
                     self.failures.driver += 1;
                     tracing::warn!("cell {cell}: tx {} not programmed: {e}", b.tx_id);

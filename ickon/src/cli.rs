@@ -7,9 +7,10 @@ use clap::{Parser, Subcommand};
 
 use ickon_evaluation::{EvalArgs, PlazaArgs, UtilArgs};
 use ickon_launcher::{BenchCommand, SimArgs};
-use ickon_operator::{AdminCommand, RouterArgs, SecureArgs};
+use ickon_operator::{AdminCommand, DeviceCheckArgs, RouterArgs, SecureArgs};
 use ickon_recording::{McapArgs, RecordArgs};
 use ickon_runtime::CommandError;
+use ickon_sim::emulate::EmulateCommand;
 
 use crate::node;
 
@@ -55,6 +56,18 @@ pub enum Command {
     },
     /// Run a Zenoh router: the hub of a floor, every node its client.
     Router(RouterArgs),
+    /// Work with boards of the ICKON device protocol (transmitter and receiver boards).
+    Device {
+        /// What to do with the board.
+        #[command(subcommand)]
+        action: DeviceAction,
+    },
+    /// Emulate a board of the ICKON device protocol on a pseudo-terminal or a TCP port.
+    Emulate {
+        /// Which board.
+        #[command(subcommand)]
+        board: EmulateCommand,
+    },
     /// Run one node of the mesh (used by `ickon sim`; the standalone binaries
     /// do the same for deployment).
     #[command(hide = true)]
@@ -102,6 +115,15 @@ pub enum ReplaySource {
     Mcap(McapArgs),
 }
 
+/// Actions on device boards.
+#[derive(Debug, Subcommand)]
+pub enum DeviceAction {
+    /// Try a board as a cell or an MSU would (handshake, clock exchanges,
+    /// bursts or arrivals) and print what it did; exit code 1 when it did
+    /// not do everything asked.
+    Check(DeviceCheckArgs),
+}
+
 /// Actions on MSU configuration files.
 #[derive(Debug, Subcommand)]
 pub enum MsuAction {
@@ -136,6 +158,10 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Sim(args) => ickon_launcher::run_sim(args),
         Command::Eval(args) => ickon_evaluation::run_eval(args),
         Command::Router(args) => ickon_operator::run_router(args),
+        Command::Device {
+            action: DeviceAction::Check(args),
+        } => ickon_operator::check_device(&args),
+        Command::Emulate { board } => ickon_sim::emulate::run_emulate(board),
         Command::Bench { command } => ickon_launcher::run_bench(command),
         Command::Admin { command } => ickon_operator::run_admin(command),
     };

@@ -677,7 +677,7 @@ mod tests {
             used,
             rejected: Vec::new(),
             residuals_m: Vec::new(),
-            quality: Default::default(),
+            quality: ickon_proto::msg::robot::FixQuality::Good,
             survey_version: 0,
         };
         let square = stats.fix_hdop(&fix(vec![1, 2, 3, 4])).unwrap();

@@ -10,6 +10,8 @@
 
 pub mod assembly;
 pub mod beacons;
+#[cfg(feature = "zenoh")]
+pub mod board_receivers;
 mod config;
 pub mod config_file;
 pub mod control_timing;

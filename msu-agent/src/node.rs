@@ -44,6 +44,8 @@ pub struct MsuSettings {
     pub tuning: MsuTuning,
     /// Where the arrivals come from.
     pub receivers: ReceiverKind,
+    /// The agent's clock (the time base of a receiver board's arrivals).
+    pub clock: ickon_runtime::SimulatedClock,
     /// The ROS 2 side, when enabled (validated).
     pub ros2: Option<Ros2Plan>,
 }
@@ -174,8 +176,14 @@ pub async fn run(
         tracing::warn!("robot {robot}: the central unit's schedule refused: {e}");
     }
 
-    let _robot_inputs =
-        RobotInputs::declare(session, &keys, robot, settings.receivers, &queue).await?;
+    let _robot_inputs = RobotInputs::declare(
+        session,
+        &keys,
+        robot,
+        (settings.receivers.clone(), settings.clock),
+        &queue,
+    )
+    .await?;
     drop(queue);
     let publishers = Publishers::declare(session, &keys, robot).await?;
     let ros = match settings.ros2.clone() {
@@ -296,13 +304,13 @@ impl RobotInputs {
         session: &Session,
         keys: &Keys,
         robot: &str,
-        receivers: ReceiverKind,
+        (receivers, clock): (ReceiverKind, ickon_runtime::SimulatedClock),
         queue: &InputQueue,
     ) -> Result<Self, NodeError> {
         let sub = |topic| keys.robot(robot, topic);
         let receivers = {
             let (tx, full) = (queue.tx.clone(), queue.full.clone());
-            ReceiverSource::open(receivers, session, keys, robot, move |a| {
+            ReceiverSource::open(receivers, clock, session, keys, robot, move |a| {
                 if tx.try_send(Arrived::Arrivals(a)).is_err() {
                     full.fetch_add(1, Ordering::Relaxed);
                 }
@@ -569,8 +577,10 @@ pub struct MsuArgs {
     /// `robot.m_per_tick` (default: a Pioneer 3-DX).
     #[arg(long)]
     pub m_per_tick: Option<f64>,
-    /// Where the arrivals come from.
-    #[arg(long, value_enum, default_value_t = ReceiverKind::Sim)]
+    /// Where the arrivals come from: `sim` (the simulated world's), or a
+    /// receiver board of the ICKON device protocol at `serial:PATH[@BAUD]`
+    /// (115200 baud when not given) or `tcp:HOST:PORT`.
+    #[arg(long, default_value_t = ReceiverKind::Sim, value_name = "sim|serial:PATH[@BAUD]|tcp:HOST:PORT")]
     pub receivers: ReceiverKind,
     /// The ROS 2 side (`--ros2` and `--ros2-*`); boxed, as it is most of
     /// the arguments' size.
@@ -644,7 +654,8 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
         site_name: args.mesh.site_name.clone(),
         robot: args.robot.clone(),
         tuning,
-        receivers: args.receivers,
+        receivers: args.receivers.clone(),
+        clock: args.mesh.clock(),
         ros2,
     };
     ickon_runtime::run_node(2, async {

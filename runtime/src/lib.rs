@@ -15,6 +15,8 @@
 //! - [`query`]: a query with a timeout, one that retries until the central
 //!   unit answers, and a wait for a liveliness token;
 //! - [`publish`]: a put whose failure is counted, never fatal;
+//! - [`link`]: serial and TCP links to devices that reconnect by
+//!   themselves, and pseudo-terminal pairs;
 //! - [`log_limit`]: logs of bad input bounded to one line per kind per window;
 //! - [`runfile`]: the run file through which `ickon admin` finds an
 //!   `ickon sim` running on the same machine.
@@ -24,6 +26,7 @@ pub mod clock;
 pub mod clock_steps;
 pub mod command;
 pub mod error;
+pub mod link;
 pub mod log_limit;
 pub mod process;
 pub mod publish;

@@ -15,14 +15,18 @@
 //! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
 //! - [`score`]: the seeds' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
+//! - [`board`]: an emulated transmitter or receiver board of the device protocol.
 //!
 //! Every random draw comes from a `ChaCha8Rng` stream derived from the run
 //! seed and a label ([`rng::stream`]): the same seed gives the same numbers.
 
 pub mod acoustic;
+pub mod board;
 pub mod clock;
 pub mod collision;
 pub mod control;
+#[cfg(feature = "zenoh")]
+pub mod emulate;
 pub mod engine;
 pub mod fleet;
 #[cfg(feature = "zenoh")]

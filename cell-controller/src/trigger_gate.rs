@@ -150,13 +150,13 @@ impl TriggerGate {
                 return Err(TriggerRefused::FutureEpoch(trigger.epoch));
             }
         }
-        if let Some(current) = self.epoch {
-            if trigger.epoch < current {
-                return Err(TriggerRefused::OldEpoch {
-                    got: trigger.epoch,
-                    current,
-                });
-            }
+        if let Some(current) = self.epoch
+            && trigger.epoch < current
+        {
+            return Err(TriggerRefused::OldEpoch {
+                got: trigger.epoch,
+                current,
+            });
         }
         if self.epoch != Some(trigger.epoch) {
             self.note_epoch(trigger.epoch);

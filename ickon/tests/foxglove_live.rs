@@ -265,8 +265,8 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
     // Per robot: its latest state, its pose and truth by message stamp, and
     // the distances between the two of one stamp while tracking.
     let mut state: BTreeMap<String, String> = BTreeMap::new();
-    let mut pending: BTreeMap<(String, u64), (Option<(f64, f64)>, Option<(f64, f64)>)> =
-        BTreeMap::new();
+    type PoseAndTruth = (Option<(f64, f64)>, Option<(f64, f64)>);
+    let mut pending: BTreeMap<(String, u64), PoseAndTruth> = BTreeMap::new();
     let mut errors_mm: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     /// Tracked pose-truth pairs per robot: 5 s of ticks.
     const PAIRS: usize = 50;

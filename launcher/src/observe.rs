@@ -276,12 +276,12 @@ impl Probe {
     /// Records the latency of a probe that came back.
     fn received(&mut self, s: &Sample, stats: &mut RunStats) {
         let at = Instant::now();
-        if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes()) {
-            if let Some(sent) = self.sent.remove(&seq) {
-                stats
-                    .hop_latencies_us
-                    .push(at.duration_since(sent).as_secs_f64() * 1e6);
-            }
+        if let Ok(seq) = ickon_proto::decode::<u64>(&s.payload().to_bytes())
+            && let Some(sent) = self.sent.remove(&seq)
+        {
+            stats
+                .hop_latencies_us
+                .push(at.duration_since(sent).as_secs_f64() * 1e6);
         }
     }
 
@@ -337,7 +337,7 @@ fn fault_plan(args: &SimArgs) -> anyhow::Result<VecDeque<crate::faults::Fault>> 
 fn print_status(line: &str, started: Instant) {
     if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         eprint!("\r{line}");
-    } else if started.elapsed().as_secs() % 5 == 0 {
+    } else if started.elapsed().as_secs().is_multiple_of(5) {
         // A log, not a terminal: a line every five seconds.
         eprintln!("{}", line.trim_end());
     }
@@ -368,10 +368,9 @@ fn note_arrivals(keys: &Keys, s: &Sample, stats: &mut RunStats) {
     if let (Ok(Key::Robot(id, _)), Some(m)) = (
         keys.parse(&key),
         decode_or_count::<UltrasoundArrivals>(stats, &key, &s.payload().to_bytes()),
-    ) {
-        if let Some(r) = stats.robots.get_mut(&id) {
-            r.on_arrivals(m.seq, at);
-        }
+    ) && let Some(r) = stats.robots.get_mut(&id)
+    {
+        r.on_arrivals(m.seq, at);
     }
 }
 
@@ -379,15 +378,14 @@ fn note_arrivals(keys: &Keys, s: &Sample, stats: &mut RunStats) {
 fn note_fix(keys: &Keys, s: &Sample, stats: &mut RunStats) {
     let at = Instant::now();
     let key = s.key_expr().as_str().to_string();
-    if let Ok(Key::Robot(id, _)) = keys.parse(&key) {
-        if let Some(fix) =
+    if let Ok(Key::Robot(id, _)) = keys.parse(&key)
+        && let Some(fix) =
             decode_or_count::<ickon_proto::msg::robot::Fix>(stats, &key, &s.payload().to_bytes())
-        {
-            let hdop = stats.fix_hdop(&fix);
-            if let Some(robot) = stats.robots.get_mut(&id) {
-                robot.on_fix(at);
-                robot.on_fix_geometry(fix.used.len(), hdop);
-            }
+    {
+        let hdop = stats.fix_hdop(&fix);
+        if let Some(robot) = stats.robots.get_mut(&id) {
+            robot.on_fix(at);
+            robot.on_fix_geometry(fix.used.len(), hdop);
         }
     }
 }
@@ -399,10 +397,9 @@ fn note_pose(keys: &Keys, s: &Sample, stats: &mut RunStats) {
     if let (Ok(Key::Robot(id, _)), Some(p)) = (
         keys.parse(&key),
         decode_or_count::<RobotPose>(stats, &key, &s.payload().to_bytes()),
-    ) {
-        if let Some(r) = stats.robots.get_mut(&id) {
-            r.on_pose(&p, at);
-        }
+    ) && let Some(r) = stats.robots.get_mut(&id)
+    {
+        r.on_pose(&p, at);
     }
 }
 
@@ -420,10 +417,9 @@ fn note_truth(keys: &Keys, s: &Sample, stats: &mut RunStats) {
     if let (Ok(Key::SimTruth(id)), Some(t)) = (
         keys.parse(&key),
         decode_or_count::<Truth>(stats, &key, &s.payload().to_bytes()),
-    ) {
-        if let Some(r) = stats.robots.get_mut(&id) {
-            r.on_truth(t);
-        }
+    ) && let Some(r) = stats.robots.get_mut(&id)
+    {
+        r.on_truth(t);
     }
 }
 

@@ -387,10 +387,9 @@ async fn wait_until_live(
         }
         if let Ok(Ok(sample)) =
             tokio::time::timeout(Duration::from_millis(100), mesh.alive.recv_async()).await
+            && sample.kind() == SampleKind::Put
         {
-            if sample.kind() == SampleKind::Put {
-                expected.remove(sample.key_expr().as_str());
-            }
+            expected.remove(sample.key_expr().as_str());
         }
     }
     if !quiet {

@@ -232,10 +232,10 @@ impl FixSolver {
         self.schedules.offer(schedule)?;
         // A calibration is its central unit's: a new one starts from the
         // survey (its fixes' versions would otherwise name the old one's).
-        if let Some((epoch, _)) = self.survey {
-            if self.schedules.epoch() != Some(epoch) {
-                self.set_survey_calibration(None);
-            }
+        if let Some((epoch, _)) = self.survey
+            && self.schedules.epoch() != Some(epoch)
+        {
+            self.set_survey_calibration(None);
         }
         self.pending.keep_survey_of(self.schedules.epoch());
         Ok(())

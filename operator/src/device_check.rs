@@ -112,10 +112,10 @@ impl Session {
     }
 
     fn send(&mut self, bytes: &[u8]) {
-        if !bytes.is_empty() {
-            if let Err(e) = self.link.send(bytes) {
-                self.seen.refused.push(format!("send: {e}"));
-            }
+        if !bytes.is_empty()
+            && let Err(e) = self.link.send(bytes)
+        {
+            self.seen.refused.push(format!("send: {e}"));
         }
     }
 

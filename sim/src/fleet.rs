@@ -260,18 +260,18 @@ impl<'a> Fleet<'a> {
         let scoring = t > self.config.warm_up_s;
         for m in &mut self.members {
             m.world.step(t, PHYSICS_DT_S, moving);
-            if step % self.gyro_every == 0 {
+            if step.is_multiple_of(self.gyro_every) {
                 let imu = m.world.gyro(t, self.gyro_dt);
                 m.msu.feed(MsuEvent::Imu(imu));
             }
-            if step % self.encoder_every == 0 {
+            if step.is_multiple_of(self.encoder_every) {
                 let odom = m.world.odometry(t);
                 m.msu.feed(MsuEvent::Odometry(odom));
             }
         }
         self.deliver_due(t, scoring);
         self.forget_stale(t);
-        if step % self.pose_every == 0 {
+        if step.is_multiple_of(self.pose_every) {
             self.sample_poses(t, scoring);
         }
     }

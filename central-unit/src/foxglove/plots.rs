@@ -99,7 +99,7 @@ impl CellSync {
     /// The figures of `c`; `cycle_period_ms` tells whether it is firing.
     pub fn new(c: &CellSnapshot, cycle_period_ms: f64) -> Self {
         Self {
-            state: cell_state(c, cycle_period_ms),
+            state: cell_state(c),
             firing: u8::from(fired_this_cycle(c, cycle_period_ms)),
             last_tx: c.last_tx,
             sync_error_us: c.health.sync_error_us,

@@ -201,21 +201,13 @@ pub fn cycle_period_ms(update_rate_hz: f64) -> f64 {
     }
 }
 
-/// The state a cell is drawn in: `down`, `up` when it fired in the last
-/// few cycles, else `idle` (up, but not asked to fire: occupancy firing
-/// leaves cells without robots quiet).
-pub fn cell_state(cell: &CellSnapshot, cycle_period_ms: f64) -> &'static str {
-    /// A cell silent for this many cycles counts as idle.
-    const IDLE_AFTER_CYCLES: f64 = 3.0;
-    if cell.health.state != "up" {
-        "down"
-    } else if cell
-        .last_burst_ms
-        .is_some_and(|ms| ms < IDLE_AFTER_CYCLES * cycle_period_ms)
-    {
-        "up"
-    } else {
-        "idle"
+/// The state a cell is drawn in, as the central unit judges it: `up` (due
+/// in the last cycle), `idle` (alive, not asked to fire) or `down`.
+pub fn cell_state(cell: &CellSnapshot) -> &'static str {
+    match cell.health.state {
+        "up" => "up",
+        "idle" => "idle",
+        _ => "down",
     }
 }
 
@@ -229,7 +221,7 @@ pub fn cells_scene(site: &Site, snapshot: &Snapshot, stamp: Timestamp) -> SceneU
         .iter()
         .filter_map(|c| {
             let shape = site.cell(&c.health.id)?;
-            let state = cell_state(c, period);
+            let state = cell_state(c);
             let firing = fired_this_cycle(c, period);
             let mut e = entity(format!("cell/{}", c.health.id), stamp);
             e.metadata.push(foxglove::messages::KeyValuePair {

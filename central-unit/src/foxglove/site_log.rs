@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 
 use foxglove::messages::{Log, Timestamp, log::Level};
 
-use super::scene::{cell_state, cycle_period_ms, robot_state};
+use super::scene::{cell_state, robot_state};
 use crate::http::view::Snapshot;
 
 /// The `name` of the log entries about cells and robots.
@@ -39,10 +39,9 @@ impl SiteLog {
     /// snapshot logs only what is already wrong.
     pub fn update(&mut self, snapshot: &Snapshot, stamp: Timestamp) -> Vec<Log> {
         let mut out = Vec::new();
-        let period = cycle_period_ms(snapshot.update_rate_hz);
         for c in &snapshot.cells {
             // Idle is up and quiet: not worth a line.
-            let state = match cell_state(c, period) {
+            let state = match cell_state(c) {
                 "down" => "down",
                 _ => "up",
             };
@@ -129,6 +128,7 @@ mod tests {
                 state: robot,
                 stale: (robot == "stale").then(|| "no odometry for 2.0 s".to_string()),
                 fixes_per_s: 0.0,
+                fixes_over_rate: 0,
                 estimator: None,
                 pose: None,
             },

@@ -182,13 +182,13 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
         table::print(&flat, &profile.name, args.seed, started.elapsed());
         table::print_cells(&outputs);
     }
-    if let Some(dir) = &args.plot {
-        if let Err(e) = plot::write_all(dir, &outputs, &scores, &flat) {
-            return Err(CommandError::failure(format!(
-                "cannot write plots to {}: {e}",
-                dir.display()
-            )));
-        }
+    if let Some(dir) = &args.plot
+        && let Err(e) = plot::write_all(dir, &outputs, &scores, &flat)
+    {
+        return Err(CommandError::failure(format!(
+            "cannot write plots to {}: {e}",
+            dir.display()
+        )));
     }
     Ok(())
 }

@@ -108,14 +108,14 @@ impl Track {
         let xy2 = d[0] * d[0] + d[1] * d[1];
         self.errors_3d_m.push((xy2 + d[2] * d[2]).sqrt());
         self.sum2_xy += xy2;
-        if let Some(series) = &mut self.series {
-            if series.last().is_none_or(|p| t_s - p.t_s >= PLOT_STEP_S) {
-                series.push(SeriesPoint {
-                    t_s,
-                    estimate_m: est,
-                    truth_m,
-                });
-            }
+        if let Some(series) = &mut self.series
+            && series.last().is_none_or(|p| t_s - p.t_s >= PLOT_STEP_S)
+        {
+            series.push(SeriesPoint {
+                t_s,
+                estimate_m: est,
+                truth_m,
+            });
         }
     }
 

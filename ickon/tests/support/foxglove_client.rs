@@ -122,25 +122,22 @@ impl FoxgloveClient {
         match message {
             Message::Text(text) => {
                 let v: Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
-                match v["op"].as_str() {
-                    Some("advertise") => {
-                        for c in v["channels"].as_array().into_iter().flatten() {
-                            let (Some(id), Some(topic)) = (c["id"].as_u64(), c["topic"].as_str())
-                            else {
-                                return Err(format!("malformed channel {c}"));
-                            };
-                            self.channels.insert(
-                                topic.to_string(),
-                                ChannelInfo {
-                                    id,
-                                    encoding: c["encoding"].as_str().unwrap_or("").into(),
-                                    schema_name: c["schemaName"].as_str().unwrap_or("").into(),
-                                },
-                            );
-                        }
+                // Server info, status and the rest: not needed here.
+                if v["op"].as_str() == Some("advertise") {
+                    for c in v["channels"].as_array().into_iter().flatten() {
+                        let (Some(id), Some(topic)) = (c["id"].as_u64(), c["topic"].as_str())
+                        else {
+                            return Err(format!("malformed channel {c}"));
+                        };
+                        self.channels.insert(
+                            topic.to_string(),
+                            ChannelInfo {
+                                id,
+                                encoding: c["encoding"].as_str().unwrap_or("").into(),
+                                schema_name: c["schemaName"].as_str().unwrap_or("").into(),
+                            },
+                        );
                     }
-                    // Server info, status and the rest: not needed here.
-                    _ => {}
                 }
                 Ok(None)
             }

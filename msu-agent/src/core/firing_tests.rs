@@ -114,7 +114,7 @@ fn a_trigger_of_the_whole_schedule_brings_back_the_schedule_offsets() {
 fn news_applies_from_the_cycle_it_names_however_the_arrivals_raced() {
     let p = [1.7, 2.9, 0.5];
     let firing = |cycle: u64| -> Vec<(u32, i64)> {
-        if cycle % 2 == 0 {
+        if cycle.is_multiple_of(2) {
             vec![(1, 0), (2, 12), (3, 24), (4, 36)]
         } else {
             vec![(5, 0), (3, 12), (2, 24), (4, 36)]

@@ -193,12 +193,12 @@ pub fn base_metadata(site: &str) -> BTreeMap<String, BTreeMap<String, String>> {
 
 /// Runs `ickon record` and returns the exit code.
 pub fn run(args: RecordArgs) -> Result<(), CommandError> {
-    if let Some(d) = args.duration {
-        if !(d.is_finite() && d > 0.0 && d <= 7.0 * 86_400.0) {
-            return Err(CommandError::bad_input(
-                "--duration must be between 0 and 604800 seconds",
-            ));
-        }
+    if let Some(d) = args.duration
+        && !(d.is_finite() && d > 0.0 && d <= 7.0 * 86_400.0)
+    {
+        return Err(CommandError::bad_input(
+            "--duration must be between 0 and 604800 seconds",
+        ));
     }
     let keys = Keys::new(&args.site_name)
         .map_err(|e| CommandError::bad_input(format!("--site-name: {e}")))?;

@@ -174,7 +174,7 @@ impl<W: Write + Seek> Recorder<W> {
             Err(e) => {
                 self.stats.undecodable += 1;
                 // Rate-limited: the first ten, then every thousandth.
-                if self.undecodable_logged < 10 || self.stats.undecodable % 1000 == 0 {
+                if self.undecodable_logged < 10 || self.stats.undecodable.is_multiple_of(1000) {
                     self.undecodable_logged += 1;
                     tracing::warn!(
                         "not recorded: {key}: {e} ({} so far)",

@@ -241,13 +241,13 @@ pub fn run(
             Input::Imu(m) => Event::Imu(*m),
             Input::Range(m) => Event::Range(*m),
         };
-        if let Some(pose) = msu.feed(event).pose {
-            if !publish(Published {
+        if let Some(pose) = msu.feed(event).pose
+            && !publish(Published {
                 log_time_ns: *t,
                 pose,
-            }) {
-                return;
-            }
+            })
+        {
+            return;
         }
     }
 }

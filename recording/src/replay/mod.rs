@@ -308,10 +308,10 @@ fn config_for(
     site: &Site,
     profile: Option<&NoiseProfile>,
 ) -> Option<EstimatorConfig> {
-    if name == live_name {
-        if let Some(c) = &setup.live_config {
-            return Some(c.clone());
-        }
+    if name == live_name
+        && let Some(c) = &setup.live_config
+    {
+        return Some(c.clone());
     }
     match profile {
         Some(p) => ickon_sim::engine::estimator_config(

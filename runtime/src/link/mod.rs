@@ -311,7 +311,7 @@ fn run(shared: &Shared, backoff: Backoff, mut sink: impl FnMut(LinkEvent)) {
             Err(e) => {
                 failures_in_a_row += 1;
                 // The first failure, then one line per minute or so.
-                if failures_in_a_row == 1 || failures_in_a_row % 12 == 0 {
+                if failures_in_a_row == 1 || failures_in_a_row.is_multiple_of(12) {
                     tracing::warn!(
                         "device {}: cannot open ({e}); retrying every {:?} at most",
                         shared.address,

@@ -156,15 +156,15 @@ fn run_with_cycle(
     let steps = (duration_s / dt).round() as i64;
     for k in 0..=steps {
         let t = k as f64 * dt;
-        if let Some((tk, jump)) = trouble.kidnap {
-            if (t - tk).abs() < 0.5 * dt {
-                s += jump;
-            }
+        if let Some((tk, jump)) = trouble.kidnap
+            && (t - tk).abs() < 0.5 * dt
+        {
+            s += jump;
         }
-        if let Some((tb, b)) = trouble.bias_step {
-            if (t - tb).abs() < 0.5 * dt {
-                bias = b;
-            }
+        if let Some((tb, b)) = trouble.bias_step
+            && (t - tb).abs() < 0.5 * dt
+        {
+            bias = b;
         }
         let (x, y, _, w) = on_loop(s);
         path.push((t, s));
@@ -205,10 +205,10 @@ fn run_with_cycle(
         for (i, s_m) in tx.iter().enumerate() {
             let emit = start + slot_s * i as f64;
             let mut p = at(emit);
-            if let Some((until, across)) = trouble.biased_start {
-                if emit < until {
-                    p.y += across;
-                }
+            if let Some((until, across)) = trouble.biased_start
+                && emit < until
+            {
+                p.y += across;
             }
             let d = (p - hanging[i]).norm();
             if d > MAX_RANGE_M || rng.random::<f64>() < 0.05 {

@@ -230,9 +230,12 @@ fn reverberation_spacing_is_shorter_than_the_guard_time_and_grows_with_the_decay
             "{gap:?}"
         );
     }
+    // A room that rings louder and ten times longer: the tails now reach
+    // the next bursts, and the plan must wait them out.
     let slow = FiringConfig {
         reverb: Some(Reverb {
-            decay_db_per_ms: 1.0,
+            decay_db_per_ms: 0.3,
+            tail_db: 0.0,
             ..Reverb::default()
         }),
         ..needs_on()

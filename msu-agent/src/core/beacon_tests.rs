@@ -5,8 +5,7 @@ use super::*;
 use crate::beacons::{BeaconDistance, BeaconDistances};
 use crate::events::{Event, InputKind, Output};
 use ickon_fusion::estimator::tdoa_ekf::TdoaEkfParams;
-use ickon_fusion::estimator::{EstimatorConfig, WheelGeometry, build};
-use ickon_proto::msg::control::TransmitterEntry;
+use ickon_fusion::estimator::{EstimatorConfig, build};
 
 const HEIGHT_M: f64 = 0.3;
 const BEACONS: [(u32, [f64; 3]); 4] = [
@@ -15,35 +14,6 @@ const BEACONS: [(u32, [f64; 3]); 4] = [
     (4, [6.0, 6.0, 3.0]),
     (5, [0.0, 6.0, 3.0]),
 ];
-
-fn config() -> MsuConfig {
-    MsuConfig {
-        speed_of_sound_m_s: 343.0,
-        height_m: HEIGHT_M,
-        receiver_angles_rad: vec![0.0],
-        transmitters: BEACONS
-            .iter()
-            .map(|(id, p)| TransmitterEntry {
-                tx_id: *id,
-                cell_id: "hall".into(),
-                x_m: p[0],
-                y_m: p[1],
-                z_m: p[2],
-            })
-            .collect(),
-        wheels: WheelGeometry {
-            wheel_base_m: 0.33,
-            left_m_per_tick: 1e-4,
-            right_m_per_tick: 1e-4,
-        },
-        timing_sigma_s: 1e-5,
-        residual_gate_m: 0.1,
-        floor_bounds_m: Some([[0.0, 0.0], [6.0, 6.0]]),
-        max_fix_sigma_m: 0.5,
-        walls: Vec::new(),
-        columns: Vec::new(),
-    }
-}
 
 fn core(estimator: &str) -> MsuCore {
     let config_of = match estimator {
@@ -54,7 +24,10 @@ fn core(estimator: &str) -> MsuCore {
         }),
         other => EstimatorConfig::default_for(other).expect("known estimator"),
     };
-    MsuCore::new(config(), build(&config_of).expect("valid"))
+    MsuCore::new(
+        super::tests::config_with(HEIGHT_M, &BEACONS, [[0.0, 0.0], [6.0, 6.0]]),
+        build(&config_of).expect("valid"),
+    )
 }
 
 fn reading(k: i64, at: [f64; 2], tamper: impl Fn(&mut Vec<BeaconDistance>)) -> Event {

@@ -19,12 +19,18 @@ fn core() -> MsuCore {
     core_with("msu-raw")
 }
 
-pub(crate) fn core_with(estimator: &str) -> MsuCore {
-    let config = MsuConfig {
+/// The test MSU's configuration: six receivers at `height_m`, the
+/// `transmitters` at their positions, the floor `floor_m`.
+pub(super) fn config_with(
+    height_m: f64,
+    transmitters: &[(u32, [f64; 3])],
+    floor_m: [[f64; 2]; 2],
+) -> MsuConfig {
+    MsuConfig {
         speed_of_sound_m_s: C,
-        height_m: 0.5,
+        height_m,
         receiver_angles_rad: (0..6).map(|i| f64::from(i) * 60f64.to_radians()).collect(),
-        transmitters: TX
+        transmitters: transmitters
             .iter()
             .map(|(id, p)| TransmitterEntry {
                 tx_id: *id,
@@ -41,11 +47,15 @@ pub(crate) fn core_with(estimator: &str) -> MsuCore {
         },
         timing_sigma_s: 10e-6,
         residual_gate_m: 0.05,
-        floor_bounds_m: Some([[0.0, 0.0], [5.0, 4.0]]),
+        floor_bounds_m: Some(floor_m),
         max_fix_sigma_m: 0.5,
         walls: Vec::new(),
         columns: Vec::new(),
-    };
+    }
+}
+
+pub(crate) fn core_with(estimator: &str) -> MsuCore {
+    let config = config_with(0.5, &TX, [[0.0, 0.0], [5.0, 4.0]]);
     let mut core = MsuCore::new(config, build_by_name(estimator).unwrap());
     core.set_schedule(schedule()).unwrap();
     core

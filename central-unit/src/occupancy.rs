@@ -350,4 +350,4 @@ pub fn largest_sigma_m(pose: &RobotPose) -> f64 {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -1,12 +1,14 @@
 use super::*;
 use ickon_proto::site::Site;
 
-fn table(site: &Site) -> SpacingTable {
+/// The spacing table of every cell of `site`.
+pub(crate) fn table(site: &Site) -> SpacingTable {
     let cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
     SpacingTable::new(site, &cells)
 }
 
-fn pose(x_m: f64, y_m: f64, sigma_m: f64) -> RobotPose {
+/// A tracked pose at `(x_m, y_m)` with `sigma_m` on each axis.
+pub(crate) fn pose(x_m: f64, y_m: f64, sigma_m: f64) -> RobotPose {
     let v = sigma_m * sigma_m;
     RobotPose {
         stamp: Time(0),

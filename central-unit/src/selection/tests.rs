@@ -1,28 +1,14 @@
 use super::*;
+use crate::occupancy::tests::{pose, table};
 use crate::occupancy::{FiringConfig, RobotView, plan};
 use crate::spacing::Reverb;
-use ickon_proto::msg::robot::{PoseStatus, RobotPose};
+use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::site::Site;
 
 fn hall() -> (Site, SpacingTable) {
     let (site, _) = Site::builtin("hall").unwrap();
-    let cells: Vec<String> = site.cells.iter().map(|c| c.id.clone()).collect();
-    let table = SpacingTable::new(&site, &cells);
+    let table = table(&site);
     (site, table)
-}
-
-fn pose(x_m: f64, y_m: f64, sigma_m: f64) -> RobotPose {
-    let v = sigma_m * sigma_m;
-    RobotPose {
-        stamp: Time(0),
-        x_m,
-        y_m,
-        theta_rad: 0.0,
-        covariance: [v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, 0.01],
-        estimator: "tdoa-ekf".into(),
-        fix_seq: 1,
-        status: PoseStatus::Tracking,
-    }
 }
 
 fn needs_on() -> FiringConfig {

@@ -9,20 +9,14 @@ both; `ickon site check --site hall` validates the result and
 `proto/src/site/hall_tests.rs` checks its coverage and routes.
 """
 
+from site_gen import fmt, pt, robots
+
 SIDE = 20.0  # the hall is SIDE x SIDE, m
 CELLS = 4  # cells per side, each SIDE / CELLS square
 CEILING = 4.5
 TX_Z = (4.0, 3.85)  # heights differ a little so that 3D fixes are not degenerate
 LANES = 4  # loop routes, one along each row of cells
 ROBOTS_PER_LANE = 16
-
-
-def fmt(v):
-    return f"{v:.3f}".rstrip("0").rstrip(".") if v != int(v) else f"{v:.1f}"
-
-
-def pt(p):
-    return f"[{fmt(p[0])}, {fmt(p[1])}]"
 
 
 def cells():
@@ -52,60 +46,6 @@ def routes():
         lo, hi = k * side + side / 4, k * side + 3 * side / 4
         out.append((f"lane-{k + 1}", [(1.0, lo), (SIDE - 1.0, lo), (SIDE - 1.0, hi), (1.0, hi)], ROBOTS_PER_LANE))
     return out
-
-
-def length(points):
-    n = len(points)
-    return sum(((points[(i + 1) % n][0] - points[i][0]) ** 2 + (points[(i + 1) % n][1] - points[i][1]) ** 2) ** 0.5
-               for i in range(n))
-
-
-def along(points, s):
-    """Point and heading (deg) at arc length s of a closed polyline."""
-    import math
-    n = len(points)
-    s %= length(points)
-    for i in range(n):
-        p, q = points[i], points[(i + 1) % n]
-        d = math.hypot(q[0] - p[0], q[1] - p[1])
-        if s < d:
-            t = s / d
-            return (p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1]),
-                    math.degrees(math.atan2(q[1] - p[1], q[0] - p[0])))
-        s -= d
-    raise AssertionError
-
-
-def van_der_corput(m):
-    """0, 1/2, 1/4, 3/4, ...: the first few robots of a route are spread along it."""
-    v, denom = 0.0, 1.0
-    while m:
-        denom *= 2
-        v += (m & 1) / denom
-        m >>= 1
-    return v
-
-
-def robots(route_list):
-    # Round robin over the lanes, so that the first N robots (`--robots N`)
-    # spread over the whole floor: the first 16 put one in every cell's row
-    # and four along each lane.
-    members = {name: 0 for name, _, _ in route_list}
-    out = []
-    while True:
-        added = False
-        for name, points, cap in route_list:
-            m = members[name]
-            if m >= cap:
-                continue
-            members[name] = m + 1
-            # Offset by a quarter of the route's spacing so that no robot starts on a corner.
-            s = length(points) * (van_der_corput(m) + 0.25 / cap)
-            x, y, h = along(points, s)
-            out.append((f"r{len(out) + 1}", name, (x, y, h)))
-            added = True
-        if not added:
-            return out
 
 
 def main():

@@ -204,11 +204,7 @@ pub fn cycle_period_ms(update_rate_hz: f64) -> f64 {
 /// The state a cell is drawn in, as the central unit judges it: `up` (due
 /// in the last cycle), `idle` (alive, not asked to fire) or `down`.
 pub fn cell_state(cell: &CellSnapshot) -> &'static str {
-    match cell.health.state {
-        "up" => "up",
-        "idle" => "idle",
-        _ => "down",
-    }
+    cell.health.state
 }
 
 /// Every cell's outline coloured by state, with its transmitters (lit

@@ -139,6 +139,8 @@ fn a_recorded_sim_decodes_in_python_and_replays_the_live_poses_bit_for_bit() {
             py["schemas"]["/ickon/lab/robot/r1/fix"],
             "ickon_msgs/msg/Fix"
         );
+        // One serialization format: rosbag2 opens no other file.
+        assert_eq!(py["message_encodings"], serde_json::json!(["cdr"]));
     }
 
     // The replay with the estimator that ran live reproduces every live pose.
@@ -217,6 +219,100 @@ fn a_recorded_sim_decodes_in_python_and_replays_the_live_poses_bit_for_bit() {
     let doc = json(&out);
     assert!(doc["problems"].to_string().contains("ends early"), "{doc}");
     assert!(doc["messages"].as_u64().unwrap() > 1000, "{doc}");
+}
+
+/// `--record-foxglove-view`: the live Foxglove server's channels in the
+/// file, decoded in Python with Foxglove's own schemas, and a replay that
+/// leaves them aside.
+#[test]
+fn a_recording_with_the_foxglove_view_holds_the_live_channels_and_still_replays() {
+    let Some(py) = python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("view.mcap");
+    let out = ickon()
+        .args(["sim", "--robots", "2", "--json", "--duration", "8"])
+        .arg("--record")
+        .arg(&file)
+        .arg("--record-foxglove-view")
+        .output()
+        .expect("ickon sim starts");
+    assert!(
+        out.status.success(),
+        "ickon sim failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let recorded = json(&out)["recorded"].clone();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/decode_mcap.py");
+    let out = Command::new(py)
+        .arg(script)
+        .arg(&file)
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "Python decoding failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let py = json(&out);
+    assert_eq!(
+        &py["per_topic"], &recorded["per_topic"],
+        "counts per channel"
+    );
+    // The Foxglove view, as the live server shows it, in Foxglove's
+    // own schemas and marked as the view.
+    let view = &py["view"];
+    for (topic, schema) in [
+        ("/site/scene", "foxglove.SceneUpdate"),
+        ("/site/cells", "foxglove.SceneUpdate"),
+        ("/robots/scene", "foxglove.SceneUpdate"),
+        ("/tf", "foxglove.FrameTransforms"),
+        ("/robot/r1/pose", "foxglove.PoseInFrame"),
+        ("/robot/r1/truth", "foxglove.PoseInFrame"),
+        ("/cell/c1/sync", "ickon.CellSync"),
+    ] {
+        assert_eq!(py["schemas"][topic], schema, "{topic}: {py}");
+        assert_eq!(view["metadata"][topic], "foxglove", "{topic}");
+    }
+    assert!(
+        view["scene_entities"]
+            .as_array()
+            .is_some_and(|e| e.iter().any(|x| x == "walls")),
+        "{view}"
+    );
+    let (site, _, _) = ickon_proto::site::Site::load_or_default(None).expect("lab site");
+    let cells: Vec<String> = site
+        .cells
+        .iter()
+        .map(|c| format!("cell/{}", c.id))
+        .collect();
+    assert_eq!(view["cell_entities"], serde_json::json!(cells), "{view}");
+    assert_eq!(
+        view["tf_children"],
+        serde_json::json!(["r1", "r2"]),
+        "{view}"
+    );
+    assert!(
+        recorded["view_messages"].as_u64().unwrap_or(0) > 100,
+        "{recorded}"
+    );
+
+    let out = ickon()
+        .args(["replay", "mcap", "--json"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "replay failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let replay = json(&out);
+    assert_eq!(replay["problems"], serde_json::json!([]));
+    for r in replay["robots"].as_array().unwrap() {
+        assert_eq!(r["live"]["reproduced"], true, "{r}");
+    }
 }
 
 #[test]

@@ -70,6 +70,11 @@ pub struct SimArgs {
     /// MSU cores as the agents did.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// With `--record`: hold the Foxglove view in the file too (as `ickon
+    /// record --foxglove-view`), for Foxglove; `ros2 bag` does not open such
+    /// a file.
+    #[arg(long, requires = "record")]
+    pub record_foxglove_view: bool,
     /// Access control on the router, default deny, and every node (the
     /// launcher too) authenticated with its own credential: the files of
     /// `ickon site secure --sim` in DIR, or with no DIR a fresh set in a

@@ -321,7 +321,7 @@ async fn start_recording(
         ("duration_s", args.duration.to_string()),
     ];
     let metadata = sim_hook::sim_metadata(&site.name, &settings, msus);
-    match SimRecording::start(&session, keys, path, &metadata) {
+    match SimRecording::start(&session, keys, path, &metadata, args.record_foxglove_view) {
         Ok(r) => Ok((session, r)),
         Err(e) => {
             let _ = session.close().await;

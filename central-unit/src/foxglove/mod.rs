@@ -77,9 +77,10 @@ pub enum FoxgloveError {
     Zenoh(String),
 }
 
-/// The running Foxglove server. Dropping it stops the server and the feed.
+/// The running Foxglove server (or the same channels handed to a sink, for
+/// a recording). Dropping it stops the server and the feed.
 pub struct FoxgloveLive {
-    addr: SocketAddr,
+    addr: Option<SocketAddr>,
     status: watch::Sender<Option<StatusReport>>,
     server: Option<WebSocketServerHandle>,
     ticker: JoinHandle<()>,
@@ -110,6 +111,37 @@ impl FoxgloveLive {
                 reason: e.to_string(),
             })?;
         let addr = SocketAddr::new(wanted.ip(), server.port());
+        let mut live = Self::feed(session, keys, site, context, channels).await?;
+        live.addr = Some(addr);
+        live.server = Some(server);
+        tracing::info!("Foxglove live server at ws://{addr} (read-only)");
+        Ok(Some(live))
+    }
+
+    /// The same channels as the live server, handed to `sink` instead of
+    /// served: a recording that holds them looks in Foxglove as the live
+    /// view does. The status comes through [`Self::publish`] as for the
+    /// server.
+    pub async fn into_sink(
+        session: &Session,
+        keys: &Keys,
+        site: &Site,
+        sink: Arc<dyn foxglove::Sink>,
+    ) -> Result<Self, FoxgloveError> {
+        let context = Context::new();
+        let channels = Channels::new(&context, site);
+        context.add_sink(sink);
+        Self::feed(session, keys, site, context, channels).await
+    }
+
+    /// Subscribes the view to the site and starts the ticker on `context`.
+    async fn feed(
+        session: &Session,
+        keys: &Keys,
+        site: &Site,
+        context: Arc<Context>,
+        channels: Channels,
+    ) -> Result<Self, FoxgloveError> {
         let clock = Stopwatch::start();
         let view = SharedView::new(LiveView::new(site));
         let feed = Feed::start(session, keys, &view, clock)
@@ -127,24 +159,32 @@ impl FoxgloveLive {
             status_rx,
             clock,
         ));
-        tracing::info!("Foxglove live server at ws://{addr} (read-only)");
-        Ok(Some(Self {
-            addr,
+        Ok(Self {
+            addr: None,
             status: status_tx,
-            server: Some(server),
+            server: None,
             ticker,
             _feed: feed,
-        }))
+        })
     }
 
-    /// The address being served.
-    pub fn addr(&self) -> SocketAddr {
+    /// The address being served (`None` when the channels go to a sink).
+    pub fn addr(&self) -> Option<SocketAddr> {
         self.addr
     }
 
     /// Hands the central unit's latest status to the server (never waits).
     pub fn publish(&self, status: StatusReport) {
         self.status.send_replace(Some(status));
+    }
+
+    /// A handle that hands statuses to the view from another task, as
+    /// [`Self::publish`] does.
+    pub fn status_sender(&self) -> impl Fn(StatusReport) + Send + 'static {
+        let status = self.status.clone();
+        move |report| {
+            status.send_replace(Some(report));
+        }
     }
 }
 

@@ -100,6 +100,7 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             http_token_file: None,
             foxglove: None,
             record: None,
+            record_foxglove_view: false,
             ros2: false,
             secure: args.secure.then_some(None),
             firing: args.firing,

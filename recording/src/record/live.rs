@@ -10,6 +10,9 @@ use std::time::Duration;
 use ickon_proto::keys::Keys;
 use ickon_runtime::{NodeError, system_now, zerr};
 
+use ickon_proto::msg::control::SiteInfo;
+
+use super::view::{RecordedView, ViewMessage};
 use super::writer::{RecordError, Recorder};
 
 /// How often the open chunk is checked for flushing on a quiet site.
@@ -31,13 +34,16 @@ pub enum LiveError {
     Record(#[from] RecordError),
 }
 
-/// Records every sample on `pattern` into `recorder` until `stop` completes.
-/// Returns early only on an error (the recorder then holds what was flushed).
+/// Records every sample on `pattern` into `recorder` until `stop` completes,
+/// with the Foxglove view ([`super::view`]) once the site is known when
+/// `with_view`. Returns early only on an error (the recorder then holds
+/// what was flushed).
 pub async fn record_site<W: Write + Seek>(
     session: &zenoh::Session,
     keys: &Keys,
     pattern: &str,
     recorder: &mut Recorder<W>,
+    with_view: bool,
     stop: impl Future<Output = ()>,
 ) -> Result<(), LiveError> {
     let mut stop = std::pin::pin!(stop);
@@ -65,6 +71,7 @@ pub async fn record_site<W: Write + Seek>(
         })
     };
     let mut tick = tokio::time::interval(TICK);
+    let mut view: Option<RecordedView> = None;
     let result = loop {
         tokio::select! {
             _ = &mut stop => break drain(&samples, recorder),
@@ -78,6 +85,16 @@ pub async fn record_site<W: Write + Seek>(
                 if let Err(e) = recorder.record(&key, &bytes, system_now()) {
                     break Err(e.into());
                 }
+                if with_view && view.is_none() && key == keys.central_site()
+                    && let Ok(info) = ickon_proto::decode::<SiteInfo>(&bytes)
+                {
+                    view = RecordedView::start(session, keys, &info).await;
+                }
+            }
+            Some(m) = next_view(&mut view) => {
+                if let Err(e) = recorder.record_view(&m, system_now()) {
+                    break Err(e.into());
+                }
             }
             _ = tick.tick() => {
                 if let Err(e) = recorder.tick(system_now()) {
@@ -87,7 +104,23 @@ pub async fn record_site<W: Write + Seek>(
         }
     };
     asking.abort();
+    if let Some(v) = &view
+        && v.dropped() > 0
+    {
+        tracing::warn!(
+            "{} messages of the Foxglove view were dropped: the recorder fell behind",
+            v.dropped()
+        );
+    }
     result
+}
+
+/// The view's next message; never, without a view.
+async fn next_view(view: &mut Option<RecordedView>) -> Option<ViewMessage> {
+    match view {
+        Some(v) => v.messages.recv().await,
+        None => std::future::pending().await,
+    }
 }
 
 /// Records what already arrived when the stop came: a sample the nodes'

@@ -15,6 +15,7 @@ pub mod live;
 pub mod sim_hook;
 #[cfg(test)]
 mod tests;
+pub mod view;
 pub mod writer;
 
 use std::collections::BTreeMap;
@@ -58,6 +59,15 @@ pub struct RecordArgs {
     /// Print one JSON document on stdout instead of the summary.
     #[arg(long)]
     pub json: bool,
+    /// Hold the Foxglove view too: the channels the central unit's
+    /// Foxglove server shows live (site scene, cells, robots, `/tf`, plots,
+    /// log), beside the site's streams, so that the recording looks in
+    /// Foxglove as the live view does. Their encodings are Foxglove's
+    /// (protobuf, JSON), and rosbag2 opens only files whose topics share
+    /// one serialization format: such a file is for Foxglove and `ickon
+    /// replay mcap`, not for `ros2 bag`.
+    #[arg(long)]
+    pub foxglove_view: bool,
 }
 
 /// What a recording reports at its end.
@@ -247,7 +257,8 @@ pub fn run(args: RecordArgs) -> Result<(), CommandError> {
                 args.out.display()
             );
         }
-        let r = live::record_site(&session, &keys, &pattern, &mut recorder, stop).await;
+        let with_view = args.foxglove_view;
+        let r = live::record_site(&session, &keys, &pattern, &mut recorder, with_view, stop).await;
         let _ = session.close().await;
         r.map_err(|e| match e {
             live::LiveError::Record(e) => write_failure(&args.out, &e),

@@ -114,6 +114,7 @@ impl SimRecording {
         keys: &Keys,
         path: &Path,
         metadata: &BTreeMap<String, BTreeMap<String, String>>,
+        with_view: bool,
     ) -> Result<Self, String> {
         let out = create_output(path)?;
         let mut recorder =
@@ -123,7 +124,7 @@ impl SimRecording {
         let keys = keys.clone();
         let task = tokio::spawn(async move {
             let pattern = keys.everything();
-            let r = record_site(&session, &keys, &pattern, &mut recorder, async {
+            let r = record_site(&session, &keys, &pattern, &mut recorder, with_view, async {
                 let _ = stopped.await;
             })
             .await;

@@ -29,6 +29,10 @@ pub const FLUSH_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 /// and seek granularity on a busy site.
 const CHUNK_BYTES: u64 = 4 * 1024 * 1024;
 
+/// Channels of the Foxglove view at most (a few per robot and cell; the
+/// view makes one per robot it hears, and the site's robots are bounded).
+const MAX_VIEW_CHANNELS: usize = 4096;
+
 /// Why a recording stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum RecordError {
@@ -82,6 +86,8 @@ pub struct RecordStats {
     pub not_a_stream: u64,
     /// Samples whose payload did not decode as their key's type (not stored).
     pub undecodable: u64,
+    /// Messages of the Foxglove view stored (counted in `messages` too).
+    pub view_messages: u64,
     /// First and last receive time, ns.
     pub first_ns: Option<i64>,
     /// Last receive time, ns.
@@ -94,6 +100,8 @@ pub struct Recorder<W: Write + Seek> {
     keys: Keys,
     /// Channel id per key (`None`: a key not recorded).
     channels: HashMap<String, Option<u16>>,
+    /// Channel id per topic of the Foxglove view.
+    view_channels: HashMap<String, u16>,
     sequences: HashMap<u16, u32>,
     last_flush: Option<Time>,
     stats: RecordStats,
@@ -124,6 +132,7 @@ impl<W: Write + Seek> Recorder<W> {
             writer,
             keys,
             channels: HashMap::new(),
+            view_channels: HashMap::new(),
             sequences: HashMap::new(),
             last_flush: None,
             stats: RecordStats::default(),
@@ -155,6 +164,60 @@ impl<W: Write + Seek> Recorder<W> {
         )?;
         self.channels.insert(key.to_string(), Some(id));
         Ok(Some((id, plan)))
+    }
+
+    /// Records one message of the Foxglove view ([`super::view`]) received
+    /// at `received` (the MCAP log time); the time the view made it becomes
+    /// the publish time.
+    pub fn record_view(
+        &mut self,
+        message: &super::view::ViewMessage,
+        received: Time,
+    ) -> Result<(), RecordError> {
+        let channel_id = match self.view_channels.get(&message.topic) {
+            Some(&id) => id,
+            None => {
+                if self.view_channels.len() >= MAX_VIEW_CHANNELS {
+                    self.stats.not_a_stream += 1;
+                    return Ok(());
+                }
+                let schema_id = match &message.schema {
+                    Some(schema) => {
+                        self.writer
+                            .add_schema(&schema.name, &schema.encoding, &schema.data)?
+                    }
+                    None => 0,
+                };
+                let id = self.writer.add_channel(
+                    schema_id,
+                    &message.topic,
+                    &message.message_encoding,
+                    &super::view::channel_metadata(),
+                )?;
+                self.view_channels.insert(message.topic.clone(), id);
+                id
+            }
+        };
+        let sequence = self.sequences.entry(channel_id).or_insert(0);
+        *sequence = sequence.wrapping_add(1);
+        let log_time = received.as_nanos().max(0) as u64;
+        self.writer.write_to_known_channel(
+            &MessageHeader {
+                channel_id,
+                sequence: *sequence,
+                log_time,
+                publish_time: message.made_ns,
+            },
+            &message.data,
+        )?;
+        let s = &mut self.stats;
+        s.messages += 1;
+        s.view_messages += 1;
+        s.payload_bytes += message.data.len() as u64;
+        *s.per_topic.entry(message.topic.clone()).or_default() += 1;
+        s.first_ns.get_or_insert(received.as_nanos());
+        s.last_ns = Some(received.as_nanos());
+        self.tick(received)
     }
 
     /// Records one sample received at `received` (the MCAP log time); its

@@ -63,6 +63,9 @@ struct ChannelInfo {
     topic: String,
     schema: Option<String>,
     key: Option<Key>,
+    /// A channel of the Foxglove view (`crate::record::view`): for the
+    /// eye, not an input of the MSU cores.
+    view: bool,
 }
 
 /// Reads `path`. A file that is not MCAP at all is an error; anything else
@@ -132,7 +135,7 @@ pub fn parse(bytes: &[u8]) -> Option<Recording> {
     }
     let mut foreign: Vec<String> = channels
         .values()
-        .filter(|c| c.key.is_none())
+        .filter(|c| c.key.is_none() && !c.view)
         .map(|c| {
             format!(
                 "{} ({}, {} messages)",
@@ -198,12 +201,15 @@ fn handle(
                 (schema.as_deref() == Some(expected.as_str()) && c.message_encoding == "cdr")
                     .then_some(key)
             });
+            let (name, value) = crate::record::view::VIEW_METADATA;
+            let view = c.metadata.get(name).is_some_and(|v| v == value);
             channels.insert(
                 c.id,
                 ChannelInfo {
                     topic: c.topic,
                     schema,
                     key,
+                    view,
                 },
             );
         }
@@ -216,6 +222,7 @@ fn handle(
                     Cow::Owned(v) => v,
                 },
             }),
+            Some(ChannelInfo { view: true, .. }) => {}
             Some(c) => *state.foreign_messages.entry(c.topic.clone()).or_default() += 1,
             None => state.undecodable += 1,
         },

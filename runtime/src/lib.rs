@@ -33,6 +33,7 @@ pub mod publish;
 pub mod query;
 pub mod runfile;
 pub mod shutdown;
+pub mod warnings;
 
 pub use args::{LEAN_ZENOH_RUNTIME, NodeArgs, ZENOH_RUNTIME_ENV, ZenohArgs};
 pub use clock::{SimulatedClock, system_now};

@@ -14,14 +14,21 @@ pub fn stderr_is_terminal() -> bool {
 
 /// Sets up `tracing` for a binary: the `RUST_LOG` filter when set, else
 /// `default` (e.g. `"info"`), written to stderr so stdout stays clean,
-/// coloured only on a terminal.
+/// coloured only on a terminal; warnings and errors are also kept for
+/// whoever shows them ([`crate::warnings`]).
 pub fn init_tracing(default: &str) {
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(stderr_is_terminal())
+    tracing_subscriber::registry()
+        .with(filter)
+        .with(
+            tracing_subscriber::fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_ansi(stderr_is_terminal()),
+        )
+        .with(crate::warnings::WarningTap)
         .init();
 }
 

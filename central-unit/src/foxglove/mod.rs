@@ -111,7 +111,7 @@ impl FoxgloveLive {
                 reason: e.to_string(),
             })?;
         let addr = SocketAddr::new(wanted.ip(), server.port());
-        let mut live = Self::feed(session, keys, site, context, channels).await?;
+        let mut live = Self::feed(session, keys, site, context, channels, true).await?;
         live.addr = Some(addr);
         live.server = Some(server);
         tracing::info!("Foxglove live server at ws://{addr} (read-only)");
@@ -131,16 +131,19 @@ impl FoxgloveLive {
         let context = Context::new();
         let channels = Channels::new(&context, site);
         context.add_sink(sink);
-        Self::feed(session, keys, site, context, channels).await
+        Self::feed(session, keys, site, context, channels, false).await
     }
 
-    /// Subscribes the view to the site and starts the ticker on `context`.
+    /// Subscribes the view to the site and starts the ticker on `context`;
+    /// with `own_warnings`, the process's warnings and errors go to the log
+    /// channel too (the central unit's; a recorder's are not the site's).
     async fn feed(
         session: &Session,
         keys: &Keys,
         site: &Site,
         context: Arc<Context>,
         channels: Channels,
+        own_warnings: bool,
     ) -> Result<Self, FoxgloveError> {
         let clock = Stopwatch::start();
         let view = SharedView::new(LiveView::new(site));
@@ -154,6 +157,7 @@ impl FoxgloveLive {
                 site: site.clone(),
                 channels,
                 log: site_log::SiteLog::default(),
+                own_warnings,
             },
             view,
             status_rx,
@@ -252,6 +256,8 @@ struct Ticker {
     site: Site,
     channels: Channels,
     log: site_log::SiteLog,
+    /// Whether the process's own warnings go to the log channel.
+    own_warnings: bool,
 }
 
 impl Ticker {
@@ -303,6 +309,12 @@ impl Ticker {
         }
         for entry in self.log.update(snapshot, stamp) {
             self.channels.log.log(&entry);
+        }
+        if self.own_warnings {
+            let (lines, lost) = ickon_runtime::warnings::drain();
+            for entry in site_log::process_warnings(&lines, lost, stamp) {
+                self.channels.log.log(&entry);
+            }
         }
     }
 }

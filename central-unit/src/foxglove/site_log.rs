@@ -5,7 +5,8 @@
 //! and error, a robot localising or dead reckoning a warning; coming back
 //! is information. Only changes are logged, so the log stays readable
 //! however long the site runs, and a flapping node is bounded by how often
-//! snapshots are made.
+//! snapshots are made. The central unit's own warnings and errors (those
+//! of its log file) join them ([`process_warnings`]).
 
 use std::collections::BTreeMap;
 
@@ -16,6 +17,44 @@ use crate::http::view::Snapshot;
 
 /// The `name` of the log entries about cells and robots.
 pub const LOG_NAME: &str = "ickon-central";
+
+/// The central unit's own warnings and errors as log entries, named by the
+/// module that logged them; `lost` (lines let go before they could be
+/// shown) becomes one warning of its own.
+pub fn process_warnings(
+    lines: &[ickon_runtime::warnings::Warning],
+    lost: u64,
+    stamp: Timestamp,
+) -> Vec<Log> {
+    let mut out: Vec<Log> = lines
+        .iter()
+        .map(|w| {
+            let level = if w.level == tracing::Level::ERROR {
+                Level::Error
+            } else {
+                Level::Warning
+            };
+            Log {
+                timestamp: Some(Timestamp::new(
+                    (w.at_ns / 1_000_000_000) as u32,
+                    (w.at_ns % 1_000_000_000) as u32,
+                )),
+                level: level as i32,
+                message: w.message.clone(),
+                name: w.target.clone(),
+                ..Default::default()
+            }
+        })
+        .collect();
+    if lost > 0 {
+        out.push(entry(
+            Level::Warning,
+            format!("{lost} earlier warnings of the central unit are only in its log file"),
+            stamp,
+        ));
+    }
+    out
+}
 
 /// What the site looked like at the last snapshot (see the module doc).
 #[derive(Debug, Default)]
@@ -200,5 +239,35 @@ mod tests {
         let first = lines(&mut log, &snapshot(false, "up", "localising"));
         assert_eq!(first.len(), 2, "{first:?}");
         assert!(first[1].1.contains("localising"));
+    }
+
+    #[test]
+    fn the_central_units_own_warnings_are_logged_by_their_module_and_losses_said() {
+        use ickon_runtime::warnings::Warning;
+        let warning = |level, message: &str| Warning {
+            level,
+            target: "ickon_central::node".to_string(),
+            message: message.to_string(),
+            at_ns: 1_700_000_000_123_456_789,
+        };
+        let lines = [
+            warning(tracing::Level::WARN, "reload refused"),
+            warning(tracing::Level::ERROR, "cannot publish"),
+        ];
+        let stamp = Timestamp::new(1_700_000_001, 0);
+        let logged = process_warnings(&lines, 0, stamp);
+        assert_eq!(logged.len(), 2);
+        assert_eq!(logged[0].level, Level::Warning as i32);
+        assert_eq!(logged[0].name, "ickon_central::node");
+        assert_eq!(logged[0].message, "reload refused");
+        assert_eq!(
+            logged[0].timestamp,
+            Some(Timestamp::new(1_700_000_000, 123_456_789))
+        );
+        assert_eq!(logged[1].level, Level::Error as i32);
+        let with_loss = process_warnings(&lines[..1], 7, stamp);
+        assert_eq!(with_loss.len(), 2);
+        assert!(with_loss[1].message.starts_with("7 earlier warnings"));
+        assert!(process_warnings(&[], 0, stamp).is_empty());
     }
 }

@@ -270,8 +270,12 @@ pub fn plan(
         let p = table.position(k);
         centres
             .iter()
-            .map(|c| (p[0] - c[0]).hypot(p[1] - c[1]))
+            .map(|c| {
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                dx * dx + dy * dy
+            })
             .fold(f64::INFINITY, f64::min)
+            .sqrt()
     };
     Some(Plan {
         packing: table.pack_with(&set, &need, &nearest),

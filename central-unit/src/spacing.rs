@@ -272,10 +272,15 @@ impl SpacingTable {
 
     /// The sample points within `radius_m` of `centre` (indices).
     pub fn points_within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
+        // Squared distances: the plan asks this for every robot, and
+        // `hypot`'s care for overflow (needless at a site's scale) was most
+        // of a plan's time.
+        let radius_sq = radius_m * radius_m;
         (0..self.points.len())
             .filter(|&k| {
                 let p = self.points[k];
-                (p[0] - centre[0]).hypot(p[1] - centre[1]) <= radius_m
+                let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
+                dx * dx + dy * dy <= radius_sq
             })
             .collect()
     }
@@ -286,8 +291,12 @@ impl SpacingTable {
         self.points
             .iter()
             .enumerate()
-            .map(|(k, p)| (k, (p[0] - at[0]).hypot(p[1] - at[1])))
+            .map(|(k, p)| {
+                let (dx, dy) = (p[0] - at[0], p[1] - at[1]);
+                (k, dx * dx + dy * dy)
+            })
             .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(k, d_sq)| (k, d_sq.sqrt()))
     }
 
     /// The transmitters audible at sample point `point` and their distance, metres.

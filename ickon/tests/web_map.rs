@@ -185,23 +185,22 @@ fn the_browser_shows_the_live_site_and_a_killed_cell_goes_down_within_two_cycles
     // The page in a real browser.
     let mut browser = Browser::launch(&chromium, dir.path());
     browser.navigate(&format!("http://127.0.0.1:{port}/"));
-    let first = poll_until(Duration::from_secs(30), "cells and robots drawn", || {
+    // Every cell drawn up: on a loaded machine a cell woken too late for
+    // two cycles in a row is rightly down for a moment, so the page is
+    // watched until the site is whole rather than judged at first sight.
+    let mut last_seen = serde_json::Value::Null;
+    let first = poll_until(Duration::from_secs(30), "cells up and robots drawn", || {
         let d = browser.eval(DRAWN);
-        (d["cells"].as_array()?.len() == 4
+        last_seen = d.clone();
+        let cells = d["cells"].as_array()?;
+        (cells.len() == 4
+            && cells.iter().all(|c| c["state"] == "up")
             && d["robots"].as_array()?.len() == 3
             && d["messages"].as_u64()? > 0)
             .then_some(d)
     })
-    .expect("the page draws the site");
+    .unwrap_or_else(|e| panic!("{e}: {last_seen}"));
     assert_eq!(first["txs"], 16, "every transmitter drawn");
-    assert!(
-        first["cells"]
-            .as_array()
-            .expect("cells")
-            .iter()
-            .all(|c| c["state"] == "up"),
-        "{first}"
-    );
     let before = browser.eval(DRAWN);
     std::thread::sleep(Duration::from_secs(1));
     let after = browser.eval(DRAWN);

@@ -6,14 +6,16 @@
 //! The reference is the data README's plain filter: a constant-velocity
 //! EKF, one scalar update per range difference, a 3-sigma innovation gate,
 //! anchor noise 0.08 m, white acceleration of 2 m/s^2 (power spectral
-//! density (2 m/s^2)^2 per second, per axis), started at rest at the first
-//! truth sample, scored after its first 2 s. Nothing in it is tuned per
-//! flight. On the IMU flight it diverges (the pre-take-off outliers of
-//! that log, its README's first trap), so there the 1 m bound is the one
-//! that binds.
-//!
-//! Not asserted, because not met: on the IMU flight `imu-eskf` within
-//! 0.8 m and 25 % below `tdoa-ekf` in RMSE.
+//! density (2 m/s^2)^2 per second, per axis). It flies the airborne part
+//! of the log ([`airborne`]): started at rest at the truth at take-off,
+//! fed every range difference until landing, scored after its first 2 s.
+//! Nothing in it is tuned per flight. A plain filter cannot sit on the
+//! floor of the IMU flight's arena: there the four floor-level anchors'
+//! signals arrive about 3 m late (blocked paths, the data README's first
+//! trap), four of the six anchor pairs carry that error with the same
+//! sign, and the filter, which only gates one measurement at a time,
+//! follows them tens of metres away. Our estimators are scored on their
+//! whole published track, ground included, which is stricter for them.
 //!
 //! The data is found under `$ICKON_DATA` (holding `util/` and
 //! `util-imu/`), by default `<workspace root>/../shared/data`. Without it
@@ -40,6 +42,12 @@ const REF_SETTLE_S: f64 = 2.0;
 const ANTENNA_BODY_M: [f64; 3] = [-0.01245, 0.00127, 0.0908];
 /// Truth gaps longer than this are not interpolated across, seconds.
 const MAX_TRUTH_GAP_S: f64 = 0.1;
+/// The vehicle counts as airborne this far above its height at the start
+/// of the log, metres: well clear of the floor-level anchors' stands
+/// (0.17-0.21 m high) and of the body's own height. Any value from 0.3 m
+/// to 1 m starts the IMU flight's reference within 0.3 s of the same
+/// take-off.
+const AIRBORNE_ABOVE_START_M: f64 = 0.5;
 
 /// The worst moment allowed anywhere, metres.
 const MAX_ERROR_M: f64 = 1.0;
@@ -178,10 +186,22 @@ fn truth_at(truth: &[(f64, [f64; 3])], t_s: f64) -> Option<[f64; 3]> {
 
 type M6 = [[f64; 6]; 6];
 
-/// The plain filter over the flight; its estimate at every measurement
-/// from its start on.
+/// From take-off to landing: the first and last truth samples at least
+/// [`AIRBORNE_ABOVE_START_M`] above the first one.
+fn airborne(truth: &[(f64, [f64; 3])]) -> Option<(f64, [f64; 3], f64)> {
+    let ground_z = truth.first()?.1[2];
+    let mut up = truth
+        .iter()
+        .filter(|r| r.1[2] >= ground_z + AIRBORNE_ABOVE_START_M);
+    let &(t0, p0) = up.next()?;
+    let t_end = up.last().map_or(t0, |r| r.0);
+    Some((t0, p0, t_end))
+}
+
+/// The plain filter over the airborne part of the flight; its estimate
+/// at every measurement from take-off to landing.
 fn reference(s: &Streams, anchors: &HashMap<u32, [f64; 3]>) -> Vec<(f64, [f64; 3])> {
-    let Some(&(t0, p0)) = s.truth.first() else {
+    let Some((t0, p0, t_end)) = airborne(&s.truth) else {
         return Vec::new();
     };
     let mut x = [p0[0], p0[1], p0[2], 0.0, 0.0, 0.0];
@@ -194,7 +214,7 @@ fn reference(s: &Streams, anchors: &HashMap<u32, [f64; 3]>) -> Vec<(f64, [f64; 3
     let r = REF_SIGMA_M * REF_SIGMA_M;
     let mut out = Vec::with_capacity(s.tdoa.len());
     for &(tm, ia, ib, d) in &s.tdoa {
-        if tm < t0 {
+        if tm < t0 || tm > t_end {
             continue;
         }
         let dt = tm - t;
@@ -325,7 +345,7 @@ fn flight_rows(root: &Path, f: &Flight) -> Vec<Row> {
     let streams = read_streams(&dir.join(f.file));
     let anchors = read_anchors(&dir.join(f.anchors), f.constellation);
     let track = reference(&streams, &anchors);
-    let from_s = streams.truth.first().map_or(0.0, |t| t.0) + REF_SETTLE_S;
+    let from_s = track.first().map_or(0.0, |t| t.0) + REF_SETTLE_S;
     let plain = score(&track, &streams.truth, from_s);
     let ours = replay(root, f);
     let mut names = vec!["tdoa-ekf"];

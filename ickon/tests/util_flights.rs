@@ -12,9 +12,10 @@
 //! Nothing in it is tuned per flight. A plain filter cannot sit on the
 //! floor of the IMU flight's arena: there the four floor-level anchors'
 //! signals arrive about 3 m late (blocked paths, the data README's first
-//! trap), four of the six anchor pairs carry that error with the same
-//! sign, and the filter, which only gates one measurement at a time,
-//! follows them tens of metres away. Our estimators are scored on their
+//! trap), six of the eight anchor pairs heard there pair a floor anchor
+//! with a ceiling one and carry that error together, and the filter,
+//! which only gates one measurement at a time, follows them tens of
+//! metres away. Our estimators are scored on their
 //! whole published track, ground included, which is stricter for them.
 //!
 //! The data is found under `$ICKON_DATA` (holding `util/` and

@@ -383,6 +383,21 @@ fn bad_input_exits_with_code_two_naming_file_and_line() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2), "{out:?}");
 
+    // --thin keeps one in N (N >= 1), --thin-phase picks one below N.
+    for thin in [["--thin", "0"], ["--thin-phase", "1"]] {
+        let out = ickon()
+            .args(["replay", "util", "--constellation", "1"])
+            .args(thin)
+            .arg("--data")
+            .arg(&flight)
+            .arg("--anchors")
+            .arg(&anchors)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{thin:?}: {out:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--thin"));
+    }
+
     for p in [no_column, unknown, nan, garbled, flight, bad_anchors] {
         std::fs::remove_file(p).unwrap();
     }

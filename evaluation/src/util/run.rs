@@ -47,10 +47,13 @@ struct Streams {
 fn read_streams(args: &UtilArgs, reader: &mut UtilReader) -> Result<Streams, InputError> {
     let mut s = Streams::default();
     let mut first_s = None;
+    let mut tdoa_rows = 0_u32;
     while let Some(row) = reader.next_row()? {
         if let Some(m) = row.tdoa {
             let first = *first_s.get_or_insert(m.t_s);
-            if args.max_seconds.is_none_or(|max| m.t_s - first <= max) {
+            let kept = tdoa_rows % args.thin == args.thin_phase;
+            tdoa_rows = (tdoa_rows + 1) % args.thin;
+            if kept && args.max_seconds.is_none_or(|max| m.t_s - first <= max) {
                 s.tdoa.push((row.line, m));
             }
         }

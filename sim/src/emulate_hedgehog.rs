@@ -4,9 +4,11 @@
 //! so that an MSU agent can be tried with a Marvelmind kit's stream and no
 //! kit. A hedgehog only writes: nothing the host sends is read.
 
+use std::f64::consts::TAU;
 use std::io::Write;
 use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -17,6 +19,7 @@ use ickon_runtime::link::pty::Pty;
 use ickon_runtime::{CommandError, system_now};
 
 use crate::hedgehog::{EmulatedHedgehog, HedgehogSpec, Update};
+use crate::robot::DriveSpec;
 
 /// Updates waiting for a pseudo-terminal's host (two seconds at the default rate).
 const PTY_QUEUE: usize = 16;
@@ -61,9 +64,14 @@ pub struct MarvelmindArgs {
     /// Seed of the noise and the faults.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Writes the robot's true pose at every update to this CSV file
-    /// (`time_ns,x_m,y_m,theta_rad`, system clock), to score what an MSU
-    /// made of the stream.
+    /// With `--listen`: the robot waits at its start until a host first
+    /// connects (a robot that sets off once its localisation is up).
+    #[arg(long)]
+    pub wait_for_host: bool,
+    /// Writes the robot's true pose and its wheel encoders' counts at every
+    /// update to this CSV file (`time_ns,x_m,y_m,theta_rad,left_ticks,right_ticks`,
+    /// system clock; a Pioneer 3-DX drive without slip), to score what an
+    /// MSU made of the stream, or to play the robot's odometry.
     #[arg(long, value_name = "FILE")]
     pub truth: Option<PathBuf>,
 }
@@ -110,7 +118,7 @@ pub fn run_marvelmind(args: MarvelmindArgs) -> Result<(), CommandError> {
         Some(path) => {
             let mut f = std::fs::File::create(path)
                 .map_err(|e| CommandError::failure(format!("--truth {}: {e}", path.display())))?;
-            writeln!(f, "time_ns,x_m,y_m,theta_rad")
+            writeln!(f, "time_ns,x_m,y_m,theta_rad,left_ticks,right_ticks")
                 .map_err(|e| CommandError::failure(e.to_string()))?;
             Some(f)
         }
@@ -121,27 +129,35 @@ pub fn run_marvelmind(args: MarvelmindArgs) -> Result<(), CommandError> {
         None => Line::pty()?,
     };
     let period = Duration::from_secs_f64(hedgehog.period_s());
-    let start = Instant::now();
+    let ticks_per_turn = DriveSpec::default().ticks_per_turn;
+    let mut due = Instant::now();
     // Until Ctrl-C or SIGTERM ends the process: nothing to save.
-    for k in 1u32.. {
-        let due = start + period * k;
+    loop {
+        due += period;
         std::thread::sleep(due.saturating_duration_since(Instant::now()));
+        if args.wait_for_host && !line.has_host() {
+            continue;
+        }
         let Update {
             truth: pose, bytes, ..
         } = hedgehog.update();
         if let Some(f) = truth.as_mut() {
             let now = system_now().as_nanos();
+            let ticks = |wheel_rad: f64| (wheel_rad / TAU * ticks_per_turn).round() as i64;
             writeln!(
                 f,
-                "{now},{:.4},{:.4},{:.5}",
-                pose.x_m, pose.y_m, pose.theta_rad
+                "{now},{:.4},{:.4},{:.5},{},{}",
+                pose.x_m,
+                pose.y_m,
+                pose.theta_rad,
+                ticks(pose.left_wheel_rad),
+                ticks(pose.right_wheel_rad)
             )
             .and_then(|()| f.flush())
             .map_err(|e| CommandError::failure(format!("--truth: {e}")))?;
         }
         line.write(&bytes);
     }
-    Ok(())
 }
 
 /// Where the stream goes.
@@ -155,7 +171,7 @@ enum Line {
         queue: SyncSender<Vec<u8>>,
     },
     /// The TCP host connected last, if any.
-    Tcp(Arc<Mutex<Option<TcpStream>>>),
+    Tcp(Arc<Mutex<Option<TcpStream>>>, Arc<AtomicBool>),
 }
 
 impl Line {
@@ -186,7 +202,8 @@ impl Line {
         println!("tcp:{local}");
         let _ = std::io::stdout().flush();
         let host = Arc::new(Mutex::new(None));
-        let accepted = host.clone();
+        let ever = Arc::new(AtomicBool::new(false));
+        let (accepted, connected) = (host.clone(), ever.clone());
         // A new host replaces the old one: a hedgehog has one port.
         std::thread::spawn(move || {
             for stream in listener.incoming() {
@@ -196,12 +213,21 @@ impl Line {
                         let _ = s.set_write_timeout(Some(WRITE_TIMEOUT));
                         tracing::info!("emulated hedgehog: host connected");
                         *accepted.lock().unwrap_or_else(PoisonError::into_inner) = Some(s);
+                        connected.store(true, Ordering::Relaxed);
                     }
                     Err(e) => tracing::warn!("emulated hedgehog: accept: {e}"),
                 }
             }
         });
-        Ok(Line::Tcp(host))
+        Ok(Line::Tcp(host, ever))
+    }
+
+    /// Whether a host ever connected (a pseudo-terminal cannot tell: yes).
+    fn has_host(&self) -> bool {
+        match self {
+            Line::Pty { .. } => true,
+            Line::Tcp(_, ever) => ever.load(Ordering::Relaxed),
+        }
     }
 
     fn write(&mut self, bytes: &[u8]) {
@@ -209,7 +235,7 @@ impl Line {
             Line::Pty { queue, .. } => {
                 let _ = queue.try_send(bytes.to_vec());
             }
-            Line::Tcp(host) => {
+            Line::Tcp(host, _) => {
                 let mut host = host.lock().unwrap_or_else(PoisonError::into_inner);
                 if let Some(s) = host.as_mut()
                     && let Err(e) = s.write_all(bytes)

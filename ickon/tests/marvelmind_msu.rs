@@ -294,3 +294,74 @@ fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
     let log = msu.log();
     assert!(log.contains("garbage"), "{log}");
 }
+
+#[test]
+fn a_hedgehog_on_a_pseudo_terminal_is_read_as_a_serial_port() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let text = std::fs::read_to_string(SITE).expect("the shipped site");
+    let name = format!("marvelmind-pty-{}", std::process::id());
+    let site_file = dir.path().join("site.toml");
+    std::fs::write(
+        &site_file,
+        text.replace("name = \"marvelmind-lab\"", &format!("name = \"{name}\"")),
+    )
+    .expect("site written");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["emulate", "marvelmind", "--garbage", "0.1"])
+        .arg("--site")
+        .arg(&site_file);
+    let emulator = ChildGuard::spawn("hedgehog-pty", cmd, dir.path()).expect("emulator starts");
+    let address = poll_until(START_TIMEOUT, "the emulator's serial path", || {
+        emulator
+            .log()
+            .lines()
+            .find(|l| l.starts_with("serial:"))
+            .map(str::to_string)
+    })
+    .unwrap_or_else(|e| panic!("{e}\n{}", emulator.log()));
+
+    let central_endpoint = ickon_testkit::loopback_endpoint().expect("port");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])
+        .arg(&central_endpoint)
+        .args(["--site-name", &name])
+        .arg("--site")
+        .arg(&site_file);
+    let _central = ChildGuard::spawn("central-pty", cmd, dir.path()).expect("central starts");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["node", "msu", "--robot", "r1"])
+        .arg("--receivers")
+        .arg(format!("marvelmind:{address}"))
+        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
+        .args(["--connect", &central_endpoint, "--site-name", &name])
+        .arg("--site")
+        .arg(&site_file)
+        .env("RUST_LOG", "info");
+    let mut msu = ChildGuard::spawn("msu-pty", cmd, dir.path()).expect("msu starts");
+    let observer = Observer::open(std::slice::from_ref(&central_endpoint)).expect("observer");
+    let keys = Keys::new(&name).expect("keys");
+    let poses = observer
+        .session()
+        .declare_subscriber(keys.robot("r1", RobotTopic::Pose).unwrap())
+        .wait()
+        .expect("pose subscriber");
+    // Two seconds of the kit's updates, each one pose at least.
+    let mut n = 0;
+    poll_until(START_TIMEOUT, "16 poses from the serial port", || {
+        if let Some(status) = msu.exit_status() {
+            panic!("msu {status}:\n{}", msu.log());
+        }
+        while let Ok(Some(s)) = poses.try_recv() {
+            let p = ickon_proto::decode::<RobotPose>(&s.payload().to_bytes()).expect("pose");
+            assert!(
+                (0.0..=6.0).contains(&p.x_m) && (0.0..=5.0).contains(&p.y_m),
+                "{p:?}"
+            );
+            n += 1;
+        }
+        (n >= 16).then_some(())
+    })
+    .unwrap_or_else(|e| panic!("{e}\n{}", msu.log_tail(30)));
+    let log = msu.log();
+    assert!(log.contains(&format!("hedgehog on {address}")), "{log}");
+}

@@ -133,3 +133,35 @@ impl ReceiverSource {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_marvelmind_address_is_a_link_address_after_its_prefix() {
+        let kind: ReceiverKind = "marvelmind:serial:/dev/ttyACM0@9600".parse().unwrap();
+        assert_eq!(
+            kind,
+            ReceiverKind::Marvelmind(LinkAddress::Serial {
+                path: "/dev/ttyACM0".into(),
+                baud: 9600
+            })
+        );
+        assert_eq!(kind.to_string(), "marvelmind:serial:/dev/ttyACM0@9600");
+        let tcp: ReceiverKind = "marvelmind:tcp:10.0.0.5:4000".parse().unwrap();
+        assert_eq!(tcp.to_string(), "marvelmind:tcp:10.0.0.5:4000");
+        assert!(matches!(
+            "serial:/dev/ttyUSB0".parse(),
+            Ok(ReceiverKind::Board(_))
+        ));
+        for bad in [
+            "marvelmind:",
+            "marvelmind:/dev/ttyACM0",
+            "marvelmind:tcp:host",
+        ] {
+            let e = bad.parse::<ReceiverKind>().unwrap_err();
+            assert!(e.contains("after `marvelmind:`"), "{bad}: {e}");
+        }
+    }
+}

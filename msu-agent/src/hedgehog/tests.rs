@@ -189,3 +189,34 @@ fn beacon_positions_that_disagree_with_the_site_are_warned_about() {
     assert!(problems[0].1.contains("beacon 12"), "{problems:?}");
     assert!(problems[1].1.contains("beacon 40"), "{problems:?}");
 }
+
+proptest::proptest! {
+    /// Whatever the line carries (random bytes around real frames, cut
+    /// anywhere, forged distances and time shifts), the reader neither
+    /// panics nor hands on a distance the site cannot have.
+    #[test]
+    fn any_bytes_are_read_without_panic_or_foreign_beacons(
+        noise in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..600),
+        slots in proptest::collection::vec((proptest::prelude::any::<u8>(), proptest::prelude::any::<u32>()), 4),
+        shift in proptest::prelude::any::<u16>(),
+        cut in 1usize..64,
+    ) {
+        let mut r = reader(MarvelmindSettings::default(), 343.0);
+        let frame = distances(std::array::from_fn(|i| slots[i]), shift);
+        let mut bytes = noise.clone();
+        bytes.extend_from_slice(&frame);
+        bytes.extend_from_slice(&noise);
+        for chunk in bytes.chunks(cut) {
+            for input in r.feed(NOW, chunk).0 {
+                if let HedgehogInput::Distances(d) = input {
+                    for x in d.distances {
+                        proptest::prop_assert!((11..=14).contains(&x.tx_id));
+                        proptest::prop_assert!(x.distance_m > 0.0 && x.distance_m.is_finite());
+                    }
+                    proptest::prop_assert!(d.stamp <= NOW);
+                }
+            }
+        }
+        proptest::prop_assert!(r.counters().frames >= 1);
+    }
+}

@@ -365,3 +365,28 @@ fn a_hedgehog_on_a_pseudo_terminal_is_read_as_a_serial_port() {
     let log = msu.log();
     assert!(log.contains(&format!("hedgehog on {address}")), "{log}");
 }
+
+#[test]
+fn an_emulated_hedgehog_refuses_what_no_kit_can_be() {
+    let run = |args: &[&str]| {
+        let out = Command::new(ICKON)
+            .args(["emulate", "marvelmind"])
+            .args(args)
+            .output()
+            .expect("runs");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    // The warehouse's transmitter ids go beyond a kit's 254 addresses.
+    let (code, err) = run(&["--site", "warehouse"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("addresses are 1-254"), "{err}");
+    let (code, err) = run(&["--site", SITE, "--rate-hz", "0"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--rate-hz"), "{err}");
+    let (code, err) = run(&["--site", SITE, "--robot", "r9"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("r9"), "{err}");
+}

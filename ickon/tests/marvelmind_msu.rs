@@ -390,3 +390,81 @@ fn an_emulated_hedgehog_refuses_what_no_kit_can_be() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("r9"), "{err}");
 }
+
+#[test]
+fn a_hedgehog_unplugged_and_plugged_back_is_read_again() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let text = std::fs::read_to_string(SITE).expect("the shipped site");
+    let name = format!("marvelmind-replug-{}", std::process::id());
+    let site_file = dir.path().join("site.toml");
+    std::fs::write(
+        &site_file,
+        text.replace("name = \"marvelmind-lab\"", &format!("name = \"{name}\"")),
+    )
+    .expect("site written");
+    let port = ickon_testkit::free_tcp_port().expect("a free port");
+    let listen = format!("127.0.0.1:{port}");
+    let hedgehog = |n: &str| {
+        let mut cmd = Command::new(ICKON);
+        cmd.args(["emulate", "marvelmind", "--listen", &listen])
+            .arg("--site")
+            .arg(&site_file);
+        ChildGuard::spawn(n, cmd, dir.path()).expect("emulator starts")
+    };
+    let mut first = hedgehog("hedgehog-1");
+
+    let central_endpoint = ickon_testkit::loopback_endpoint().expect("port");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])
+        .arg(&central_endpoint)
+        .args(["--site-name", &name])
+        .arg("--site")
+        .arg(&site_file);
+    let _central = ChildGuard::spawn("central-replug", cmd, dir.path()).expect("central starts");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["node", "msu", "--robot", "r1"])
+        .arg("--receivers")
+        .arg(format!("marvelmind:tcp:{listen}"))
+        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
+        .args(["--connect", &central_endpoint, "--site-name", &name])
+        .arg("--site")
+        .arg(&site_file)
+        .env("RUST_LOG", "info");
+    let mut msu = ChildGuard::spawn("msu-replug", cmd, dir.path()).expect("msu starts");
+    let observer = Observer::open(std::slice::from_ref(&central_endpoint)).expect("observer");
+    let keys = Keys::new(&name).expect("keys");
+    let poses = observer
+        .session()
+        .declare_subscriber(keys.robot("r1", RobotTopic::Pose).unwrap())
+        .wait()
+        .expect("pose subscriber");
+    let mut count_poses = |msu: &mut ChildGuard, n: usize, what: &str| {
+        let mut seen = 0;
+        poll_until(START_TIMEOUT, what, || {
+            if let Some(status) = msu.exit_status() {
+                panic!("msu {status}:\n{}", msu.log());
+            }
+            while let Ok(Some(_)) = poses.try_recv() {
+                seen += 1;
+            }
+            (seen >= n).then_some(())
+        })
+        .unwrap_or_else(|e| panic!("{e}\n{}", msu.log_tail(30)));
+    };
+    count_poses(&mut msu, 8, "poses from the first hedgehog");
+    first.kill().expect("unplugged");
+    std::thread::sleep(Duration::from_secs(1));
+    assert!(msu.exit_status().is_none(), "{}", msu.log());
+    let _second = hedgehog("hedgehog-2");
+    // Drain what came before the hedgehog was back.
+    while let Ok(Some(_)) = poses.try_recv() {}
+    count_poses(&mut msu, 8, "poses from the hedgehog plugged back");
+    let log = msu.log();
+    assert!(log.contains("hedgehog lost"), "{log}");
+    assert_eq!(
+        log.matches(&format!("hedgehog on tcp:{listen} connected"))
+            .count(),
+        2,
+        "{log}"
+    );
+}

@@ -438,7 +438,7 @@ fn a_hedgehog_unplugged_and_plugged_back_is_read_again() {
         .declare_subscriber(keys.robot("r1", RobotTopic::Pose).unwrap())
         .wait()
         .expect("pose subscriber");
-    let mut count_poses = |msu: &mut ChildGuard, n: usize, what: &str| {
+    let count_poses = |msu: &mut ChildGuard, n: usize, what: &str| {
         let mut seen = 0;
         poll_until(START_TIMEOUT, what, || {
             if let Some(status) = msu.exit_status() {

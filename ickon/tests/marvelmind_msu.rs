@@ -227,7 +227,15 @@ fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
             (newest > t0 + settle_ns + SCORED.as_nanos() as i64).then_some(())
         },
     )
-    .unwrap_or_else(|e| panic!("{e}\n{}", msu.log_tail(30)));
+    .unwrap_or_else(|e| {
+        panic!(
+            "{e}: {} poses, from {:?} to {:?}, robot started at {robot_start_ns:?}\n{}",
+            all.len(),
+            all.first().map(|p| p.stamp),
+            all.last().map(|p| p.stamp),
+            msu.log_tail(30)
+        )
+    });
     // The truth is written just after each update: wait for the last.
     std::thread::sleep(Duration::from_millis(500));
     stop.store(true, Ordering::Relaxed);

@@ -220,9 +220,10 @@ fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
             while let Ok(Some(s)) = poses.try_recv() {
                 all.push(ickon_proto::decode::<RobotPose>(&s.payload().to_bytes()).expect("pose"));
             }
-            let t0 =
-                *robot_start_ns.get_or_insert_with(|| truth(&truth_file).first().map(|l| l.t_ns));
-            let t0 = t0?;
+            if robot_start_ns.is_none() {
+                robot_start_ns = truth(&truth_file).first().map(|l| l.t_ns);
+            }
+            let t0 = robot_start_ns?;
             let newest = all.last()?.stamp.as_nanos();
             (newest > t0 + settle_ns + SCORED.as_nanos() as i64).then_some(())
         },

@@ -62,7 +62,8 @@ pub enum Command {
         #[command(subcommand)]
         action: DeviceAction,
     },
-    /// Emulate a board of the ICKON device protocol on a pseudo-terminal or a TCP port.
+    /// Emulate a board of the ICKON device protocol, or a Marvelmind hedgehog,
+    /// on a pseudo-terminal or a TCP port.
     Emulate {
         /// Which board.
         #[command(subcommand)]

@@ -27,3 +27,17 @@ pub struct BeaconDistance {
     /// Its standard deviation, metres (the source's stated accuracy).
     pub sigma_m: f64,
 }
+
+/// Where a ranging kit says the receiver is (a Marvelmind hedgehog's own
+/// position), in the site's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KitPosition {
+    /// When, on the MSU clock.
+    pub stamp: Time,
+    /// Position, metres.
+    pub x_m: f64,
+    /// See `x_m`.
+    pub y_m: f64,
+    /// One-sigma noise per axis, metres.
+    pub sigma_m: f64,
+}

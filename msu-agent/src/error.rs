@@ -52,6 +52,12 @@ pub enum MsuError {
         /// Why the first was refused.
         reason: String,
     },
+    /// A ranging kit's position that cannot be used.
+    #[error("kit position refused: {reason}")]
+    KitPosition {
+        /// Why.
+        reason: String,
+    },
     /// The input is stamped far ahead of every input before it (see [`crate::time_gate`]).
     #[error("input stamped {ahead_s:.3} s ahead of the newest: refused")]
     FromTheFuture {

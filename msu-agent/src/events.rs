@@ -10,7 +10,7 @@
 use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Fix, Imu, ObstacleRanges, Odometry, RobotPose, UltrasoundArrivals};
 
-use crate::beacons::BeaconDistances;
+use crate::beacons::{BeaconDistances, KitPosition};
 use crate::core::MsuCore;
 use crate::error::MsuError;
 
@@ -35,6 +35,8 @@ pub enum Event {
     Survey(SurveyCalibration),
     /// Distances to beacons from a ranging source.
     BeaconDistances(BeaconDistances),
+    /// A ranging kit's own position.
+    KitPosition(KitPosition),
 }
 
 /// Which kind of input an [`Output::Refused`] concerns.
@@ -56,6 +58,8 @@ pub enum InputKind {
     Survey,
     /// A reading of distances to beacons.
     BeaconDistances,
+    /// A ranging kit's own position.
+    KitPosition,
 }
 
 /// What the core asks its adapter to do.
@@ -116,6 +120,12 @@ impl MsuCore {
             Event::BeaconDistances(msg) => {
                 if let Err(e) = self.on_beacon_distances(&msg) {
                     out.push(refused(InputKind::BeaconDistances, e));
+                }
+                out.extend(self.pose().map(Output::Pose));
+            }
+            Event::KitPosition(p) => {
+                if let Err(e) = self.on_kit_position(&p) {
+                    out.push(refused(InputKind::KitPosition, e));
                 }
                 out.extend(self.pose().map(Output::Pose));
             }

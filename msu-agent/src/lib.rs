@@ -21,7 +21,10 @@ mod driver;
 mod error;
 pub mod events;
 pub mod fusion_clock;
+pub mod hedgehog;
 pub mod host;
+#[cfg(feature = "zenoh")]
+pub mod marvelmind_receivers;
 pub mod motion;
 #[cfg(feature = "zenoh")]
 pub mod node;

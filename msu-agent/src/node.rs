@@ -24,7 +24,9 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Sample;
 
-use crate::receivers::{ReceiverKind, ReceiverSource};
+use crate::hedgehog::HedgehogInput;
+use crate::marvelmind_receivers::RangingSite;
+use crate::receivers::{ReceiverInput, ReceiverKind, ReceiverSource, SourceContext};
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
 use crate::{Event, InputKind, MsuCore, MsuTuning, Output};
 
@@ -83,6 +85,8 @@ enum Arrived {
     /// With the key it came under (a cell may speak only under its own).
     CellStatus(String, Result<CellStatus, DecodeError>),
     Survey(Result<SurveyCalibration, DecodeError>),
+    /// A ranging kit's distances or position.
+    Ranging(HedgehogInput),
 }
 
 impl Arrived {
@@ -103,6 +107,8 @@ impl Arrived {
                 Event::CellStatus(status)
             }
             Arrived::Survey(r) => Event::Survey(r.map_err(bad("undecodable survey calibration"))?),
+            Arrived::Ranging(HedgehogInput::Distances(d)) => Event::BeaconDistances(d),
+            Arrived::Ranging(HedgehogInput::KitPosition(p)) => Event::KitPosition(p),
         })
     }
 }
@@ -139,7 +145,12 @@ pub async fn run(
     })?;
     let config = settings.tuning.estimator_for(&site, spec.start);
     let estimator = estimator::build(&config).map_err(|e| NodeError::Setup(e.to_string()))?;
-    let mut core = MsuCore::new(settings.tuning.msu_config(&site), estimator);
+    let msu_config = settings.tuning.msu_config(&site);
+    let ranging_site = RangingSite {
+        speed_of_sound_m_s: msu_config.speed_of_sound_m_s,
+        beacons: msu_config.transmitters.clone(),
+    };
+    let mut core = MsuCore::new(msu_config, estimator);
     // Every input, the central unit's and the cells' as well as the
     // robot's, goes through one queue in the order the session received
     // it, so that the core sees one defined order: the order a recorder of
@@ -176,14 +187,14 @@ pub async fn run(
         tracing::warn!("robot {robot}: the central unit's schedule refused: {e}");
     }
 
-    let _robot_inputs = RobotInputs::declare(
-        session,
-        &keys,
+    let source = SourceContext {
         robot,
-        (settings.receivers.clone(), settings.clock),
-        &queue,
-    )
-    .await?;
+        clock: settings.clock,
+        site: ranging_site,
+        marvelmind: settings.tuning.marvelmind,
+    };
+    let _robot_inputs =
+        RobotInputs::declare(session, &keys, (settings.receivers.clone(), source), &queue).await?;
     drop(queue);
     let publishers = Publishers::declare(session, &keys, robot).await?;
     let ros = match settings.ros2.clone() {
@@ -303,15 +314,19 @@ impl RobotInputs {
     async fn declare(
         session: &Session,
         keys: &Keys,
-        robot: &str,
-        (receivers, clock): (ReceiverKind, ickon_runtime::SimulatedClock),
+        (receivers, source): (ReceiverKind, SourceContext<'_>),
         queue: &InputQueue,
     ) -> Result<Self, NodeError> {
+        let robot = source.robot;
         let sub = |topic| keys.robot(robot, topic);
         let receivers = {
             let (tx, full) = (queue.tx.clone(), queue.full.clone());
-            ReceiverSource::open(receivers, clock, session, keys, robot, move |a| {
-                if tx.try_send(Arrived::Arrivals(a)).is_err() {
+            ReceiverSource::open(receivers, source, session, keys, move |input| {
+                let arrived = match input {
+                    ReceiverInput::Arrivals(a) => Arrived::Arrivals(a),
+                    ReceiverInput::Ranging(r) => Arrived::Ranging(r),
+                };
+                if tx.try_send(arrived).is_err() {
                     full.fetch_add(1, Ordering::Relaxed);
                 }
             })
@@ -577,10 +592,13 @@ pub struct MsuArgs {
     /// `robot.m_per_tick` (default: a Pioneer 3-DX).
     #[arg(long)]
     pub m_per_tick: Option<f64>,
-    /// Where the arrivals come from: `sim` (the simulated world's), or a
+    /// Where the arrivals come from: `sim` (the simulated world's), a
     /// receiver board of the ICKON device protocol at `serial:PATH[@BAUD]`
-    /// (115200 baud when not given) or `tcp:HOST:PORT`.
-    #[arg(long, default_value_t = ReceiverKind::Sim, value_name = "sim|serial:PATH[@BAUD]|tcp:HOST:PORT")]
+    /// (115200 baud when not given) or `tcp:HOST:PORT`, or a Marvelmind
+    /// hedgehog's raw distances at `marvelmind:serial:PATH[@BAUD]` or
+    /// `marvelmind:tcp:HOST:PORT` (its settings: the configuration file's
+    /// `[marvelmind]` block).
+    #[arg(long, default_value_t = ReceiverKind::Sim, value_name = "sim|serial:PATH[@BAUD]|tcp:HOST:PORT|marvelmind:ADDRESS")]
     pub receivers: ReceiverKind,
     /// The ROS 2 side (`--ros2` and `--ros2-*`); boxed, as it is most of
     /// the arguments' size.

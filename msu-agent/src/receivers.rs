@@ -1,7 +1,9 @@
 //! Where the MSU's arrivals come from, chosen when the agent starts
 //! (`ickon-msu --receivers`): the simulated world's, published on
 //! `robot/<id>/ultrasound`, or a receiver board of the device protocol
-//! ([`crate::board_receivers`]), both as the same [`UltrasoundArrivals`].
+//! ([`crate::board_receivers`]), both as the same [`UltrasoundArrivals`];
+//! or a Marvelmind hedgehog ([`crate::marvelmind_receivers`]), whose
+//! distances to beacons are ranges instead of arrivals.
 
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_proto::msg::robot::UltrasoundArrivals;
@@ -12,6 +14,8 @@ use zenoh::Session;
 use zenoh::pubsub::Subscriber;
 
 use crate::board_receivers::BoardReceivers;
+use crate::hedgehog::{HedgehogInput, MarvelmindSettings};
+use crate::marvelmind_receivers::{MarvelmindReceivers, RangingSite};
 
 /// Which receiver source the agent uses.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -21,7 +25,12 @@ pub enum ReceiverKind {
     Sim,
     /// A receiver board of the device protocol at this address.
     Board(LinkAddress),
+    /// A Marvelmind hedgehog at this address.
+    Marvelmind(LinkAddress),
 }
+
+/// The prefix of a Marvelmind hedgehog's address.
+const MARVELMIND: &str = "marvelmind:";
 
 impl std::str::FromStr for ReceiverKind {
     type Err = String;
@@ -30,9 +39,15 @@ impl std::str::FromStr for ReceiverKind {
         if s == "sim" {
             return Ok(ReceiverKind::Sim);
         }
+        if let Some(address) = s.strip_prefix(MARVELMIND) {
+            return address
+                .parse()
+                .map(ReceiverKind::Marvelmind)
+                .map_err(|e| format!("{e} (after `{MARVELMIND}`)"));
+        }
         s.parse()
             .map(ReceiverKind::Board)
-            .map_err(|e| format!("{e} (or `sim`)"))
+            .map_err(|e| format!("{e} (or `sim`, or `{MARVELMIND}` and an address)"))
     }
 }
 
@@ -41,44 +56,112 @@ impl std::fmt::Display for ReceiverKind {
         match self {
             ReceiverKind::Sim => f.write_str("sim"),
             ReceiverKind::Board(a) => a.fmt(f),
+            ReceiverKind::Marvelmind(a) => write!(f, "{MARVELMIND}{a}"),
         }
     }
 }
 
-/// An open receiver source; it hands each cycle's arrivals to the sink it
-/// was opened with (`Err(..)` for a message that does not decode, to count
-/// and drop), in the order they come, until it is dropped.
+/// What a receiver source hands on.
+#[derive(Debug)]
+pub enum ReceiverInput {
+    /// One cycle's arrivals (`Err(..)` for a message that does not decode,
+    /// to count and drop).
+    Arrivals(Result<UltrasoundArrivals, DecodeError>),
+    /// A ranging kit's distances or position.
+    Ranging(HedgehogInput),
+}
+
+/// An open receiver source; it hands what it receives to the sink it was
+/// opened with, in the order it comes, until it is dropped.
 pub enum ReceiverSource {
     /// Arrivals from the simulated world, over Zenoh.
     Sim(Subscriber<()>),
     /// Arrivals from a receiver board.
     Board(BoardReceivers),
+    /// Distances from a Marvelmind hedgehog.
+    Marvelmind(MarvelmindReceivers),
+}
+
+/// What a source needs besides its address: the robot, its clock, and for
+/// a ranging kit the site's beacons and the kit's settings.
+pub struct SourceContext<'a> {
+    /// The robot's id.
+    pub robot: &'a str,
+    /// The agent's clock.
+    pub clock: SimulatedClock,
+    /// The site's speed of sound and beacons.
+    pub site: RangingSite,
+    /// The `[marvelmind]` block of the configuration.
+    pub marvelmind: MarvelmindSettings,
 }
 
 impl ReceiverSource {
-    /// Opens the source `kind` for `robot` (whose clock is `clock`),
-    /// delivering to `sink`.
+    /// Opens the source `kind` for the robot of `cx`, delivering to `sink`.
     pub async fn open(
         kind: ReceiverKind,
-        clock: SimulatedClock,
+        cx: SourceContext<'_>,
         session: &Session,
         keys: &Keys,
-        robot: &str,
-        sink: impl Fn(Result<UltrasoundArrivals, DecodeError>) + Send + Sync + 'static,
+        sink: impl Fn(ReceiverInput) + Send + Sync + 'static,
     ) -> Result<Self, NodeError> {
+        let robot = cx.robot;
         match kind {
             ReceiverKind::Sim => Ok(Self::Sim(
                 session
                     .declare_subscriber(keys.robot(robot, RobotTopic::Ultrasound)?)
                     .callback(move |sample| {
-                        sink(decode::<UltrasoundArrivals>(&sample.payload().to_bytes()))
+                        sink(ReceiverInput::Arrivals(decode::<UltrasoundArrivals>(
+                            &sample.payload().to_bytes(),
+                        )))
                     })
                     .await
                     .map_err(zerr)?,
             )),
             ReceiverKind::Board(address) => Ok(Self::Board(BoardReceivers::open(
-                robot, address, clock, sink,
+                robot,
+                address,
+                cx.clock,
+                move |a| sink(ReceiverInput::Arrivals(a)),
             ))),
+            ReceiverKind::Marvelmind(address) => Ok(Self::Marvelmind(MarvelmindReceivers::open(
+                robot,
+                address,
+                cx.clock,
+                (cx.site, cx.marvelmind),
+                move |r| sink(ReceiverInput::Ranging(r)),
+            ))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_marvelmind_address_is_a_link_address_after_its_prefix() {
+        let kind: ReceiverKind = "marvelmind:serial:/dev/ttyACM0@9600".parse().unwrap();
+        assert_eq!(
+            kind,
+            ReceiverKind::Marvelmind(LinkAddress::Serial {
+                path: "/dev/ttyACM0".into(),
+                baud: 9600
+            })
+        );
+        assert_eq!(kind.to_string(), "marvelmind:serial:/dev/ttyACM0@9600");
+        let tcp: ReceiverKind = "marvelmind:tcp:10.0.0.5:4000".parse().unwrap();
+        assert_eq!(tcp.to_string(), "marvelmind:tcp:10.0.0.5:4000");
+        assert!(matches!(
+            "serial:/dev/ttyUSB0".parse(),
+            Ok(ReceiverKind::Board(_))
+        ));
+        for bad in [
+            "marvelmind:",
+            "marvelmind:/dev/ttyACM0",
+            "marvelmind:tcp:host",
+        ] {
+            let e = bad.parse::<ReceiverKind>().unwrap_err();
+            assert!(e.contains("after `marvelmind:`"), "{bad}: {e}");
         }
     }
 }

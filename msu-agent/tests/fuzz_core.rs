@@ -6,7 +6,7 @@
 //! core publishes is finite.
 
 use ickon_fusion::estimator::{WheelGeometry, build_by_name, names};
-use ickon_msu::beacons::{BeaconDistance, BeaconDistances};
+use ickon_msu::beacons::{BeaconDistance, BeaconDistances, KitPosition};
 use ickon_msu::ros2::inputs::{InputDecoder, InputTopic};
 use ickon_msu::{Event, MsuConfig, MsuCore, MsuTuning, Output};
 use ickon_proto::fuzz::extreme::offset_ns;
@@ -131,6 +131,32 @@ fn beacon_distances(stamp: Time, a: &Act) -> BeaconDistances {
     BeaconDistances { stamp, distances }
 }
 
+/// A ranging kit's own position: on the floor when plausible, otherwise
+/// coordinates and sigma straight from the entropy's bytes.
+fn kit_position(stamp: Time, a: &Act) -> KitPosition {
+    let plausible = a.e.first().is_some_and(|b| *b < 160);
+    let f = |i: usize| {
+        a.e.get(8 * i..8 * i + 8).map_or(f64::NAN, |b| {
+            f64::from_le_bytes(b.try_into().expect("8 bytes"))
+        })
+    };
+    if plausible {
+        KitPosition {
+            stamp,
+            x_m: 2.0,
+            y_m: 2.0,
+            sigma_m: 0.02,
+        }
+    } else {
+        KitPosition {
+            stamp,
+            x_m: f(0),
+            y_m: f(1),
+            sigma_m: f(2),
+        }
+    }
+}
+
 fn event(now: Time, a: &Act) -> Option<Event> {
     let stamp = now + Duration::from_nanos(a.at);
     let plausible = a.e.first().is_some_and(|b| *b < 160);
@@ -152,6 +178,7 @@ fn event(now: Time, a: &Act) -> Option<Event> {
             o
         }),
         5 => Event::Trigger(draw::<ickon_proto::msg::control::CycleTrigger>(&a.e)?),
+        6 if a.kind >= 128 => Event::KitPosition(kit_position(stamp, a)),
         6 => Event::BeaconDistances(beacon_distances(stamp, a)),
         _ => Event::Range({
             let mut o = draw::<ObstacleRanges>(&a.e)?;

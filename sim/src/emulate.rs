@@ -29,6 +29,9 @@ pub enum EmulateCommand {
     /// A robot's receiver ring: identifies itself and answers the host
     /// (arrivals come from a simulated world only under `ickon sim`).
     ReceiverBoard(ReceiverBoardArgs),
+    /// A Marvelmind hedgehog on a robot of a site: raw distances (0x0004)
+    /// and positions (0x0011) at the kit's rate, with its range noise.
+    Marvelmind(crate::emulate_hedgehog::MarvelmindArgs),
 }
 
 /// Where an emulated board listens, its clock and its faults.
@@ -92,6 +95,7 @@ pub fn run_emulate(command: EmulateCommand) -> Result<(), CommandError> {
         EmulateCommand::ReceiverBoard(a) => {
             (BoardSpec::receiver(a.receivers, a.board.seed), a.board)
         }
+        EmulateCommand::Marvelmind(a) => return crate::emulate_hedgehog::run_marvelmind(a),
     };
     spec.clock_offset_ns =
         checked(args.clock_offset_ms * 1e6, "--clock-offset-ms", 0.0, 1e12)? as i64;

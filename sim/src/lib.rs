@@ -16,6 +16,7 @@
 //! - [`score`]: the seeds' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
 //! - [`board`]: an emulated transmitter or receiver board of the device protocol.
+//! - [`hedgehog`]: an emulated Marvelmind hedgehog streaming raw distances on a route.
 //!
 //! Every random draw comes from a `ChaCha8Rng` stream derived from the run
 //! seed and a label ([`rng::stream`]): the same seed gives the same numbers.
@@ -27,8 +28,11 @@ pub mod collision;
 pub mod control;
 #[cfg(feature = "zenoh")]
 pub mod emulate;
+#[cfg(feature = "zenoh")]
+pub mod emulate_hedgehog;
 pub mod engine;
 pub mod fleet;
+pub mod hedgehog;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod profile;

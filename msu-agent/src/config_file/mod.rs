@@ -3,7 +3,7 @@
 //! `[receiver_heading]`) with its noise and its gate in data-sheet units,
 //! the filter-wide tuning apart (`[filter]`, with the estimator's own
 //! remaining parameters in `[filter.params]`), and the drive geometry
-//! (`[robot]`), and the ROS 2 side (`[ros2]`, the fields of the `--ros2-*`
+//! (`[robot]`), a Marvelmind kit's settings (`[marvelmind]`), and the ROS 2 side (`[ros2]`, the fields of the `--ros2-*`
 //! flags; a flag given with another value than its default wins). Every key is optional except `[filter] estimator`; what is
 //! left out keeps the estimator's defaults. Validated like the site file:
 //! every problem at once, each with its line and column. A commented example
@@ -25,6 +25,7 @@ use thiserror::Error;
 
 use crate::config::MsuConfig;
 use crate::config::apply_site;
+use crate::hedgehog::MarvelmindSettings;
 
 /// Distance per encoder tick of a Pioneer 3-DX, metres (its 19.5 cm wheel,
 /// 500-line encoder and 38.3:1 gear): the drive the seeds used.
@@ -99,6 +100,8 @@ pub struct MsuTuning {
     pub solver: SolverTuning,
     /// The robot's nominal drive geometry.
     pub wheels: WheelGeometry,
+    /// How a Marvelmind kit's stream is read (`--receivers marvelmind:...`).
+    pub marvelmind: MarvelmindSettings,
     /// Values the chosen estimator has no use for (ignored), with where they are.
     pub warnings: Vec<ConfigIssue>,
     /// The file's `[ros2]` block, when it has one (a build without the
@@ -115,6 +118,7 @@ impl MsuTuning {
             start: None,
             solver: SolverTuning::default(),
             wheels: pioneer_wheels(),
+            marvelmind: MarvelmindSettings::default(),
             warnings: Vec::new(),
             #[cfg(feature = "zenoh")]
             ros2: None,

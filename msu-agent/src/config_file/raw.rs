@@ -75,6 +75,16 @@ pub(super) struct RawReceiverHeading {
     pub sigma_deg: Option<Num>,
 }
 
+/// `[marvelmind]`: a Marvelmind kit as the ranging source.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawMarvelmind {
+    pub speed_of_sound_m_s: Option<Num>,
+    pub range_sigma_m: Option<Num>,
+    pub use_kit_positions: Option<Spanned<bool>>,
+    pub kit_position_sigma_m: Option<Num>,
+}
+
 /// The whole file.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -86,6 +96,7 @@ pub(super) struct RawMsuFile {
     pub odometry: Option<Spanned<RawOdometry>>,
     pub gyro: Option<Spanned<RawGyro>>,
     pub receiver_heading: Option<Spanned<RawReceiverHeading>>,
+    pub marvelmind: Option<Spanned<RawMarvelmind>>,
     /// `[ros2]`: the ROS 2 side, the fields of the `--ros2-*` flags (checked
     /// when the agent starts, like the flags).
     #[cfg(feature = "zenoh")]

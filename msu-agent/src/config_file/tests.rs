@@ -299,3 +299,38 @@ fn files_that_are_not_configurations_are_refused_clearly() {
     assert!(e.contains("missing.toml"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_marvelmind_block_sets_the_kits_settings_and_refuses_absurd_ones() {
+    let t = parse(
+        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 340.5\nrange_sigma_m = 0.03\nuse_kit_positions = true\nkit_position_sigma_m = 0.05\n",
+    )
+    .unwrap();
+    assert_eq!(
+        t.marvelmind,
+        crate::hedgehog::MarvelmindSettings {
+            speed_of_sound_m_s: 340.5,
+            range_sigma_m: 0.03,
+            use_kit_positions: true,
+            kit_position_sigma_m: 0.05,
+        }
+    );
+    let issues = parse(
+        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 34.3\nrange_sigma_m = -1.0\nbaud = 9600\n",
+    )
+    .unwrap_err();
+    assert_eq!(
+        issues.len(),
+        1,
+        "unknown key: the file does not parse {issues:?}"
+    );
+    let issues = parse(
+        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 34.3\nrange_sigma_m = -1.0\n",
+    )
+    .unwrap_err();
+    let fields: Vec<&str> = issues.iter().map(|i| i.field.as_str()).collect();
+    assert_eq!(
+        fields,
+        ["marvelmind.speed_of_sound_m_s", "marvelmind.range_sigma_m"]
+    );
+}

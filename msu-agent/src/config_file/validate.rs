@@ -9,6 +9,7 @@ use ickon_fusion::estimator::{EstimatorConfig, WheelGeometry, names};
 use super::apply::{self, Touched};
 use super::raw::{Num, RawFilter, RawMsuFile};
 use super::{ConfigIssue, MsuConfigError, MsuTuning, SolverTuning, pioneer_wheels};
+use crate::hedgehog::MarvelmindSettings;
 
 /// Where a value must lie, and in what unit it is named in messages.
 struct Bounds {
@@ -197,6 +198,7 @@ fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
             .map_or(sheet.right_m_per_tick, |v| v.0),
     };
     let defaults = SolverTuning::default();
+    let marvelmind = marvelmind(ctx, raw);
     let fix = values.fix;
     Some(MsuTuning {
         estimator: c,
@@ -207,10 +209,51 @@ fn build(ctx: &mut Ctx, raw: &RawMsuFile) -> Option<MsuTuning> {
             max_fix_sigma_m: fix.max_sigma.map_or(defaults.max_fix_sigma_m, |v| v.0),
         },
         wheels,
+        marvelmind,
         warnings: Vec::new(),
         #[cfg(feature = "zenoh")]
         ros2: raw.ros2.clone(),
     })
+}
+
+/// The `[marvelmind]` section over the defaults.
+fn marvelmind(ctx: &mut Ctx, raw: &RawMsuFile) -> MarvelmindSettings {
+    let mut m = MarvelmindSettings::default();
+    let Some(block) = raw.marvelmind.as_ref().map(|b| b.get_ref()) else {
+        return m;
+    };
+    // Air from -40 to +60 °C: 306 to 366 m/s.
+    let speed = Bounds {
+        lo: 300.0,
+        hi: 370.0,
+        lo_open: false,
+        unit: "m/s",
+    };
+    if let Some((v, _)) = ctx.num(
+        &block.speed_of_sound_m_s,
+        "marvelmind.speed_of_sound_m_s",
+        speed,
+    ) {
+        m.speed_of_sound_m_s = v;
+    }
+    if let Some((v, _)) = ctx.num(
+        &block.range_sigma_m,
+        "marvelmind.range_sigma_m",
+        positive(10.0, "m"),
+    ) {
+        m.range_sigma_m = v;
+    }
+    if let Some((v, _)) = ctx.num(
+        &block.kit_position_sigma_m,
+        "marvelmind.kit_position_sigma_m",
+        positive(10.0, "m"),
+    ) {
+        m.kit_position_sigma_m = v;
+    }
+    if let Some(v) = &block.use_kit_positions {
+        m.use_kit_positions = *v.get_ref();
+    }
+    m
 }
 
 /// A number of the file that is within its bounds, with where it is;

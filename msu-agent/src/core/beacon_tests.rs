@@ -141,3 +141,41 @@ fn a_flood_of_distances_in_one_reading_is_refused_whole() {
         "{out:?}"
     );
 }
+
+#[test]
+fn a_kits_own_positions_place_a_seed_filter_and_absurd_ones_are_refused() {
+    use crate::beacons::KitPosition;
+    let mut core = core("msu-raw");
+    let at = [4.0, 2.0];
+    let kit = |k: i64, x_m: f64, y_m: f64, sigma_m: f64| {
+        Event::KitPosition(KitPosition {
+            stamp: Time::from_nanos(1_000_000_000 + k * 125_000_000),
+            x_m,
+            y_m,
+            sigma_m,
+        })
+    };
+    let mut last = None;
+    for k in 0..40 {
+        for out in core.handle(kit(k, at[0], at[1], 0.02)) {
+            match out {
+                Output::Pose(p) => last = Some(p),
+                other => panic!("unexpected {other:?}"),
+            }
+        }
+    }
+    let p = last.expect("a pose from the kit's positions");
+    assert!((p.x_m - at[0]).hypot(p.y_m - at[1]) < 0.05, "{p:?}");
+    let cases = [
+        ("off the site's floor", kit(40, 60.0, 2.0, 0.02)),
+        ("not a position", kit(41, f64::NAN, 2.0, 0.02)),
+        ("not a positive number", kit(42, 4.0, 2.0, 0.0)),
+    ];
+    for (why, event) in cases {
+        let out = core.handle(event);
+        assert!(
+            out.iter().any(|o| matches!(o, Output::Refused { input: InputKind::KitPosition, error } if error.to_string().contains(why))),
+            "{why}: {out:?}"
+        );
+    }
+}

@@ -7,7 +7,7 @@ use ickon_fusion::ranging;
 use ickon_fusion::tdoa;
 
 use super::MsuCore;
-use crate::beacons::{BeaconDistance, BeaconDistances, MAX_DISTANCES};
+use crate::beacons::{BeaconDistance, BeaconDistances, KitPosition, MAX_DISTANCES};
 use crate::error::MsuError;
 
 /// A distance may exceed the farthest the receiver can be from its beacon
@@ -106,6 +106,50 @@ impl MsuCore {
             range_m: d.distance_m,
             sigma_m: d.sigma_m,
         })
+    }
+
+    /// Fuses a ranging kit's own position as a fix with its stated noise;
+    /// refused when it is not a number or off the site's floor.
+    pub(crate) fn on_kit_position(&mut self, p: &KitPosition) -> Result<(), MsuError> {
+        let refuse = |reason: String| MsuError::KitPosition { reason };
+        if !(p.x_m.is_finite() && p.y_m.is_finite()) {
+            return Err(refuse(format!(
+                "({}, {}) m is not a position",
+                p.x_m, p.y_m
+            )));
+        }
+        if !(p.sigma_m.is_finite() && p.sigma_m > 0.0) {
+            return Err(refuse(format!(
+                "sigma {} m is not a positive number",
+                p.sigma_m
+            )));
+        }
+        if let Some([lo, hi]) = self.solver.config().floor_bounds_m {
+            let slack_m = 3.0 * p.sigma_m;
+            let off = |v: f64, k: usize| v < lo[k] - slack_m || v > hi[k] + slack_m;
+            if off(p.x_m, 0) || off(p.y_m, 1) {
+                return Err(refuse(format!(
+                    "({:.2}, {:.2}) m is off the site's floor",
+                    p.x_m, p.y_m
+                )));
+            }
+        }
+        self.gate(p.stamp)?;
+        let t_s = self.clock.to_fusion(p.stamp);
+        let covariance = nalgebra::Matrix2::identity() * p.sigma_m.powi(2);
+        self.host.feed(&Input::Fix(tdoa::Fix::from_position(
+            t_s, p.x_m, p.y_m, covariance,
+        )))?;
+        self.last_fix = Some(self.last_fix.map_or(p.stamp, |t| t.max(p.stamp)));
+        if !self.localised && self.agrees_with([p.x_m, p.y_m], p.sigma_m * 2f64.sqrt(), t_s) {
+            self.localised = true;
+            tracing::info!(
+                "pose confirmed by the kit's position at ({:.2}, {:.2}) m",
+                p.x_m,
+                p.y_m
+            );
+        }
+        Ok(())
     }
 
     /// Trilaterates `ranges` (three or more beacons) into a fix for the

@@ -128,18 +128,78 @@ fn hdop(site: &Site, p: [f64; 2]) -> f64 {
     ((a + c) / (a * c - b * b)).sqrt()
 }
 
-#[test]
-fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
-    let dir = tempfile::tempdir().expect("temp dir");
+/// The shipped site under a name of its own (`marvelmind-<tag>-<pid>`),
+/// written in `dir`: each test's keys stay apart from the others'. Returns
+/// the name and the file.
+fn site_of_its_own(dir: &Path, tag: &str) -> (String, PathBuf) {
     let text = std::fs::read_to_string(SITE).expect("the shipped site");
-    // The test's own site name keeps its keys apart from other tests'.
-    let name = format!("marvelmind-{}", std::process::id());
-    let site_file = dir.path().join("site.toml");
+    let name = if tag.is_empty() {
+        format!("marvelmind-{}", std::process::id())
+    } else {
+        format!("marvelmind-{tag}-{}", std::process::id())
+    };
+    let site_file = dir.join("site.toml");
     std::fs::write(
         &site_file,
         text.replace("name = \"marvelmind-lab\"", &format!("name = \"{name}\"")),
     )
     .expect("site written");
+    (name, site_file)
+}
+
+/// The address an emulator prints (its first line starting with `prefix`).
+fn printed_address(emulator: &ChildGuard, prefix: &str) -> String {
+    poll_until(START_TIMEOUT, "the emulator's address", || {
+        emulator
+            .log()
+            .lines()
+            .find(|l| l.starts_with(prefix))
+            .map(str::to_string)
+    })
+    .unwrap_or_else(|e| panic!("{e}\n{}", emulator.log()))
+}
+
+/// A central unit for `site_file` and robot r1's MSU reading its
+/// hedgehog at `receivers`, on a loopback mesh; their log names end in
+/// `tag`. Returns both and the central unit's endpoint.
+fn central_and_msu(
+    dir: &Path,
+    name: &str,
+    site_file: &Path,
+    receivers: &str,
+    tag: &str,
+) -> (ChildGuard, ChildGuard, String) {
+    let named = |what: &str| {
+        if tag.is_empty() {
+            what.to_string()
+        } else {
+            format!("{what}-{tag}")
+        }
+    };
+    let central_endpoint = ickon_testkit::loopback_endpoint().expect("port");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])
+        .arg(&central_endpoint)
+        .args(["--site-name", name])
+        .arg("--site")
+        .arg(site_file);
+    let central = ChildGuard::spawn(&named("central"), cmd, dir).expect("central starts");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["node", "msu", "--robot", "r1"])
+        .args(["--receivers", receivers])
+        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
+        .args(["--connect", &central_endpoint, "--site-name", name])
+        .arg("--site")
+        .arg(site_file)
+        .env("RUST_LOG", "info");
+    let msu = ChildGuard::spawn(&named("msu"), cmd, dir).expect("msu starts");
+    (central, msu, central_endpoint)
+}
+
+#[test]
+fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (name, site_file) = site_of_its_own(dir.path(), "");
     let site = Site::from_file(&site_file).expect("valid site");
     let truth_file = dir.path().join("truth.csv");
 
@@ -157,33 +217,11 @@ fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
     .arg("--truth")
     .arg(&truth_file);
     let mut emulator = ChildGuard::spawn("hedgehog", cmd, dir.path()).expect("emulator starts");
-    let address = poll_until(START_TIMEOUT, "the emulator's address", || {
-        emulator
-            .log()
-            .lines()
-            .find(|l| l.starts_with("tcp:"))
-            .map(str::to_string)
-    })
-    .unwrap_or_else(|e| panic!("{e}\n{}", emulator.log()));
+    let address = printed_address(&emulator, "tcp:");
 
-    let central_endpoint = ickon_testkit::loopback_endpoint().expect("port");
-    let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])
-        .arg(&central_endpoint)
-        .args(["--site-name", &name])
-        .arg("--site")
-        .arg(&site_file);
-    let _central = ChildGuard::spawn("central", cmd, dir.path()).expect("central starts");
-    let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "msu", "--robot", "r1"])
-        .arg("--receivers")
-        .arg(format!("marvelmind:{address}"))
-        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
-        .args(["--connect", &central_endpoint, "--site-name", &name])
-        .arg("--site")
-        .arg(&site_file)
-        .env("RUST_LOG", "info");
-    let mut msu = ChildGuard::spawn("msu", cmd, dir.path()).expect("msu starts");
+    let receivers = format!("marvelmind:{address}");
+    let (_central, mut msu, central_endpoint) =
+        central_and_msu(dir.path(), &name, &site_file, &receivers, "");
 
     let observer = Observer::open(std::slice::from_ref(&central_endpoint)).expect("observer");
     let keys = Keys::new(&name).expect("keys");
@@ -307,46 +345,17 @@ fn the_msu_tracks_a_robot_on_an_emulated_hedgehog_through_a_noisy_line() {
 #[test]
 fn a_hedgehog_on_a_pseudo_terminal_is_read_as_a_serial_port() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let text = std::fs::read_to_string(SITE).expect("the shipped site");
-    let name = format!("marvelmind-pty-{}", std::process::id());
-    let site_file = dir.path().join("site.toml");
-    std::fs::write(
-        &site_file,
-        text.replace("name = \"marvelmind-lab\"", &format!("name = \"{name}\"")),
-    )
-    .expect("site written");
+    let (name, site_file) = site_of_its_own(dir.path(), "pty");
     let mut cmd = Command::new(ICKON);
     cmd.args(["emulate", "marvelmind", "--garbage", "0.1"])
         .arg("--site")
         .arg(&site_file);
     let emulator = ChildGuard::spawn("hedgehog-pty", cmd, dir.path()).expect("emulator starts");
-    let address = poll_until(START_TIMEOUT, "the emulator's serial path", || {
-        emulator
-            .log()
-            .lines()
-            .find(|l| l.starts_with("serial:"))
-            .map(str::to_string)
-    })
-    .unwrap_or_else(|e| panic!("{e}\n{}", emulator.log()));
+    let address = printed_address(&emulator, "serial:");
 
-    let central_endpoint = ickon_testkit::loopback_endpoint().expect("port");
-    let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])
-        .arg(&central_endpoint)
-        .args(["--site-name", &name])
-        .arg("--site")
-        .arg(&site_file);
-    let _central = ChildGuard::spawn("central-pty", cmd, dir.path()).expect("central starts");
-    let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "msu", "--robot", "r1"])
-        .arg("--receivers")
-        .arg(format!("marvelmind:{address}"))
-        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
-        .args(["--connect", &central_endpoint, "--site-name", &name])
-        .arg("--site")
-        .arg(&site_file)
-        .env("RUST_LOG", "info");
-    let mut msu = ChildGuard::spawn("msu-pty", cmd, dir.path()).expect("msu starts");
+    let receivers = format!("marvelmind:{address}");
+    let (_central, mut msu, central_endpoint) =
+        central_and_msu(dir.path(), &name, &site_file, &receivers, "pty");
     let observer = Observer::open(std::slice::from_ref(&central_endpoint)).expect("observer");
     let keys = Keys::new(&name).expect("keys");
     let poses = observer
@@ -403,14 +412,7 @@ fn an_emulated_hedgehog_refuses_what_no_kit_can_be() {
 #[test]
 fn a_hedgehog_unplugged_and_plugged_back_is_read_again() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let text = std::fs::read_to_string(SITE).expect("the shipped site");
-    let name = format!("marvelmind-replug-{}", std::process::id());
-    let site_file = dir.path().join("site.toml");
-    std::fs::write(
-        &site_file,
-        text.replace("name = \"marvelmind-lab\"", &format!("name = \"{name}\"")),
-    )
-    .expect("site written");
+    let (name, site_file) = site_of_its_own(dir.path(), "replug");
     let port = ickon_testkit::free_tcp_port().expect("a free port");
     let listen = format!("127.0.0.1:{port}");
     let hedgehog = |n: &str| {
@@ -422,24 +424,9 @@ fn a_hedgehog_unplugged_and_plugged_back_is_read_again() {
     };
     let mut first = hedgehog("hedgehog-1");
 
-    let central_endpoint = ickon_testkit::loopback_endpoint().expect("port");
-    let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "central", "--no-multicast-scouting", "--listen"])
-        .arg(&central_endpoint)
-        .args(["--site-name", &name])
-        .arg("--site")
-        .arg(&site_file);
-    let _central = ChildGuard::spawn("central-replug", cmd, dir.path()).expect("central starts");
-    let mut cmd = Command::new(ICKON);
-    cmd.args(["node", "msu", "--robot", "r1"])
-        .arg("--receivers")
-        .arg(format!("marvelmind:tcp:{listen}"))
-        .args(["--no-multicast-scouting", "--listen", "tcp/127.0.0.1:0"])
-        .args(["--connect", &central_endpoint, "--site-name", &name])
-        .arg("--site")
-        .arg(&site_file)
-        .env("RUST_LOG", "info");
-    let mut msu = ChildGuard::spawn("msu-replug", cmd, dir.path()).expect("msu starts");
+    let receivers = format!("marvelmind:tcp:{listen}");
+    let (_central, mut msu, central_endpoint) =
+        central_and_msu(dir.path(), &name, &site_file, &receivers, "replug");
     let observer = Observer::open(std::slice::from_ref(&central_endpoint)).expect("observer");
     let keys = Keys::new(&name).expect("keys");
     let poses = observer

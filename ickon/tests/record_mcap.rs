@@ -51,6 +51,38 @@ fn python() -> Option<PathBuf> {
     None
 }
 
+/// What `tests/py/decode_mcap.py` makes of `file` (it fails the test when
+/// a message does not decode).
+fn decoded_in_python(py: &Path, file: &Path) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/decode_mcap.py");
+    let out = Command::new(py)
+        .arg(script)
+        .arg(file)
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "Python decoding failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    json(&out)
+}
+
+/// `ickon replay mcap --json` of `file`, which must succeed.
+fn replayed(file: &Path) -> serde_json::Value {
+    let out = ickon()
+        .args(["replay", "mcap", "--json"])
+        .arg(file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "replay failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    json(&out)
+}
+
 #[test]
 fn a_recorded_sim_decodes_in_python_and_replays_the_live_poses_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
@@ -108,18 +140,7 @@ fn a_recorded_sim_decodes_in_python_and_replays_the_live_poses_bit_for_bit() {
     }
 
     if let Some(py) = python() {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/decode_mcap.py");
-        let out = Command::new(py)
-            .arg(script)
-            .arg(&file)
-            .output()
-            .expect("python runs");
-        assert!(
-            out.status.success(),
-            "Python decoding failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let py = json(&out);
+        let py = decoded_in_python(&py, &file);
         assert_eq!(py["profile"], "ros2");
         assert_eq!(
             &py["per_topic"], &recorded["per_topic"],
@@ -144,17 +165,7 @@ fn a_recorded_sim_decodes_in_python_and_replays_the_live_poses_bit_for_bit() {
     }
 
     // The replay with the estimator that ran live reproduces every live pose.
-    let out = ickon()
-        .args(["replay", "mcap", "--json"])
-        .arg(&file)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "replay failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let replay = json(&out);
+    let replay = replayed(&file);
     assert_eq!(replay["problems"], serde_json::json!([]));
     for r in replay["robots"].as_array().unwrap() {
         let live = &r["live"];
@@ -244,18 +255,7 @@ fn a_recording_with_the_foxglove_view_holds_the_live_channels_and_still_replays(
         String::from_utf8_lossy(&out.stderr)
     );
     let recorded = json(&out)["recorded"].clone();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/decode_mcap.py");
-    let out = Command::new(py)
-        .arg(script)
-        .arg(&file)
-        .output()
-        .expect("python runs");
-    assert!(
-        out.status.success(),
-        "Python decoding failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let py = json(&out);
+    let py = decoded_in_python(&py, &file);
     assert_eq!(
         &py["per_topic"], &recorded["per_topic"],
         "counts per channel"
@@ -298,17 +298,7 @@ fn a_recording_with_the_foxglove_view_holds_the_live_channels_and_still_replays(
         "{recorded}"
     );
 
-    let out = ickon()
-        .args(["replay", "mcap", "--json"])
-        .arg(&file)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "replay failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let replay = json(&out);
+    let replay = replayed(&file);
     assert_eq!(replay["problems"], serde_json::json!([]));
     for r in replay["robots"].as_array().unwrap() {
         assert_eq!(r["live"]["reproduced"], true, "{r}");

@@ -138,7 +138,10 @@ fn serve_pty(board: &mut EmulatedBoard) -> Result<(), CommandError> {
     serve(board, reader, writer).map_err(|e| CommandError::failure(format!("pseudo-terminal: {e}")))
 }
 
-fn serve_tcp(board: &mut EmulatedBoard, addr: &str) -> Result<(), CommandError> {
+/// Listens on `addr` (`--listen`) and prints the address a host connects
+/// to (`tcp:HOST:PORT`) on stdout at once, for whoever started the
+/// emulator to read.
+pub(crate) fn listen_announced(addr: &str) -> Result<TcpListener, CommandError> {
     let listener = TcpListener::bind(addr)
         .map_err(|e| CommandError::bad_input(format!("--listen {addr}: {e}")))?;
     let local = listener
@@ -146,6 +149,11 @@ fn serve_tcp(board: &mut EmulatedBoard, addr: &str) -> Result<(), CommandError> 
         .map_err(|e| CommandError::failure(e.to_string()))?;
     println!("tcp:{local}");
     let _ = std::io::stdout().flush();
+    Ok(listener)
+}
+
+fn serve_tcp(board: &mut EmulatedBoard, addr: &str) -> Result<(), CommandError> {
+    let listener = listen_announced(addr)?;
     // One host at a time; the board (and its clock) outlives connections.
     for stream in listener.incoming() {
         let stream = match stream {

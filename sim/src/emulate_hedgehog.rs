@@ -6,7 +6,7 @@
 
 use std::f64::consts::TAU;
 use std::io::Write;
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpStream;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{SyncSender, sync_channel};
@@ -194,13 +194,7 @@ impl Line {
     }
 
     fn tcp(addr: &str) -> Result<Self, CommandError> {
-        let listener = TcpListener::bind(addr)
-            .map_err(|e| CommandError::bad_input(format!("--listen {addr}: {e}")))?;
-        let local = listener
-            .local_addr()
-            .map_err(|e| CommandError::failure(e.to_string()))?;
-        println!("tcp:{local}");
-        let _ = std::io::stdout().flush();
+        let listener = crate::emulate::listen_announced(addr)?;
         let host = Arc::new(Mutex::new(None));
         let ever = Arc::new(AtomicBool::new(false));
         let (accepted, connected) = (host.clone(), ever.clone());

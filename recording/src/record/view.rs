@@ -168,15 +168,11 @@ async fn poll_status(
     let mut unanswered = 0u64;
     loop {
         every.tick().await;
-        let answer = match session.get(&key).timeout(Duration::from_secs(2)).await {
-            Ok(replies) => match replies.recv_async().await {
-                Ok(reply) => reply.result().ok().and_then(|s| {
-                    ickon_proto::decode::<StatusReport>(&s.payload().to_bytes()).ok()
-                }),
-                Err(_) => None,
-            },
-            Err(_) => None,
-        };
+        let answer =
+            ickon_runtime::query_once::<StatusReport>(&session, &key, None, Duration::from_secs(2))
+                .await
+                .ok()
+                .flatten();
         match answer {
             Some(report) => publish(report),
             None => {

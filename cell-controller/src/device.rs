@@ -169,7 +169,7 @@ impl BoardTransmitters {
             HostEvent::Silent => {
                 tracing::warn!("cell {cell}: transmitter board silent; greeting it again");
             }
-            HostEvent::Arrivals(_) | HostEvent::WheelTicks { .. } | HostEvent::Imu { .. } => {
+            HostEvent::Arrivals { .. } | HostEvent::WheelTicks { .. } | HostEvent::Imu { .. } => {
                 self.log("receiver data", "from a transmitter board");
             }
         }

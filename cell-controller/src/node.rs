@@ -248,6 +248,7 @@ pub async fn run(
         status_pub,
         replies_tx,
         failures: Failures::default(),
+        driver_log: ickon_runtime::LogLimiter::default(),
     };
     let mut stopping = false;
     while !stopping {
@@ -307,6 +308,9 @@ struct Outlets<'a> {
     status_pub: Publisher<'static>,
     replies_tx: mpsc::UnboundedSender<Event>,
     failures: Failures,
+    /// A driver that cannot fire (a board not ready, gone) fails every
+    /// slot: logged once per window, with the count held back.
+    driver_log: ickon_runtime::LogLimiter<&'static str>,
 }
 
 impl Outlets<'_> {
@@ -328,7 +332,15 @@ impl Outlets<'_> {
                 Ok(None) => {}
                 Err(e) => {
                     self.failures.driver += 1;
-                    tracing::warn!("cell {cell}: tx {} not programmed: {e}", b.tx_id);
+                    if let Some(held) = self
+                        .driver_log
+                        .admit("not programmed", std::time::Instant::now())
+                    {
+                        tracing::warn!(
+                            "cell {cell}: tx {} not programmed: {e} ({held} more since)",
+                            b.tx_id
+                        );
+                    }
                 }
             },
             Output::Status(status) => {

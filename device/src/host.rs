@@ -115,7 +115,13 @@ pub enum HostEvent {
         reason: RefusedReason,
     },
     /// A complete group of arrivals.
-    Arrivals(Vec<HostArrival>),
+    Arrivals {
+        /// The board's number of the group (16 bits, wrapping; see
+        /// [`crate::GroupSequence`]).
+        group: u16,
+        /// Its arrivals.
+        arrivals: Vec<HostArrival>,
+    },
     /// Wheel encoder ticks.
     WheelTicks {
         /// Sample time, host clock, nanoseconds.
@@ -704,7 +710,10 @@ impl BoardHost {
         }
         if last {
             self.counters.groups += 1;
-            events.push(HostEvent::Arrivals(g.arrivals));
+            events.push(HostEvent::Arrivals {
+                group: g.id,
+                arrivals: g.arrivals,
+            });
         } else {
             self.group = Some(g);
         }

@@ -20,6 +20,7 @@ pub mod clock;
 pub mod frame;
 pub mod host;
 pub mod message;
+pub mod sequence;
 pub mod stream;
 
 pub use clock::{BoardClock, ClockExchange};
@@ -28,4 +29,5 @@ pub use host::{BoardHost, DeviceReport, HostArrival, HostEvent, HostState};
 pub use message::{
     BoardArrival, BoardKind, Identify, Message, MessageError, RefusedReason, VERSION,
 };
+pub use sequence::GroupSequence;
 pub use stream::{Decoder, DecoderCounters, Encoder, ProtocolError};

@@ -6,6 +6,7 @@ use clap::Args;
 use ickon_proto::site::Site;
 use ickon_runtime::CommandError;
 
+use crate::device_plan::{Devices, SimReceivers};
 use crate::faults;
 
 /// How the nodes of a run reach each other.
@@ -108,6 +109,19 @@ pub struct SimArgs {
     /// from the robots' fixes (on by default).
     #[arg(long)]
     pub no_survey_calibration: bool,
+    /// How the nodes reach the simulated hardware: `direct` (the simulated
+    /// driver and receivers), or `emulated`: every cell fires through a
+    /// transmitter board and every robot hears (and reads its wheel ticks
+    /// and gyro) through a receiver board of the ICKON device protocol,
+    /// over TCP, each board emulated by the world with a clock of its own.
+    #[arg(long, value_enum, default_value_t = Devices::Direct)]
+    pub devices: Devices,
+    /// What every robot's agent hears: `sim` (the cells' bursts) or
+    /// `marvelmind` (a Marvelmind hedgehog the world emulates, ranging to
+    /// the site's transmitters as the kit's beacons; the run's report
+    /// scores the kit's own positions beside the agent's poses).
+    #[arg(long, value_enum, default_value_t = SimReceivers::Sim)]
+    pub receivers: SimReceivers,
 }
 
 impl SimArgs {
@@ -141,6 +155,11 @@ pub fn check_args(
     args.filter_options()
         .check_for(&args.estimator)
         .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    if args.receivers == SimReceivers::Marvelmind
+        && let Some(why) = crate::device_plan::marvelmind_refusal(&site)
+    {
+        return Err(CommandError::bad_input(why));
+    }
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
         return Err(CommandError::bad_input(
             "--duration must be between 0 and 86400 seconds",

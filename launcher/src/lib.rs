@@ -19,6 +19,7 @@
 
 mod args;
 mod bench;
+mod device_plan;
 mod faults;
 mod launch;
 mod metrics;

@@ -76,6 +76,9 @@ pub struct RobotStats {
     /// Poses its MSU published as not yet confirmed by a fix.
     pub localising_poses: u64,
     errors_m: Vec<f64>,
+    /// Errors of the positions the robot's ranging kit reported itself.
+    kit_errors_m: Vec<f64>,
+    first_kit_stamp: Option<Time>,
     latencies_us: Vec<f64>,
     /// Error of the newest scored pose, metres.
     pub current_error_m: Option<f64>,
@@ -158,6 +161,19 @@ impl RobotStats {
         }
     }
 
+    /// Records a position the robot's ranging kit reported (on the
+    /// truth's layout): scored against the truth at its instant, after the
+    /// same warm-up as the poses.
+    pub fn on_kit_position(&mut self, kit: &Truth) {
+        let first = *self.first_kit_stamp.get_or_insert(kit.robot_clock);
+        if let Some((x, y)) = self.truth_at(kit.robot_clock)
+            && kit.robot_clock.since(first).as_secs_f64() >= WARM_UP_S
+        {
+            self.kit_errors_m
+                .push(((kit.x_m - x).powi(2) + (kit.y_m - y).powi(2)).sqrt());
+        }
+    }
+
     /// Truth position at `stamp` on the robot's clock, interpolated; `None`
     /// outside the kept history.
     fn truth_at(&self, stamp: Time) -> Option<(f64, f64)> {
@@ -188,7 +204,14 @@ impl RobotStats {
         let share = |count: u64| (cycles > 0).then(|| (count as f64 / cycles as f64).min(1.0));
         let mean = (n > 0.0).then(|| self.errors_m.iter().sum::<f64>() / n);
         let rmse = (n > 0.0).then(|| (self.errors_m.iter().map(|e| e * e).sum::<f64>() / n).sqrt());
+        let kit = &self.kit_errors_m;
+        let k = kit.len() as f64;
         RobotSummary {
+            kit_positions: kit.len() as u64,
+            kit_mean_mm: (k > 0.0).then(|| kit.iter().sum::<f64>() / k * 1e3),
+            kit_rmse_mm: (k > 0.0)
+                .then(|| (kit.iter().map(|e| e * e).sum::<f64>() / k).sqrt() * 1e3),
+            kit_p95_mm: percentile(kit, 95.0).map(|m| m * 1e3),
             id: id.to_string(),
             fixes: self.fixes,
             fixes_per_s: (watched_s > 0.0).then(|| self.fixes as f64 / watched_s),
@@ -291,6 +314,15 @@ pub struct RobotSummary {
     pub latency_p99_us: Option<f64>,
     /// Longest time between two fixes received, seconds.
     pub longest_fix_gap_s: Option<f64>,
+    /// Positions the robot's ranging kit reported itself, scored (0
+    /// without a kit).
+    pub kit_positions: u64,
+    /// Their mean error, mm: the kit as an estimator of its own.
+    pub kit_mean_mm: Option<f64>,
+    /// Their root-mean-square error, mm.
+    pub kit_rmse_mm: Option<f64>,
+    /// The 95th percentile of their error, mm.
+    pub kit_p95_mm: Option<f64>,
 }
 
 /// One cell in the run summary.

@@ -12,6 +12,7 @@ use rand::SeedableRng;
 
 use crate::args::Mesh;
 use crate::args::SimArgs;
+use crate::device_plan::DevicePlan;
 use crate::faults;
 use crate::launch::{self, CLOCK_STREAM, clock_flags, node_command, router_command};
 use crate::msu_file;
@@ -58,12 +59,22 @@ impl NodeCommands {
             .as_deref()
             .and_then(|p| faults::parse_plan(p).ok())
             .unwrap_or_default();
+        let robots: Vec<String> = msus.iter().map(|m| m.robot.clone()).collect();
+        let hub_port = hub.rsplit(':').next().and_then(|p| p.parse().ok());
+        let devices = DevicePlan::for_run(
+            args.devices,
+            args.receivers,
+            site,
+            &robots,
+            &hub_port.into_iter().collect::<Vec<u16>>(),
+        )?;
         let b = Builder {
             args,
             site,
             hub,
             security,
             plan,
+            devices,
         };
         let (router, central_at) = b.router()?;
         let central_flags = central_flags(args, profile);
@@ -117,6 +128,8 @@ struct Builder<'a> {
     security: Option<&'a SimSecurity>,
     /// The faults of `--faults`, for each node's clock steps.
     plan: Vec<faults::Fault>,
+    /// The devices the world emulates.
+    devices: DevicePlan,
 }
 
 impl<'a> Builder<'a> {
@@ -160,6 +173,9 @@ impl<'a> Builder<'a> {
             cmd.args(["--cell", &cell.id])
                 .args(clock_flags(&mut clocks))
                 .args(to_recorder);
+            if let Some(driver) = self.devices.cell_driver(&cell.id) {
+                cmd.args(["--driver", &driver]);
+            }
             let name = format!("cell {}", cell.id);
             self.clock_steps(&mut cmd, &name);
             self.credential(&mut cmd, Identity::Cell(cell.id.clone()));
@@ -185,7 +201,7 @@ impl<'a> Builder<'a> {
             "--seed",
             &args.seed.to_string(),
         ]);
-        world.args(to_recorder);
+        world.args(to_recorder).args(self.devices.world_flags());
         self.credential(&mut world, Identity::World);
         if args.ros2 {
             world.arg("--ros2");
@@ -224,6 +240,9 @@ impl<'a> Builder<'a> {
             cmd.args(["--robot", &msu.robot, "--config"])
                 .arg(msu_file.path())
                 .args(to_recorder);
+            if let Some(receivers) = self.devices.robot_receivers(&msu.robot) {
+                cmd.args(["--receivers", &receivers]);
+            }
             self.credential(&mut cmd, Identity::Robot(msu.robot.clone()));
             agents.push((format!("msu {}", msu.robot), cmd));
         }

@@ -116,6 +116,7 @@ pub(crate) async fn observe(
             Ok(s) = subs.poses.recv_async() => note_pose(keys, &s, &mut stats),
             Ok(s) = subs.triggers.recv_async() => note_trigger(&s, &mut stats),
             Ok(s) = subs.truth.recv_async() => note_truth(keys, &s, &mut stats),
+            Ok(s) = subs.kits.recv_async() => note_kit(keys, &s, &mut stats),
             Ok(s) = probe.sub.recv_async() => probe.received(&s, &mut stats),
             _ = probe_tick.tick() => probe.send().await,
             _ = fault_tick.tick(), if args.restart || !plan.is_empty() || !resume.is_empty() => {
@@ -160,6 +161,7 @@ struct MeshSubs {
     fixes: Sub,
     poses: Sub,
     truth: Sub,
+    kits: Sub,
     triggers: Sub,
 }
 
@@ -188,6 +190,10 @@ impl MeshSubs {
             .declare_subscriber(keys.sim_truth_all())
             .await
             .map_err(z)?;
+        let kits = session
+            .declare_subscriber(keys.sim_kit_all())
+            .await
+            .map_err(z)?;
         let triggers = session
             .declare_subscriber(keys.central_cycle())
             .await
@@ -198,6 +204,7 @@ impl MeshSubs {
             fixes,
             poses,
             truth,
+            kits,
             triggers,
         })
     }
@@ -210,9 +217,12 @@ impl MeshSubs {
             fixes,
             poses,
             truth,
+            kits,
             triggers,
         } = self;
-        for s in [bursts, arrivals, fixes, poses, truth, triggers, probe_sub] {
+        for s in [
+            bursts, arrivals, fixes, poses, truth, kits, triggers, probe_sub,
+        ] {
             let _ = s.undeclare().await;
         }
     }
@@ -420,6 +430,18 @@ fn note_truth(keys: &Keys, s: &Sample, stats: &mut RunStats) {
     ) && let Some(r) = stats.robots.get_mut(&id)
     {
         r.on_truth(t);
+    }
+}
+
+/// A position a robot's emulated ranging kit reported.
+fn note_kit(keys: &Keys, s: &Sample, stats: &mut RunStats) {
+    let key = s.key_expr().as_str().to_string();
+    if let (Ok(Key::SimKit(id)), Some(t)) = (
+        keys.parse(&key),
+        decode_or_count::<Truth>(stats, &key, &s.payload().to_bytes()),
+    ) && let Some(r) = stats.robots.get_mut(&id)
+    {
+        r.on_kit_position(&t);
     }
 }
 

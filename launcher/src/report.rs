@@ -228,6 +228,24 @@ pub(crate) fn render_report(r: &SimReport) -> String {
                 .map_or("-".to_string(), |g| format!("{g:.2}"))
         );
     }
+    if r.robots.iter().any(|x| x.kit_positions > 0) {
+        let _ = writeln!(
+            out,
+            "{:<6} {:>9} {:>8} {:>8} {:>8}   (the ranging kit's own positions)",
+            "kit", "positions", "mean mm", "rmse mm", "p95 mm"
+        );
+        for x in &r.robots {
+            let _ = writeln!(
+                out,
+                "{:<6} {:>9} {:>8} {:>8} {:>8}",
+                x.id,
+                x.kit_positions,
+                mm(x.kit_mean_mm),
+                mm(x.kit_rmse_mm),
+                mm(x.kit_p95_mm)
+            );
+        }
+    }
     for x in r.robots.iter().filter(|x| x.localising_poses > 0) {
         let _ = writeln!(
             out,

@@ -16,6 +16,7 @@ use ickon_sim::profile::NoiseProfile;
 use zenoh::sample::SampleKind;
 
 use crate::args::{SimArgs, check_args};
+use crate::device_plan::Devices;
 use crate::launch::{free_port, wait_for_listener};
 use crate::metrics::RunStats;
 use crate::nodes::{NodeCommands, msu_starts};
@@ -278,9 +279,16 @@ async fn start_mesh(
         foxglove: commands.foxglove,
         _msu_file: commands.msu_file,
     };
-    let spawned = spawn_all(sup, commands.cells)
-        .and_then(|()| Ok(sup.spawn("world", commands.world)?))
-        .and_then(|()| spawn_all(sup, commands.msus));
+    // With emulated devices the world is their other end: started first,
+    // its boards are listening when the cells and agents first connect.
+    let spawned = if args.devices == Devices::Emulated {
+        sup.spawn("world", commands.world)
+            .map_err(anyhow::Error::from)
+            .and_then(|()| spawn_all(sup, commands.cells))
+    } else {
+        spawn_all(sup, commands.cells).and_then(|()| Ok(sup.spawn("world", commands.world)?))
+    }
+    .and_then(|()| spawn_all(sup, commands.msus));
     if let Err(e) = spawned {
         mesh.close().await;
         return Err(failed(e));

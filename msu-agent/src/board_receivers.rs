@@ -6,20 +6,26 @@
 //! The link runs on its own thread and stamps every chunk of bytes with
 //! the agent's clock as it is read; the protocol ([`BoardHost`]) runs in a
 //! task of its own, which turns each complete group of arrivals into the
-//! [`UltrasoundArrivals`] of one cycle on the agent's clock. The board's
+//! [`UltrasoundArrivals`] of one cycle on the agent's clock, numbered by
+//! the board's group counter (so that whoever framed the groups can name
+//! the cycle a pose comes from); a board that reports the robot's wheel
+//! ticks and gyro feeds them as the robot's odometry and IMU, on the same
+//! clock. The board's
 //! clock is learnt by clock exchanges (one a second); arrivals it stamps
 //! with absurd times, receivers it does not have, frames that do not
 //! decode are refused, counted and logged at a bounded rate.
 
 use std::time::Instant;
 
-use ickon_device::{BoardHost, BoardKind, HostEvent};
-use ickon_proto::DecodeError;
-use ickon_proto::msg::robot::{Arrival, UltrasoundArrivals};
+use ickon_device::{BoardHost, BoardKind, GroupSequence, HostEvent};
+use ickon_fusion::estimator::{WheelGeometry, arc_step};
+use ickon_proto::msg::robot::{Arrival, Imu, Odometry, UltrasoundArrivals};
 use ickon_proto::time::{Duration, Time};
 use ickon_runtime::link::{Backoff, Link, LinkAddress, LinkEvent};
 use ickon_runtime::{LogLimiter, SimulatedClock};
 use tokio::sync::mpsc;
+
+use crate::receivers::ReceiverInput;
 
 /// The robot's receiver board; stops when dropped.
 pub struct BoardReceivers {
@@ -33,13 +39,15 @@ impl Drop for BoardReceivers {
 }
 
 impl BoardReceivers {
-    /// Opens the board at `address` for `robot`, whose clock is `clock`;
-    /// each group of arrivals goes to `sink`.
+    /// Opens the board at `address` for `robot`, whose clock is `clock`
+    /// and whose wheels are `wheels`; each group of arrivals, each wheel
+    /// tick and gyro sample goes to `sink`.
     pub fn open(
         robot: &str,
         address: LinkAddress,
         clock: SimulatedClock,
-        sink: impl Fn(Result<UltrasoundArrivals, DecodeError>) + Send + Sync + 'static,
+        wheels: WheelGeometry,
+        sink: impl Fn(ReceiverInput) + Send + Sync + 'static,
     ) -> Self {
         let (tx, events) = mpsc::unbounded_channel();
         let link = Link::open(address, Backoff::default(), move |e| {
@@ -50,7 +58,8 @@ impl BoardReceivers {
             clock,
             host: BoardHost::new(BoardKind::Receiver),
             link,
-            seq: 0,
+            seq: GroupSequence::default(),
+            odometry: DeadReckoning::new(wheels),
             log_limit: LogLimiter::default(),
         };
         let task = tokio::spawn(async move { board.serve(events, sink).await });
@@ -63,15 +72,58 @@ struct Board {
     clock: SimulatedClock,
     host: BoardHost,
     link: Link,
-    seq: u64,
+    seq: GroupSequence,
+    odometry: DeadReckoning,
     log_limit: LogLimiter<&'static str>,
+}
+
+/// The odometry frame's pose from a board's cumulative wheel ticks, as a
+/// robot's own odometry would publish it (the filters use the ticks; the
+/// pose is for those who read the odometry: a recording, ROS 2's `odom`).
+struct DeadReckoning {
+    wheels: WheelGeometry,
+    last: Option<(i64, i64)>,
+    pose: (f64, f64, f64),
+}
+
+impl DeadReckoning {
+    fn new(wheels: WheelGeometry) -> Self {
+        Self {
+            wheels,
+            last: None,
+            pose: (0.0, 0.0, 0.0),
+        }
+    }
+
+    /// The robot's odometry at `stamp` with the cumulative counts.
+    fn at(&mut self, stamp: Time, left: i64, right: i64) -> Odometry {
+        if let Some((l0, r0)) = self.last {
+            let dl = left.wrapping_sub(l0) as f64 * self.wheels.left_m_per_tick;
+            let dr = right.wrapping_sub(r0) as f64 * self.wheels.right_m_per_tick;
+            let base = self.wheels.wheel_base_m;
+            if base > 0.0 && dl.is_finite() && dr.is_finite() {
+                let (x, y, theta) = self.pose;
+                self.pose = arc_step(x, y, theta, (dl + dr) / 2.0, (dr - dl) / base);
+            }
+        }
+        self.last = Some((left, right));
+        let (x_m, y_m, theta_rad) = self.pose;
+        Odometry {
+            stamp,
+            x_m,
+            y_m,
+            theta_rad,
+            left_ticks: left,
+            right_ticks: right,
+        }
+    }
 }
 
 impl Board {
     async fn serve(
         &mut self,
         mut events: mpsc::UnboundedReceiver<(Time, LinkEvent)>,
-        sink: impl Fn(Result<UltrasoundArrivals, DecodeError>),
+        sink: impl Fn(ReceiverInput),
     ) {
         let mut next_poll = self.clock.now();
         loop {
@@ -101,8 +153,8 @@ impl Board {
                 }
             };
             for e in host_events {
-                if let Some(arrivals) = self.on_host(e) {
-                    sink(Ok(arrivals));
+                if let Some(input) = self.on_host(e) {
+                    sink(input);
                 }
             }
         }
@@ -117,7 +169,7 @@ impl Board {
         }
     }
 
-    fn on_host(&mut self, event: HostEvent) -> Option<UltrasoundArrivals> {
+    fn on_host(&mut self, event: HostEvent) -> Option<ReceiverInput> {
         let robot = &self.robot;
         match event {
             HostEvent::Identified(id) => {
@@ -135,12 +187,14 @@ impl Board {
                     self.link.address()
                 );
             }
-            HostEvent::Arrivals(mut group) => {
-                group.sort_by_key(|a| a.host_ns);
-                self.seq += 1;
-                return Some(UltrasoundArrivals {
-                    seq: self.seq,
-                    arrivals: group
+            HostEvent::Arrivals {
+                group,
+                arrivals: mut heard,
+            } => {
+                heard.sort_by_key(|a| a.host_ns);
+                return Some(ReceiverInput::Arrivals(Ok(UltrasoundArrivals {
+                    seq: self.seq.next(group),
+                    arrivals: heard
                         .into_iter()
                         .map(|a| Arrival {
                             tx_id: a.tx_id,
@@ -148,7 +202,7 @@ impl Board {
                             t_arrival: Time::from_nanos(a.host_ns),
                         })
                         .collect(),
-                });
+                })));
             }
             HostEvent::Refused(kind, detail) => self.log(kind, &detail),
             HostEvent::Silent => {
@@ -157,9 +211,23 @@ impl Board {
             HostEvent::Fired { .. } | HostEvent::ArmRefused { .. } => {
                 self.log("transmitter data", "from a receiver board");
             }
-            // Wheel ticks and gyro samples of a receiver board are not
-            // used: the robot's own odometry and IMU come over Zenoh.
-            HostEvent::WheelTicks { .. } | HostEvent::Imu { .. } => {}
+            HostEvent::WheelTicks {
+                host_ns,
+                left,
+                right,
+            } => {
+                let odometry = self.odometry.at(Time::from_nanos(host_ns), left, right);
+                return Some(ReceiverInput::Odometry(odometry));
+            }
+            HostEvent::Imu {
+                host_ns,
+                gyro_z_rad_s,
+            } => {
+                return Some(ReceiverInput::Imu(Imu {
+                    stamp: Time::from_nanos(host_ns),
+                    gyro_z_rad_s,
+                }));
+            }
         }
         None
     }

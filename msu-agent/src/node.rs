@@ -69,6 +69,9 @@ pub struct MsuCounters {
     pub failed_puts: u64,
     /// Inputs dropped because the input queue was full (the core fell behind).
     pub queue_full: u64,
+    /// Odometry and gyro samples from Zenoh dropped because the receiver
+    /// board reports the robot's own (one source each, on one clock).
+    pub motion_from_board_only: u64,
 }
 
 /// Inputs the agent's queue holds (seconds of a robot's sensor stream).
@@ -87,6 +90,10 @@ enum Arrived {
     Survey(Result<SurveyCalibration, DecodeError>),
     /// A ranging kit's distances or position.
     Ranging(HedgehogInput),
+    /// Wheel ticks from the receiver board.
+    BoardOdometry(Odometry),
+    /// A gyro sample from the receiver board.
+    BoardImu(Imu),
 }
 
 impl Arrived {
@@ -109,6 +116,8 @@ impl Arrived {
             Arrived::Survey(r) => Event::Survey(r.map_err(bad("undecodable survey calibration"))?),
             Arrived::Ranging(HedgehogInput::Distances(d)) => Event::BeaconDistances(d),
             Arrived::Ranging(HedgehogInput::KitPosition(p)) => Event::KitPosition(p),
+            Arrived::BoardOdometry(o) => Event::Odometry(o),
+            Arrived::BoardImu(i) => Event::Imu(i),
         })
     }
 }
@@ -192,6 +201,7 @@ pub async fn run(
         clock: settings.clock,
         site: ranging_site,
         marvelmind: settings.tuning.marvelmind,
+        wheels: settings.tuning.wheels,
     };
     let _robot_inputs =
         RobotInputs::declare(session, &keys, (settings.receivers.clone(), source), &queue).await?;
@@ -212,6 +222,7 @@ pub async fn run(
         log_limit: LogLimiter::default(),
         refusal_limit: LogLimiter::default(),
         last_schedule_logged: None,
+        board_motion: BoardMotion::default(),
     };
     agent.serve(&mut inputs, &mut shutdown).await;
     let mut n = agent.n;
@@ -325,6 +336,8 @@ impl RobotInputs {
                 let arrived = match input {
                     ReceiverInput::Arrivals(a) => Arrived::Arrivals(a),
                     ReceiverInput::Ranging(r) => Arrived::Ranging(r),
+                    ReceiverInput::Odometry(o) => Arrived::BoardOdometry(o),
+                    ReceiverInput::Imu(i) => Arrived::BoardImu(i),
                 };
                 if tx.try_send(arrived).is_err() {
                     full.fetch_add(1, Ordering::Relaxed);
@@ -398,6 +411,16 @@ struct Agent<'a> {
     refusal_limit: LogLimiter<InputKind>,
     /// The schedule (epoch, version) last logged.
     last_schedule_logged: Option<(u64, u32)>,
+    /// Which of odometry and gyro the receiver board has reported: from
+    /// then on that input comes from the board only.
+    board_motion: BoardMotion,
+}
+
+/// The motion inputs a receiver board has supplied.
+#[derive(Debug, Default, Clone, Copy)]
+struct BoardMotion {
+    odometry: bool,
+    imu: bool,
 }
 
 impl Agent<'_> {
@@ -433,6 +456,29 @@ impl Agent<'_> {
             Arrived::CellStatus(key, _) => Some(key.clone()),
             _ => None,
         };
+        match &input {
+            Arrived::BoardOdometry(_) => self.board_motion.odometry = true,
+            Arrived::BoardImu(_) => self.board_motion.imu = true,
+            Arrived::Odometry(_) | Arrived::Imu(_) => {
+                let from_board = match &input {
+                    Arrived::Odometry(_) => self.board_motion.odometry,
+                    _ => self.board_motion.imu,
+                };
+                if from_board {
+                    // Two sources of one input on two clocks would
+                    // corrupt the track: the board's wins.
+                    self.n.motion_from_board_only += 1;
+                    if let Some(held) = self.log_limit.admit("motion", std::time::Instant::now()) {
+                        tracing::info!(
+                            "robot {robot}: odometry and gyro from the receiver board; \
+                             those on Zenoh ignored ({held} more since)"
+                        );
+                    }
+                    return None;
+                }
+            }
+            _ => {}
+        }
         match input.into_event() {
             Ok(Event::Arrivals(a)) => {
                 self.n.arrival_messages += 1;

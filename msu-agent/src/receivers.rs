@@ -5,8 +5,9 @@
 //! or a Marvelmind hedgehog ([`crate::marvelmind_receivers`]), whose
 //! distances to beacons are ranges instead of arrivals.
 
+use ickon_fusion::estimator::WheelGeometry;
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::robot::UltrasoundArrivals;
+use ickon_proto::msg::robot::{Imu, Odometry, UltrasoundArrivals};
 use ickon_proto::{DecodeError, decode};
 use ickon_runtime::link::LinkAddress;
 use ickon_runtime::{NodeError, SimulatedClock, zerr};
@@ -69,6 +70,10 @@ pub enum ReceiverInput {
     Arrivals(Result<UltrasoundArrivals, DecodeError>),
     /// A ranging kit's distances or position.
     Ranging(HedgehogInput),
+    /// The robot's wheel ticks, from a receiver board that reports them.
+    Odometry(Odometry),
+    /// The robot's gyro, from a receiver board that reports it.
+    Imu(Imu),
 }
 
 /// An open receiver source; it hands what it receives to the sink it was
@@ -93,6 +98,8 @@ pub struct SourceContext<'a> {
     pub site: RangingSite,
     /// The `[marvelmind]` block of the configuration.
     pub marvelmind: MarvelmindSettings,
+    /// The robot's wheels (a receiver board's ticks become odometry).
+    pub wheels: WheelGeometry,
 }
 
 impl ReceiverSource {
@@ -118,10 +125,7 @@ impl ReceiverSource {
                     .map_err(zerr)?,
             )),
             ReceiverKind::Board(address) => Ok(Self::Board(BoardReceivers::open(
-                robot,
-                address,
-                cx.clock,
-                move |a| sink(ReceiverInput::Arrivals(a)),
+                robot, address, cx.clock, cx.wheels, sink,
             ))),
             ReceiverKind::Marvelmind(address) => Ok(Self::Marvelmind(MarvelmindReceivers::open(
                 robot,

@@ -138,7 +138,7 @@ impl Session {
                         .refused
                         .push(format!("burst on tx {tx_id} refused: {reason:?}"));
                 }
-                HostEvent::Arrivals(a) => {
+                HostEvent::Arrivals { arrivals: a, .. } => {
                     self.seen.groups += 1;
                     self.seen.arrivals += a.len() as u32;
                 }

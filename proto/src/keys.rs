@@ -129,6 +129,8 @@ pub enum Key {
     Robot(String, RobotTopic),
     /// `sim/truth/<id>`
     SimTruth(String),
+    /// `sim/kit/<id>`
+    SimKit(String),
     /// `sim/probe`
     SimProbe,
 }
@@ -261,6 +263,21 @@ impl Keys {
         Ok(format!("{}/sim/truth/{robot}", self.prefix))
     }
 
+    /// `ickon/<site>/sim/kit/<id>`: the position a robot's emulated ranging
+    /// kit (a Marvelmind hedgehog) reported, on the layout of a
+    /// [`Truth`](crate::msg::robot::Truth) (its `robot_clock` the instant
+    /// on the robot's clock; speed and heading 0), to score the kit as an
+    /// estimator of its own (simulation only).
+    pub fn sim_kit(&self, robot: &str) -> Result<String, KeyError> {
+        validate_id(robot)?;
+        Ok(format!("{}/sim/kit/{robot}", self.prefix))
+    }
+
+    /// `ickon/<site>/sim/kit/*`: the kit positions of every robot.
+    pub fn sim_kit_all(&self) -> String {
+        format!("{}/sim/kit/*", self.prefix)
+    }
+
     /// `ickon/<site>/sim/probe`: latency probes of `ickon sim` (a CDR `u64`
     /// sequence number), to measure the plain one-hop Zenoh latency of a run.
     pub fn sim_probe(&self) -> String {
@@ -305,6 +322,7 @@ impl Keys {
                 Ok(Key::Robot(id(r)?, topic))
             }
             ["sim", "truth", r] => Ok(Key::SimTruth(id(r)?)),
+            ["sim", "kit", r] => Ok(Key::SimKit(id(r)?)),
             ["sim", "probe"] => Ok(Key::SimProbe),
             _ => Err(unknown()),
         }
@@ -335,6 +353,7 @@ mod tests {
             (k.cell_burst("c2").unwrap(), Key::CellBurst("c2".into())),
             (k.cell_status("c2").unwrap(), Key::CellStatus("c2".into())),
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
+            (k.sim_kit("r9").unwrap(), Key::SimKit("r9".into())),
             (k.sim_probe(), Key::SimProbe),
         ];
         for (key, expected) in cases {

@@ -80,6 +80,12 @@ impl BoardSpec {
         )
     }
 
+    /// The same board reporting the robot's wheel ticks and gyro too.
+    pub fn with_motion(mut self) -> Self {
+        self.identity.capabilities |= capability::WHEEL_TICKS | capability::IMU;
+        self
+    }
+
     fn new(kind: BoardKind, capabilities: u16, channels: Vec<i64>, seed: u64) -> Self {
         Self {
             identity: Identify {
@@ -310,6 +316,46 @@ impl EmulatedBoard {
             self.send(&fired, &mut out);
         }
         (out, emissions)
+    }
+
+    /// Frames cumulative wheel encoder counts sampled at reference time
+    /// `t_ns` (a board with [`capability::WHEEL_TICKS`]).
+    pub fn wheel_ticks(&mut self, t_ns: i64, left: i64, right: i64) -> Vec<u8> {
+        let mut out = Vec::new();
+        if !self.muted(t_ns) {
+            let jitter_ns = self.jitter();
+            let board_ns = self.board_ns(t_ns + jitter_ns);
+            self.send(
+                &Message::WheelTicks {
+                    board_ns,
+                    left,
+                    right,
+                },
+                &mut out,
+            );
+        }
+        out
+    }
+
+    /// Frames a yaw-rate sample taken at reference time `t_ns` (a board
+    /// with [`capability::IMU`]); rates beyond the message's range are
+    /// clipped to it, as a saturated gyro reads.
+    pub fn imu(&mut self, t_ns: i64, gyro_z_rad_s: f64) -> Vec<u8> {
+        let mut out = Vec::new();
+        if !self.muted(t_ns) {
+            let jitter_ns = self.jitter();
+            let board_ns = self.board_ns(t_ns + jitter_ns);
+            let urad_s = (gyro_z_rad_s * 1e6).round();
+            let gyro_z_urad_s = urad_s.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+            self.send(
+                &Message::ImuSample {
+                    board_ns,
+                    gyro_z_urad_s,
+                },
+                &mut out,
+            );
+        }
+        out
     }
 
     /// Frames the arrivals of one cycle heard at reference times

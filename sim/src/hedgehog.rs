@@ -151,7 +151,17 @@ impl EmulatedHedgehog {
         self.updates += 1;
         let t_s = self.updates as f64 * period_s;
         let truth = self.robot.state;
-        let at = [truth.x_m, truth.y_m, self.height_m];
+        let (bytes, _) = self.measure(t_s, [truth.x_m, truth.y_m]);
+        Update { t_s, truth, bytes }
+    }
+
+    /// What the hedgehog writes when it is at `at_xy_m` at `t_s` seconds
+    /// since it started (its time stamps), and the position it reports
+    /// there (`None` when it has none): the distances to the four nearest
+    /// beacons with the kit's noise, and its own position from them. The
+    /// world of `ickon sim` feeds it the robot's true position this way.
+    pub fn measure(&mut self, t_s: f64, at_xy_m: [f64; 2]) -> (Vec<u8>, Option<[f64; 2]>) {
+        let at = [at_xy_m[0], at_xy_m[1], self.height_m];
         // The four nearest beacons, as the kit hears the closest ones best.
         let mut nearest: Vec<(f64, u8, [f64; 3])> = self
             .beacons
@@ -208,7 +218,7 @@ impl EmulatedHedgehog {
                 bytes.extend(frame);
             }
         }
-        Update { t_s, truth, bytes }
+        (bytes, fix.map(|f| [f.x_m, f.y_m]))
     }
 }
 

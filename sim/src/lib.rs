@@ -27,6 +27,9 @@ pub mod clock;
 pub mod collision;
 pub mod control;
 #[cfg(feature = "zenoh")]
+pub mod device_hosting;
+pub mod devices;
+#[cfg(feature = "zenoh")]
 pub mod emulate;
 #[cfg(feature = "zenoh")]
 pub mod emulate_hedgehog;

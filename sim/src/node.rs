@@ -11,7 +11,8 @@ use std::time::Duration;
 use clap::Args;
 
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::control::{Schedule, SiteInfo};
+use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
+use ickon_proto::msg::robot::Truth;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
@@ -21,6 +22,8 @@ use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::sample::Sample;
 
+use crate::device_hosting::{BoundDevices, DeviceEvent, WorldDevices};
+use crate::devices::{DeviceEndpoint, DeviceKind, DeviceOwner};
 use crate::profile::NoiseProfile;
 use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
 use crate::ros2_sensors::RosSensorPublishers;
@@ -44,6 +47,8 @@ pub struct WorldSettings {
     /// Publish odometry and gyro as ROS 2 topics (rmw_zenoh) instead of on
     /// the ICKON keys.
     pub ros2: bool,
+    /// The devices to emulate, fed by this world.
+    pub devices: Vec<DeviceEndpoint>,
 }
 
 /// One robot's publishers.
@@ -53,6 +58,8 @@ struct RobotPublishers {
     imu: Publisher<'static>,
     range: Publisher<'static>,
     truth: Publisher<'static>,
+    /// The position its emulated ranging kit reported, if it has one.
+    kit: Option<Publisher<'static>>,
     /// With `--ros2`: odometry and gyro go here instead.
     ros: Option<RosSensorPublishers>,
 }
@@ -65,6 +72,9 @@ pub async fn run(
 ) -> Result<u64, NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&settings.site_name)?;
+    // Listening at once: cells and agents started with the world connect
+    // as soon as they try, and are served once the site is known.
+    let bound = BoundDevices::bind(&settings.devices)?;
     let _token = session
         .liveliness()
         .declare_token(keys.alive_world())
@@ -84,6 +94,17 @@ pub async fn run(
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
     let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)
         .map_err(|e| NodeError::Setup(e.to_string()))?;
+    let mut devices = if bound.is_empty() {
+        None
+    } else {
+        let d = WorldDevices::start(bound, &site, world.robot_ids(), settings.seed)?;
+        for i in 0..world.robot_ids().len() {
+            if d.robot_on_device(i) {
+                world.use_true_clock(i);
+            }
+        }
+        Some(d)
+    };
     let inputs = WorldInputs {
         schedule: session
             .declare_subscriber(keys.central_schedule())
@@ -109,7 +130,9 @@ pub async fn run(
     {
         let _ = world.handle(system_now(), WorldEvent::Schedule(schedule));
     }
-    let mut pubs = robot_publishers(session, &keys, world.robot_ids(), settings.ros2).await?;
+    let kits: Vec<bool> = settings_kits(&settings.devices, world.robot_ids());
+    let mut pubs =
+        robot_publishers(session, &keys, world.robot_ids(), &kits, settings.ros2).await?;
     tracing::info!(
         "world: {} robots on site {:?}, profile {}",
         pubs.len(),
@@ -117,7 +140,15 @@ pub async fn run(
         settings.profile.name
     );
 
-    let bursts_heard = serve(&mut world, &inputs, &mut pubs, &mut shutdown).await?;
+    let bursts_heard = serve(&mut world, &inputs, &mut pubs, &mut devices, &mut shutdown).await?;
+    if let Some(d) = &devices
+        && d.unmatched_reports() > 0
+    {
+        tracing::warn!(
+            "world: {} burst reports no transmitter board fired (no sound left)",
+            d.unmatched_reports()
+        );
+    }
     if world.bursts_ignored() > 0 {
         tracing::warn!(
             "world: {} burst reports ignored (stamped more than 10 s from now)",
@@ -133,10 +164,11 @@ async fn robot_publishers(
     session: &Session,
     keys: &Keys,
     ids: &[String],
+    kits: &[bool],
     ros2: bool,
 ) -> Result<Vec<RobotPublishers>, NodeError> {
     let mut pubs = Vec::new();
-    for id in ids {
+    for (id, &kit) in ids.iter().zip(kits) {
         // Block, not drop, when a subscriber's link is full: a sample lost
         // to one subscriber only (the MSU or a recorder) would make a
         // recording differ from what the MSU saw. Not express: the world
@@ -163,6 +195,11 @@ async fn robot_publishers(
                 .await
                 .map_err(zerr)?,
             truth: publisher(keys.sim_truth(id)?).await.map_err(zerr)?,
+            kit: if kit {
+                Some(publisher(keys.sim_kit(id)?).await.map_err(zerr)?)
+            } else {
+                None
+            },
             ros: if ros2 {
                 let nid = u32::try_from(pubs.len()).unwrap_or(u32::MAX);
                 Some(RosSensorPublishers::open(session, id, nid).await?)
@@ -190,6 +227,7 @@ async fn serve(
     world: &mut RealtimeWorld,
     inputs: &WorldInputs,
     pubs: &mut [RobotPublishers],
+    devices: &mut Option<WorldDevices>,
     shutdown: &mut (impl Future<Output = ()> + Unpin),
 ) -> Result<u64, NodeError> {
     let mut tick = tokio::time::interval(TICK);
@@ -202,10 +240,29 @@ async fn serve(
             Ok(s) = inputs.schedule.recv_async() => {
                 decoded(&mut log_limit, "schedule", &s).map(WorldEvent::Schedule)
             }
-            Ok(s) = inputs.bursts.recv_async() => decoded(&mut log_limit, "burst", &s).map(|b| {
-                bursts_heard += 1;
-                WorldEvent::Burst(b)
-            }),
+            Ok(s) = inputs.bursts.recv_async() => {
+                decoded::<Burst>(&mut log_limit, "burst", &s).and_then(|b| {
+                    bursts_heard += 1;
+                    match devices.as_mut() {
+                        Some(d) => d.burst(b),
+                        None => Some(b),
+                    }
+                    .map(WorldEvent::Burst)
+                })
+            }
+            device = next_device_event(devices) => {
+                match device {
+                    DeviceEvent::Fired(e) => {
+                        if let Some(d) = devices.as_mut() {
+                            d.on_emission(e);
+                        }
+                    }
+                    DeviceEvent::KitPosition { robot, t_ns, at_m } => {
+                        publish_kit(pubs, robot, t_ns, at_m).await?;
+                    }
+                }
+                continue;
+            }
             Ok(s) = inputs.triggers.recv_async() => {
                 decoded(&mut log_limit, "cycle trigger", &s).map(WorldEvent::Trigger)
             }
@@ -215,10 +272,59 @@ async fn serve(
         let outputs = world.handle(system_now(), event);
         let epoch = world.epoch().unwrap_or(Time::ZERO);
         for o in outputs {
-            publish(pubs, o, epoch).await?;
+            let o = match devices.as_mut() {
+                Some(d) => d.route(o, epoch),
+                None => Some(o),
+            };
+            if let Some(o) = o {
+                publish(pubs, o, epoch).await?;
+            }
         }
     }
     Ok(bursts_heard)
+}
+
+/// The next thing a device did; pending forever without devices.
+async fn next_device_event(devices: &mut Option<WorldDevices>) -> DeviceEvent {
+    match devices {
+        Some(d) => d.next_event().await,
+        None => std::future::pending().await,
+    }
+}
+
+/// Which robots of `ids` carry a ranging kit.
+fn settings_kits(devices: &[DeviceEndpoint], ids: &[String]) -> Vec<bool> {
+    ids.iter()
+        .map(|id| {
+            devices.iter().any(|d| {
+                d.kind == DeviceKind::Marvelmind && d.owner == DeviceOwner::Robot(id.clone())
+            })
+        })
+        .collect()
+}
+
+/// Publishes a position robot `index`'s kit reported at true time `t_ns`
+/// (the robot's clock is the true time on a device).
+async fn publish_kit(
+    pubs: &[RobotPublishers],
+    index: usize,
+    t_ns: i64,
+    at: [f64; 2],
+) -> Result<(), NodeError> {
+    let Some(publisher) = pubs.get(index).and_then(|p| p.kit.as_ref()) else {
+        return Ok(());
+    };
+    let stamp = Time::from_nanos(t_ns);
+    let position = Truth {
+        stamp,
+        robot_clock: stamp,
+        x_m: at[0],
+        y_m: at[1],
+        theta_rad: 0.0,
+        v_m_s: 0.0,
+        omega_rad_s: 0.0,
+    };
+    publisher.put(encode(&position)?).await.map_err(zerr)
 }
 
 /// The message in `sample`, or `None` when it does not decode (logged at
@@ -300,6 +406,14 @@ pub struct WorldArgs {
     /// domain 0, `/<robot>/odom` and `/<robot>/imu`) instead of on the ICKON keys.
     #[arg(long)]
     pub ros2: bool,
+    /// Emulate a device fed by this world, listening on TCP:
+    /// `cell/ID=transmitter-board@HOST:PORT` (the cell runs `--driver
+    /// tcp:HOST:PORT`), `robot/ID=receiver-board@HOST:PORT` (the robot's
+    /// arrivals, wheel ticks and gyro; its agent runs `--receivers
+    /// tcp:HOST:PORT`) or `robot/ID=marvelmind@HOST:PORT` (a hedgehog;
+    /// `--receivers marvelmind:tcp:HOST:PORT`). Repeat for each device.
+    #[arg(long = "device", value_name = "OWNER=KIND@HOST:PORT")]
+    pub devices: Vec<DeviceEndpoint>,
 }
 
 /// Runs the world as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
@@ -318,6 +432,7 @@ pub fn main_with(args: WorldArgs) -> ExitCode {
         profile,
         seed: args.seed,
         ros2: args.ros2,
+        devices: args.devices.clone(),
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

@@ -240,6 +240,14 @@ impl RealtimeWorld {
         self.triggered.insert(key, cycle);
     }
 
+    /// Robot `index` keeps the true time as its clock (a robot on an
+    /// emulated device: its host learns the device's clock instead).
+    pub fn use_true_clock(&mut self, index: usize) {
+        if let Some(w) = self.worlds.get_mut(index) {
+            w.msu_clock = crate::clock::DeviceClock::PERFECT;
+        }
+    }
+
     /// The true time the world's seconds count from (the first event's `now`).
     pub fn epoch(&self) -> Option<Time> {
         self.epoch

@@ -166,7 +166,7 @@ fn arrivals_come_back_on_the_host_clock_as_one_group() {
         .events
         .iter()
         .filter_map(|e| match e {
-            HostEvent::Arrivals(a) => Some(a.clone()),
+            HostEvent::Arrivals { arrivals: a, .. } => Some(a.clone()),
             _ => None,
         })
         .collect();

@@ -109,6 +109,8 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             faults: None,
             learn_cell_sync: args.learn_cell_sync,
             no_survey_calibration: args.no_survey_calibration,
+            devices: Default::default(),
+            receivers: Default::default(),
         })
         .collect();
     // Every size is checked before the first one runs (a size the site

@@ -117,7 +117,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CentralSurvey => own("SurveyCalibration"),
         Key::CellBurst(_) => own("Burst"),
         Key::CellStatus(_) => own("CellStatus"),
-        Key::SimTruth(_) => own("Truth"),
+        Key::SimTruth(_) | Key::SimKit(_) => own("Truth"),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => own("UltrasoundArrivals"),
             RobotTopic::Odom => own("Odometry"),

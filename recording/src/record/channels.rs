@@ -112,7 +112,7 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
         },
         Key::CellBurst(_) => own(Some(decode::<Burst>(payload)?.actual)),
         Key::CellStatus(_) => own(Some(decode::<CellStatus>(payload)?.stamp)),
-        Key::SimTruth(_) => own(Some(decode::<Truth>(payload)?.stamp)),
+        Key::SimTruth(_) | Key::SimKit(_) => own(Some(decode::<Truth>(payload)?.stamp)),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => {
                 // The cycle's event: its last arrival (the message cannot be

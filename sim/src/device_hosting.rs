@@ -277,6 +277,11 @@ impl WorldDevices {
         if !self.cells_on_boards {
             return Some(b);
         }
+        // A board's firing reaches the world before its cell's report, but
+        // both may wait together: the firings are taken in first.
+        while let Ok(e) = self.emissions.try_recv() {
+            self.on_emission(e);
+        }
         let fired_ns = self.ledger.take(b.tx_id, b.actual.as_nanos())?;
         b.actual = Time::from_nanos(fired_ns);
         Some(b)
@@ -496,6 +501,7 @@ async fn serve_kit(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ickon_proto::msg::robot::{Arrival, Imu, Odometry, UltrasoundArrivals};
 
     #[test]
     fn every_device_has_a_seed_of_its_own() {
@@ -513,5 +519,119 @@ mod tests {
             .unwrap();
         let err = BoundDevices::bind(&[e]).err().unwrap().to_string();
         assert!(err.contains("robot/r1=receiver-board@"), "{err}");
+    }
+
+    fn endpoint(text: &str) -> DeviceEndpoint {
+        text.parse().unwrap()
+    }
+
+    fn arrivals(t_ns: i64) -> UltrasoundArrivals {
+        UltrasoundArrivals {
+            seq: 77,
+            arrivals: vec![Arrival {
+                tx_id: 11,
+                receiver_id: 2,
+                t_arrival: Time::from_nanos(t_ns),
+            }],
+        }
+    }
+
+    #[tokio::test]
+    async fn a_robots_sensors_go_to_its_device_and_what_stays_public_is_on_the_true_time_base()
+    {
+        let site = Site::load_or_default(None).unwrap().0;
+        let robots: Vec<String> = ["r1", "r2", "r3"].map(String::from).to_vec();
+        let bound = BoundDevices::bind(&[
+            endpoint("robot/r1=receiver-board@127.0.0.1:0"),
+            endpoint("robot/r2=marvelmind@127.0.0.1:0"),
+        ])
+        .unwrap();
+        let mut d = WorldDevices::start(bound, &site, &robots, 1).unwrap();
+        assert!(d.robot_on_device(0) && d.robot_on_device(1) && !d.robot_on_device(2));
+        let epoch = Time::from_nanos(1_000_000_000_000);
+        // The board's robot: arrivals go to the board and are shown numbered
+        // as its groups, ticks and gyro go to the board only.
+        let shown = d.route(WorldOutput::Arrivals(0, arrivals(5_000)), epoch);
+        let Some(WorldOutput::Arrivals(0, a)) = shown else {
+            panic!("{shown:?}")
+        };
+        assert_eq!(a.seq, 1);
+        assert_eq!(a.arrivals[0].t_arrival.as_nanos(), 1_000_000_005_000);
+        let odometry = Odometry {
+            stamp: Time::from_nanos(7),
+            x_m: 0.0,
+            y_m: 0.0,
+            theta_rad: 0.0,
+            left_ticks: 1,
+            right_ticks: 2,
+        };
+        assert_eq!(d.route(WorldOutput::Odometry(0, odometry), epoch), None);
+        let gyro = Imu {
+            stamp: Time::from_nanos(7),
+            gyro_z_rad_s: 0.1,
+        };
+        assert_eq!(d.route(WorldOutput::Imu(0, gyro), epoch), None);
+        // The kit's robot hears no cells; its odometry stays public, shifted.
+        assert_eq!(d.route(WorldOutput::Arrivals(1, arrivals(5_000)), epoch), None);
+        let Some(WorldOutput::Odometry(1, o)) = d.route(WorldOutput::Odometry(1, odometry), epoch)
+        else {
+            panic!("the kit robot's odometry is published")
+        };
+        assert_eq!(o.stamp.as_nanos(), 1_000_000_000_007);
+        // A robot on no device is left as it is.
+        assert_eq!(
+            d.route(WorldOutput::Arrivals(2, arrivals(5_000)), epoch),
+            Some(WorldOutput::Arrivals(2, arrivals(5_000)))
+        );
+        // Without transmitter boards, a cell's report is the emission.
+        let burst = Burst {
+            cell_id: "c1".into(),
+            tx_id: 11,
+            cycle: 3,
+            scheduled: Time::from_nanos(10),
+            actual: Time::from_nanos(12),
+            epoch: 1,
+        };
+        assert_eq!(d.burst(burst.clone()), Some(burst));
+    }
+
+    #[tokio::test]
+    async fn with_transmitter_boards_only_what_a_board_fired_makes_sound() {
+        let site = Site::load_or_default(None).unwrap().0;
+        let bound =
+            BoundDevices::bind(&[endpoint("cell/c1=transmitter-board@127.0.0.1:0")]).unwrap();
+        let mut d = WorldDevices::start(bound, &site, &[], 1).unwrap();
+        let burst = Burst {
+            cell_id: "c1".into(),
+            tx_id: 11,
+            cycle: 3,
+            scheduled: Time::from_nanos(2_000_000_000),
+            actual: Time::from_nanos(2_000_000_000),
+            epoch: 1,
+        };
+        assert_eq!(d.burst(burst.clone()), None);
+        d.on_emission(Emission {
+            tx_id: 11,
+            reference_ns: 2_000_003_000,
+        });
+        let heard = d.burst(burst).unwrap();
+        assert_eq!(heard.actual.as_nanos(), 2_000_003_000);
+        assert_eq!(d.unmatched_reports(), 1);
+    }
+
+    #[tokio::test]
+    async fn devices_of_cells_or_robots_the_world_does_not_have_are_refused() {
+        let site = Site::load_or_default(None).unwrap().0;
+        for e in [
+            "cell/c9=transmitter-board@127.0.0.1:0",
+            "robot/r7=receiver-board@127.0.0.1:0",
+        ] {
+            let bound = BoundDevices::bind(&[endpoint(e)]).unwrap();
+            let err = WorldDevices::start(bound, &site, &["r1".to_string()], 1)
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(err.contains(e.split('@').next().unwrap()), "{err}");
+        }
     }
 }

@@ -179,6 +179,65 @@ fn arrivals_come_back_on_the_host_clock_as_one_group() {
 }
 
 #[test]
+fn a_board_with_motion_reports_wheel_ticks_and_gyro_on_the_host_clock() {
+    let mut spec = BoardSpec::receiver(6, 6).with_motion();
+    spec.drift_ppm = 35.0;
+    let mut b = Bench::new(BoardKind::Receiver, spec);
+    b.run(6_000);
+    assert_eq!(b.host.state(), HostState::Ready);
+    let sampled_at = b.t - 3 * MS;
+    let mut bytes = b.board.wheel_ticks(sampled_at, 1_234, -56);
+    bytes.extend(b.board.imu(sampled_at, -0.25));
+    // A saturated gyro reads the message's limit, not a wrapped value.
+    bytes.extend(b.board.imu(sampled_at, 1e6));
+    b.to_host.push((b.t + LINE_NS, bytes));
+    b.run(10);
+    let ticks: Vec<_> = b
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            HostEvent::WheelTicks { host_ns, left, right } => Some((*host_ns, *left, *right)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(ticks.len(), 1);
+    assert_eq!((ticks[0].1, ticks[0].2), (1_234, -56));
+    assert!((ticks[0].0 - sampled_at).abs() < 20_000, "{ticks:?}");
+    let rates: Vec<f64> = b
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            HostEvent::Imu { gyro_z_rad_s, .. } => Some(*gyro_z_rad_s),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(rates.len(), 2);
+    assert!((rates[0] + 0.25).abs() < 1e-6, "{rates:?}");
+    assert!((rates[1] - f64::from(i32::MAX) * 1e-6).abs() < 1e-3, "{rates:?}");
+}
+
+#[test]
+fn groups_keep_the_boards_number() {
+    let mut b = Bench::new(BoardKind::Receiver, BoardSpec::receiver(6, 8));
+    b.run(6_000);
+    for _ in 0..3 {
+        let t = b.t;
+        let bytes = b.board.arrivals(t, &[(11, 0, t - 5 * MS)]);
+        b.to_host.push((t + LINE_NS, bytes));
+        b.run(5);
+    }
+    let groups: Vec<u16> = b
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            HostEvent::Arrivals { group, .. } => Some(*group),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(groups, [1, 2, 3]);
+}
+
+#[test]
 fn garbage_and_dropped_frames_cost_frames_not_the_link() {
     let mut spec = drifting_transmitter(4);
     spec.faults = BoardFaults {

@@ -635,6 +635,7 @@ impl CellCore {
             slots_skipped: self.counters.slots_skipped,
             faults: self.faults.clone(),
             inputs_refused: self.counters.refused(),
+            device: String::new(),
         }
     }
 }

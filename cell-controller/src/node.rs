@@ -125,6 +125,15 @@ impl Transmitters {
         }
     }
 
+    /// The transmitter device in a line for an operator (nothing for the
+    /// simulated driver).
+    fn summary(&self) -> String {
+        match self {
+            Self::Sim(_) => String::new(),
+            Self::Board(b) => b.summary(),
+        }
+    }
+
     /// The board's next emission reports; never, for simulated transmitters.
     async fn reports(&mut self) -> Vec<ickon_proto::msg::control::Burst> {
         match self {
@@ -343,7 +352,8 @@ impl Outlets<'_> {
                     }
                 }
             },
-            Output::Status(status) => {
+            Output::Status(mut status) => {
+                status.device = self.driver.summary();
                 if !put_counted(&self.status_pub, &status).await {
                     self.failures.puts += 1;
                 }

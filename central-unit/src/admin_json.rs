@@ -43,6 +43,8 @@ pub struct CellJson {
     pub slots_skipped: u64,
     /// Control messages it refused (its own count).
     pub inputs_refused: u64,
+    /// Its transmitter device in plain words (empty: the simulated driver).
+    pub device: String,
 }
 
 impl From<&CellHealth> for CellJson {
@@ -63,6 +65,7 @@ impl From<&CellHealth> for CellJson {
             cycles_missed: c.cycles_missed,
             slots_skipped: c.slots_skipped,
             inputs_refused: c.inputs_refused,
+            device: c.device.clone(),
         }
     }
 }
@@ -96,6 +99,9 @@ pub struct RobotJson {
     pub estimator: Option<String>,
     /// Its last pose, if any.
     pub pose: Option<PoseJson>,
+    /// Its receivers (a receiver board, a ranging kit) in plain words, as
+    /// its agent reported them; absent for the simulated world's.
+    pub receivers: Option<String>,
 }
 
 impl From<&RobotHealth> for RobotJson {
@@ -116,6 +122,7 @@ impl From<&RobotHealth> for RobotJson {
                 y_m: r.y_m,
                 theta_rad: r.theta_rad,
             }),
+            receivers: (!r.receivers.is_empty()).then(|| r.receivers.clone()),
         }
     }
 }

@@ -39,7 +39,7 @@ use ickon_proto::epoch::{check_schedule, epoch_of, plausible_epoch};
 use ickon_proto::msg::control::{
     Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
-use ickon_proto::msg::robot::{Fix, RobotPose};
+use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
@@ -136,6 +136,13 @@ pub enum Event {
         robot: String,
         /// The fix (boxed: the other events are small).
         fix: Box<Fix>,
+    },
+    /// A robot's agent reported its state.
+    RobotStatus {
+        /// The robot.
+        robot: String,
+        /// Its report.
+        status: MsuStatus,
     },
     /// A schedule was published on `central/schedule` (its own included).
     ScheduleSeen(Schedule),
@@ -348,6 +355,10 @@ impl CentralCore {
             }
             Event::Pose { robot, pose } => {
                 self.on_pose(&robot, pose, now);
+                Vec::new()
+            }
+            Event::RobotStatus { robot, status } => {
+                self.on_robot_status(&robot, status);
                 Vec::new()
             }
             Event::Fix { robot, fix } => {

@@ -13,7 +13,7 @@ use std::collections::{BTreeSet, VecDeque};
 
 use ickon_proto::msg::admin::{CellHealth, CellState, RobotHealth};
 use ickon_proto::msg::control::{Burst, CellStatus};
-use ickon_proto::msg::robot::{PoseStatus, RobotPose};
+use ickon_proto::msg::robot::{MsuStatus, PoseStatus, RobotPose};
 use ickon_proto::time::{Duration, Time};
 
 use crate::pose_track::{PoseTrack, Velocity};
@@ -170,9 +170,13 @@ impl CellTracker {
             cycles_missed: self.cycles_missed,
             slots_skipped: status.map_or(0, |s| s.slots_skipped),
             inputs_refused: status.map_or(0, |s| s.inputs_refused),
+            device: status.map_or_else(String::new, |s| s.device.clone()),
         }
     }
 }
+
+/// The longest receivers' line kept of an agent's report.
+const MAX_RECEIVERS_CHARS: usize = 400;
 
 /// One robot.
 #[derive(Debug, Default, Clone)]
@@ -184,6 +188,8 @@ pub struct RobotTracker {
     pose_at: Option<Time>,
     fix_times: VecDeque<Time>,
     track: PoseTrack,
+    /// Its receivers' state, as its agent last reported it.
+    receivers: String,
 }
 
 impl RobotTracker {
@@ -192,6 +198,12 @@ impl RobotTracker {
         self.track.push(&pose);
         self.pose = Some(pose);
         self.pose_at = Some(now);
+    }
+
+    /// Its agent's report of its state.
+    pub fn on_status(&mut self, status: MsuStatus) {
+        // A line, not a document: a forged report cannot grow the admin's answer.
+        self.receivers = status.receivers.chars().take(MAX_RECEIVERS_CHARS).collect();
     }
 
     /// Why the robot is stale at `now`, if it is: a live robot (token
@@ -260,6 +272,7 @@ impl RobotTracker {
             stale: self.stale(now).unwrap_or_default(),
             // Counted by the survey calibration's share, not here.
             fixes_over_rate: 0,
+            receivers: self.receivers.clone(),
         }
     }
 }
@@ -366,6 +379,7 @@ mod tests {
             slots_skipped: 0,
             faults: Vec::new(),
             inputs_refused: 0,
+            device: String::new(),
         };
         c.on_status(status, too_long);
         assert_eq!(c.state_at(too_long, true), CellState::Idle);

@@ -12,7 +12,7 @@ use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::CoverageRequest;
 use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
-use ickon_proto::msg::robot::{Fix, RobotPose};
+use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
 
 use crate::survey_calibration::SavedCalibration;
 use ickon_proto::site::Site;
@@ -427,6 +427,10 @@ pub async fn run(
                 Some(e) => e,
                 None => continue,
             },
+            Ok(s) = ends.robot_status_sub.recv_async() => match robot_status_event(&keys, &s, &mut undecodable) {
+                Some(e) => e,
+                None => continue,
+            },
             Ok(s) = ends.fix_sub.recv_async() => match fix_event(&keys, &s, &mut undecodable) {
                 Some(e) => e,
                 None => continue,
@@ -540,6 +544,7 @@ struct Endpoints {
     burst_sub: Subscriber<Queue<Sample>>,
     pose_sub: Subscriber<Queue<Sample>>,
     fix_sub: Subscriber<Queue<Sample>>,
+    robot_status_sub: Subscriber<Queue<Sample>>,
     /// Its own keys, to notice what it did not send (its own puts come
     /// back too).
     cycle_sub: Subscriber<Queue<Sample>>,
@@ -605,6 +610,7 @@ impl Endpoints {
             burst_sub: subscriber(session, keys.cell_burst_all()).await?,
             pose_sub: subscriber(session, keys.robot_all(RobotTopic::Pose)).await?,
             fix_sub: subscriber(session, keys.robot_all(RobotTopic::Fix)).await?,
+            robot_status_sub: subscriber(session, keys.robot_status_all()).await?,
             cycle_sub: subscriber(session, keys.central_cycle()).await?,
             schedule_sub: subscriber(session, keys.central_schedule()).await?,
         })
@@ -692,6 +698,21 @@ fn pose_event(keys: &Keys, s: &Sample) -> Option<Event> {
         decode::<RobotPose>(&s.payload().to_bytes()),
     ) {
         (Ok(Key::Robot(robot, _)), Ok(pose)) => Some(Event::Pose { robot, pose }),
+        _ => None,
+    }
+}
+
+/// A robot's agent's status, counting one whose payload does not decode.
+fn robot_status_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
+    match (
+        keys.parse(s.key_expr().as_str()),
+        decode::<MsuStatus>(&s.payload().to_bytes()),
+    ) {
+        (Ok(Key::RobotStatus(robot)), Ok(status)) => Some(Event::RobotStatus { robot, status }),
+        (_, Err(_)) => {
+            *undecodable += 1;
+            None
+        }
         _ => None,
     }
 }

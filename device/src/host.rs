@@ -187,6 +187,46 @@ pub struct DeviceReport {
     pub counters: HostCounters,
 }
 
+impl DeviceReport {
+    /// The board's state in a line for an operator: its handshake state,
+    /// what it is, how well its clock is known, and what was refused or lost.
+    pub fn summary(&self) -> String {
+        let mut out = self.state.name().to_string();
+        if let Some(id) = &self.identity {
+            out.push_str(&format!(
+                ", serial {} firmware {}.{}",
+                id.serial,
+                id.firmware >> 8,
+                id.firmware & 0xFF
+            ));
+        }
+        if let Some(bound_ns) = self.clock_bound_ns {
+            out.push_str(&format!(", clock within {:.0} us", bound_ns / 1e3));
+        }
+        if let Some(drift) = self.clock_drift {
+            out.push_str(&format!(", drift {:.1} ppm", drift * 1e6));
+        }
+        if let Some((mv, cdeg, faults)) = self.health {
+            out.push_str(&format!(
+                ", supply {:.2} V, {:.1} C",
+                f64::from(mv) / 1e3,
+                f64::from(cdeg) / 100.0
+            ));
+            if faults != 0 {
+                out.push_str(&format!(", faults {faults:#b}"));
+            }
+        }
+        let c = &self.counters;
+        if c.refused + c.lost + c.arm_refused + c.never_fired > 0 {
+            out.push_str(&format!(
+                ", refused {} frames, lost {}, bursts refused {}, never fired {}",
+                c.refused, c.lost, c.arm_refused, c.never_fired
+            ));
+        }
+        out
+    }
+}
+
 /// Why a burst could not be armed.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ArmError {

@@ -30,6 +30,7 @@ fn status(cell: &str) -> Vec<u8> {
         slots_skipped: 0,
         faults: Vec::new(),
         inputs_refused: 0,
+        device: String::new(),
     })
     .expect("encode")
 }

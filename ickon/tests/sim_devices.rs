@@ -7,29 +7,53 @@
 //! must score the kit's own positions beside the agent's poses.
 
 use std::process::Command;
+use std::time::Duration;
 
-/// Run length once every node is live, seconds.
-const DURATION_S: &str = "12";
+use ickon_testkit::poll_until;
 
-/// `ickon sim --robots 2 --json` with `extra` flags: its JSON report,
-/// after checking that it succeeded, and its stderr.
-fn sim_json(extra: &[&str]) -> (serde_json::Value, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
-        .args(["sim", "--robots", "2", "--json", "--seed", "3"])
-        .args(["--duration", DURATION_S])
-        .args(extra)
-        .output()
-        .expect("ickon sim starts");
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "ickon sim failed:\n{stderr}");
-    let doc = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("stdout is not one JSON document ({e}):\n{stderr}"));
-    (doc, stderr)
-}
+#[path = "support/sim_run.rs"]
+mod sim_run;
+use sim_run::{admin_status, finish, start_sim};
+
+/// Length of each run once every node is live, seconds.
+const RUN_S: u64 = 16;
 
 #[test]
 fn a_site_run_through_emulated_boards_fixes_every_robot() {
-    let (doc, stderr) = sim_json(&["--devices", "emulated"]);
+    let dir = tempfile::tempdir().unwrap();
+    let runtime_dir = dir.path().join("run");
+    std::fs::create_dir_all(&runtime_dir).unwrap();
+    let sim = start_sim(
+        dir.path(),
+        &runtime_dir,
+        RUN_S,
+        &["--robots", "2", "--seed", "3", "--devices", "emulated"],
+    );
+    // The operator sees every device: each cell's transmitter board and
+    // each robot's receiver board, ready once its clock is learnt.
+    let seen = poll_until(
+        Duration::from_secs(RUN_S - 2),
+        "every device ready in admin",
+        || {
+            let status = admin_status(&runtime_dir);
+            let cells_ready = status["cells"].as_array()?.iter().all(|c| {
+                c["device"].as_str().is_some_and(|d| {
+                    d.starts_with("transmitter board on tcp:") && d.contains("ready")
+                })
+            });
+            let robots = status["robots"].as_array()?;
+            let robots_ready = robots.len() == 2
+                && robots.iter().all(|r| {
+                    r["receivers"].as_str().is_some_and(|d| {
+                        d.starts_with("receiver board on tcp:") && d.contains("ready")
+                    })
+                });
+            (cells_ready && robots_ready).then_some(status)
+        },
+    );
+    let (log, doc) = finish(sim, RUN_S);
+    seen.unwrap_or_else(|e| panic!("{e}\n{}", admin_status_text(&log)));
+    let stderr = log;
     let cycles = doc["cycles_triggered"].as_f64().expect("cycles");
     let robots = doc["robots"].as_array().expect("robots");
     assert_eq!(robots.len(), 2, "{doc}");
@@ -37,7 +61,11 @@ fn a_site_run_through_emulated_boards_fixes_every_robot() {
         // The direct simulation's bounds (sim_mesh): the boards' clocks
         // are learnt, so neither the error nor the fix rate may suffer.
         let mean_mm = r["mean_mm"].as_f64().unwrap_or(f64::INFINITY);
-        assert!(mean_mm < 150.0, "robot {}: mean {mean_mm} mm\n{doc}", r["id"]);
+        assert!(
+            mean_mm < 150.0,
+            "robot {}: mean {mean_mm} mm\n{doc}",
+            r["id"]
+        );
         let fixes = r["fixes"].as_f64().unwrap_or(0.0);
         assert!(
             fixes >= 0.8 * cycles,
@@ -74,20 +102,63 @@ fn a_site_run_through_emulated_boards_fixes_every_robot() {
     assert!(bursts as f64 > cycles, "{doc}");
 }
 
+/// The end of a run's log, where a failure's cause shows.
+fn admin_status_text(log: &str) -> &str {
+    &log[log.len().saturating_sub(4_000)..]
+}
+
 #[test]
 fn every_robot_tracks_on_an_emulated_marvelmind_kit_and_the_kit_is_scored() {
-    let (doc, stderr) = sim_json(&["--receivers", "marvelmind"]);
+    let dir = tempfile::tempdir().unwrap();
+    let runtime_dir = dir.path().join("run");
+    std::fs::create_dir_all(&runtime_dir).unwrap();
+    let sim = start_sim(
+        dir.path(),
+        &runtime_dir,
+        RUN_S,
+        &["--robots", "2", "--seed", "3", "--receivers", "marvelmind"],
+    );
+    // The operator sees each robot's kit streaming.
+    let seen = poll_until(
+        Duration::from_secs(RUN_S - 2),
+        "every kit up in admin",
+        || {
+            let status = admin_status(&runtime_dir);
+            let robots = status["robots"].as_array()?;
+            (robots.len() == 2
+                && robots.iter().all(|r| {
+                    r["receivers"].as_str().is_some_and(|d| {
+                        d.starts_with("marvelmind hedgehog: link tcp:") && d.contains(" up ")
+                    })
+                }))
+            .then_some(status)
+        },
+    );
+    let (stderr, doc) = finish(sim, RUN_S);
+    seen.unwrap_or_else(|e| panic!("{e}\n{}", admin_status_text(&stderr)));
     for r in doc["robots"].as_array().expect("robots") {
         let scored = r["scored_poses"].as_u64().unwrap_or(0);
-        assert!(scored > 100, "robot {}: {scored} poses scored\n{doc}\n{stderr}", r["id"]);
+        assert!(
+            scored > 100,
+            "robot {}: {scored} poses scored\n{doc}\n{stderr}",
+            r["id"]
+        );
         // Four ranges of 2 cm noise at 8 Hz, fused with the wheels: within
         // a few centimetres (the kit's own positions are scored alike).
         let mean_mm = r["mean_mm"].as_f64().unwrap_or(f64::INFINITY);
-        assert!(mean_mm < 60.0, "robot {}: mean {mean_mm} mm\n{doc}", r["id"]);
+        assert!(
+            mean_mm < 60.0,
+            "robot {}: mean {mean_mm} mm\n{doc}",
+            r["id"]
+        );
         let kit = r["kit_positions"].as_u64().unwrap_or(0);
         assert!(kit > 40, "robot {}: {kit} kit positions\n{doc}", r["id"]);
         let kit_mm = r["kit_mean_mm"].as_f64().unwrap_or(f64::INFINITY);
-        assert!(kit_mm < 200.0, "robot {}: the kit's own mean {kit_mm} mm\n{doc}", r["id"]);
+        assert!(
+            kit_mm < 200.0,
+            "robot {}: the kit's own mean {kit_mm} mm\n{doc}",
+            r["id"]
+        );
     }
 }
 
@@ -95,10 +166,19 @@ fn every_robot_tracks_on_an_emulated_marvelmind_kit_and_the_kit_is_scored() {
 fn a_site_whose_transmitters_cannot_be_marvelmind_beacons_is_refused_before_any_node_starts() {
     let dir = tempfile::tempdir().unwrap();
     let site = dir.path().join("site.toml");
-    let lab = ickon_proto::site::Site::builtin("lab").expect("built-in lab").1;
+    let lab = ickon_proto::site::Site::builtin("lab")
+        .expect("built-in lab")
+        .1;
     std::fs::write(&site, lab.replacen("id = 11", "id = 311", 1)).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
-        .args(["sim", "--receivers", "marvelmind", "--duration", "1", "--site"])
+        .args([
+            "sim",
+            "--receivers",
+            "marvelmind",
+            "--duration",
+            "1",
+            "--site",
+        ])
         .arg(&site)
         .output()
         .expect("ickon sim starts");

@@ -7,17 +7,16 @@
 //! A flood of garbage from an outside client is counted whole in the
 //! report and logged a few times, not once per message.
 
-use std::path::Path;
-use std::process::Command;
 use std::time::{Duration, Instant};
 
-use ickon_testkit::{ChildGuard, Observer, poll_until};
+use ickon_testkit::Observer;
 use serde_json::Value;
 use zenoh::Wait;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
-/// From `ickon sim` to its run file (the nodes built, started and live).
-const START_TIMEOUT: Duration = Duration::from_secs(90);
+#[path = "support/sim_run.rs"]
+mod sim_run;
+use sim_run::{admin_status, finish, start_sim};
+
 /// Long enough for several looks after the start-up (the 14 s), short
 /// enough for the test command.
 const RUN_S: u64 = 24;
@@ -26,62 +25,15 @@ const RUN_S: u64 = 24;
 const FIRST_LOOK_S: u64 = 8;
 const LOOK_EVERY: Duration = Duration::from_secs(2);
 const LAST_LOOK_S: u64 = 18;
-
-/// Starts `ickon sim` on `lab` for `run_s` with one robot, JSON report,
-/// its run file in `runtime_dir`; returns once the run file is there.
-fn start_sim(dir: &Path, runtime_dir: &Path, run_s: u64) -> ChildGuard {
-    let mut sim = Command::new(ICKON);
-    sim.args(["sim", "--robots", "1", "--seed", "1", "--json"])
-        .args(["--duration", &run_s.to_string()])
-        .env("XDG_RUNTIME_DIR", runtime_dir);
-    let mut sim = ChildGuard::spawn("sim", sim, dir).expect("ickon sim starts");
-    let run_file = runtime_dir.join("ickon").join("lab.json");
-    poll_until(START_TIMEOUT, "the run file", || {
-        if let Some(status) = sim.exit_status() {
-            panic!("ickon sim {status}:\n{}", sim.log());
-        }
-        run_file.exists().then_some(())
-    })
-    .unwrap_or_else(|e| panic!("{e}\n{}", sim.log()));
-    sim
-}
-
-/// Waits for the run to end well; its log and its JSON report (the last
-/// document on stdout; logs go to stderr, into the same file here, and
-/// may be none).
-fn finish(mut sim: ChildGuard, run_s: u64) -> (String, Value) {
-    let status = poll_until(Duration::from_secs(run_s + 60), "ickon sim to end", || {
-        sim.exit_status()
-    })
-    .unwrap_or_else(|e| panic!("{e}\n{}", sim.log()));
-    let log = sim.log();
-    assert!(status.success(), "ickon sim {status}:\n{log}");
-    let report_at = log.rfind("\n{").map_or(0, |i| i + 1);
-    let doc: Value =
-        serde_json::from_str(&log[report_at..]).unwrap_or_else(|e| panic!("{e}:\n{log}"));
-    (log, doc)
-}
-
-fn admin_status(runtime_dir: &Path) -> Value {
-    let out = Command::new(ICKON)
-        .args(["admin", "status", "--json", "--timeout-ms", "10000"])
-        .env("XDG_RUNTIME_DIR", runtime_dir)
-        .output()
-        .expect("ickon admin runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("status JSON")
-}
+/// The run: one robot on `lab`.
+const ONE_ROBOT: &[&str] = &["--robots", "1", "--seed", "1"];
 
 #[test]
 fn one_robot_on_lab_every_cell_is_alive_and_misses_only_cycles_it_was_due_in() {
     let dir = tempfile::tempdir().unwrap();
     let runtime_dir = dir.path().join("run");
     std::fs::create_dir(&runtime_dir).unwrap();
-    let sim = start_sim(dir.path(), &runtime_dir, RUN_S);
+    let sim = start_sim(dir.path(), &runtime_dir, RUN_S, ONE_ROBOT);
     let started = Instant::now();
     std::thread::sleep(Duration::from_secs(FIRST_LOOK_S));
 
@@ -144,7 +96,7 @@ fn a_flood_of_garbage_is_counted_whole_and_logged_a_few_times() {
     let dir = tempfile::tempdir().unwrap();
     let runtime_dir = dir.path().join("run");
     std::fs::create_dir(&runtime_dir).unwrap();
-    let sim = start_sim(dir.path(), &runtime_dir, run_s);
+    let sim = start_sim(dir.path(), &runtime_dir, run_s, ONE_ROBOT);
     let run: Value =
         serde_json::from_slice(&std::fs::read(runtime_dir.join("ickon").join("lab.json")).unwrap())
             .unwrap();

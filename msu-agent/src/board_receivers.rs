@@ -25,11 +25,15 @@ use ickon_runtime::link::{Backoff, Link, LinkAddress, LinkEvent};
 use ickon_runtime::{LogLimiter, SimulatedClock};
 use tokio::sync::mpsc;
 
-use crate::receivers::ReceiverInput;
+use crate::receivers::{ReceiverInput, SharedSummary};
+
+/// How often the board's line in the agent's status is refreshed.
+const SUMMARY_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// The robot's receiver board; stops when dropped.
 pub struct BoardReceivers {
     task: tokio::task::JoinHandle<()>,
+    summary: SharedSummary,
 }
 
 impl Drop for BoardReceivers {
@@ -53,7 +57,10 @@ impl BoardReceivers {
         let link = Link::open(address, Backoff::default(), move |e| {
             let _ = tx.send((clock.now(), e));
         });
+        let summary = SharedSummary::default();
         let mut board = Board {
+            summary: summary.clone(),
+            summarised: None,
             robot: robot.to_string(),
             clock,
             host: BoardHost::new(BoardKind::Receiver),
@@ -63,11 +70,19 @@ impl BoardReceivers {
             log_limit: LogLimiter::default(),
         };
         let task = tokio::spawn(async move { board.serve(events, sink).await });
-        Self { task }
+        Self { task, summary }
+    }
+
+    /// Where the board and its link are described in a line, each second.
+    pub fn summary(&self) -> SharedSummary {
+        self.summary.clone()
     }
 }
 
 struct Board {
+    summary: SharedSummary,
+    /// When the summary was last written.
+    summarised: Option<Instant>,
     robot: String,
     clock: SimulatedClock,
     host: BoardHost,
@@ -157,7 +172,27 @@ impl Board {
                     sink(input);
                 }
             }
+            if self.summarised.is_none_or(|t| t.elapsed() >= SUMMARY_EVERY) {
+                self.summarised = Some(Instant::now());
+                self.summary.set(self.describe());
+            }
         }
+    }
+
+    /// The board and its link in a line for an operator.
+    fn describe(&self) -> String {
+        let link = self.link.status();
+        let report = self.host.report(self.clock.now().as_nanos());
+        let mut out = format!(
+            "receiver board on {}: link {}",
+            link.address,
+            link.state.name()
+        );
+        if link.connects > 1 {
+            out.push_str(&format!(" ({} reconnects)", link.connects - 1));
+        }
+        out.push_str(&format!(", {}", report.summary()));
+        out
     }
 
     fn send(&mut self, bytes: &[u8]) {

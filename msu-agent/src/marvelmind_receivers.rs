@@ -19,6 +19,7 @@ use ickon_runtime::{LogLimiter, SimulatedClock};
 use tokio::sync::mpsc;
 
 use crate::hedgehog::{HedgehogCounters, HedgehogInput, HedgehogReader, MarvelmindSettings};
+use crate::receivers::SharedSummary;
 
 /// How often the source's counters are logged while it runs.
 pub const STATUS_EVERY: std::time::Duration = std::time::Duration::from_secs(30);
@@ -40,6 +41,7 @@ pub struct RangingSite {
 /// The robot's hedgehog; stops when dropped.
 pub struct MarvelmindReceivers {
     task: tokio::task::JoinHandle<()>,
+    summary: SharedSummary,
 }
 
 impl Drop for MarvelmindReceivers {
@@ -62,7 +64,9 @@ impl MarvelmindReceivers {
         let link = Link::open(address, Backoff::default(), move |e| {
             let _ = tx.send((clock.now(), e));
         });
+        let summary = SharedSummary::default();
         let mut source = Source {
+            summary: summary.clone(),
             robot: robot.to_string(),
             reader: HedgehogReader::new(settings, site.speed_of_sound_m_s, &site.beacons),
             link,
@@ -72,11 +76,17 @@ impl MarvelmindReceivers {
             logged: HedgehogCounters::default(),
         };
         let task = tokio::spawn(async move { source.serve(events, sink).await });
-        Self { task }
+        Self { task, summary }
+    }
+
+    /// Where the hedgehog's state is described in a line, each second.
+    pub fn summary(&self) -> SharedSummary {
+        self.summary.clone()
     }
 }
 
 struct Source {
+    summary: SharedSummary,
     robot: String,
     reader: HedgehogReader,
     link: Link,
@@ -133,6 +143,8 @@ impl Source {
                     }
                 }
                 _ = watch.tick() => {
+                    let silent = if self.silent { "silent; " } else { "" };
+                    self.summary.set(format!("marvelmind hedgehog: {silent}{}", self.state()));
                     let since = self.last_frame.unwrap_or(*connected_at);
                     let up = self.link.status().state == ickon_runtime::link::LinkState::Up;
                     if up && !self.silent && since.elapsed() > SILENT_AFTER {

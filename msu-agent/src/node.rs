@@ -15,7 +15,7 @@ use clap::Args;
 use ickon_fusion::estimator;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration};
-use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
+use ickon_proto::msg::robot::{Imu, MsuStatus, ObstacleRanges, Odometry, UltrasoundArrivals};
 use ickon_proto::site::Site;
 use ickon_proto::{DecodeError, decode};
 use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, put_counted, zerr};
@@ -203,8 +203,15 @@ pub async fn run(
         marvelmind: settings.tuning.marvelmind,
         wheels: settings.tuning.wheels,
     };
-    let _robot_inputs =
+    let robot_inputs =
         RobotInputs::declare(session, &keys, (settings.receivers.clone(), source), &queue).await?;
+    let _status = StatusTask::start(
+        session,
+        keys.robot_status(robot)?,
+        settings.clock,
+        robot_inputs.receivers.summary(),
+    )
+    .await?;
     drop(queue);
     let publishers = Publishers::declare(session, &keys, robot).await?;
     let ros = match settings.ros2.clone() {
@@ -232,6 +239,43 @@ pub async fn run(
         tracing::info!("robot {robot}: ros2: {:?}", r.counters());
     }
     Ok(n)
+}
+
+/// How often the agent publishes its [`MsuStatus`].
+const STATUS_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// Publishes the agent's status once a second until dropped.
+struct StatusTask(tokio::task::JoinHandle<()>);
+
+impl Drop for StatusTask {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
+impl StatusTask {
+    async fn start(
+        session: &Session,
+        key: String,
+        clock: ickon_runtime::SimulatedClock,
+        receivers: crate::receivers::SharedSummary,
+    ) -> Result<Self, NodeError> {
+        let publisher = session.declare_publisher(key).await.map_err(zerr)?;
+        Ok(Self(tokio::spawn(async move {
+            let mut every = tokio::time::interval(STATUS_EVERY);
+            every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+            loop {
+                every.tick().await;
+                let status = MsuStatus {
+                    stamp: clock.now(),
+                    receivers: receivers.get(),
+                };
+                if let Ok(bytes) = ickon_proto::encode(&status) {
+                    let _ = publisher.put(bytes).await;
+                }
+            }
+        })))
+    }
 }
 
 /// The sending end of the agent's one input queue, with the count of
@@ -313,7 +357,7 @@ impl ControlInputs {
 
 /// The subscriptions to the robot's own messages, held for the agent's run.
 struct RobotInputs {
-    _receivers: ReceiverSource,
+    receivers: ReceiverSource,
     _odom: Subscriber<()>,
     _imu: Subscriber<()>,
     _range: Subscriber<()>,
@@ -361,7 +405,7 @@ impl RobotInputs {
             .await
             .map_err(zerr)?;
         Ok(Self {
-            _receivers: receivers,
+            receivers,
             _odom: odom,
             _imu: imu,
             _range: range,

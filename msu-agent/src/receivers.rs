@@ -87,6 +87,41 @@ pub enum ReceiverSource {
     Marvelmind(MarvelmindReceivers),
 }
 
+/// A source's state in a line, written by its task and read by the
+/// agent's status.
+#[derive(Debug, Clone, Default)]
+pub struct SharedSummary(std::sync::Arc<std::sync::Mutex<String>>);
+
+impl SharedSummary {
+    /// The line last written.
+    pub fn get(&self) -> String {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Replaces the line.
+    pub fn set(&self, line: String) {
+        *self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = line;
+    }
+}
+
+impl ReceiverSource {
+    /// Where the source writes its state in a line for an operator (it
+    /// stays empty for the simulated world's arrivals).
+    pub fn summary(&self) -> SharedSummary {
+        match self {
+            Self::Sim(_) => SharedSummary::default(),
+            Self::Board(b) => b.summary(),
+            Self::Marvelmind(m) => m.summary(),
+        }
+    }
+}
+
 /// What a source needs besides its address: the robot, its clock, and for
 /// a ranging kit the site's beacons and the kit's settings.
 pub struct SourceContext<'a> {

@@ -127,6 +127,8 @@ pub enum Key {
     CellStatus(String),
     /// `robot/<id>/<topic>`
     Robot(String, RobotTopic),
+    /// `robot/<id>/status`
+    RobotStatus(String),
     /// `sim/truth/<id>`
     SimTruth(String),
     /// `sim/kit/<id>`
@@ -252,6 +254,18 @@ impl Keys {
         Ok(format!("{}/robot/{robot}/{}", self.prefix, topic.chunk()))
     }
 
+    /// `ickon/<site>/robot/<id>/status`: the MSU agent's
+    /// [`MsuStatus`](crate::msg::robot::MsuStatus).
+    pub fn robot_status(&self, robot: &str) -> Result<String, KeyError> {
+        validate_id(robot)?;
+        Ok(format!("{}/robot/{robot}/status", self.prefix))
+    }
+
+    /// `ickon/<site>/robot/*/status`: every agent's status.
+    pub fn robot_status_all(&self) -> String {
+        format!("{}/robot/*/status", self.prefix)
+    }
+
     /// `ickon/<site>/robot/*/<topic>`: one topic of every robot.
     pub fn robot_all(&self, topic: RobotTopic) -> String {
         format!("{}/robot/*/{}", self.prefix, topic.chunk())
@@ -314,6 +328,7 @@ impl Keys {
             ["alive", "robot", r] => Ok(Key::AliveRobot(id(r)?)),
             ["cell", c, "burst"] => Ok(Key::CellBurst(id(c)?)),
             ["cell", c, "status"] => Ok(Key::CellStatus(id(c)?)),
+            ["robot", r, "status"] => Ok(Key::RobotStatus(id(r)?)),
             ["robot", r, topic] => {
                 let topic = RobotTopic::ALL
                     .into_iter()
@@ -354,6 +369,7 @@ mod tests {
             (k.cell_status("c2").unwrap(), Key::CellStatus("c2".into())),
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
             (k.sim_kit("r9").unwrap(), Key::SimKit("r9".into())),
+            (k.robot_status("r9").unwrap(), Key::RobotStatus("r9".into())),
             (k.sim_probe(), Key::SimProbe),
         ];
         for (key, expected) in cases {

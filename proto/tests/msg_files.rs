@@ -11,7 +11,7 @@ use ickon_proto::msg::control::{
     TransmitterOffset,
 };
 use ickon_proto::msg::robot::{
-    Arrival, Fix, FixQuality, Imu, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
+    Arrival, Fix, FixQuality, Imu, MsuStatus, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
 };
 use ickon_proto::msg::ros_msgs::{MSG_FILES, PACKAGE, msg_file, own_schema};
 use ickon_proto::{Duration, Time, encode};
@@ -363,6 +363,15 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             slots_skipped: 1,
             faults: vec!["central unit silent".into()],
             inputs_refused: 4,
+            device: String::new(),
+        },
+        &mut checked,
+    );
+    check(
+        "MsuStatus",
+        &MsuStatus {
+            stamp: t,
+            receivers: "receiver board on tcp:10.0.0.9:4001: link up, ready".into(),
         },
         &mut checked,
     );

@@ -537,8 +537,7 @@ mod tests {
     }
 
     #[tokio::test]
-    async fn a_robots_sensors_go_to_its_device_and_what_stays_public_is_on_the_true_time_base()
-    {
+    async fn a_robots_sensors_go_to_its_device_and_what_stays_public_is_on_the_true_time_base() {
         let site = Site::load_or_default(None).unwrap().0;
         let robots: Vec<String> = ["r1", "r2", "r3"].map(String::from).to_vec();
         let bound = BoundDevices::bind(&[
@@ -572,7 +571,10 @@ mod tests {
         };
         assert_eq!(d.route(WorldOutput::Imu(0, gyro), epoch), None);
         // The kit's robot hears no cells; its odometry stays public, shifted.
-        assert_eq!(d.route(WorldOutput::Arrivals(1, arrivals(5_000)), epoch), None);
+        assert_eq!(
+            d.route(WorldOutput::Arrivals(1, arrivals(5_000)), epoch),
+            None
+        );
         let Some(WorldOutput::Odometry(1, o)) = d.route(WorldOutput::Odometry(1, odometry), epoch)
         else {
             panic!("the kit robot's odometry is published")

@@ -196,7 +196,11 @@ fn a_board_with_motion_reports_wheel_ticks_and_gyro_on_the_host_clock() {
         .events
         .iter()
         .filter_map(|e| match e {
-            HostEvent::WheelTicks { host_ns, left, right } => Some((*host_ns, *left, *right)),
+            HostEvent::WheelTicks {
+                host_ns,
+                left,
+                right,
+            } => Some((*host_ns, *left, *right)),
             _ => None,
         })
         .collect();
@@ -213,7 +217,10 @@ fn a_board_with_motion_reports_wheel_ticks_and_gyro_on_the_host_clock() {
         .collect();
     assert_eq!(rates.len(), 2);
     assert!((rates[0] + 0.25).abs() < 1e-6, "{rates:?}");
-    assert!((rates[1] - f64::from(i32::MAX) * 1e-6).abs() < 1e-3, "{rates:?}");
+    assert!(
+        (rates[1] - f64::from(i32::MAX) * 1e-6).abs() < 1e-3,
+        "{rates:?}"
+    );
 }
 
 #[test]

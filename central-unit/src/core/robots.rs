@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use ickon_proto::msg::control::ClockReply;
-use ickon_proto::msg::robot::{Fix, RobotPose};
+use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
 use ickon_proto::time::Time;
 
 use crate::health::RobotTracker;
@@ -103,6 +103,13 @@ impl CentralCore {
     pub(super) fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
         if let Some(r) = self.robot_mut(id) {
             r.on_pose(pose, now);
+        }
+    }
+
+    /// A robot's agent reported its state.
+    pub(super) fn on_robot_status(&mut self, id: &str, status: MsuStatus) {
+        if let Some(r) = self.robot_mut(id) {
+            r.on_status(status);
         }
     }
 

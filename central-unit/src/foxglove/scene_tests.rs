@@ -47,6 +47,7 @@ fn report(site: &Site, down: &str) -> StatusReport {
                 cycles_missed: 0,
                 slots_skipped: 0,
                 inputs_refused: 0,
+                device: String::new(),
             })
             .collect(),
         robots: site
@@ -63,6 +64,7 @@ fn report(site: &Site, down: &str) -> StatusReport {
                 theta_rad: 0.0,
                 stale: String::new(),
                 fixes_over_rate: 0,
+                receivers: String::new(),
             })
             .collect(),
         epoch: 1,

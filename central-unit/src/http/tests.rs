@@ -60,6 +60,7 @@ fn report(site: &Site) -> StatusReport {
                 cycles_missed: 0,
                 slots_skipped: 0,
                 inputs_refused: 0,
+                device: String::new(),
             })
             .collect(),
         robots: vec![RobotHealth {
@@ -73,6 +74,7 @@ fn report(site: &Site) -> StatusReport {
             theta_rad: 0.5,
             stale: String::new(),
             fixes_over_rate: 0,
+            receivers: String::new(),
         }],
         epoch: 1,
         foreign_control: 0,

@@ -147,6 +147,7 @@ fn news_applies_from_the_cycle_it_names_however_the_arrivals_raced() {
         slots_skipped: 0,
         faults: Vec::new(),
         inputs_refused: 0,
+        device: String::new(),
     };
     let run = |next_trigger_first: bool| {
         let mut core = listening("tdoa-ekf", 3.9);
@@ -259,6 +260,7 @@ fn news_held_for_a_cycle_does_not_override_newer_news_once_the_whole_schedule_fi
         slots_skipped: 0,
         faults: Vec::new(),
         inputs_refused: 0,
+        device: String::new(),
     };
     let mut core = listening("msu-raw", 3.9);
     core.handle(Event::Trigger(trigger(40, &firing)));

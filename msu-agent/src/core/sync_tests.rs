@@ -19,6 +19,7 @@ fn status(cell: &str, sigma_ns: i64) -> CellStatus {
         slots_skipped: 0,
         faults: Vec::new(),
         inputs_refused: 0,
+        device: String::new(),
     }
 }
 

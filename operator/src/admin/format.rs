@@ -64,6 +64,9 @@ fn cell_table(out: &mut String, s: &StatusReport) {
             c.slots_skipped,
             us(c.sync_error_us)
         );
+        if !c.device.is_empty() {
+            let _ = writeln!(out, "         device: {}", c.device);
+        }
     }
     if s.cells.iter().any(|c| c.state == CellState::Idle) {
         let _ = writeln!(
@@ -116,6 +119,9 @@ fn robot_table(out: &mut String, s: &StatusReport) {
         );
         if !r.stale.is_empty() {
             let _ = writeln!(out, "         stale: {}", r.stale);
+        }
+        if !r.receivers.is_empty() {
+            let _ = writeln!(out, "         receivers: {}", r.receivers);
         }
     }
 }
@@ -252,6 +258,7 @@ mod tests {
             cycles_missed: 0,
             slots_skipped: 0,
             inputs_refused: 0,
+            device: "transmitter board on tcp:10.0.0.7:4000: link up, ready".into(),
         };
         StatusReport {
             site: "lab".into(),
@@ -276,6 +283,7 @@ mod tests {
                 theta_rad: 0.5,
                 stale: String::new(),
                 fixes_over_rate: 0,
+                receivers: String::new(),
             }],
             epoch: 1,
             foreign_control: 0,
@@ -293,6 +301,10 @@ mod tests {
         assert_eq!(c["state"], "up");
         assert_eq!(c["sync_error_us"], 61.5);
         assert_eq!(c["cycles_fired"], 11);
+        assert_eq!(
+            c["device"],
+            "transmitter board on tcp:10.0.0.7:4000: link up, ready"
+        );
         assert_eq!(v["cells"][1]["state"], "down");
         assert_eq!(v["cells"][1]["state_since_cycle"], 12);
         assert_eq!(v["cells"][2]["state"], "idle");
@@ -322,6 +334,10 @@ mod tests {
         assert!(table.contains("c3       idle"), "{table}");
         assert!(table.contains("idle: alive"), "{table}");
         assert!(table.contains("61.5"), "{table}");
+        assert!(
+            table.contains("device: transmitter board on tcp:10.0.0.7:4000: link up, ready"),
+            "{table}"
+        );
         assert!(sync(&report(), false).unwrap().contains("-50000.0"));
     }
 }

@@ -76,6 +76,11 @@ pub struct CellHealth {
     /// Control messages the cell refused (its own count, see
     /// [`CellStatus::inputs_refused`](crate::msg::control::CellStatus::inputs_refused)).
     pub inputs_refused: u64,
+    /// Its transmitter device in plain words (its own report, see
+    /// [`CellStatus::device`](crate::msg::control::CellStatus::device));
+    /// empty for the simulated driver.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub device: String,
 }
 
 /// Health of one robot as the central unit sees it.
@@ -106,6 +111,10 @@ pub struct RobotHealth {
     /// Its fixes kept out of the survey calibration because it sent more
     /// than its share (about one a cycle), since the central unit started.
     pub fixes_over_rate: u64,
+    /// Its receivers (a receiver board, a ranging kit) in plain words, as
+    /// its agent last reported them; empty for the simulated world's.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub receivers: String,
 }
 
 /// Answer to `status`, `cells`, `robots` and `sync`.

@@ -283,4 +283,9 @@ pub struct CellStatus {
     /// off the cycle count, altered or backward schedules, clock answers
     /// of another central unit).
     pub inputs_refused: u64,
+    /// The cell's transmitter device in plain words (a board's link and
+    /// handshake state, its clock, what it refused); empty for the
+    /// simulated driver.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub device: String,
 }

@@ -42,6 +42,18 @@ pub struct Odometry {
     pub right_ticks: i64,
 }
 
+/// `robot/<id>/status`: the MSU agent's own report, once a second.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MsuStatus {
+    /// When it was made, on the MSU clock.
+    pub stamp: Time,
+    /// Where its arrivals or ranges come from, in plain words: a receiver
+    /// board's or a ranging kit's link and state, what it refused; empty
+    /// for the simulated world's arrivals.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub receivers: String,
+}
+
 /// `robot/<id>/imu`: the yaw-rate gyro.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Imu {

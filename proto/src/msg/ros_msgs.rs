@@ -39,6 +39,7 @@ pub const MSG_FILES: &[(&str, &str)] = &[
     ("CycleTrigger", include_str!("../../msg/CycleTrigger.msg")),
     ("Burst", include_str!("../../msg/Burst.msg")),
     ("CellStatus", include_str!("../../msg/CellStatus.msg")),
+    ("MsuStatus", include_str!("../../msg/MsuStatus.msg")),
     (
         "TransmitterOffset",
         include_str!("../../msg/TransmitterOffset.msg"),
@@ -117,6 +118,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CentralSurvey => own("SurveyCalibration"),
         Key::CellBurst(_) => own("Burst"),
         Key::CellStatus(_) => own("CellStatus"),
+        Key::RobotStatus(_) => own("MsuStatus"),
         Key::SimTruth(_) | Key::SimKit(_) => own("Truth"),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => own("UltrasoundArrivals"),

@@ -98,6 +98,7 @@ fn control_messages_round_trip() {
         slots_skipped: 1,
         faults: vec!["late trigger".into()],
         inputs_refused: 3,
+        device: String::new(),
     });
 }
 
@@ -193,6 +194,7 @@ fn sample_cell_health() -> CellHealth {
         cycles_missed: 0,
         slots_skipped: 1,
         inputs_refused: 0,
+        device: String::new(),
     }
 }
 
@@ -232,6 +234,7 @@ fn admin_messages_round_trip() {
             theta_rad: 0.0,
             stale: String::new(),
             fixes_over_rate: 0,
+            receivers: String::new(),
         }],
         epoch: 42,
         foreign_control: 1,
@@ -300,6 +303,8 @@ fn cell_health_matches_hand_written_cdr() {
         // last fired, fired, missed, skipped, refused
         expected.extend_from_slice(&v.to_le_bytes());
     }
+    expected.extend_from_slice(&1u32.to_le_bytes()); // device: empty, NUL only (112)
+    expected.push(0);
     assert_eq!(encode(&sample_cell_health()).unwrap(), expected);
     assert_eq!(
         decode::<CellHealth>(&expected).unwrap(),

@@ -249,6 +249,7 @@ fn put_cell_status<W: std::io::Write + std::io::Seek>(
             slots_skipped: 0,
             faults: Vec::new(),
             inputs_refused: 0,
+            device: String::new(),
         };
         put(
             recorder,

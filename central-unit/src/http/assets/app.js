@@ -199,13 +199,13 @@ function renderPanel(snap) {
   robots.replaceChildren(...snap.robots.map(r => row([
     [r.id], [r.state, r.state === "down" ? "down" : ""], [r.estimator || "-", "txt"],
     [fmt(r.fixes_per_s, 1)], [String(r.fixes_over_rate), r.fixes_over_rate > 0 ? "down" : ""],
-    [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)],
+    [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)], [r.receivers || "-", "txt device"],
   ])));
   const cells = document.querySelector("#cells tbody");
   cells.replaceChildren(...snap.cells.map(c => {
     const s = cellState(c, snap);
     return row([[c.id], [s, s], [fmt(c.sync_error_us, 1)], [String(c.cycles_fired)],
-      [String(c.cycles_missed + c.slots_skipped)]]);
+      [String(c.cycles_missed + c.slots_skipped)], [c.device || "-", "txt device"]]);
   }));
   document.getElementById("clients").textContent =
     `web clients ${snap.clients}, dropped as slow ${snap.clients_dropped}; messages ignored ${snap.ignored_messages}`;

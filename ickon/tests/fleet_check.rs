@@ -344,9 +344,11 @@ fn a_robot_forging_the_survey_is_quarantined_and_the_fleet_keeps_its_accuracy() 
     }
 
     // What reaches the other robots of the forger is the calibration: it
-    // moved toward the forged heights no more than the honest fleet's own
-    // (what the survey's error and the noise give), and by less than 10 %
-    // of the forged 20 cm.
+    // moved toward the forged heights no more than an honest fleet's does
+    // by chance (within 2 mm in the runs measured), far less than 10 % of
+    // the forged 20 cm. The bound is 5 mm: without the check, the same
+    // forger among three honest robots moved the heights 8.6 mm toward
+    // its forgery (the unit test of `survey_calibration::consensus`).
     let (clean_toward, forged_toward) = (
         toward_forgery_m(&site, &clean_survey),
         toward_forgery_m(&site, &forged_survey),
@@ -364,7 +366,7 @@ fn a_robot_forging_the_survey_is_quarantined_and_the_fleet_keeps_its_accuracy() 
         forged_survey.fixes_taken,
     );
     assert!(
-        forged_toward.abs() < 0.02,
+        forged_toward.abs() < 0.005,
         "the calibration moved {:.1} mm toward the forged heights",
         1e3 * forged_toward
     );

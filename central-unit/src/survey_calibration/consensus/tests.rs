@@ -66,6 +66,9 @@ struct Fleet {
     step: u64,
     /// Fixes the publisher read (of every robot).
     read: u64,
+    /// The forgers' fixes are taken without the check (what the
+    /// calibration would learn without it).
+    unchecked_forgers: bool,
 }
 
 impl Fleet {
@@ -83,6 +86,7 @@ impl Fleet {
             version: 0,
             step: 0,
             read: 0,
+            unchecked_forgers: false,
         }
     }
 
@@ -113,7 +117,11 @@ impl Fleet {
         for (robot, offsets) in forgers {
             if let Some(fix) = self.fix(true) {
                 let fix = forged(&self.site, &fix, offsets);
-                let offered = self.publisher.offer_fix(robot, &fix, now);
+                let offered = if self.unchecked_forgers {
+                    self.publisher.take_fix(&fix)
+                } else {
+                    self.publisher.offer_fix(robot, &fix, now)
+                };
                 self.read += u64::from(offered.is_ok());
             }
         }
@@ -141,6 +149,18 @@ impl Fleet {
     fn kept_out(&self) -> u64 {
         let calibration = self.publisher.calibration();
         self.read - calibration.fixes_taken() - self.publisher.fixes_held() as u64
+    }
+
+    /// How far the learnt heights moved toward `forgery`, metres: the mean
+    /// over the transmitters of each one's height correction along the
+    /// forged direction of its height.
+    fn toward(&self, forgery: &Applied) -> f64 {
+        let learnt = self.corrections();
+        let along: Vec<f64> = learnt
+            .iter()
+            .map(|c| c.offset_m[2] * forgery[&c.tx_id][2].signum())
+            .collect();
+        along.iter().sum::<f64>() / along.len() as f64
     }
 
     fn check(&self, robot: &str) -> RobotCheck {
@@ -183,6 +203,23 @@ fn a_robot_placing_every_transmitter_20_cm_off_is_quarantined_before_it_teaches_
         clean.publisher.calibration().fixes_taken()
     );
     assert_eq!(attacked.corrections(), clean.corrections());
+    // Without the check the same forger moves the heights toward what it
+    // forged, several millimetres on average (its fixes down-weighted as
+    // outliers, against three honest robots'), where the honest fleet's
+    // calibration stays within a few millimetres of nothing: what the
+    // live test's bound of 5 mm tells apart.
+    let mut unchecked = Fleet::new(11);
+    unchecked.unchecked_forgers = true;
+    for _ in 0..300 {
+        unchecked.step(3, &[("r4", &off)]);
+    }
+    let (honest, bent) = (clean.toward(&off), unchecked.toward(&off));
+    eprintln!(
+        "heights toward the forgery: {:.1} mm with the check, {:.1} mm without",
+        1e3 * honest,
+        1e3 * bent
+    );
+    assert!(honest.abs() < 0.003 && bent > 0.006, "{honest} {bent}");
     // Every fix kept out is counted, and all of them are the forger's.
     assert_eq!(attacked.kept_out(), r4.fixes_quarantined);
     assert_eq!(clean.kept_out(), 0);

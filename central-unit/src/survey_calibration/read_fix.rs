@@ -20,10 +20,9 @@ use super::{
 pub struct ReadFix {
     /// The parameters it touches, ascending.
     columns: Vec<usize>,
-    /// Its information on them (weighted).
-    info: DMatrix<f64>,
-    /// Its information-weighted residuals on them.
-    rhs: DVector<f64>,
+    /// Its weight: the inverse of its residuals' variance, down-weighted
+    /// when one of them is an outlier.
+    weight: f64,
     /// `P J`: the residuals per unit of each parameter it touches, metres.
     pj: DMatrix<f64>,
     /// The whole error's residuals, metres.
@@ -119,8 +118,7 @@ impl SurveyCalibration {
         }
         Ok(ReadFix {
             columns,
-            info,
-            rhs,
+            weight,
             pj,
             residuals,
         })
@@ -129,10 +127,12 @@ impl SurveyCalibration {
     /// Adds a fix read by [`Self::read_fix`] (of this calibration's site)
     /// to what was learnt.
     pub fn add(&mut self, read: &ReadFix) {
+        let info = read.pj.transpose() * &read.pj * read.weight;
+        let rhs = read.pj.transpose() * &read.residuals * read.weight;
         for (a_i, &p) in read.columns.iter().enumerate() {
-            self.weighted[p] += read.rhs[a_i];
+            self.weighted[p] += rhs[a_i];
             for (b_i, &q) in read.columns.iter().enumerate() {
-                self.information[(p, q)] += read.info[(a_i, b_i)];
+                self.information[(p, q)] += info[(a_i, b_i)];
             }
         }
         self.fixes_taken += 1;

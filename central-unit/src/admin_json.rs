@@ -95,6 +95,18 @@ pub struct RobotJson {
     pub fixes_per_s: f64,
     /// Its fixes kept out of the survey calibration as over its rate.
     pub fixes_over_rate: u64,
+    /// Where it stands with the fleet's check of its fixes: `checking`,
+    /// `agrees`, `quarantined` or `unchecked: no other robot to compare`
+    /// (`None`: the central unit learns no survey calibration).
+    pub survey_check: Option<String>,
+    /// Its fixes kept out of the survey calibration while quarantined.
+    pub fixes_quarantined: u64,
+    /// The median misfit of its recent fixes against the fleet's
+    /// calibration, mm (`None`: not checked yet).
+    pub survey_misfit_mm: Option<f64>,
+    /// The misfit beyond which it is quarantined (while quarantined: within
+    /// which it is released), mm (`None`: nothing to compare with).
+    pub survey_bound_mm: Option<f64>,
     /// Estimator named in its last pose.
     pub estimator: Option<String>,
     /// Its last pose, if any.
@@ -116,6 +128,10 @@ impl From<&RobotHealth> for RobotJson {
             stale: (!r.stale.is_empty()).then(|| r.stale.clone()),
             fixes_per_s: r.fixes_per_s,
             fixes_over_rate: r.fixes_over_rate,
+            survey_check: (!r.survey_check.is_empty()).then(|| r.survey_check.clone()),
+            fixes_quarantined: r.fixes_quarantined,
+            survey_misfit_mm: (r.survey_misfit_m >= 0.0).then(|| round_mm(r.survey_misfit_m)),
+            survey_bound_mm: (r.survey_bound_m >= 0.0).then(|| round_mm(r.survey_bound_m)),
             estimator: (!r.estimator.is_empty()).then(|| r.estimator.clone()),
             pose: r.pose_valid.then_some(PoseJson {
                 x_m: r.x_m,
@@ -125,6 +141,11 @@ impl From<&RobotHealth> for RobotJson {
             receivers: (!r.receivers.is_empty()).then(|| r.receivers.clone()),
         }
     }
+}
+
+/// Metres as millimetres to a tenth.
+fn round_mm(m: f64) -> f64 {
+    (m * 10_000.0).round() / 10.0
 }
 
 /// `status --json` (and `cells`, `robots`, `sync`, which leave a part out).

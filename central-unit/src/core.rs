@@ -363,7 +363,7 @@ impl CentralCore {
             }
             Event::Fix { robot, fix } => {
                 self.on_fix(&robot, now);
-                self.survey_fix(&robot, &fix);
+                self.survey_fix(&robot, &fix, now);
                 Vec::new()
             }
             Event::ScheduleSeen(schedule) if self.standby.is_some() => {

@@ -270,8 +270,12 @@ impl RobotTracker {
             y_m: pose.map_or(0.0, |p| p.y_m),
             theta_rad: pose.map_or(0.0, |p| p.theta_rad),
             stale: self.stale(now).unwrap_or_default(),
-            // Counted by the survey calibration's share, not here.
+            // Counted by the survey calibration's share and check, not here.
             fixes_over_rate: 0,
+            survey_check: String::new(),
+            fixes_quarantined: 0,
+            survey_misfit_m: -1.0,
+            survey_bound_m: -1.0,
             receivers: self.receivers.clone(),
         }
     }

@@ -18,7 +18,7 @@ use crate::survey_calibration::SavedCalibration;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{NodeArgs, NodeError, SimulatedClock, put_counted, zerr};
+use ickon_runtime::{LogLimiter, NodeArgs, NodeError, SimulatedClock, put_counted, zerr};
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -366,6 +366,7 @@ pub async fn run(
     let (mut failed_puts, mut undecodable) = (0u64, 0u64);
     let mut web_ticks = tokio::time::interval(crate::http::feed::SNAPSHOT_PERIOD);
     let mut reloads = reload::Reloads::new();
+    let mut unknown_admin = LogLimiter::default();
     loop {
         let wake = core.next_wake().since(clock.now()).to_std();
         let event = tokio::select! {
@@ -394,7 +395,7 @@ pub async fn run(
                         reloads.start(q);
                     }
                 } else {
-                    answer_admin(&keys, &mut core, &q, clock.now()).await;
+                    answer_admin(&keys, &mut core, &q, clock.now(), &mut unknown_admin).await;
                 }
                 continue;
             }
@@ -804,8 +805,16 @@ fn answer_clock(q: &Query, clock: &SimulatedClock, epoch: u64) {
     }
 }
 
-/// Answers one admin query (`reload` excepted: see [`reload`]).
-async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time) {
+/// Answers one admin query (`reload` excepted: see [`reload`]). Queries
+/// naming no command are logged through `unknown`: anyone allowed on the
+/// admin keys can send them by the thousand.
+async fn answer_admin(
+    keys: &Keys,
+    core: &mut CentralCore,
+    q: &Query,
+    now: Time,
+    unknown: &mut LogLimiter<()>,
+) {
     let Ok(Key::CentralAdmin(command)) = keys.parse(q.key_expr().as_str()) else {
         return;
     };
@@ -822,7 +831,13 @@ async fn answer_admin(keys: &Keys, core: &mut CentralCore, q: &Query, now: Time)
         }
         "pause" => reply(q, &core.set_paused(true)).await,
         "resume" => reply(q, &core.set_paused(false)).await,
-        other => tracing::warn!("unknown admin command {other:?}"),
+        other => {
+            if let Some(held) = unknown.admit((), std::time::Instant::now()) {
+                tracing::warn!(
+                    "unknown admin command {other:?} ignored ({held} more since the last such line)"
+                );
+            }
+        }
     }
 }
 

@@ -52,7 +52,9 @@ use ickon_proto::msg::control::{
 use ickon_proto::msg::robot::{Fix, FixQuality};
 use ickon_proto::site::{Column, Site, Wall, line_of_sight};
 use ickon_proto::time::{Duration, Time};
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+use consensus::{Consensus, RobotCheck};
 
 /// What the calibration assumes of the site's sensors (data-sheet values)
 /// and how often it is published.
@@ -375,70 +377,8 @@ impl SurveyCalibration {
         applied: &Applied,
         late: &AppliedLate,
     ) -> Result<(), FixSkipped> {
-        let receiver = checked_receiver(fix)?;
-        let n = fix.used.len();
-        let rows = self.rows(fix, receiver, applied, late)?;
-        // The fix's own unknowns: position (x, y) and the common offset.
-        let a = DMatrix::from_fn(n, 3, |i, k| match k {
-            0 => -rows[i].toward.x,
-            1 => -rows[i].toward.y,
-            _ => 1.0,
-        });
-        let ata: Matrix3<f64> = (a.transpose() * &a).fixed_view::<3, 3>(0, 0).into();
-        let Some(ata_inv) = ata.try_inverse() else {
-            return Err(FixSkipped::Degenerate);
-        };
-        let ata_inv = DMatrix::from_fn(3, 3, |i, k| ata_inv[(i, k)]);
-        let projector = DMatrix::identity(n, n) - &a * ata_inv * a.transpose();
-        // Columns of the parameters this fix touches.
-        let scale = self.information.nrows() - 1;
-        let mut columns: Vec<usize> = rows
-            .iter()
-            .flat_map(|r| [3 * r.tx, 3 * r.tx + 1, 3 * r.tx + 2, r.cell])
-            .filter(|&c| c < scale)
-            .collect();
-        columns.push(scale);
-        columns.sort_unstable();
-        columns.dedup();
-        let column_of = |p: usize| columns.binary_search(&p).unwrap_or(0);
-        let mut jacobian = DMatrix::zeros(n, columns.len());
-        for (i, r) in rows.iter().enumerate() {
-            for axis in 0..3 {
-                jacobian[(i, column_of(3 * r.tx + axis))] = r.toward[axis];
-            }
-            if r.cell < scale {
-                jacobian[(i, column_of(r.cell))] = 1.0;
-            }
-            // The MSU turns times into metres with its speed of sound.
-            jacobian[(i, column_of(scale))] = -r.range;
-        }
-        let pj = &projector * &jacobian;
-        // Put back the offsets and lateness the MSU solved with: the
-        // estimate is of the whole error.
-        let used_offsets =
-            DVector::from_fn(n, |i, _| rows[i].toward.dot(&rows[i].offset) + rows[i].late);
-        let residuals = DVector::from_vec(fix.residuals_m.clone()) + &projector * used_offsets;
-        let sigma = self.config.range_sigma_m.max(MIN_RANGE_SIGMA_M);
-        let worst = fix.residuals_m.iter().fold(0.0_f64, |m, e| m.max(e.abs()));
-        let huber = if worst > HUBER_SIGMAS * sigma {
-            HUBER_SIGMAS * sigma / worst
-        } else {
-            1.0
-        };
-        let weight = huber / (sigma * sigma);
-        let info = pj.transpose() * &pj * weight;
-        let rhs = pj.transpose() * residuals * weight;
-        if !info.iter().chain(rhs.iter()).all(|v| v.is_finite()) {
-            // One poisoned term would spoil everything learnt.
-            return Err(FixSkipped::Malformed);
-        }
-        for (a_i, &p) in columns.iter().enumerate() {
-            self.weighted[p] += rhs[a_i];
-            for (b_i, &q) in columns.iter().enumerate() {
-                self.information[(p, q)] += info[(a_i, b_i)];
-            }
-        }
-        self.fixes_taken += 1;
+        let read = self.read_fix(fix, applied, late)?;
+        self.add(&read);
         Ok(())
     }
 
@@ -640,19 +580,28 @@ pub struct SurveyPublisher {
     history: std::collections::VecDeque<(u32, Applied, AppliedLate)>,
     /// Transmitters already reported beyond a calibration's reach.
     warned: std::collections::BTreeSet<u32>,
+    /// The fleet's check of each robot's fixes.
+    consensus: Consensus,
+    /// The estimate of every parameter at the last publication: what the
+    /// robots' fixes are checked against.
+    estimate: DVector<f64>,
 }
 
 impl SurveyPublisher {
     /// A publisher for `site` with nothing learnt; it publishes at the
     /// first [`Self::due`].
     pub fn new(site: &Site, config: CalibrationConfig) -> Self {
+        let calibration = SurveyCalibration::new(site, config);
+        let estimate = DVector::zeros(calibration.weighted.len());
         Self {
-            calibration: SurveyCalibration::new(site, config),
+            calibration,
             publish_every: config.publish_every,
             next_at: None,
             last_at: None,
             history: std::collections::VecDeque::new(),
             warned: std::collections::BTreeSet::new(),
+            consensus: Consensus::new(config.range_sigma_m.max(MIN_RANGE_SIGMA_M)),
+            estimate,
         }
     }
 
@@ -677,23 +626,56 @@ impl SurveyPublisher {
     pub fn restore(&mut self, site: &Site, saved: &SavedCalibration) -> Result<(), SavedMismatch> {
         self.calibration = SurveyCalibration::restored(site, self.calibration.config, saved)?;
         self.last_at = saved.saved_at_s.map(Time::from_secs_f64);
+        if let Some(estimate) = self.calibration.estimate() {
+            self.estimate = estimate;
+        }
         Ok(())
     }
 
-    /// Takes a robot's fix, read against the calibration it names.
+    /// Takes a fix at once, read against the calibration it names, without
+    /// the fleet's check: for a single source of fixes known to be honest.
     pub fn take_fix(&mut self, fix: &Fix) -> Result<(), FixSkipped> {
+        let read = self.read(fix)?;
+        self.calibration.add(&read);
+        Ok(())
+    }
+
+    /// Offers a fix of robot `key` (see [`fix_rate::FixRate`] for the keys)
+    /// arrived at `now`: read against the calibration it names, then held
+    /// for the fleet's check ([`consensus`]); a fix of the robot's that the
+    /// check lets through is learnt from.
+    pub fn offer_fix(&mut self, key: &str, fix: &Fix, now: Time) -> Result<(), FixSkipped> {
+        let read = self.read(fix)?;
+        let misfit_m = read.misfit_m(&self.estimate);
+        if let Some(agreed) = self.consensus.offer(key, read, misfit_m, now) {
+            self.calibration.add(&agreed);
+        }
+        Ok(())
+    }
+
+    /// Fixes held for the fleet's check, not learnt from yet.
+    pub fn fixes_held(&self) -> usize {
+        self.consensus.held()
+    }
+
+    /// What the fleet's check says of robot `key`.
+    pub fn robot_check(&self, key: &str) -> RobotCheck {
+        self.consensus.robot(key)
+    }
+
+    /// A fix read against the calibration it names.
+    fn read(&self, fix: &Fix) -> Result<ReadFix, FixSkipped> {
         if fix.survey_version == 0 {
             return self
                 .calibration
-                .take_fix(fix, &Applied::new(), &AppliedLate::new());
+                .read_fix(fix, &Applied::new(), &AppliedLate::new());
         }
         let (_, applied, late) = self
             .history
             .iter()
             .find(|(v, _, _)| *v == fix.survey_version)
             .ok_or(FixSkipped::UnknownCalibration)?;
-        // Disjoint fields: the version's offsets are read in place.
-        self.calibration.take_fix(fix, applied, late)
+        self.calibration.read_fix(fix, applied, late)
     }
 
     /// The calibration to publish at `now` in `epoch`, if one is due.
@@ -710,6 +692,9 @@ impl SurveyPublisher {
         if let Some(last) = self.last_at.replace(now) {
             self.calibration
                 .forget_cell_sync((now - last).as_secs_f64());
+        }
+        if let Some(estimate) = self.calibration.estimate() {
+            self.estimate = estimate;
         }
         let from_clock = u32::try_from(now.as_nanos().max(0) / 1_000_000_000).unwrap_or(u32::MAX);
         let last = self.history.back().map_or(0, |(v, _, _)| *v);
@@ -752,8 +737,12 @@ impl SurveyPublisher {
     }
 }
 
+pub mod consensus;
 pub mod fix_rate;
 mod forgetting;
+mod read_fix;
+
+pub use read_fix::ReadFix;
 
 #[cfg(test)]
 mod tests;

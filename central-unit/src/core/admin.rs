@@ -25,9 +25,16 @@ impl CentralCore {
             robots: self
                 .robots
                 .iter()
-                .map(|(id, r)| RobotHealth {
-                    fixes_over_rate: self.survey_fix_rate.refused(id),
-                    ..r.health(id, now)
+                .map(|(id, r)| {
+                    let check = self.survey.as_ref().map(|p| p.robot_check(id));
+                    RobotHealth {
+                        fixes_over_rate: self.survey_fix_rate.refused(id),
+                        survey_check: check.map_or("", |c| c.check.label()).to_string(),
+                        fixes_quarantined: check.map_or(0, |c| c.fixes_quarantined),
+                        survey_misfit_m: check.and_then(|c| c.misfit_m).unwrap_or(-1.0),
+                        survey_bound_m: check.and_then(|c| c.bound_m).unwrap_or(-1.0),
+                        ..r.health(id, now)
+                    }
                 })
                 .collect(),
             epoch: self.epoch,

@@ -195,7 +195,12 @@ fn a_robot_flooding_fixes_gets_one_a_cycle_into_the_survey_calibration() {
         }
         send(&mut c, "r2", at);
     }
-    let taken = c.survey().unwrap().calibration().fixes_taken();
+    // Admitted: taken, or held for the fleet's check.
+    let admitted = |c: &CentralCore| {
+        let survey = c.survey().unwrap();
+        survey.calibration().fixes_taken() + survey.fixes_held() as u64
+    };
+    let taken = admitted(&c);
     // r2's 20, and r1's burst of 3 and 1.25 a cycle after it.
     assert!((42..=47).contains(&taken), "{taken}");
     let over = c
@@ -220,7 +225,69 @@ fn a_robot_flooding_fixes_gets_one_a_cycle_into_the_survey_calibration() {
     for k in 0..500 {
         send(&mut c, &format!("forged-{k}"), start);
     }
-    assert_eq!(c.survey().unwrap().calibration().fixes_taken(), taken + 3);
+    assert_eq!(admitted(&c), taken + 3);
     assert!(c.survey_fix_rate.len() <= c.site().robots.len() + 1);
     assert_eq!(c.survey_fix_rate.refused(""), 497);
+}
+
+#[test]
+fn a_robot_whose_fixes_disagree_with_the_fleet_is_quarantined_and_shown_so() {
+    use crate::survey_calibration::consensus::WINDOW_FIXES;
+    let mut c = core();
+    let honest = super::tests::good_fix();
+    // Every transmitter it heard 20 cm off, up and down in turn.
+    let forged = Fix {
+        residuals_m: vec![0.2, -0.2, 0.2, -0.2],
+        ..honest.clone()
+    };
+    let send = |c: &mut CentralCore, robot: &str, fix: &Fix| {
+        let at = c.next_wake();
+        c.tick(at);
+        c.handle(
+            at,
+            Event::Fix {
+                robot: robot.into(),
+                fix: Box::new(fix.clone()),
+            },
+        );
+    };
+    // A robot alone cannot be checked, and is shown so.
+    for _ in 0..WINDOW_FIXES {
+        send(&mut c, "r1", &honest);
+    }
+    let robot = |c: &CentralCore, id: &str| {
+        c.status(Time(0))
+            .robots
+            .into_iter()
+            .find(|r| r.id == id)
+            .unwrap()
+    };
+    assert_eq!(
+        robot(&c, "r1").survey_check,
+        "unchecked: no other robot to compare"
+    );
+    for _ in 0..3 * WINDOW_FIXES {
+        send(&mut c, "r2", &honest);
+        send(&mut c, "r3", &forged);
+        send(&mut c, "r1", &honest);
+    }
+    let forger = robot(&c, "r3");
+    assert_eq!(forger.survey_check, "quarantined");
+    // The window it was judged on, then every fix that left its window.
+    assert_eq!(forger.fixes_quarantined, 2 * WINDOW_FIXES as u64);
+    assert!(forger.survey_misfit_m > 0.1, "{forger:?}");
+    assert!(forger.survey_bound_m < 0.05, "{forger:?}");
+    for id in ["r1", "r2"] {
+        let r = robot(&c, id);
+        assert_eq!(r.survey_check, "agrees", "{r:?}");
+        assert_eq!(r.fixes_quarantined, 0);
+    }
+    // Every fix taken is an honest robot's: of the forger's, the last
+    // window is held (to judge its release), the rest kept out.
+    let survey = c.survey().unwrap();
+    let honest_fixes = (WINDOW_FIXES + 6 * WINDOW_FIXES) as u64;
+    assert_eq!(
+        survey.calibration().fixes_taken() + survey.fixes_held() as u64,
+        honest_fixes + WINDOW_FIXES as u64
+    );
 }

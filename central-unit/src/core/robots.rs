@@ -18,13 +18,16 @@ impl CentralCore {
     /// the site's transmitters), within the robot's share of the
     /// calibration: one fix a cycle (every robot the site does not list
     /// shares one such share).
-    pub(super) fn survey_fix(&mut self, robot: &str, fix: &Fix) {
+    /// Within its share, the fix is offered to the fleet's check
+    /// ([`crate::survey_calibration::consensus`]) before it may teach the
+    /// calibration.
+    pub(super) fn survey_fix(&mut self, robot: &str, fix: &Fix, now: Time) {
         let key = if self.on_site(robot) { robot } else { "" };
         let Some(publisher) = self.survey.as_mut() else {
             return;
         };
         let taken = match self.survey_fix_rate.admit(key, self.cycles_heard) {
-            Ok(()) => publisher.take_fix(fix),
+            Ok(()) => publisher.offer_fix(key, fix, now),
             Err(refused) => {
                 if refused.is_power_of_two() {
                     let who = if key.is_empty() {

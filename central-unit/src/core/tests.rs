@@ -659,6 +659,7 @@ fn a_forged_last_version_does_not_overflow_the_next_schedule() {
 
 #[test]
 fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes() {
+    use crate::survey_calibration::consensus::WINDOW_FIXES;
     let mut c = core();
     let now = c.next_wake();
     let out = c.tick(now);
@@ -673,16 +674,23 @@ fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes
     assert_eq!(first.fixes_taken, 0);
     assert_eq!(first.offsets.len(), c.site().transmitters.len());
     let good = good_fix();
-    c.handle(
-        now,
-        Event::Fix {
-            robot: "r1".into(),
-            fix: Box::new(good.clone()),
-        },
-    );
+    // A window of the robot's fixes and one more, a cycle apart: the
+    // first is learnt from (a fleet of one: unchecked), the rest held.
+    let mut now = now;
+    for _ in 0..=WINDOW_FIXES {
+        now = c.next_wake();
+        c.tick(now);
+        c.handle(
+            now,
+            Event::Fix {
+                robot: "r1".into(),
+                fix: Box::new(good.clone()),
+            },
+        );
+    }
     // A version it never published: not read.
     let unknown = Fix {
-        survey_version: first.version + 5,
+        survey_version: first.version + 1_000,
         ..good.clone()
     };
     c.handle(
@@ -693,6 +701,7 @@ fn the_survey_calibration_is_published_with_the_epoch_and_learns_from_good_fixes
         },
     );
     assert_eq!(c.survey().unwrap().calibration().fixes_taken(), 1);
+    assert_eq!(c.survey().unwrap().fixes_held(), WINDOW_FIXES);
     assert_eq!(c.survey_skipped().get("unknown calibration"), Some(&1));
     let later = now + Duration::from_millis(1_500);
     let next = c

@@ -64,6 +64,10 @@ fn report(site: &Site, down: &str) -> StatusReport {
                 theta_rad: 0.0,
                 stale: String::new(),
                 fixes_over_rate: 0,
+                survey_check: String::new(),
+                fixes_quarantined: 0,
+                survey_misfit_m: -1.0,
+                survey_bound_m: -1.0,
                 receivers: String::new(),
             })
             .collect(),

@@ -4,26 +4,26 @@ use ickon_proto::site::Wall;
 use nalgebra::Vector3;
 
 /// A deterministic normal draw (xorshift and Box-Muller): the tests' noise.
-struct Noise(u64);
+pub(super) struct Noise(pub(super) u64);
 
 impl Noise {
-    fn uniform(&mut self) -> f64 {
+    pub(super) fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 
-    fn normal(&mut self, sigma: f64) -> f64 {
+    pub(super) fn normal(&mut self, sigma: f64) -> f64 {
         let (u, v) = (self.uniform().max(1e-300), self.uniform());
         sigma * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
     }
 }
 
-const RANGE_SIGMA_M: f64 = 0.01;
+pub(super) const RANGE_SIGMA_M: f64 = 0.01;
 const NOISE_M: f64 = RANGE_SIGMA_M;
 
-fn config() -> CalibrationConfig {
+pub(super) fn config() -> CalibrationConfig {
     CalibrationConfig {
         range_sigma_m: RANGE_SIGMA_M,
         ..CalibrationConfig::default()
@@ -33,7 +33,7 @@ fn config() -> CalibrationConfig {
 /// Where the lab's transmitters really hang: each height off by up to
 /// 1.5 cm (a fixed pattern), and, with `horizontal`, x and y off by up to
 /// 1 cm: errors of the size the prior (1 cm per axis) expects.
-fn true_offsets(site: &Site, horizontal: bool) -> Applied {
+pub(super) fn true_offsets(site: &Site, horizontal: bool) -> Applied {
     site.transmitters
         .iter()
         .enumerate()
@@ -55,7 +55,7 @@ fn true_offsets(site: &Site, horizontal: bool) -> Applied {
 /// The fix an MSU at `at` solves from arrivals of the transmitters really
 /// at `truth`, with its table moved by `applied`; only transmitters in
 /// sight and within 8 m are heard.
-fn fix_at(
+pub(super) fn fix_at(
     site: &Site,
     at: [f64; 2],
     truth: &Applied,
@@ -143,7 +143,7 @@ fn fix_with_late(
 
 /// Places on the lab's floor, spread over its cells (rectangles), 0.3 m
 /// from their edges.
-fn places(n: usize, noise: &mut Noise) -> Vec<[f64; 2]> {
+pub(super) fn places(n: usize, noise: &mut Noise) -> Vec<[f64; 2]> {
     let site = Site::default_site();
     (0..n)
         .map(|_| {

@@ -6,7 +6,7 @@
 use std::fmt::Write;
 
 use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson};
-use ickon_proto::msg::admin::{AdminAck, CellState, StatusReport};
+use ickon_proto::msg::admin::{AdminAck, CellState, RobotHealth, StatusReport};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
@@ -84,8 +84,8 @@ fn robot_table(out: &mut String, s: &StatusReport) {
     }
     let _ = writeln!(
         out,
-        "{:<8} {:<5} {:>7} {:>9} {:<12} {:>8} {:>8} {:>9}",
-        "robot", "state", "fix/s", "over rate", "estimator", "x m", "y m", "theta deg"
+        "{:<8} {:<5} {:>7} {:>9} {:<11} {:<12} {:>8} {:>8} {:>9}",
+        "robot", "state", "fix/s", "over rate", "survey", "estimator", "x m", "y m", "theta deg"
     );
     for r in &s.robots {
         let (x, y, th) = if r.pose_valid {
@@ -99,7 +99,7 @@ fn robot_table(out: &mut String, s: &StatusReport) {
         };
         let _ = writeln!(
             out,
-            "{:<8} {:<5} {:>7.1} {:>9} {:<12} {:>8} {:>8} {:>9}",
+            "{:<8} {:<5} {:>7.1} {:>9} {:<11} {:<12} {:>8} {:>8} {:>9}",
             r.id,
             match (r.up, r.stale.is_empty()) {
                 (false, _) => "down",
@@ -108,6 +108,7 @@ fn robot_table(out: &mut String, s: &StatusReport) {
             },
             r.fixes_per_s,
             r.fixes_over_rate,
+            survey_word(&r.survey_check),
             if r.estimator.is_empty() {
                 "-"
             } else {
@@ -120,10 +121,52 @@ fn robot_table(out: &mut String, s: &StatusReport) {
         if !r.stale.is_empty() {
             let _ = writeln!(out, "         stale: {}", r.stale);
         }
+        if let Some(line) = survey_line(r) {
+            let _ = writeln!(out, "         survey: {line}");
+        }
         if !r.receivers.is_empty() {
             let _ = writeln!(out, "         receivers: {}", r.receivers);
         }
     }
+}
+
+/// The fleet check's standing in one word, for the robot table.
+fn survey_word(check: &str) -> &str {
+    match check {
+        "" => "-",
+        c => c.split(':').next().unwrap_or(c),
+    }
+}
+
+/// What the fleet's check says of a robot that is not simply agreeing,
+/// in words: why it is unchecked, or how far a quarantined robot is from
+/// being let in again.
+fn survey_line(r: &RobotHealth) -> Option<String> {
+    let mm = |m: f64| format!("{:.1} mm", m * 1000.0);
+    if r.survey_check == "quarantined" {
+        let measured = if r.survey_misfit_m >= 0.0 && r.survey_bound_m >= 0.0 {
+            format!(
+                "misfit {} against the fleet's calibration, released within {}; ",
+                mm(r.survey_misfit_m),
+                mm(r.survey_bound_m)
+            )
+        } else {
+            String::new()
+        };
+        return Some(format!(
+            "quarantined: {measured}{} fixes kept out of the calibration",
+            r.fixes_quarantined
+        ));
+    }
+    if r.survey_check.starts_with("unchecked") {
+        return Some(r.survey_check.clone());
+    }
+    (r.fixes_quarantined > 0).then(|| {
+        format!(
+            "{}; {} fixes kept out of the calibration while it was quarantined",
+            r.survey_check, r.fixes_quarantined
+        )
+    })
 }
 
 /// `status`: everything in one view.
@@ -239,7 +282,7 @@ pub fn ack(a: &AdminAck, json: bool) -> anyhow::Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ickon_proto::msg::admin::{CellHealth, RobotHealth};
+    use ickon_proto::msg::admin::CellHealth;
     use ickon_proto::time::Time;
 
     fn report() -> StatusReport {
@@ -283,6 +326,10 @@ mod tests {
                 theta_rad: 0.5,
                 stale: String::new(),
                 fixes_over_rate: 0,
+                survey_check: String::new(),
+                fixes_quarantined: 0,
+                survey_misfit_m: -1.0,
+                survey_bound_m: -1.0,
                 receivers: String::new(),
             }],
             epoch: 1,
@@ -339,5 +386,54 @@ mod tests {
             "{table}"
         );
         assert!(sync(&report(), false).unwrap().contains("-50000.0"));
+    }
+
+    #[test]
+    fn the_fleet_check_shows_quarantine_and_the_fleet_of_one() {
+        let mut report = report();
+        let honest = report.robots[0].clone();
+        report.robots = vec![
+            RobotHealth {
+                id: "r2".into(),
+                survey_check: "quarantined".into(),
+                fixes_quarantined: 57,
+                survey_misfit_m: 0.1412,
+                survey_bound_m: 0.0311,
+                ..honest.clone()
+            },
+            RobotHealth {
+                id: "r3".into(),
+                survey_check: "unchecked: no other robot to compare".into(),
+                ..honest.clone()
+            },
+            RobotHealth {
+                survey_check: "agrees".into(),
+                survey_misfit_m: 0.012,
+                survey_bound_m: 0.05,
+                ..honest
+            },
+        ];
+        let table = status(&report, false).unwrap();
+        assert!(
+            table.contains("survey: quarantined: misfit 141.2 mm against the fleet's calibration, released within 31.1 mm; 57 fixes kept out"),
+            "{table}"
+        );
+        assert!(
+            table.contains("survey: unchecked: no other robot to compare"),
+            "{table}"
+        );
+        assert_eq!(table.matches("survey:").count(), 2, "{table}");
+        assert!(table.contains(" agrees "), "{table}");
+        let v: serde_json::Value = serde_json::from_str(&status(&report, true).unwrap()).unwrap();
+        let r2 = &v["robots"][0];
+        assert_eq!(r2["survey_check"], "quarantined");
+        assert_eq!(r2["fixes_quarantined"], 57);
+        assert_eq!(r2["survey_misfit_mm"], 141.2);
+        assert_eq!(r2["survey_bound_mm"], 31.1);
+        assert_eq!(
+            v["robots"][1]["survey_check"],
+            "unchecked: no other robot to compare"
+        );
+        assert!(v["robots"][1]["survey_misfit_mm"].is_null());
     }
 }

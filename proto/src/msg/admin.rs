@@ -111,6 +111,22 @@ pub struct RobotHealth {
     /// Its fixes kept out of the survey calibration because it sent more
     /// than its share (about one a cycle), since the central unit started.
     pub fixes_over_rate: u64,
+    /// Where it stands with the fleet's check of its fixes before they
+    /// teach the survey calibration: `checking`, `agrees`, `quarantined`,
+    /// `unchecked: no other robot to compare`; empty when the central unit
+    /// learns no calibration.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub survey_check: String,
+    /// Its fixes kept out of the survey calibration while quarantined,
+    /// since the central unit started (or its site was reloaded).
+    pub fixes_quarantined: u64,
+    /// The median misfit of its recent fixes against the fleet's
+    /// calibration, metres (negative: not checked yet).
+    pub survey_misfit_m: f64,
+    /// The misfit beyond which it is quarantined (while quarantined: within
+    /// which it is released), metres (negative: no bound, nothing to
+    /// compare with).
+    pub survey_bound_m: f64,
     /// Its receivers (a receiver board, a ranging kit) in plain words, as
     /// its agent last reported them; empty for the simulated world's.
     #[serde(deserialize_with = "crate::wire_string::deserialize")]

@@ -192,6 +192,15 @@ function render() {
   }
 }
 
+// The fleet's check of a robot's fixes: its standing, and for a quarantined
+// robot how many of its fixes were kept out of the survey calibration.
+function surveyCell(r) {
+  const check = r.survey_check;
+  if (!check) return ["-", "txt"];
+  if (check === "quarantined") return [`quarantined (${r.fixes_quarantined})`, "txt down"];
+  return [check.startsWith("unchecked") ? "unchecked (no other robot)" : check, "txt"];
+}
+
 function renderPanel(snap) {
   document.getElementById("cycle").textContent =
     `cycle ${snap.cycle}${snap.paused ? " (paused)" : ""} · ${fmt(snap.update_rate_hz, 2)} cycles/s`;
@@ -199,6 +208,7 @@ function renderPanel(snap) {
   robots.replaceChildren(...snap.robots.map(r => row([
     [r.id], [r.state, r.state === "down" ? "down" : ""], [r.estimator || "-", "txt"],
     [fmt(r.fixes_per_s, 1)], [String(r.fixes_over_rate), r.fixes_over_rate > 0 ? "down" : ""],
+    surveyCell(r),
     [fmt(r.err_mm, 0)], [fmt(r.staleness_ms, 0)], [r.receivers || "-", "txt device"],
   ])));
   const cells = document.querySelector("#cells tbody");

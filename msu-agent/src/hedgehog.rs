@@ -8,15 +8,17 @@
 //! sound (the site file's temperature), so that the kit's setting and the
 //! site's need not agree. Only the raw distances (`0x0004`, `0x0084`) and,
 //! with `use_kit_positions`, the positions (`0x0001`, `0x0011`, `0x0081`)
-//! become inputs. The raw IMU is not used: Marvelmind's open-source
-//! parsers (`marvelmind.c`, `marvelmind.py`, `marvelmind_nav`) pass its
-//! gyro through as raw counts and state no scale, so its rate in rad/s is
-//! unknown.
+//! become inputs. The raw IMU's gyro becomes the robot's gyro only when
+//! the configuration states its scale (`gyro_rad_s_per_count`):
+//! Marvelmind's open-source parsers (`marvelmind.c`, `marvelmind.py`,
+//! `marvelmind_nav`) pass it through as raw counts and state none, so its
+//! rate in rad/s is known only to whoever calibrated their hedgehog.
 
 use std::collections::BTreeMap;
 
 use ickon_marvelmind::{Deframer, FrameError, Packet, Position, RawDistances};
 use ickon_proto::msg::control::TransmitterEntry;
+use ickon_proto::msg::robot::Imu;
 use ickon_proto::time::{Duration, Time};
 
 use crate::beacons::{BeaconDistance, BeaconDistances, KitPosition};
@@ -33,6 +35,9 @@ pub struct MarvelmindSettings {
     pub use_kit_positions: bool,
     /// One-sigma noise of one of the kit's positions per axis, metres.
     pub kit_position_sigma_m: f64,
+    /// The raw gyro's scale, rad/s per count, as the user measured it for
+    /// their hedgehog; `None` (the default): the kit's gyro is not used.
+    pub gyro_rad_s_per_count: Option<f64>,
 }
 
 /// Speed of sound in dry air at 20 °C, m/s (331.3 m/s at 0 °C times
@@ -51,6 +56,7 @@ impl Default for MarvelmindSettings {
             range_sigma_m: DEFAULT_KIT_SIGMA_M,
             use_kit_positions: false,
             kit_position_sigma_m: DEFAULT_KIT_SIGMA_M,
+            gyro_rad_s_per_count: None,
         }
     }
 }
@@ -94,6 +100,8 @@ pub struct HedgehogCounters {
     pub kit_positions: u64,
     /// The kit's positions not used (not wanted, or marked unavailable).
     pub kit_positions_unused: u64,
+    /// Gyro samples handed on (with `gyro_rad_s_per_count`).
+    pub gyro_samples: u64,
 }
 
 /// An input for the MSU core.
@@ -103,6 +111,9 @@ pub enum HedgehogInput {
     Distances(BeaconDistances),
     /// The kit's own position.
     KitPosition(KitPosition),
+    /// The hedgehog's yaw rate (its raw gyro's z axis, scaled as the
+    /// configuration states), on the agent's clock.
+    Gyro(Imu),
 }
 
 /// Something to log (at a bounded rate): its kind and what it was.
@@ -222,9 +233,21 @@ impl HedgehogReader {
                     }
                 }
             }
-            // Raw IMU: no stated gyro scale (see the module's doc); the
-            // kit's IMU fusion, quality and telemetry: not inputs.
-            Packet::RawImu(_) | Packet::FusedImu(_) | Packet::Quality(_) | Packet::Telemetry(_) => {
+            // The raw gyro with a stated scale (see the module's doc). The
+            // hedgehog lies flat on the robot: its z axis is the robot's
+            // vertical, counter-clockwise positive as the robot's gyro.
+            Packet::RawImu(imu) => match self.settings.gyro_rad_s_per_count {
+                Some(scale) => {
+                    self.counters.gyro_samples += 1;
+                    inputs.push(HedgehogInput::Gyro(Imu {
+                        stamp: now,
+                        gyro_z_rad_s: f64::from(imu.gyro[2]) * scale,
+                    }));
+                }
+                None => self.counters.skipped += 1,
+            },
+            // The kit's IMU fusion, quality and telemetry: not inputs.
+            Packet::FusedImu(_) | Packet::Quality(_) | Packet::Telemetry(_) => {
                 self.counters.skipped += 1;
             }
         }

@@ -116,6 +116,7 @@ impl Arrived {
             Arrived::Survey(r) => Event::Survey(r.map_err(bad("undecodable survey calibration"))?),
             Arrived::Ranging(HedgehogInput::Distances(d)) => Event::BeaconDistances(d),
             Arrived::Ranging(HedgehogInput::KitPosition(p)) => Event::KitPosition(p),
+            Arrived::Ranging(HedgehogInput::Gyro(i)) => Event::Imu(i),
             Arrived::BoardOdometry(o) => Event::Odometry(o),
             Arrived::BoardImu(i) => Event::Imu(i),
         })
@@ -502,7 +503,9 @@ impl Agent<'_> {
         };
         match &input {
             Arrived::BoardOdometry(_) => self.board_motion.odometry = true,
-            Arrived::BoardImu(_) => self.board_motion.imu = true,
+            Arrived::BoardImu(_) | Arrived::Ranging(HedgehogInput::Gyro(_)) => {
+                self.board_motion.imu = true;
+            }
             Arrived::Odometry(_) | Arrived::Imu(_) => {
                 let from_board = match &input {
                     Arrived::Odometry(_) => self.board_motion.odometry,
@@ -510,12 +513,12 @@ impl Agent<'_> {
                 };
                 if from_board {
                     // Two sources of one input on two clocks would
-                    // corrupt the track: the board's wins.
+                    // corrupt the track: the device's wins.
                     self.n.motion_from_board_only += 1;
                     if let Some(held) = self.log_limit.admit("motion", std::time::Instant::now()) {
                         tracing::info!(
-                            "robot {robot}: odometry and gyro from the receiver board; \
-                             those on Zenoh ignored ({held} more since)"
+                            "robot {robot}: odometry or gyro from the receivers' device; \
+                             the same on Zenoh ignored ({held} more since)"
                         );
                     }
                     return None;

@@ -83,6 +83,7 @@ pub(super) struct RawMarvelmind {
     pub range_sigma_m: Option<Num>,
     pub use_kit_positions: Option<Spanned<bool>>,
     pub kit_position_sigma_m: Option<Num>,
+    pub gyro_rad_s_per_count: Option<Num>,
 }
 
 /// The whole file.

@@ -303,7 +303,7 @@ fn files_that_are_not_configurations_are_refused_clearly() {
 #[test]
 fn the_marvelmind_block_sets_the_kits_settings_and_refuses_absurd_ones() {
     let t = parse(
-        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 340.5\nrange_sigma_m = 0.03\nuse_kit_positions = true\nkit_position_sigma_m = 0.05\n",
+        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 340.5\nrange_sigma_m = 0.03\nuse_kit_positions = true\nkit_position_sigma_m = 0.05\ngyro_rad_s_per_count = 0.00122\n",
     )
     .unwrap();
     assert_eq!(
@@ -313,6 +313,7 @@ fn the_marvelmind_block_sets_the_kits_settings_and_refuses_absurd_ones() {
             range_sigma_m: 0.03,
             use_kit_positions: true,
             kit_position_sigma_m: 0.05,
+            gyro_rad_s_per_count: Some(0.00122),
         }
     );
     let issues = parse(
@@ -325,12 +326,18 @@ fn the_marvelmind_block_sets_the_kits_settings_and_refuses_absurd_ones() {
         "unknown key: the file does not parse {issues:?}"
     );
     let issues = parse(
-        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 34.3\nrange_sigma_m = -1.0\n",
+        "[filter]\nestimator = \"tdoa-ekf\"\n[marvelmind]\nspeed_of_sound_m_s = 34.3\nrange_sigma_m = -1.0\ngyro_rad_s_per_count = 0.5\n",
     )
     .unwrap_err();
     let fields: Vec<&str> = issues.iter().map(|i| i.field.as_str()).collect();
+    // 0.5 rad/s per count: degrees mistaken for radians, or a gyro in
+    // whole degrees; refused.
     assert_eq!(
         fields,
-        ["marvelmind.speed_of_sound_m_s", "marvelmind.range_sigma_m"]
+        [
+            "marvelmind.speed_of_sound_m_s",
+            "marvelmind.range_sigma_m",
+            "marvelmind.gyro_rad_s_per_count"
+        ]
     );
 }

@@ -253,6 +253,15 @@ fn marvelmind(ctx: &mut Ctx, raw: &RawMsuFile) -> MarvelmindSettings {
     if let Some(v) = &block.use_kit_positions {
         m.use_kit_positions = *v.get_ref();
     }
+    // A count is at most a degree per second (16-bit gyros at their widest
+    // range are 0.07 deg/s per count): more is a unit mistake.
+    if let Some((v, _)) = ctx.num(
+        &block.gyro_rad_s_per_count,
+        "marvelmind.gyro_rad_s_per_count",
+        positive(1f64.to_radians(), "rad/s"),
+    ) {
+        m.gyro_rad_s_per_count = Some(v);
+    }
     m
 }
 

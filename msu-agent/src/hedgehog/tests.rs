@@ -168,6 +168,36 @@ fn the_kits_positions_are_inputs_only_when_asked_for_and_available() {
 }
 
 #[test]
+fn the_raw_gyro_is_the_robots_only_with_a_stated_scale() {
+    let imu = Packet::RawImu(ickon_marvelmind::RawImu {
+        accel: [0, 0, 1000],
+        gyro: [7, -3, -400],
+        compass: [0, 0, 0],
+        time: HedgeTime::Counter(10),
+    })
+    .encode()
+    .expect("fits");
+    let mut unscaled = reader(MarvelmindSettings::default(), 343.0);
+    assert!(unscaled.feed(NOW, &imu).0.is_empty());
+    assert_eq!(unscaled.counters().gyro_samples, 0);
+    let scaled = MarvelmindSettings {
+        gyro_rad_s_per_count: Some(0.001),
+        ..MarvelmindSettings::default()
+    };
+    let mut r = reader(scaled, 343.0);
+    let (inputs, problems) = r.feed(NOW, &imu);
+    assert!(problems.is_empty(), "{problems:?}");
+    assert_eq!(
+        inputs,
+        vec![HedgehogInput::Gyro(Imu {
+            stamp: NOW,
+            gyro_z_rad_s: -0.4
+        })]
+    );
+    assert_eq!(r.counters().gyro_samples, 1);
+}
+
+#[test]
 fn beacon_positions_that_disagree_with_the_site_are_warned_about() {
     let mut r = reader(MarvelmindSettings::default(), 343.0);
     let at = |address, x_mm, y_mm, z_mm| BeaconPosition {

@@ -119,7 +119,8 @@ pub async fn run(
             .await
             .map_err(zerr)?,
     };
-    if let Some(schedule) = fetch::<Schedule>(
+    // `None`: stopped while waiting (the shutdown future is then spent).
+    let Some(schedule) = fetch::<Schedule>(
         session,
         &keys.central_schedule(),
         None,
@@ -127,9 +128,10 @@ pub async fn run(
         &mut shutdown,
     )
     .await?
-    {
-        let _ = world.handle(system_now(), WorldEvent::Schedule(schedule));
-    }
+    else {
+        return Ok(0);
+    };
+    let _ = world.handle(system_now(), WorldEvent::Schedule(schedule));
     let kits: Vec<bool> = settings_kits(&settings.devices, world.robot_ids());
     let mut pubs =
         robot_publishers(session, &keys, world.robot_ids(), &kits, settings.ros2).await?;

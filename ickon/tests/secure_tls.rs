@@ -342,6 +342,13 @@ fn ickon_sim_secure_runs_over_tls_and_every_robot_fixes() {
     assert!(endpoint.starts_with("tls/"), "{endpoint}");
     let robots = report["robots"].as_array().unwrap();
     assert_eq!(robots.len(), 3);
+    // The TLS links hold: with Zenoh's unpatched TLS link (a data race
+    // between its reader and writer) the central unit's link closed and
+    // reopened several times in a few seconds.
+    assert!(
+        !stderr.contains("alive/central went away"),
+        "the central unit's link dropped:\n{stderr}"
+    );
     for robot in robots {
         let fixes = robot["fixes"].as_u64().unwrap_or(0);
         assert!(fixes >= 3, "{robot}\n{stderr}");

@@ -21,13 +21,18 @@ fn main() -> ExitCode {
 /// Logs go to stderr so that `--json` output on stdout stays clean;
 /// `RUST_LOG` overrides the default level. Zenoh's own warnings (scouting
 /// delays at start-up, late data at shutdown) are routine in a mesh that
-/// starts and ends at once, so only its errors are shown by default. The
+/// starts and ends at once, so only its errors are shown by default, except
+/// its TLS link's warnings: a router's say why it refused a handshake (no
+/// client certificate, another CA's, an expired one), at most ten a second
+/// (Zenoh pauses its accept loop after each). The
 /// Foxglove SDK's lines (every client's coming and going, every bad message
 /// a client sends) are unbounded, so they are off unless asked for. Colour
 /// codes only on a terminal.
 fn init_tracing() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
-        tracing_subscriber::EnvFilter::new("warn,zenoh=error,zenoh_transport=error,foxglove=off")
+        tracing_subscriber::EnvFilter::new(
+            "warn,zenoh=error,zenoh_transport=error,zenoh_link_tls=warn,foxglove=off",
+        )
     });
     tracing_subscriber::fmt()
         .with_env_filter(filter)

@@ -4,7 +4,9 @@
 //! never reach a cell (while the central unit's do, and the robot's own keys
 //! go through), a wrong password or an unknown user cannot connect, `ickon
 //! admin` without the admin identity is refused with a clear message and
-//! with it is answered. And `ickon sim --secure` gives fixes.
+//! with it is answered (links in clear: `tcp/` endpoints). Two routers
+//! linked over mutual TLS carry a floor's traffic to the other. And
+//! `ickon sim --secure` gives fixes.
 //!
 //! Every wait polls with a deadline; every process is killed when its guard
 //! drops, whatever happens.
@@ -273,8 +275,10 @@ fn two_secured_routers_carry_the_site_between_floors() {
     let site = format!("secure2-{}", std::process::id());
     let file = ickon_testkit::lab_site_file(tmp.path(), &site);
     let keys = Keys::new(&site).unwrap();
-    let floor_1 = ickon_testkit::loopback_endpoint().expect("port");
-    let floor_2 = ickon_testkit::loopback_endpoint().expect("port");
+    // Over mutual TLS: the routers know each other by their certificates.
+    let tls = |e: String| e.replacen("tcp/", "tls/", 1);
+    let floor_1 = tls(ickon_testkit::loopback_endpoint().expect("port"));
+    let floor_2 = tls(ickon_testkit::loopback_endpoint().expect("port"));
     let dir = tmp.path().join("secure");
     // Router 2 links to router 1 (`--link` is `--connect` by default); the
     // world stands in for the second floor's robots' sensors (`--sim`).

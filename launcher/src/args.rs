@@ -76,10 +76,11 @@ pub struct SimArgs {
     /// a file.
     #[arg(long, requires = "record")]
     pub record_foxglove_view: bool,
-    /// Access control on the router, default deny, and every node (the
-    /// launcher too) authenticated with its own credential: the files of
-    /// `ickon site secure --sim` in DIR, or with no DIR a fresh set in a
-    /// temporary directory removed at exit.
+    /// Mutual TLS on every link, access control on the router, default
+    /// deny, and every node (the launcher too) authenticated with its own
+    /// certificate and password: the files of `ickon site secure --sim` in
+    /// DIR (its links in clear if it was written with `tcp/` endpoints), or
+    /// with no DIR a fresh set in a temporary directory removed at exit.
     #[arg(long, value_name = "DIR", num_args = 0..=1)]
     pub secure: Option<Option<PathBuf>>,
     /// Which transmitters the central unit fires each cycle: `needs` (a

@@ -83,7 +83,8 @@ pub async fn measure(
         .collect();
     let security = SimSecurity::prepare(args, site, &robots)?;
     let hub_port = free_port(&[]).map_err(failed)?;
-    let hub = format!("tcp/127.0.0.1:{hub_port}");
+    let scheme = security.as_ref().map_or("tcp", SimSecurity::scheme);
+    let hub = format!("{scheme}/127.0.0.1:{hub_port}");
     let recorder_endpoint = match args.record {
         // Not bound before the router starts: the hub's port is excluded.
         Some(_) => Some(format!(

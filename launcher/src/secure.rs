@@ -1,7 +1,8 @@
 //! `ickon sim --secure [DIR]`: the run's router with access control and
-//! every node, the launcher included, authenticated with its own credential,
-//! as `ickon site secure --sim` writes them (into a temporary directory
-//! removed at exit, or DIR).
+//! every node, the launcher included, authenticated with its own credential
+//! over mutual TLS, as `ickon site secure --sim` writes them (into a
+//! temporary directory removed at exit, or DIR; a DIR written with `tcp/`
+//! endpoints runs the links in clear).
 
 use std::path::Path;
 use std::process::Command;
@@ -54,6 +55,12 @@ impl SimSecurity {
             .map_err(|e| e.into_command_error().context("--secure"))
     }
 
+    /// The scheme of the run's endpoints: `tls` when the secured directory
+    /// has certificates, else `tcp`.
+    pub(crate) fn scheme(&self) -> &'static str {
+        if self.dir.uses_tls() { "tls" } else { "tcp" }
+    }
+
     /// Starts the router with the ACL and the user/password check.
     pub(crate) fn router(&self, cmd: &mut Command) {
         cmd.arg("--zenoh-config").arg(self.dir.router());
@@ -90,12 +97,14 @@ fn generate(site: &Site) -> Result<SimSecurity, ickon_operator::secure::SecureEr
         })?;
     let domain = ros2_domain();
     let layout = Layout {
-        listen: vec!["tcp/127.0.0.1:7447".into()],
-        connect: vec!["tcp/127.0.0.1:7447".into()],
+        listen: vec!["tls/127.0.0.1:7447".into()],
+        connect: vec!["tls/127.0.0.1:7447".into()],
         link: vec![],
         routers: 1,
         sim: true,
         ros2: Ros2Scope { domain },
+        valid_days: ickon_operator::secure::certs::DEFAULT_VALID_DAYS,
+        ca: None,
     };
     let dir = write_dir(site, &temp.path().join("site"), &layout)?;
     Ok(SimSecurity {
@@ -113,11 +122,16 @@ fn ros2_domain() -> u32 {
         .unwrap_or(0)
 }
 
-/// A Zenoh configuration starting from `file` (a credential), or the default.
+/// A Zenoh configuration starting from `file` (a credential, its TLS
+/// files checked as every node checks its own), or the default.
 pub(crate) fn base_config(file: Option<&Path>) -> anyhow::Result<zenoh::Config> {
     match file {
-        Some(f) => zenoh::Config::from_file(f)
-            .map_err(|e| anyhow::anyhow!("zenoh config {}: {e}", f.display())),
+        Some(f) => {
+            let config = zenoh::Config::from_file(f)
+                .map_err(|e| anyhow::anyhow!("zenoh config {}: {e}", f.display()))?;
+            ickon_runtime::args::check_tls_files(&config)?;
+            Ok(config)
+        }
         None => Ok(zenoh::Config::default()),
     }
 }

@@ -83,6 +83,7 @@ impl ZenohArgs {
         if let Some(mode) = &self.mode {
             set("mode", format!("{mode:?}"))?;
         }
+        check_tls_files(&config)?;
         Ok(config)
     }
 
@@ -92,6 +93,22 @@ impl ZenohArgs {
             .await
             .map_err(|e| NodeError::Zenoh(format!("cannot open the session: {e}")))
     }
+}
+
+/// Checks the TLS certificates and keys `config` names before any link
+/// uses them ([`crate::certificate`]): a malformed, expired or not yet
+/// valid one is refused (exit code 2, naming the file); one expiring soon
+/// is a warning.
+pub fn check_tls_files(config: &zenoh::Config) -> Result<(), NodeError> {
+    let facts = crate::certificate::check_config_files(config, crate::certificate::unix_now_s())
+        .map_err(|e| NodeError::Config {
+            what: "transport.link.tls".into(),
+            reason: e.to_string(),
+        })?;
+    for warning in facts.iter().filter_map(|f| f.expiry_warning()) {
+        tracing::warn!("{warning}");
+    }
+    Ok(())
 }
 
 /// Zenoh's reason for refusing a configuration file, made readable: its

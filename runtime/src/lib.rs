@@ -18,10 +18,13 @@
 //! - [`link`]: serial and TCP links to devices that reconnect by
 //!   themselves, and pseudo-terminal pairs;
 //! - [`log_limit`]: logs of bad input bounded to one line per kind per window;
+//! - [`certificate`]: the node's own TLS certificates and keys, checked at
+//!   start (malformed, expired, expiring soon);
 //! - [`runfile`]: the run file through which `ickon admin` finds an
 //!   `ickon sim` running on the same machine.
 
 pub mod args;
+pub mod certificate;
 pub mod clock;
 pub mod clock_steps;
 pub mod command;

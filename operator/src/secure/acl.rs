@@ -212,18 +212,33 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
     out
 }
 
+/// How a router knows who is at the other end of a link.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Trust {
+    /// Links are mutual TLS: a client must show a certificate of the site
+    /// CA whose common name is its user name, and give that user's password.
+    pub certificates: bool,
+    /// With certificates: the common names of the routers that link to
+    /// this one (they also authenticate as the user `router`).
+    pub linking_routers: Vec<String>,
+    /// The routers this one connected to. A link between two routers
+    /// authenticates the connecting one by its user name `router` (and its
+    /// certificate); the accepting one is known to the other by its
+    /// certificate's common name (with certificates) or else only by its
+    /// pinned Zenoh id, which is what this lists.
+    pub connected_routers: Vec<String>,
+}
+
 /// The `access_control` block of the router's configuration: default deny,
 /// one subject per identity (matched by the user name it authenticated
-/// with), one rule per (identity, direction, message kinds). `router_zids`:
-/// the pinned ids of routers this one connected to. A link between two
-/// routers authenticates only the one that connects (by its user name
-/// `router`); the one that accepted is known to the other by its id alone,
-/// so the `router` policy names both.
+/// with and, with [`Trust::certificates`], by its certificate's common
+/// name too: both must match), one rule per (identity, direction, message
+/// kinds). Linked routers as [`Trust`] says.
 pub fn access_control(
     site: &Site,
     identities: &[Identity],
     ros2: Ros2Scope,
-    router_zids: &[String],
+    trust: &Trust,
 ) -> Value {
     // The site was validated when loaded, so its name is a valid key chunk;
     // were it not, no key could be built and every rule would be empty.
@@ -235,38 +250,24 @@ pub fn access_control(
     let mut policies = Vec::new();
     for identity in identities {
         let user = identity.user();
-        let mut rule_ids = Vec::new();
-        // Merge the verbs' grants into one rule per (flow, message kinds).
-        let mut merged: Vec<(&str, &[&str], Vec<String>)> = Vec::new();
-        for (verb, key_exprs) in permissions(identity, &keys, ros2) {
-            for (flow, messages) in verb.grants() {
-                match merged
-                    .iter_mut()
-                    .find(|(f, m, _)| f == flow && *m == *messages)
-                {
-                    Some((_, _, k)) => k.extend(key_exprs.iter().cloned()),
-                    None => merged.push((flow, messages, key_exprs.clone())),
-                }
-            }
+        let rule_ids = push_rules(identity, &keys, ros2, &mut rules);
+        let mut subject = json!({ "id": user, "usernames": [user] });
+        if trust.certificates {
+            subject["cert_common_names"] = match identity {
+                Identity::Router => json!(trust.linking_routers),
+                _ => json!([user]),
+            };
         }
-        for (n, (flow, messages, mut key_exprs)) in merged.into_iter().enumerate() {
-            key_exprs.sort();
-            key_exprs.dedup();
-            let id = format!("{user}-{n}");
-            rules.push(json!({
-                "id": id,
-                "messages": messages,
-                "flows": [flow],
-                "permission": "allow",
-                "key_exprs": key_exprs,
-            }));
-            rule_ids.push(id);
-        }
-        subjects.push(json!({ "id": user, "usernames": [user] }));
+        subjects.push(subject);
         let mut subject_ids = vec![user.clone()];
-        if *identity == Identity::Router && !router_zids.is_empty() {
-            subjects.push(json!({ "id": "router-ids", "zids": router_zids }));
-            subject_ids.push("router-ids".into());
+        if *identity == Identity::Router && !trust.connected_routers.is_empty() {
+            let known_by = if trust.certificates {
+                "cert_common_names"
+            } else {
+                "zids"
+            };
+            subjects.push(json!({ "id": "connected-routers", known_by: trust.connected_routers }));
+            subject_ids.push("connected-routers".into());
         }
         policies.push(json!({ "id": user, "rules": rule_ids, "subjects": subject_ids }));
     }
@@ -277,6 +278,45 @@ pub fn access_control(
         "subjects": subjects,
         "policies": policies,
     })
+}
+
+/// Appends `identity`'s rules to `rules`, one per (flow, message kinds),
+/// and returns their ids.
+fn push_rules(
+    identity: &Identity,
+    keys: &Keys,
+    ros2: Ros2Scope,
+    rules: &mut Vec<Value>,
+) -> Vec<String> {
+    let user = identity.user();
+    let mut rule_ids = Vec::new();
+    // Merge the verbs' grants into one rule per (flow, message kinds).
+    let mut merged: Vec<(&str, &[&str], Vec<String>)> = Vec::new();
+    for (verb, key_exprs) in permissions(identity, keys, ros2) {
+        for (flow, messages) in verb.grants() {
+            match merged
+                .iter_mut()
+                .find(|(f, m, _)| f == flow && *m == *messages)
+            {
+                Some((_, _, k)) => k.extend(key_exprs.iter().cloned()),
+                None => merged.push((flow, messages, key_exprs.clone())),
+            }
+        }
+    }
+    for (n, (flow, messages, mut key_exprs)) in merged.into_iter().enumerate() {
+        key_exprs.sort();
+        key_exprs.dedup();
+        let id = format!("{user}-{n}");
+        rules.push(json!({
+            "id": id,
+            "messages": messages,
+            "flows": [flow],
+            "permission": "allow",
+            "key_exprs": key_exprs,
+        }));
+        rule_ids.push(id);
+    }
+    rule_ids
 }
 
 #[cfg(test)]
@@ -310,7 +350,7 @@ mod tests {
     fn only_the_central_unit_publishes_central_keys() {
         let site = lab();
         let ids = Identity::all_of(&site, true);
-        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &[]);
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &Trust::default());
         assert_eq!(acl["default_permission"], "deny");
         for id in &ids {
             let puts = allowed(&acl, &id.user(), "ingress", "put");
@@ -326,7 +366,7 @@ mod tests {
             &site,
             &[Identity::Robot("r1".into())],
             Ros2Scope { domain: 7 },
-            &[],
+            &Trust::default(),
         );
         let puts = allowed(&acl, "robot-r1", "ingress", "put");
         assert_eq!(puts, ["7/r1/**", "7/tf/**", "ickon/lab/robot/r1/**"]);
@@ -353,7 +393,7 @@ mod tests {
             &site,
             &[Identity::Cell("c2".into())],
             Ros2Scope { domain: 0 },
-            &[],
+            &Trust::default(),
         );
         assert_eq!(
             allowed(&acl, "cell-c2", "ingress", "put"),
@@ -369,7 +409,7 @@ mod tests {
     fn only_admin_and_central_may_query_admin_keys() {
         let site = lab();
         let ids = Identity::all_of(&site, true);
-        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &[]);
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &Trust::default());
         for id in &ids {
             let q = allowed(&acl, &id.user(), "ingress", "query");
             let admin = q.iter().any(|k| k.ends_with("central/**"));
@@ -389,7 +429,7 @@ mod tests {
             &site,
             &Identity::all_of(&site, true),
             Ros2Scope { domain: 0 },
-            &[],
+            &Trust::default(),
         );
         let rule_ids: Vec<&str> = acl["rules"]
             .as_array()
@@ -409,5 +449,39 @@ mod tests {
             acl["subjects"].as_array().unwrap().len(),
             acl["policies"].as_array().unwrap().len()
         );
+    }
+
+    #[test]
+    fn with_certificates_both_the_name_and_the_user_must_match() {
+        let site = lab();
+        let ids = [Identity::Robot("r1".into()), Identity::Router];
+        let trust = Trust {
+            certificates: true,
+            linking_routers: vec!["router-2".into()],
+            connected_routers: vec!["router".into()],
+        };
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &trust);
+        let subjects = acl["subjects"].as_array().unwrap();
+        assert_eq!(
+            subjects[0],
+            json!({ "id": "robot-r1", "usernames": ["robot-r1"], "cert_common_names": ["robot-r1"] })
+        );
+        assert_eq!(
+            subjects[1],
+            json!({ "id": "router", "usernames": ["router"], "cert_common_names": ["router-2"] })
+        );
+        // The router this one linked to: by its certificate, not by an id.
+        assert_eq!(
+            subjects[2],
+            json!({ "id": "connected-routers", "cert_common_names": ["router"] })
+        );
+        let plain = Trust {
+            certificates: false,
+            linking_routers: vec![],
+            connected_routers: vec!["1234".into()],
+        };
+        let acl = access_control(&site, &ids, Ros2Scope { domain: 0 }, &plain);
+        assert_eq!(acl["subjects"][0].get("cert_common_names"), None);
+        assert_eq!(acl["subjects"][2]["zids"], json!(["1234"]));
     }
 }

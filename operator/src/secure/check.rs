@@ -57,7 +57,17 @@ pub fn router(file: &Path, config: &zenoh::Config) -> Result<(), SecureError> {
     };
     let rules = ids("rules")?;
     let subjects = ids("subjects")?;
+    let mtls = setting(config, "transport/link/tls/enable_mtls") == Value::Bool(true);
     for (i, subject) in acl["subjects"].as_array().into_iter().flatten().enumerate() {
+        let common_names = subject["cert_common_names"].as_array();
+        if common_names.is_some_and(|n| !n.is_empty()) && !mtls {
+            return Err(field(
+                &format!("access_control.subjects[{i}].cert_common_names"),
+                "subjects by certificate need transport.link.tls.enable_mtls: true: \
+                 without client certificates every client is denied"
+                    .into(),
+            ));
+        }
         let names = subject["usernames"].as_array();
         if names.is_some_and(|n| !n.is_empty()) && users.is_none() {
             return Err(field(
@@ -87,12 +97,22 @@ pub fn router(file: &Path, config: &zenoh::Config) -> Result<(), SecureError> {
 /// The user names of a user/password dictionary (`<user>:<password>` per
 /// line, blank lines allowed), each line checked as Zenoh reads it.
 pub fn dictionary_users(file: &Path) -> Result<HashSet<String>, SecureError> {
+    Ok(dictionary(file)?
+        .into_iter()
+        .map(|(user, _)| user)
+        .collect())
+}
+
+/// The (user, password) pairs of a user/password dictionary, each line
+/// checked as Zenoh reads it.
+pub fn dictionary(file: &Path) -> Result<Vec<(String, String)>, SecureError> {
     // A dictionary holds a line per node: a site of thousands is well
     // under this; a path to anything endless is refused, not read.
     const MAX_DICTIONARY_BYTES: u64 = 16 << 20;
     let text = ickon_proto::text_file::read_bounded(file, MAX_DICTIONARY_BYTES)
         .map_err(|reason| SecureError::io(file, std::io::Error::other(reason)))?;
     let mut users = HashSet::new();
+    let mut entries = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line_error = |problem: &str| SecureError::Line {
             file: file.to_path_buf(),
@@ -117,6 +137,7 @@ pub fn dictionary_users(file: &Path) -> Result<HashSet<String>, SecureError> {
                 "user listed twice (the last password would win)",
             ));
         }
+        entries.push((user.trim().to_string(), password.trim().to_string()));
     }
     if users.is_empty() {
         return Err(SecureError::Line {
@@ -125,7 +146,7 @@ pub fn dictionary_users(file: &Path) -> Result<HashSet<String>, SecureError> {
             problem: "no user: nobody could connect".into(),
         });
     }
-    Ok(users)
+    Ok(entries)
 }
 
 /// Loads a client configuration and checks that it carries a credential:
@@ -204,6 +225,23 @@ mod tests {
         let err = router(&bad, &config).unwrap_err().to_string();
         assert!(
             err.contains("bad.json5") && err.contains("access_control.policies[0].rules[0]"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn subjects_by_certificate_need_client_certificates() {
+        let tmp = tempfile::tempdir().unwrap();
+        let users = write(tmp.path(), "users.txt", "u:pw\n");
+        let text = router_text(&users, "r").replace(
+            r#"usernames: ["u"]"#,
+            r#"usernames: ["u"], cert_common_names: ["u"]"#,
+        );
+        let bad = write(tmp.path(), "bad.json5", &text);
+        let config = zenoh::Config::from_file(&bad).unwrap();
+        let err = router(&bad, &config).unwrap_err().to_string();
+        assert!(
+            err.contains("subjects[0].cert_common_names") && err.contains("enable_mtls"),
             "{err}"
         );
     }

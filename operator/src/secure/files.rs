@@ -29,6 +29,65 @@ pub fn router_file(k: usize) -> String {
 pub const USERS_FILE: &str = "users.txt";
 /// The directory of the client configurations, one per identity.
 pub const CLIENTS_DIR: &str = "clients";
+/// The directory of what nodes get of the TLS setup: the site CA's
+/// certificate and each identity's key and certificate.
+pub const TLS_DIR: &str = "tls";
+/// The directory of the site CA's private key (and certificate): it signs
+/// certificates and is kept apart, never copied to a node.
+pub const CA_DIR: &str = "ca";
+/// The CA's certificate, in [`CA_DIR`] and [`TLS_DIR`].
+pub const CA_CERT_FILE: &str = "ca.crt";
+/// The CA's private key, in [`CA_DIR`].
+pub const CA_KEY_FILE: &str = "ca.key";
+
+/// The TLS files one end of a link uses: the CA it trusts, its own
+/// certificate and key.
+#[derive(Debug, Clone)]
+pub struct TlsFiles {
+    /// The site CA's certificate.
+    pub ca: PathBuf,
+    /// This identity's certificate.
+    pub cert: PathBuf,
+    /// This identity's private key.
+    pub key: PathBuf,
+}
+
+impl TlsFiles {
+    /// The files of the identity named `name` (its certificate's common
+    /// name) in the secured directory `dir`.
+    pub fn of(dir: &Path, name: &str) -> Self {
+        let tls = dir.join(TLS_DIR);
+        TlsFiles {
+            ca: tls.join(CA_CERT_FILE),
+            cert: tls.join(format!("{name}.crt")),
+            key: tls.join(format!("{name}.key")),
+        }
+    }
+}
+
+/// `transport.link.tls` of a client: trust the site CA, verify that the
+/// router's certificate names the host connected to, show its own (Zenoh
+/// sends a client certificate only with `enable_mtls` on the client too).
+fn client_tls(tls: &TlsFiles) -> Value {
+    json!({
+        "enable_mtls": true,
+        "root_ca_certificate": tls.ca.display().to_string(),
+        "connect_certificate": tls.cert.display().to_string(),
+        "connect_private_key": tls.key.display().to_string(),
+        "verify_name_on_connect": true,
+        "close_link_on_expiration": true,
+    })
+}
+
+/// `transport.link.tls` of a router: the same as a client's for the links
+/// it opens, and for the links it accepts its certificate and a client
+/// certificate of the site CA required (mutual TLS).
+fn router_tls(tls: &TlsFiles) -> Value {
+    let mut value = client_tls(tls);
+    value["listen_certificate"] = json!(tls.cert.display().to_string());
+    value["listen_private_key"] = json!(tls.key.display().to_string());
+    value
+}
 
 /// A link lease of 3 s, as `deploy/zenoh/*.json5`: a hung host is noticed
 /// within a few cycles.
@@ -47,30 +106,42 @@ pub fn new_password() -> Result<String, SecureError> {
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
-/// The configuration of a client that authenticates as `user`, connecting to `connect`.
-pub fn client_config(user: &str, password: &str, connect: &[String]) -> Value {
+/// The configuration of a client that authenticates as `user`, connecting
+/// to `connect`; with `tls`, over mutual TLS with these files.
+pub fn client_config(
+    user: &str,
+    password: &str,
+    connect: &[String],
+    tls: Option<&TlsFiles>,
+) -> Value {
+    let mut link = link_settings();
+    if let Some(tls) = tls {
+        link["tls"] = client_tls(tls);
+    }
     json!({
         "mode": "client",
         "connect": { "endpoints": connect, "timeout_ms": -1 },
         "scouting": { "multicast": { "enabled": false } },
         "transport": {
-            "link": link_settings(),
+            "link": link,
             "auth": { "usrpwd": { "user": user, "password": password } },
         },
     })
 }
 
-/// The router's configuration: its pinned id `zid`, listening on `listen`,
-/// clients checked against the dictionary at `users`, the ACL
-/// `access_control`, the message sizes `low_pass_filter`
-/// ([`super::limits`]); `link`: the routers it connects to and the
-/// credential it authenticates there with (user `router`).
+/// The router's configuration: its pinned id `zid` (without TLS, the only
+/// way the routers it links to know it), listening on `listen`, clients
+/// checked against the dictionary at `users` and, with `tls`, by their
+/// certificates; the ACL `access_control`, the message sizes
+/// `low_pass_filter` ([`super::limits`]); `link`: the routers it connects
+/// to and the credential it authenticates there with (user `router`).
 pub fn router_config(
-    zid: &str,
+    zid: Option<&str>,
     listen: &[String],
     users: &Path,
     (access_control, low_pass_filter): (Value, Value),
     link: Option<(&[String], &str)>,
+    tls: Option<&TlsFiles>,
 ) -> Value {
     let mut usrpwd = json!({ "dictionary_file": users.display().to_string() });
     let mut connect = json!({ "endpoints": [] });
@@ -79,19 +150,26 @@ pub fn router_config(
         usrpwd["password"] = json!(password);
         connect = json!({ "endpoints": endpoints, "timeout_ms": -1 });
     }
-    json!({
-        "id": zid,
+    let mut link = link_settings();
+    if let Some(tls) = tls {
+        link["tls"] = router_tls(tls);
+    }
+    let mut config = json!({
         "mode": "router",
         "listen": { "endpoints": listen },
         "connect": connect,
         "scouting": { "multicast": { "enabled": false } },
         "transport": {
-            "link": link_settings(),
+            "link": link,
             "auth": { "usrpwd": usrpwd },
         },
         "access_control": access_control,
         "low_pass_filter": low_pass_filter,
-    })
+    });
+    if let Some(zid) = zid {
+        config["id"] = json!(zid);
+    }
+    config
 }
 
 /// A Zenoh id for a router (32 lowercase hex digits, the first not 0), from
@@ -184,11 +262,18 @@ mod tests {
 
     #[test]
     fn generated_configs_are_accepted_by_zenoh() {
-        let client = client_config("robot-r1", "pw", &["tcp/127.0.0.1:7447".into()]);
+        let tls = TlsFiles::of(Path::new("/site"), "robot-r1");
+        let client = client_config("robot-r1", "pw", &["tls/127.0.0.1:7447".into()], Some(&tls));
         let text = with_header("a client", &client);
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("c.json5");
         std::fs::write(&path, text).unwrap();
-        zenoh::Config::from_file(&path).unwrap();
+        let config = zenoh::Config::from_file(&path).unwrap();
+        assert_eq!(
+            config
+                .get_json("transport/link/tls/connect_certificate")
+                .unwrap(),
+            "\"/site/tls/robot-r1.crt\""
+        );
     }
 }

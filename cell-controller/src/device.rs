@@ -17,7 +17,7 @@ use ickon_device::host::DeviceReport;
 use ickon_device::{BoardHost, BoardKind, HostEvent};
 use ickon_proto::msg::control::Burst;
 use ickon_proto::time::{Duration, Time};
-use ickon_runtime::link::{Backoff, Link, LinkAddress, LinkEvent, LinkState, LinkStatus};
+use ickon_runtime::link::{Backoff, Link, LinkAddress, LinkEvent, LinkStatus};
 use ickon_runtime::{LogLimiter, SimulatedClock};
 use tokio::sync::mpsc;
 
@@ -72,19 +72,11 @@ impl BoardTransmitters {
     /// status carries it to `ickon admin` and the map).
     pub fn summary(&self) -> String {
         let (report, link) = self.report();
-        let mut out = format!(
-            "transmitter board on {}: link {}",
-            link.address,
-            link.state.name()
-        );
-        if link.connects > 1 {
-            out.push_str(&format!(" ({} reconnects)", link.connects - 1));
-        }
-        out.push_str(&format!(", {}", report.summary()));
-        if let Some(e) = link.last_error.filter(|_| link.state != LinkState::Up) {
-            out.push_str(&format!(" ({e})"));
-        }
-        out
+        format!(
+            "transmitter board {}, {}",
+            link.describe(),
+            report.summary()
+        )
     }
 
     /// Waits for the link's next event or the protocol's next due time and

@@ -181,18 +181,12 @@ impl Board {
 
     /// The board and its link in a line for an operator.
     fn describe(&self) -> String {
-        let link = self.link.status();
         let report = self.host.report(self.clock.now().as_nanos());
-        let mut out = format!(
-            "receiver board on {}: link {}",
-            link.address,
-            link.state.name()
-        );
-        if link.connects > 1 {
-            out.push_str(&format!(" ({} reconnects)", link.connects - 1));
-        }
-        out.push_str(&format!(", {}", report.summary()));
-        out
+        format!(
+            "receiver board {}, {}",
+            self.link.status().describe(),
+            report.summary()
+        )
     }
 
     fn send(&mut self, bytes: &[u8]) {

@@ -97,6 +97,25 @@ pub struct LinkStatus {
     pub last_error: Option<String>,
 }
 
+impl LinkStatus {
+    /// The link in words for an operator's line: `on ADDRESS: link STATE`,
+    /// the reconnects, and while it is not up why it was lost.
+    pub fn describe(&self) -> String {
+        let mut out = format!("on {}: link {}", self.address, self.state.name());
+        if self.connects > 1 {
+            out.push_str(&format!(" ({} reconnects)", self.connects - 1));
+        }
+        if let Some(e) = self
+            .last_error
+            .as_ref()
+            .filter(|_| self.state != LinkState::Up)
+        {
+            out.push_str(&format!(" ({e})"));
+        }
+        out
+    }
+}
+
 /// What a link hands to its sink, in order, from its own thread.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum LinkEvent {

@@ -10,6 +10,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use ickon_testkit::poll_until;
+use serde_json::Value;
 
 #[path = "support/sim_run.rs"]
 mod sim_run;
@@ -18,42 +19,51 @@ use sim_run::{admin_status, finish, start_sim};
 /// Length of each run once every node is live, seconds.
 const RUN_S: u64 = 16;
 
-#[test]
-fn a_site_run_through_emulated_boards_fixes_every_robot() {
+/// Runs `ickon sim` on `lab` with `args` for [`RUN_S`], waiting meanwhile
+/// until `ickon admin status --json` satisfies `shown` (what the operator
+/// must see); the run's log and its JSON report.
+fn run_watching_admin(
+    args: &[&str],
+    what: &str,
+    shown: impl Fn(&Value) -> bool,
+) -> (String, Value) {
     let dir = tempfile::tempdir().unwrap();
     let runtime_dir = dir.path().join("run");
     std::fs::create_dir_all(&runtime_dir).unwrap();
-    let sim = start_sim(
-        dir.path(),
-        &runtime_dir,
-        RUN_S,
-        &["--robots", "2", "--seed", "3", "--devices", "emulated"],
-    );
+    let sim = start_sim(dir.path(), &runtime_dir, RUN_S, args);
+    let seen = poll_until(Duration::from_secs(RUN_S - 2), what, || {
+        shown(&admin_status(&runtime_dir)).then_some(())
+    });
+    let (log, doc) = finish(sim, RUN_S);
+    // The end of the log, where a failure's cause shows.
+    seen.unwrap_or_else(|e| panic!("{e}\n{}", &log[log.len().saturating_sub(4_000)..]));
+    (log, doc)
+}
+
+#[test]
+fn a_site_run_through_emulated_boards_fixes_every_robot() {
     // The operator sees every device: each cell's transmitter board and
     // each robot's receiver board, ready once its clock is learnt.
-    let seen = poll_until(
-        Duration::from_secs(RUN_S - 2),
+    let (stderr, doc) = run_watching_admin(
+        &["--robots", "2", "--seed", "3", "--devices", "emulated"],
         "every device ready in admin",
-        || {
-            let status = admin_status(&runtime_dir);
-            let cells_ready = status["cells"].as_array()?.iter().all(|c| {
-                c["device"].as_str().is_some_and(|d| {
-                    d.starts_with("transmitter board on tcp:") && d.contains("ready")
-                })
-            });
-            let robots = status["robots"].as_array()?;
-            let robots_ready = robots.len() == 2
-                && robots.iter().all(|r| {
-                    r["receivers"].as_str().is_some_and(|d| {
-                        d.starts_with("receiver board on tcp:") && d.contains("ready")
-                    })
-                });
-            (cells_ready && robots_ready).then_some(status)
+        |status| {
+            let ready = |v: &Value, prefix: &str| {
+                v.as_str()
+                    .is_some_and(|d| d.starts_with(prefix) && d.contains("ready"))
+            };
+            let cells = status["cells"].as_array();
+            let robots = status["robots"].as_array();
+            cells.is_some_and(|c| {
+                c.iter()
+                    .all(|c| ready(&c["device"], "transmitter board on tcp:"))
+            }) && robots.is_some_and(|r| {
+                r.len() == 2
+                    && r.iter()
+                        .all(|r| ready(&r["receivers"], "receiver board on tcp:"))
+            })
         },
     );
-    let (log, doc) = finish(sim, RUN_S);
-    seen.unwrap_or_else(|e| panic!("{e}\n{}", admin_status_text(&log)));
-    let stderr = log;
     let cycles = doc["cycles_triggered"].as_f64().expect("cycles");
     let robots = doc["robots"].as_array().expect("robots");
     assert_eq!(robots.len(), 2, "{doc}");
@@ -102,40 +112,23 @@ fn a_site_run_through_emulated_boards_fixes_every_robot() {
     assert!(bursts as f64 > cycles, "{doc}");
 }
 
-/// The end of a run's log, where a failure's cause shows.
-fn admin_status_text(log: &str) -> &str {
-    &log[log.len().saturating_sub(4_000)..]
-}
-
 #[test]
 fn every_robot_tracks_on_an_emulated_marvelmind_kit_and_the_kit_is_scored() {
-    let dir = tempfile::tempdir().unwrap();
-    let runtime_dir = dir.path().join("run");
-    std::fs::create_dir_all(&runtime_dir).unwrap();
-    let sim = start_sim(
-        dir.path(),
-        &runtime_dir,
-        RUN_S,
-        &["--robots", "2", "--seed", "3", "--receivers", "marvelmind"],
-    );
     // The operator sees each robot's kit streaming.
-    let seen = poll_until(
-        Duration::from_secs(RUN_S - 2),
+    let (stderr, doc) = run_watching_admin(
+        &["--robots", "2", "--seed", "3", "--receivers", "marvelmind"],
         "every kit up in admin",
-        || {
-            let status = admin_status(&runtime_dir);
-            let robots = status["robots"].as_array()?;
-            (robots.len() == 2
-                && robots.iter().all(|r| {
-                    r["receivers"].as_str().is_some_and(|d| {
-                        d.starts_with("marvelmind hedgehog: link tcp:") && d.contains(" up ")
+        |status| {
+            status["robots"].as_array().is_some_and(|robots| {
+                robots.len() == 2
+                    && robots.iter().all(|r| {
+                        r["receivers"].as_str().is_some_and(|d| {
+                            d.starts_with("marvelmind hedgehog: link tcp:") && d.contains(" up ")
+                        })
                     })
-                }))
-            .then_some(status)
+            })
         },
     );
-    let (stderr, doc) = finish(sim, RUN_S);
-    seen.unwrap_or_else(|e| panic!("{e}\n{}", admin_status_text(&stderr)));
     for r in doc["robots"].as_array().expect("robots") {
         let scored = r["scored_poses"].as_u64().unwrap_or(0);
         assert!(

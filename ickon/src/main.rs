@@ -13,6 +13,11 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    // Before any thread starts, so that every thread inherits the set.
+    if let Err(e) = ickon_runtime::cpus::pin_from_env() {
+        eprintln!("error: {}: {e}", ickon_runtime::cpus::CPUS_ENV);
+        return ExitCode::from(2);
+    }
     let cli = cli::Cli::parse();
     init_tracing();
     cli::run(cli)

@@ -2,7 +2,8 @@
 //! spawns itself with these subcommands so that `cargo run -p ickon -- sim`
 //! needs no other binary; they run the same library code (the same argument
 //! structs and `main_with`) as the standalone binaries meant for deployment:
-//! `ickon-central`, `ickon-cell`, `ickon-world` and `ickon-msu`.
+//! `ickon-central`, `ickon-cell`, `ickon-world` and `ickon-msu` (the fleet
+//! role hosts several `ickon-msu` agents in one simulation process).
 
 use std::process::ExitCode;
 
@@ -19,6 +20,9 @@ pub enum Role {
     World(ickon_sim::node::WorldArgs),
     /// One robot's MSU agent.
     Msu(ickon_msu::node::MsuArgs),
+    /// Several robots' MSU agents in one process, each as a lone agent,
+    /// sharing one Zenoh session (`ickon sim --robots-per-process`).
+    Fleet(ickon_msu::fleet::FleetArgs),
 }
 
 /// Runs one node and returns the exit code.
@@ -28,5 +32,6 @@ pub fn run(role: Role) -> ExitCode {
         Role::Cell(args) => ickon_cell::node::main_with(args),
         Role::World(args) => ickon_sim::node::main_with(args),
         Role::Msu(args) => ickon_msu::node::main_with(args),
+        Role::Fleet(args) => ickon_msu::fleet::main_with(args),
     }
 }

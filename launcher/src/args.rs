@@ -123,15 +123,95 @@ pub struct SimArgs {
     /// scores the kit's own positions beside the agent's poses).
     #[arg(long, value_enum, default_value_t = SimReceivers::Sim)]
     pub receivers: SimReceivers,
+    /// Robots whose MSU agents share one process (`ickon node fleet`):
+    /// each keeps its own core, keys, configuration and outputs, and they
+    /// share the process's runtime and Zenoh session, so that a large
+    /// fleet does not cost one process per robot on one machine. `1` runs
+    /// one process per robot, as deployed robots do. Default: 16, or 1
+    /// with `--ros2`, `--secure DIR` or a fault plan that names an agent.
+    #[arg(long, value_name = "K", allow_hyphen_values = true, value_parser = parse_robots_per_process)]
+    pub robots_per_process: Option<usize>,
+    /// Pin the site's servers (router, central unit, cells) to one half of
+    /// this machine's CPUs and the world, the agents and the launcher to
+    /// the other, so that the servers are measured as if every robot had
+    /// a computer of its own; the report gives each side's CPU.
+    #[arg(long)]
+    pub split_cores: bool,
+}
+
+/// Robots per process when `--robots-per-process` is not given: chosen on
+/// `warehouse` with 64 robots on two cores (docs/performance.md), the
+/// smallest grouping past which pose latency stopped improving.
+pub const DEFAULT_ROBOTS_PER_PROCESS: usize = 16;
+
+/// `--robots-per-process`: 1 to the most one process hosts.
+pub(crate) fn parse_robots_per_process(text: &str) -> Result<usize, String> {
+    let max = ickon_msu::fleet::MAX_ROBOTS_PER_PROCESS;
+    match text.trim().parse::<usize>() {
+        Ok(k) if (1..=max).contains(&k) => Ok(k),
+        _ => Err(format!(
+            "{text:?} is not a number of robots from 1 to {max}"
+        )),
+    }
 }
 
 impl SimArgs {
+    /// Robots per agent process: `--robots-per-process`, else 1 where an
+    /// agent must be a process of its own (ROS 2 nodes, faults aimed at one
+    /// agent), else [`DEFAULT_ROBOTS_PER_PROCESS`].
+    pub fn robots_per_process(&self) -> usize {
+        self.robots_per_process.unwrap_or_else(|| {
+            let given_credentials = matches!(self.secure, Some(Some(_)));
+            if self.ros2 || self.faults_name_an_agent() || given_credentials {
+                1
+            } else {
+                DEFAULT_ROBOTS_PER_PROCESS
+            }
+        })
+    }
+
+    /// Whether `--faults` aims at an MSU agent.
+    fn faults_name_an_agent(&self) -> bool {
+        self.faults
+            .as_deref()
+            .and_then(|p| faults::parse_plan(p).ok())
+            .is_some_and(|plan| plan.iter().any(|f| f.node.starts_with("msu ")))
+    }
+
     /// The filter options every agent's configuration file gets.
     pub fn filter_options(&self) -> ickon_sim::engine::FilterOptions {
         ickon_sim::engine::FilterOptions {
             learn_cell_sync: self.learn_cell_sync,
         }
     }
+}
+
+/// `--robots-per-process` above 1 where every agent must be a process of
+/// its own, and `--split-cores` where there is nothing to split.
+fn check_grouping(args: &SimArgs) -> Result<(), CommandError> {
+    if args.robots_per_process.is_some_and(|k| k > 1) {
+        let why = if args.ros2 {
+            Some("each ROS 2 node is an agent process of its own")
+        } else if args.faults_name_an_agent() {
+            Some("--faults aims at an agent, which needs a process of its own")
+        } else if matches!(args.secure, Some(Some(_))) {
+            Some(
+                "--secure DIR holds one credential per robot, and grouped robots share a fleet credential that only a generated set has (use --secure without DIR)",
+            )
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(CommandError::bad_input(format!(
+                "--robots-per-process above 1 is not possible here: {why}; use --robots-per-process 1"
+            )));
+        }
+    }
+    if args.split_cores {
+        crate::core_split::CoreSplit::of_this_machine()
+            .map_err(|e| CommandError::bad_input(format!("--split-cores: {e}")))?;
+    }
+    Ok(())
 }
 
 /// Loads the site and checks the flags, before any process is started.
@@ -161,6 +241,7 @@ pub fn check_args(
     {
         return Err(CommandError::bad_input(why));
     }
+    check_grouping(args)?;
     if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
         return Err(CommandError::bad_input(
             "--duration must be between 0 and 86400 seconds",

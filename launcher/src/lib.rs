@@ -19,6 +19,8 @@
 
 mod args;
 mod bench;
+mod core_split;
+mod cost;
 mod device_plan;
 mod faults;
 mod launch;

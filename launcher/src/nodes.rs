@@ -12,6 +12,7 @@ use rand::SeedableRng;
 
 use crate::args::Mesh;
 use crate::args::SimArgs;
+use crate::core_split::{CoreSplit, Side};
 use crate::device_plan::DevicePlan;
 use crate::faults;
 use crate::launch::{self, CLOCK_STREAM, clock_flags, node_command, router_command};
@@ -30,7 +31,8 @@ pub(crate) struct NodeCommands {
     pub cells: Vec<(String, Command)>,
     /// The simulated world.
     pub world: Command,
-    /// One MSU agent per robot, with its name.
+    /// The MSU agents, with their names: one process per robot (`msu
+    /// r1`), or per group of robots (`fleet r1..r16`).
     pub msus: Vec<(String, Command)>,
     /// Where the central unit serves the live map, with `--http`.
     pub web: Option<std::net::SocketAddr>,
@@ -105,7 +107,7 @@ impl NodeCommands {
         let cells = b.cells(&to_recorder)?;
         let world = b.world(msus, &to_recorder)?;
         let (agents, msu_file) = b.agents(profile, msus, &to_recorder)?;
-        Ok(Self {
+        let mut commands = Self {
             router,
             central,
             standby,
@@ -115,7 +117,45 @@ impl NodeCommands {
             web,
             foxglove,
             msu_file,
-        })
+        };
+        if args.split_cores {
+            commands.pin(&CoreSplit::of_this_machine()?);
+        }
+        Ok(commands)
+    }
+
+    /// Pins every node to its side of `split`.
+    fn pin(&mut self, split: &CoreSplit) {
+        let servers = self
+            .router
+            .iter_mut()
+            .chain(std::iter::once(&mut self.central))
+            .chain(self.standby.iter_mut())
+            .chain(self.cells.iter_mut().map(|(_, c)| c));
+        for cmd in servers {
+            split.pin(cmd, Side::Servers);
+        }
+        for cmd in std::iter::once(&mut self.world).chain(self.msus.iter_mut().map(|(_, c)| c)) {
+            split.pin(cmd, Side::Simulation);
+        }
+    }
+}
+
+/// The robots of each agent process that hosts several (`k` at most
+/// each, in the site's order); none when each robot has its own (`k` 1).
+pub(crate) fn fleets(robots: &[String], k: usize) -> Vec<Vec<String>> {
+    if k <= 1 {
+        return Vec::new();
+    }
+    robots.chunks(k).map(<[String]>::to_vec).collect()
+}
+
+/// The name of a fleet process as the run reports it: `fleet r1..r16`.
+pub(crate) fn fleet_name(robots: &[String]) -> String {
+    match robots {
+        [] => "fleet".into(),
+        [one] => format!("fleet {one}"),
+        [first, .., last] => format!("fleet {first}..{last}"),
     }
 }
 
@@ -234,6 +274,26 @@ impl<'a> Builder<'a> {
             drive.geometry(),
             args.ros2,
         )?)?;
+        let robots: Vec<String> = msus.iter().map(|m| m.robot.clone()).collect();
+        let groups = fleets(&robots, args.robots_per_process());
+        if !groups.is_empty() {
+            let mut agents = Vec::new();
+            for group in groups {
+                let mut cmd = node_command(args, site, "fleet", self.hub, "tcp/127.0.0.1:0")?;
+                cmd.args(["--robots", &group.join(","), "--config"])
+                    .arg(msu_file.path())
+                    .args(to_recorder);
+                for robot in &group {
+                    if let Some(receivers) = self.devices.robot_receivers(robot) {
+                        cmd.args(["--receivers", &format!("{robot}={receivers}")]);
+                    }
+                }
+                let name = fleet_name(&group);
+                self.credential(&mut cmd, Identity::Fleet(group));
+                agents.push((name, cmd));
+            }
+            return Ok((agents, msu_file));
+        }
         let mut agents = Vec::new();
         for msu in msus {
             let mut cmd = node_command(args, site, "msu", self.hub, "tcp/127.0.0.1:0")?;

@@ -56,6 +56,9 @@ pub struct SimReport {
     pub firing_plan: Option<metrics::PlanSummary>,
     /// CPU time and peak memory per kind of process, read just before they stopped.
     pub processes: Vec<usage::KindUsage>,
+    /// While the run was watched: the CPU of the site's servers and of the
+    /// simulation, and what one robot's agent needs.
+    pub cost: crate::cost::Cost,
     /// The recording of `--record`: file, messages per topic, rates.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recorded: Option<ickon_recording::RecordReport>,
@@ -108,6 +111,8 @@ pub(crate) struct RunFacts {
     pub central_endpoint: String,
     /// CPU time and peak memory per kind of process.
     pub processes: Vec<usage::KindUsage>,
+    /// The servers' and the simulation's CPU while watched, and one robot's agent.
+    pub cost: crate::cost::Cost,
     /// The recording of `--record`, if it succeeded.
     pub recorded: Option<ickon_recording::RecordReport>,
 }
@@ -168,6 +173,7 @@ impl SimReport {
             cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
             firing_plan: stats.plan_summary(),
             processes: facts.processes,
+            cost: facts.cost,
             recorded: facts.recorded,
             faults_done: stats.faults_done.clone(),
             restarts: stats.restarts.clone(),
@@ -276,6 +282,7 @@ pub(crate) fn render_report(r: &SimReport) -> String {
             us(c.sync_error_max_us)
         );
     }
+    out.push_str(&r.cost.render());
     if r.bad_messages > 0 {
         let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);
     }

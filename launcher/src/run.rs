@@ -39,6 +39,7 @@ pub type Measured = (SimReport, Option<String>);
 /// Runs `ickon sim`: checks the flags, runs the mesh once, prints the report.
 pub fn run(args: SimArgs) -> Result<(), CommandError> {
     let (site, profile) = check_args(&args)?;
+    pin_launcher(&args)?;
     let (report, failure) = ickon_runtime::block_on(2, measure(&args, &site, &profile))
         .ok_or_else(|| CommandError::failure("cannot start the runtime"))??;
     if args.json {
@@ -56,6 +57,29 @@ pub fn run(args: SimArgs) -> Result<(), CommandError> {
         Some(why) => Err(CommandError::failure(why)),
         None => Ok(()),
     }
+}
+
+/// With `--split-cores`, pins the launcher (its observer) to the
+/// simulation's CPUs: called before the runtime starts its threads.
+pub(crate) fn pin_launcher(args: &SimArgs) -> Result<(), CommandError> {
+    if args.split_cores {
+        let split = crate::core_split::CoreSplit::of_this_machine()
+            .map_err(|e| CommandError::bad_input(format!("--split-cores: {e}")))?;
+        split
+            .simulation
+            .pin_current_thread()
+            .map_err(|e| CommandError::failure(format!("--split-cores: {e}")))?;
+    }
+    Ok(())
+}
+
+/// What every process (the launcher too) has used so far, by name.
+fn usage_now(sup: &Supervisor) -> Vec<(String, usage::ProcUsage)> {
+    let mut used = sup.usage();
+    if let Some(me) = usage::read(std::process::id()) {
+        used.push(("launcher".to_string(), me));
+    }
+    used
 }
 
 /// A failure of the launcher itself (a port, a file, a Zenoh call).
@@ -131,6 +155,8 @@ pub async fn measure(
         mesh.close().await;
         return Err(e);
     }
+    let used_before = usage_now(&sup);
+    let watched_from = Instant::now();
     let observed = observe_run(
         args,
         site,
@@ -143,10 +169,17 @@ pub async fn measure(
         &mut shutdown,
     )
     .await;
-    let mut used = sup.usage();
-    if let Some(me) = usage::read(std::process::id()) {
-        used.push(("launcher".to_string(), me));
-    }
+    let used = usage_now(&sup);
+    let cost = crate::cost::Cost::over_window(
+        &used_before,
+        &used,
+        watched_from.elapsed().as_secs_f64(),
+        robots.len(),
+        args.split_cores
+            .then(crate::core_split::CoreSplit::of_this_machine)
+            .and_then(Result::ok)
+            .as_ref(),
+    );
     // The nodes stop first, so that the file holds everything they
     // published, the last poses the observer counted among it.
     let killed = sup.stop_all(GRACE_TO_STOP);
@@ -173,6 +206,7 @@ pub async fn measure(
             secure: security.is_some(),
             central_endpoint: hub,
             processes: usage::by_kind(&used),
+            cost,
             recorded: recorded.as_ref().and_then(|r| r.as_ref().ok()).cloned(),
         },
     );

@@ -48,7 +48,10 @@ impl SimSecurity {
             }
             SecuredDir::open(wanted, &needed).map(|dir| SimSecurity { dir, _temp: None })
         } else {
-            generate(site)
+            generate(
+                site,
+                &crate::nodes::fleets(robots, args.robots_per_process()),
+            )
         };
         result
             .map(Some)
@@ -86,8 +89,12 @@ impl SimSecurity {
     }
 }
 
-/// A fresh set of credentials for every identity of the site.
-fn generate(site: &Site) -> Result<SimSecurity, ickon_operator::secure::SecureError> {
+/// A fresh set of credentials for every identity of the site, and one for
+/// each of `fleets` (the robots of each process that hosts several).
+fn generate(
+    site: &Site,
+    fleets: &[Vec<String>],
+) -> Result<SimSecurity, ickon_operator::secure::SecureError> {
     let temp = tempfile::Builder::new()
         .prefix("ickon-secure-")
         .tempdir()
@@ -102,6 +109,7 @@ fn generate(site: &Site) -> Result<SimSecurity, ickon_operator::secure::SecureEr
         link: vec![],
         routers: 1,
         sim: true,
+        fleets: fleets.to_vec(),
         ros2: Ros2Scope { domain },
         valid_days: ickon_operator::secure::certs::DEFAULT_VALID_DAYS,
         ca: None,

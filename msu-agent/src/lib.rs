@@ -20,6 +20,8 @@ pub mod cycle_match;
 mod driver;
 mod error;
 pub mod events;
+#[cfg(feature = "zenoh")]
+pub mod fleet;
 pub mod fusion_clock;
 pub mod hedgehog;
 pub mod host;

@@ -727,37 +727,30 @@ pub fn tuning_from_args(args: &MsuArgs) -> Result<MsuTuning, String> {
 /// The estimator an agent runs when neither a file nor `--estimator` names one.
 pub const DEFAULT_ESTIMATOR: &str = "tdoa-ekf";
 
-/// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
-/// arguments or configuration, 1 for a failure at run time.
-pub fn main_with(args: MsuArgs) -> ExitCode {
-    let tuning = match tuning_from_args(&args) {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::from(2);
-        }
-    };
-    for w in &tuning.warnings {
-        tracing::warn!(
-            "{}:{w}",
-            args.config
-                .as_ref()
-                .map_or(String::new(), |p| p.display().to_string())
-        );
-    }
+/// An agent's settings from its flags, with the configuration file's
+/// warnings (each naming the file); the error is the text to print before
+/// exit code 2.
+pub fn settings_from_args(args: &MsuArgs) -> Result<(MsuSettings, Vec<String>), String> {
+    let tuning = tuning_from_args(args)?;
+    let file = args
+        .config
+        .as_ref()
+        .map_or(String::new(), |p| p.display().to_string());
+    let warnings = tuning
+        .warnings
+        .iter()
+        .map(|w| format!("{file}:{w}"))
+        .collect();
     let ros2_options = match &tuning.ros2 {
         Some(file) => Ros2Options::under_flags(file, &args.ros2),
         None => (*args.ros2).clone(),
     };
     let ros2 = if ros2_options.enabled {
         let env_domain = std::env::var("ROS_DOMAIN_ID").ok();
-        match Ros2Plan::new(&ros2_options, &args.robot, env_domain.as_deref()) {
-            Ok(plan) => Some(plan),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::from(2);
-            }
-        }
+        Some(
+            Ros2Plan::new(&ros2_options, &args.robot, env_domain.as_deref())
+                .map_err(|e| e.to_string())?,
+        )
     } else {
         None
     };
@@ -768,6 +761,24 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
         receivers: args.receivers.clone(),
         clock: args.mesh.clock(),
         ros2,
+    };
+    Ok((settings, warnings))
+}
+
+/// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
+/// arguments or configuration, 1 for a failure at run time.
+pub fn main_with(args: MsuArgs) -> ExitCode {
+    let settings = match settings_from_args(&args) {
+        Ok((settings, warnings)) => {
+            for w in &warnings {
+                tracing::warn!("{w}");
+            }
+            settings
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

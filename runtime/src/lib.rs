@@ -20,6 +20,7 @@
 //! - [`log_limit`]: logs of bad input bounded to one line per kind per window;
 //! - [`certificate`]: the node's own TLS certificates and keys, checked at
 //!   start (malformed, expired, expiring soon);
+//! - [`cpus`]: the CPUs a process runs on, and pinning it to a set;
 //! - [`runfile`]: the run file through which `ickon admin` finds an
 //!   `ickon sim` running on the same machine.
 
@@ -28,6 +29,7 @@ pub mod certificate;
 pub mod clock;
 pub mod clock_steps;
 pub mod command;
+pub mod cpus;
 pub mod error;
 pub mod link;
 pub mod log_limit;

@@ -66,6 +66,12 @@ pub struct ScaleArgs {
     /// (`ickon sim --no-survey-calibration`).
     #[arg(long)]
     pub no_survey_calibration: bool,
+    /// Robots whose agents share one process (`ickon sim --robots-per-process`).
+    #[arg(long, value_name = "K", allow_hyphen_values = true, value_parser = crate::args::parse_robots_per_process)]
+    pub robots_per_process: Option<usize>,
+    /// The site's servers and the simulation on separate CPUs (`ickon sim --split-cores`).
+    #[arg(long)]
+    pub split_cores: bool,
 }
 
 /// One size of the benchmark in the JSON document.
@@ -111,6 +117,8 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             no_survey_calibration: args.no_survey_calibration,
             devices: Default::default(),
             receivers: Default::default(),
+            robots_per_process: args.robots_per_process,
+            split_cores: args.split_cores,
         })
         .collect();
     // Every size is checked before the first one runs (a size the site
@@ -118,6 +126,9 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
     let mut checked = Vec::new();
     for sim_args in &runs {
         checked.push(check_args(sim_args)?);
+    }
+    if let Some(first) = runs.first() {
+        crate::run::pin_launcher(first)?;
     }
     let mut results = Vec::new();
     for (sim_args, (site, profile)) in runs.iter().zip(&checked) {

@@ -206,6 +206,13 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
             (Publish, vec![keys.sim_probe()]),
             (Watch, vec![keys.alive_all()]),
         ]),
+        Identity::Fleet(robots) => {
+            for robot in robots {
+                // Each robot's own rules, without the shared first one again.
+                let own = permissions(&Identity::Robot(robot.clone()), keys, ros2);
+                out.extend(own.into_iter().skip(1));
+            }
+        }
         // `**` does not match a chunk starting with `@`: name rmw_zenoh's.
         Identity::Router => out.push((Everything, vec!["**".into(), "@ros2_lv/**".into()])),
     }
@@ -384,6 +391,52 @@ mod tests {
         );
         let queries = allowed(&acl, "robot-r1", "ingress", "query");
         assert!(queries.iter().all(|k| !k.contains("admin")), "{queries:?}");
+    }
+
+    #[test]
+    fn a_fleet_may_do_what_its_robots_may_and_nothing_for_the_others() {
+        let site = lab();
+        let fleet = Identity::Fleet(vec!["r1".into(), "r2".into()]);
+        let acl = access_control(
+            &site,
+            std::slice::from_ref(&fleet),
+            Ros2Scope { domain: 0 },
+            &Trust::default(),
+        );
+        let user = fleet.user();
+        assert_eq!(user, "fleet-r1");
+        let mut puts = allowed(&acl, &user, "ingress", "put");
+        puts.sort();
+        puts.dedup();
+        assert_eq!(
+            puts,
+            [
+                "0/r1/**",
+                "0/r2/**",
+                "0/tf/**",
+                "ickon/lab/robot/r1/**",
+                "ickon/lab/robot/r2/**"
+            ]
+        );
+        let tokens = allowed(&acl, &user, "ingress", "liveliness_token");
+        assert!(
+            tokens.contains(&"ickon/lab/alive/robot/r2".to_string()),
+            "{tokens:?}"
+        );
+        let everything: Vec<String> = ["ingress", "egress"]
+            .iter()
+            .flat_map(|flow| {
+                ALL_MESSAGES
+                    .iter()
+                    .flat_map(|m| allowed(&acl, &user, flow, m))
+            })
+            .collect();
+        assert!(
+            everything
+                .iter()
+                .all(|k| !k.contains("r3") && !k.contains("/central/admin")),
+            "{everything:?}"
+        );
     }
 
     #[test]

@@ -21,6 +21,11 @@ pub enum Identity {
     Cell(String),
     /// A robot: its MSU agent and its drivers (`robot-<id>`).
     Robot(String),
+    /// Simulation only: one process hosting several robots' agents
+    /// (`ickon sim --robots-per-process`), allowed exactly what each of
+    /// its robots is (`fleet-<first robot>`; a process's robots are
+    /// hosted by no other, so the first names it).
+    Fleet(Vec<String>),
     /// Another floor's router linking to this one (`router`): it carries
     /// every node's traffic of its floor, already filtered by its own ACL.
     Router,
@@ -37,6 +42,9 @@ impl Identity {
             Identity::Observer => "observer".into(),
             Identity::Cell(id) => format!("cell-{id}"),
             Identity::Robot(id) => format!("robot-{id}"),
+            Identity::Fleet(robots) => {
+                format!("fleet-{}", robots.first().map_or("", String::as_str))
+            }
             Identity::Router => "router".into(),
         }
     }

@@ -178,6 +178,9 @@ pub struct Layout {
     pub routers: usize,
     /// Whether to add the simulation's identities.
     pub sim: bool,
+    /// With `sim`: the robots of each process that hosts several
+    /// (`ickon sim --robots-per-process`), one fleet identity each.
+    pub fleets: Vec<Vec<String>>,
     /// The robots' ROS 2 keys.
     pub ros2: acl::Ros2Scope,
     /// Days each identity's certificate is valid (with TLS).
@@ -326,6 +329,9 @@ pub fn write_dir(site: &Site, dir: &Path, layout: &Layout) -> Result<SecuredDir,
         None
     };
     let mut identities = Identity::all_of(site, layout.sim);
+    if layout.sim {
+        identities.extend(layout.fleets.iter().cloned().map(Identity::Fleet));
+    }
     let mut dictionary = String::new();
     for identity in &identities {
         let user = identity.user();
@@ -506,6 +512,7 @@ pub fn run(args: SecureArgs) -> Result<(), CommandError> {
         link: args.link,
         routers: usize::from(args.routers),
         sim: args.sim,
+        fleets: vec![],
         ros2: acl::Ros2Scope {
             domain: args.ros2_domain,
         },
@@ -559,6 +566,7 @@ mod tests {
             link: vec![],
             routers: 2,
             sim: true,
+            fleets: vec![],
             ros2: acl::Ros2Scope { domain: 0 },
             valid_days: certs::DEFAULT_VALID_DAYS,
             ca: None,
@@ -666,6 +674,7 @@ mod tests {
             link: vec![],
             routers: 1,
             sim: false,
+            fleets: vec![],
             ros2: acl::Ros2Scope { domain: 0 },
             valid_days: 1,
             ca: None,

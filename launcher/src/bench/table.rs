@@ -1,5 +1,6 @@
 //! The table of `ickon bench scale`: one row per fleet size, then the CPU
-//! and memory of each kind of process.
+//! and memory of each kind of process, then each side's CPU and one
+//! robot's agent while watched.
 
 use std::fmt::Write;
 
@@ -79,6 +80,33 @@ pub fn render(reports: &[&SimReport]) -> String {
             })
             .collect();
         let _ = writeln!(out, "{:>6}  {}", r.robots.len(), kinds.join("; "));
+    }
+    let _ = writeln!(
+        out,
+        "\nWhile watched: the servers' and the simulation's CPU (cores), one robot's agent (CPU ms per s, peak MiB)"
+    );
+    for r in reports {
+        let c = &r.cost;
+        let agent = c.agent.as_ref().map_or("-".to_string(), |a| {
+            format!(
+                "{:.1} ms/s, {:.1} MiB ({:.0} per process)",
+                a.cpu_ms_per_s, a.peak_rss_mib, a.robots_per_process
+            )
+        });
+        let cpus = |s: &crate::cost::SideCost| {
+            s.cpus
+                .as_ref()
+                .map_or(String::new(), |c| format!(" on {c}"))
+        };
+        let _ = writeln!(
+            out,
+            "{:>6}  servers {:.2}{}, simulation {:.2}{}, agent {agent}",
+            r.robots.len(),
+            c.servers.cores,
+            cpus(&c.servers),
+            c.simulation.cores,
+            cpus(&c.simulation),
+        );
     }
     out
 }

@@ -10,6 +10,7 @@ use ickon_proto::site::Site;
 use crate::args::Mesh;
 use crate::args::SimArgs;
 use crate::metrics::{self, CellSummary, RobotSummary, RunStats};
+use crate::router_load::RouterLoad;
 use crate::usage;
 
 /// The JSON document of `ickon sim --json`.
@@ -56,6 +57,9 @@ pub struct SimReport {
     pub firing_plan: Option<metrics::PlanSummary>,
     /// CPU time and peak memory per kind of process, read just before they stopped.
     pub processes: Vec<usage::KindUsage>,
+    /// Each router (one per zone with `--routers N`): its zone's cells and
+    /// robots, CPU time and peak memory; none with `--mesh peer`.
+    pub routers: Vec<RouterLoad>,
     /// The recording of `--record`: file, messages per topic, rates.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recorded: Option<ickon_recording::RecordReport>,
@@ -108,6 +112,8 @@ pub(crate) struct RunFacts {
     pub central_endpoint: String,
     /// CPU time and peak memory per kind of process.
     pub processes: Vec<usage::KindUsage>,
+    /// What each router carried.
+    pub routers: Vec<RouterLoad>,
     /// The recording of `--record`, if it succeeded.
     pub recorded: Option<ickon_recording::RecordReport>,
 }
@@ -168,6 +174,7 @@ impl SimReport {
             cycles_per_s: stats.cycles_triggered.len() as f64 / args.duration,
             firing_plan: stats.plan_summary(),
             processes: facts.processes,
+            routers: facts.routers,
             recorded: facts.recorded,
             faults_done: stats.faults_done.clone(),
             restarts: stats.restarts.clone(),
@@ -275,6 +282,9 @@ pub(crate) fn render_report(r: &SimReport) -> String {
             us(c.sync_error_us),
             us(c.sync_error_max_us)
         );
+    }
+    for router in &r.routers {
+        let _ = writeln!(out, "{}", router.render());
     }
     if r.bad_messages > 0 {
         let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);

@@ -1,4 +1,4 @@
-//! `ickon sim --secure [DIR]`: the run's router with access control and
+//! `ickon sim --secure [DIR]`: the run's routers with access control and
 //! every node, the launcher included, authenticated with its own credential
 //! over mutual TLS, as `ickon site secure --sim` writes them (into a
 //! temporary directory removed at exit, or DIR; a DIR written with `tcp/`
@@ -9,7 +9,9 @@ use std::process::Command;
 
 use ickon_proto::site::Site;
 
-use ickon_operator::secure::{Identity, Layout, SecuredDir, acl::Ros2Scope, write_dir};
+use ickon_operator::secure::{
+    Identity, Layout, SecureError, SecuredDir, acl::Ros2Scope, write_dir,
+};
 use ickon_runtime::CommandError;
 
 use crate::args::Mesh;
@@ -46,9 +48,11 @@ impl SimSecurity {
             if args.record.is_some() {
                 needed.push(Identity::Recorder);
             }
-            SecuredDir::open(wanted, &needed).map(|dir| SimSecurity { dir, _temp: None })
+            SecuredDir::open(wanted, &needed)
+                .and_then(|dir| check_routers(dir, args.routers))
+                .map(|dir| SimSecurity { dir, _temp: None })
         } else {
-            generate(site)
+            generate(site, args.routers)
         };
         result
             .map(Some)
@@ -61,9 +65,10 @@ impl SimSecurity {
         if self.dir.uses_tls() { "tls" } else { "tcp" }
     }
 
-    /// Starts the router with the ACL and the user/password check.
-    pub(crate) fn router(&self, cmd: &mut Command) {
-        cmd.arg("--zenoh-config").arg(self.dir.router());
+    /// Starts router `k` (from 1; the first is the hub the others link
+    /// to) with the ACL and the user/password check.
+    pub(crate) fn router(&self, cmd: &mut Command, k: usize) {
+        cmd.arg("--zenoh-config").arg(self.dir.router_k(k));
     }
 
     /// Gives a node its credential (the flags on its command line still
@@ -86,12 +91,38 @@ impl SimSecurity {
     }
 }
 
-/// A fresh set of credentials for every identity of the site.
-fn generate(site: &Site) -> Result<SimSecurity, ickon_operator::secure::SecureError> {
+/// Checks that a secured directory has the files of routers 2 to
+/// `routers` (the first was checked when it was opened), each a router
+/// configuration the router would accept.
+fn check_routers(dir: SecuredDir, routers: usize) -> Result<SecuredDir, SecureError> {
+    for k in 2..=routers {
+        let file = dir.router_k(k);
+        if !file.exists() {
+            return Err(SecureError::Field {
+                file,
+                field: "(file)".into(),
+                problem: format!(
+                    "missing: --routers {routers} needs the files of {routers} linked routers (`ickon site secure --sim --routers {routers}`)"
+                ),
+            });
+        }
+        let config = zenoh::Config::from_file(&file).map_err(|e| SecureError::Field {
+            file: file.clone(),
+            field: "(file)".into(),
+            problem: e.to_string(),
+        })?;
+        ickon_operator::secure::check::router(&file, &config)?;
+    }
+    Ok(dir)
+}
+
+/// A fresh set of credentials for every identity of the site, with the
+/// files of `routers` linked routers.
+fn generate(site: &Site, routers: usize) -> Result<SimSecurity, SecureError> {
     let temp = tempfile::Builder::new()
         .prefix("ickon-secure-")
         .tempdir()
-        .map_err(|e| ickon_operator::secure::SecureError::Io {
+        .map_err(|e| SecureError::Io {
             path: std::env::temp_dir(),
             source: e,
         })?;
@@ -100,7 +131,7 @@ fn generate(site: &Site) -> Result<SimSecurity, ickon_operator::secure::SecureEr
         listen: vec!["tls/127.0.0.1:7447".into()],
         connect: vec!["tls/127.0.0.1:7447".into()],
         link: vec![],
-        routers: 1,
+        routers,
         sim: true,
         ros2: Ros2Scope { domain },
         valid_days: ickon_operator::secure::certs::DEFAULT_VALID_DAYS,

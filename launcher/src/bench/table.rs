@@ -1,5 +1,5 @@
 //! The table of `ickon bench scale`: one row per fleet size, then the CPU
-//! and memory of each kind of process.
+//! and memory of each kind of process, and what each router carried.
 
 use std::fmt::Write;
 
@@ -79,6 +79,17 @@ pub fn render(reports: &[&SimReport]) -> String {
             })
             .collect();
         let _ = writeln!(out, "{:>6}  {}", r.robots.len(), kinds.join("; "));
+    }
+    if reports.iter().any(|r| !r.routers.is_empty()) {
+        let _ = writeln!(
+            out,
+            "\nEach router: its zone's cells and robots, CPU seconds, peak memory"
+        );
+        for r in reports {
+            for router in &r.routers {
+                let _ = writeln!(out, "{:>6}  {}", r.robots.len(), router.render());
+            }
+        }
     }
     out
 }

@@ -1,9 +1,11 @@
 //! `ickon sim --routers 2` on `lab`: the site as a site with one router per
 //! zone runs it, the corridor's cells on one router and the room's on the
 //! other, linked. Every robot gets its fixes, every cell fires, and the
-//! report lists both routers with what each carried; a zone's router that
-//! dies is named like any node, and bad `--routers` values are refused
-//! before anything starts.
+//! report lists both routers with what each carried. With `--secure` every
+//! node comes up through its zone's router (each router with its own
+//! certificate and the site's access control, the second linked to the
+//! first as the user `router`); a zone's router that dies is named like any
+//! node; and bad `--routers` values are refused before anything starts.
 
 use std::process::Command;
 use std::time::Duration;
@@ -105,11 +107,15 @@ fn two_zones_on_two_linked_routers_carry_lab_and_the_report_shows_each_router() 
 }
 
 #[test]
-fn a_zone_router_that_dies_is_named_and_ends_the_run() {
+fn secured_zones_come_up_and_a_zone_router_that_dies_is_named() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut sim = Command::new(ICKON);
-    sim.args(["sim", "--site", "lab", "--robots", "1", "--routers", "2"])
-        .args(["--duration", "120"]);
+    // Every node live (the launcher waits for each one's token, seen
+    // through the hub) means every cell's and agent's credential was
+    // accepted by its zone's router and the link between the routers by
+    // the hub's access control.
+    sim.args(["sim", "--site", "lab", "--robots", "3", "--routers", "2"])
+        .args(["--secure", "--duration", "120"]);
     let mut sim = ChildGuard::spawn("sim", sim, dir.path()).expect("ickon sim starts");
     poll_until(START_TIMEOUT, "the sim to run", || {
         if let Some(status) = sim.exit_status() {

@@ -166,3 +166,41 @@ pub(crate) fn base_config(file: Option<&Path>) -> anyhow::Result<zenoh::Config> 
         None => Ok(zenoh::Config::default()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn written(dir: &Path, routers: usize) -> SecuredDir {
+        let site = Site::load_or_default(None).unwrap().0;
+        let layout = Layout {
+            // Links in clear: no certificates to make, the same files.
+            listen: vec!["tcp/127.0.0.1:7447".into()],
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            link: vec![],
+            routers,
+            sim: true,
+            ros2: Ros2Scope { domain: 0 },
+            valid_days: 1,
+            ca: None,
+        };
+        write_dir(&site, dir, &layout).unwrap()
+    }
+
+    #[test]
+    fn a_directory_needs_the_files_of_every_router_of_the_run() {
+        let tmp = tempfile::tempdir().unwrap();
+        let one = written(&tmp.path().join("one"), 1);
+        assert!(check_routers(one.clone(), 1).is_ok());
+        let err = check_routers(one, 3).unwrap_err().to_string();
+        assert!(err.contains("router-2.json5"), "{err}");
+        assert!(err.contains("--routers 3"), "{err}");
+        let three = written(&tmp.path().join("three"), 3);
+        assert!(check_routers(three.clone(), 3).is_ok());
+        assert!(check_routers(three.clone(), 2).is_ok());
+        // A router file that is not a router configuration is named.
+        std::fs::write(three.router_k(3), "{ not json5").unwrap();
+        let err = check_routers(three, 3).unwrap_err().to_string();
+        assert!(err.contains("router-3.json5"), "{err}");
+    }
+}

@@ -170,14 +170,27 @@ impl ZonedMesh {
     }
 }
 
-/// The mean of a polygon's vertices: the centre of the rectangles and
-/// near-rectangles cells are; only the order of cells along an axis uses it.
+/// The centroid of a polygon (its area's centre of mass, so that an extra
+/// vertex along a side does not move it); the mean of its vertices when it
+/// has no area.
 fn centre(polygon: &[[f64; 2]]) -> [f64; 2] {
-    let n = polygon.len().max(1) as f64;
+    let n = polygon.len();
+    let (mut twice_area, mut cx, mut cy) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (p, q) = (polygon[i], polygon[(i + 1) % n]);
+        let cross = p[0] * q[1] - q[0] * p[1];
+        twice_area += cross;
+        cx += (p[0] + q[0]) * cross;
+        cy += (p[1] + q[1]) * cross;
+    }
+    if twice_area.abs() > 1e-12 {
+        return [cx / (3.0 * twice_area), cy / (3.0 * twice_area)];
+    }
+    let count = n.max(1) as f64;
     let sum = polygon
         .iter()
         .fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
-    [sum[0] / n, sum[1] / n]
+    [sum[0] / count, sum[1] / count]
 }
 
 /// The index of the centre nearest to `p` (the first of equals).
@@ -287,6 +300,31 @@ mod tests {
                 .collect();
             assert!(pos.windows(2).all(|w| w[0] < w[1]), "{pos:?}");
         }
+    }
+
+    #[test]
+    fn a_cell_centre_is_its_area_centroid() {
+        let square = [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]];
+        assert_eq!(centre(&square), [1.0, 1.0]);
+        // An extra vertex along a side moves the vertex mean, not the centroid.
+        let with_extra = [
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.5, 0.0],
+            [2.0, 0.0],
+            [2.0, 2.0],
+            [0.0, 2.0],
+        ];
+        let c = centre(&with_extra);
+        assert!(
+            (c[0] - 1.0).abs() < 1e-12 && (c[1] - 1.0).abs() < 1e-12,
+            "{c:?}"
+        );
+        // Clockwise the same; no area: the vertices' mean.
+        let clockwise = [[0.0, 0.0], [0.0, 2.0], [2.0, 2.0], [2.0, 0.0]];
+        assert_eq!(centre(&clockwise), [1.0, 1.0]);
+        assert_eq!(centre(&[[0.0, 0.0], [4.0, 0.0]]), [2.0, 0.0]);
+        assert_eq!(centre(&[]), [0.0, 0.0]);
     }
 
     #[test]

@@ -66,6 +66,13 @@ pub struct SimArgs {
     /// as a full mesh of peers (the layout before routers, to compare).
     #[arg(long, value_enum, default_value = "router")]
     pub mesh: Mesh,
+    /// Routers, one per zone: the site's cells split into N contiguous,
+    /// balanced zones along its longest axis; each cell and each robot (by
+    /// where it starts) a client of its zone's router; routers 2 to N linked
+    /// to the first, where the central unit, the world and the launcher
+    /// connect. 1 is one router for the whole site.
+    #[arg(long, default_value_t = 1)]
+    pub routers: usize,
     /// Record every message of the run into this MCAP file (as `ickon
     /// record`; refused if it exists), with what a replay needs to run the
     /// MSU cores as the agents did.
@@ -214,6 +221,15 @@ fn check_grouping(args: &SimArgs) -> Result<(), CommandError> {
     Ok(())
 }
 
+/// The names of the run's router processes (`router`, or `router z1` ...).
+fn router_names(site: &Site, routers: usize) -> Vec<String> {
+    crate::zones::split(site, &[], routers)
+        .unwrap_or_default()
+        .iter()
+        .map(|z| crate::zones::router_name(z, routers))
+        .collect()
+}
+
 /// Loads the site and checks the flags, before any process is started.
 pub fn check_args(
     args: &SimArgs,
@@ -235,6 +251,14 @@ pub fn check_args(
         .map_err(|e| CommandError::bad_input(e.to_string()))?;
     args.filter_options()
         .check_for(&args.estimator)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    if args.routers != 1 && args.mesh != Mesh::Router {
+        return Err(CommandError::bad_input(format!(
+            "--routers {} needs --mesh router: a full mesh of peers has no router",
+            args.routers
+        )));
+    }
+    crate::zones::split(&site, &[], args.routers)
         .map_err(|e| CommandError::bad_input(e.to_string()))?;
     if args.receivers == SimReceivers::Marvelmind
         && let Some(why) = crate::device_plan::marvelmind_refusal(&site)
@@ -270,7 +294,8 @@ pub fn check_args(
                 }
                 let nodes: Vec<String> = std::iter::once("central".to_string())
                     .chain(args.standby.then(|| "central standby".to_string()))
-                    .chain(["world".to_string(), "router".to_string()])
+                    .chain(["world".to_string()])
+                    .chain(router_names(&site, args.routers))
                     .chain(site.cells.iter().map(|c| format!("cell {}", c.id)))
                     .chain(
                         site.robots

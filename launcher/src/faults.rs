@@ -13,7 +13,8 @@
 //!   `ickon_runtime::clock_steps` for why this way).
 //!
 //! `NODE` is `central` (the first central unit), `central/standby` (the
-//! second, with `--standby`), `world`, `router`, `cell/<id>` or `msu/<id>`;
+//! second, with `--standby`), `world`, `router` (with `--routers N`, the
+//! router of a zone: `router/z2`), `cell/<id>` or `msu/<id>`;
 //! times take `s` or `ms` (`@2500ms`), a clock step `ms` or `us` and may be
 //! negative. Every problem is reported with the item it is in.
 
@@ -86,7 +87,7 @@ fn parse_item(item: &str) -> Result<Fault, FaultPlanError> {
         .split_once('@')
         .ok_or_else(|| bad("expected @TIME after the node (e.g. @10s)"))?;
     let node = node_name(node).ok_or_else(|| {
-        bad("unknown node: expected central, world, router, cell/<id> or msu/<id>")
+        bad("unknown node: expected central, world, router, router/<zone>, cell/<id> or msu/<id>")
     })?;
     let (at, arg) = match when.split_once('+') {
         Some((at, arg)) => (at, Some(arg)),
@@ -125,7 +126,8 @@ fn node_name(node: &str) -> Option<String> {
         "central/standby" => Some("central standby".to_string()),
         _ => {
             let (kind, id) = node.split_once('/')?;
-            let ok = matches!(kind, "cell" | "msu") && ickon_proto::keys::validate_id(id).is_ok();
+            let ok = matches!(kind, "cell" | "msu" | "router")
+                && ickon_proto::keys::validate_id(id).is_ok();
             ok.then(|| format!("{kind} {id}"))
         }
     }
@@ -216,6 +218,10 @@ mod tests {
         assert_eq!(plan[3].at, Duration::from_secs(25));
         let later_first = parse_plan("kill:world@2500ms, kill:router@1s").unwrap();
         assert_eq!(later_first[0].node, "router");
+        assert_eq!(
+            parse_plan("kill:router/z2@1s").unwrap()[0].node,
+            "router z2"
+        );
         assert_eq!(
             parse_plan("clockstep:cell/c1@1s+-200us").unwrap()[0].action,
             FaultAction::ClockStep(-200_000)

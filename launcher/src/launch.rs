@@ -75,10 +75,14 @@ pub(crate) fn node_command(
     Ok(cmd)
 }
 
-/// The `ickon router` command line of a run's router, listening on `endpoint`.
-pub(crate) fn router_command(endpoint: &str) -> anyhow::Result<Command> {
+/// The `ickon router` command line of a run's router, listening on
+/// `endpoint` and linked to the router at `link`, if any.
+pub(crate) fn router_command(endpoint: &str, link: Option<&str>) -> anyhow::Result<Command> {
     let mut cmd = lean_command()?;
     cmd.args(["router", "--no-multicast-scouting", "--listen", endpoint]);
+    if let Some(link) = link {
+        cmd.args(["--connect", link]);
+    }
     cmd.arg("--exit-with-parent");
     Ok(cmd)
 }

@@ -9,7 +9,8 @@
 //! build step. As on a site, a Zenoh router (`ickon router`, its own
 //! supervised process) listens on a loopback port and every node is its
 //! client (`--mesh peer` lays out the old full mesh of peers instead, to
-//! compare); multicast scouting is off so that two runs on one machine never
+//! compare; `--routers N` one router per zone of the site, linked to the
+//! first, each cell and robot a client of its zone's); multicast scouting is off so that two runs on one machine never
 //! meet, and Zenoh's thread pools are kept small in every node. The launcher watches the mesh with its own
 //! session (liveliness, bursts, arrivals, fixes, poses, truth), prints a live
 //! status line, and a summary at the end.
@@ -29,10 +30,12 @@ mod msu_file;
 mod nodes;
 mod observe;
 mod report;
+mod router_load;
 mod run;
 mod secure;
 mod supervisor;
 mod usage;
+mod zones;
 
 pub use args::Mesh;
 pub use args::SimArgs;

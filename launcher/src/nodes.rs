@@ -1,6 +1,6 @@
 //! Every node's command line for one run, built before the first process
-//! starts: the router, the central unit (and its standby), one cell
-//! controller per cell, the world, one MSU agent per robot.
+//! starts: the routers (one per zone), the central unit (and its standby),
+//! one cell controller per cell, the world, one MSU agent per robot.
 
 use std::process::Command;
 
@@ -18,11 +18,13 @@ use crate::faults;
 use crate::launch::{self, CLOCK_STREAM, clock_flags, node_command, router_command};
 use crate::msu_file;
 use crate::secure::SimSecurity;
+use crate::zones::ZonedMesh;
 
 /// The command lines of one run, in the order they are started.
 pub(crate) struct NodeCommands {
-    /// The router (`None` in a full mesh of peers).
-    pub router: Option<Command>,
+    /// The routers, one per zone, with their names (none in a full mesh
+    /// of peers); the first is the hub the others link to.
+    pub routers: Vec<(String, Command)>,
     /// The central unit.
     pub central: Command,
     /// The hot standby of `--standby`.
@@ -43,13 +45,14 @@ pub(crate) struct NodeCommands {
 }
 
 impl NodeCommands {
-    /// Builds every command line of the run; the nodes connect to `hub`
-    /// (and, in a full mesh, those a replay needs to the recorder too).
+    /// Builds every command line of the run; the nodes connect to their
+    /// zone's router of `mesh` (in a full mesh, to its hub: the central
+    /// unit; and those a replay needs to the recorder too).
     pub fn build(
         args: &SimArgs,
         site: &Site,
         profile: &NoiseProfile,
-        hub: &str,
+        mesh: &ZonedMesh,
         recorder: Option<&str>,
         msus: &[sim_hook::MsuStart],
         security: Option<&SimSecurity>,
@@ -62,23 +65,19 @@ impl NodeCommands {
             .and_then(|p| faults::parse_plan(p).ok())
             .unwrap_or_default();
         let robots: Vec<String> = msus.iter().map(|m| m.robot.clone()).collect();
-        let hub_port = hub.rsplit(':').next().and_then(|p| p.parse().ok());
-        let devices = DevicePlan::for_run(
-            args.devices,
-            args.receivers,
-            site,
-            &robots,
-            &hub_port.into_iter().collect::<Vec<u16>>(),
-        )?;
+        let router_ports: Vec<u16> = mesh.listeners().iter().map(|(_, p)| *p).collect();
+        let devices =
+            DevicePlan::for_run(args.devices, args.receivers, site, &robots, &router_ports)?;
         let b = Builder {
             args,
             site,
-            hub,
+            hub: mesh.hub(),
+            mesh,
             security,
             plan,
             devices,
         };
-        let (router, central_at) = b.router()?;
+        let (routers, central_at) = b.routers()?;
         let central_flags = central_flags(args, profile);
         let mut central = node_command(args, site, "central", central_at.0, central_at.1)?;
         central.args(&central_flags);
@@ -108,7 +107,7 @@ impl NodeCommands {
         let world = b.world(msus, &to_recorder)?;
         let (agents, msu_file) = b.agents(profile, msus, &to_recorder)?;
         let mut commands = Self {
-            router,
+            routers,
             central,
             standby,
             cells,
@@ -127,8 +126,9 @@ impl NodeCommands {
     /// Pins every node to its side of `split`.
     fn pin(&mut self, split: &CoreSplit) {
         let servers = self
-            .router
+            .routers
             .iter_mut()
+            .map(|(_, c)| c)
             .chain(std::iter::once(&mut self.central))
             .chain(self.standby.iter_mut())
             .chain(self.cells.iter_mut().map(|(_, c)| c));
@@ -141,13 +141,21 @@ impl NodeCommands {
     }
 }
 
-/// The robots of each agent process that hosts several (`k` at most
-/// each, in the site's order); none when each robot has its own (`k` 1).
-pub(crate) fn fleets(robots: &[String], k: usize) -> Vec<Vec<String>> {
+/// The robots of each agent process that hosts several: `k` at most
+/// each, in the site's order, never two zones in one (a process has one
+/// session, to its zone's router); none when each robot has its own (`k`
+/// 1).
+pub(crate) fn fleets(site: &Site, robots: &[String], k: usize, routers: usize) -> Vec<Vec<String>> {
     if k <= 1 {
         return Vec::new();
     }
-    robots.chunks(k).map(<[String]>::to_vec).collect()
+    match crate::zones::split(site, robots, routers.max(1)) {
+        Ok(zones) if !zones.is_empty() => zones
+            .iter()
+            .flat_map(|z| z.robots.chunks(k).map(<[String]>::to_vec))
+            .collect(),
+        _ => robots.chunks(k).map(<[String]>::to_vec).collect(),
+    }
 }
 
 /// The name of a fleet process as the run reports it: `fleet r1..r16`.
@@ -159,12 +167,18 @@ pub(crate) fn fleet_name(robots: &[String]) -> String {
     }
 }
 
+/// A node's command line with its name.
+type Named = (String, Command);
+
 /// What every node's command line is built from.
 struct Builder<'a> {
     args: &'a SimArgs,
     site: &'a Site,
-    /// Where the nodes connect.
+    /// Where the central unit, its standby and the world connect: the
+    /// first router (in a full mesh, the central unit's listener).
     hub: &'a str,
+    /// The zones and their routers, where the cells and agents connect.
+    mesh: &'a ZonedMesh,
     security: Option<&'a SimSecurity>,
     /// The faults of `--faults`, for each node's clock steps.
     plan: Vec<faults::Fault>,
@@ -187,18 +201,25 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The router (none in a full mesh of peers) and where the central
-    /// unit connects and listens.
-    fn router(&self) -> anyhow::Result<(Option<Command>, (&'a str, &'a str))> {
+    /// The routers, one per zone (none in a full mesh of peers), and
+    /// where the central unit connects and listens. Routers 2 to N link to
+    /// the first: a star, as `ickon site secure --routers N` writes their
+    /// access control (the first trusts the others as linking routers).
+    fn routers(&self) -> anyhow::Result<(Vec<Named>, (&'a str, &'a str))> {
         Ok(match self.args.mesh {
             Mesh::Router => {
-                let mut router = router_command(self.hub)?;
-                if let Some(s) = self.security {
-                    s.router(&mut router);
+                let mut routers = Vec::new();
+                for (k, (endpoint, _)) in self.mesh.listeners().iter().enumerate() {
+                    let link = (k > 0).then_some(self.hub);
+                    let mut router = router_command(endpoint, link)?;
+                    if let Some(s) = self.security {
+                        s.router(&mut router, k + 1);
+                    }
+                    routers.push((self.mesh.router_name(k), router));
                 }
-                (Some(router), (self.hub, ""))
+                (routers, (self.hub, ""))
             }
-            Mesh::Peer => (None, ("", self.hub)),
+            Mesh::Peer => (Vec::new(), ("", self.hub)),
         })
     }
 
@@ -209,7 +230,8 @@ impl<'a> Builder<'a> {
         let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
         let mut cells = Vec::new();
         for cell in &site.cells {
-            let mut cmd = node_command(args, site, "cell", self.hub, "tcp/127.0.0.1:0")?;
+            let hub = self.mesh.endpoint_of_cell(&cell.id);
+            let mut cmd = node_command(args, site, "cell", hub, "tcp/127.0.0.1:0")?;
             cmd.args(["--cell", &cell.id])
                 .args(clock_flags(&mut clocks))
                 .args(to_recorder);
@@ -275,11 +297,12 @@ impl<'a> Builder<'a> {
             args.ros2,
         )?)?;
         let robots: Vec<String> = msus.iter().map(|m| m.robot.clone()).collect();
-        let groups = fleets(&robots, args.robots_per_process());
+        let groups = fleets(site, &robots, args.robots_per_process(), args.routers);
         if !groups.is_empty() {
             let mut agents = Vec::new();
             for group in groups {
-                let mut cmd = node_command(args, site, "fleet", self.hub, "tcp/127.0.0.1:0")?;
+                let hub = self.mesh.endpoint_of_robot(&group[0]);
+                let mut cmd = node_command(args, site, "fleet", hub, "tcp/127.0.0.1:0")?;
                 cmd.args(["--robots", &group.join(","), "--config"])
                     .arg(msu_file.path())
                     .args(to_recorder);
@@ -296,7 +319,8 @@ impl<'a> Builder<'a> {
         }
         let mut agents = Vec::new();
         for msu in msus {
-            let mut cmd = node_command(args, site, "msu", self.hub, "tcp/127.0.0.1:0")?;
+            let hub = self.mesh.endpoint_of_robot(&msu.robot);
+            let mut cmd = node_command(args, site, "msu", hub, "tcp/127.0.0.1:0")?;
             cmd.args(["--robot", &msu.robot, "--config"])
                 .arg(msu_file.path())
                 .args(to_recorder);

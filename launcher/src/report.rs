@@ -10,6 +10,7 @@ use ickon_proto::site::Site;
 use crate::args::Mesh;
 use crate::args::SimArgs;
 use crate::metrics::{self, CellSummary, RobotSummary, RunStats};
+use crate::router_load::RouterLoad;
 use crate::usage;
 
 /// The JSON document of `ickon sim --json`.
@@ -59,6 +60,9 @@ pub struct SimReport {
     /// While the run was watched: the CPU of the site's servers and of the
     /// simulation, and what one robot's agent needs.
     pub cost: crate::cost::Cost,
+    /// Each router (one per zone with `--routers N`): its zone's cells and
+    /// robots, CPU time and peak memory; none with `--mesh peer`.
+    pub routers: Vec<RouterLoad>,
     /// The recording of `--record`: file, messages per topic, rates.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recorded: Option<ickon_recording::RecordReport>,
@@ -113,6 +117,8 @@ pub(crate) struct RunFacts {
     pub processes: Vec<usage::KindUsage>,
     /// The servers' and the simulation's CPU while watched, and one robot's agent.
     pub cost: crate::cost::Cost,
+    /// What each router carried.
+    pub routers: Vec<RouterLoad>,
     /// The recording of `--record`, if it succeeded.
     pub recorded: Option<ickon_recording::RecordReport>,
 }
@@ -174,6 +180,7 @@ impl SimReport {
             firing_plan: stats.plan_summary(),
             processes: facts.processes,
             cost: facts.cost,
+            routers: facts.routers,
             recorded: facts.recorded,
             faults_done: stats.faults_done.clone(),
             restarts: stats.restarts.clone(),
@@ -283,6 +290,9 @@ pub(crate) fn render_report(r: &SimReport) -> String {
         );
     }
     out.push_str(&r.cost.render());
+    for router in &r.routers {
+        let _ = writeln!(out, "{}", router.render());
+    }
     if r.bad_messages > 0 {
         let _ = writeln!(out, "undecodable messages: {}", r.bad_messages);
     }

@@ -1,5 +1,5 @@
 //! One run of the mesh, in the order a site comes up: build every node's
-//! command line, start the router and the central unit, open the
+//! command line, start the routers and the central unit, open the
 //! launcher's observer (and recorder), start the cells, the world and the
 //! agents, wait until every node is live, observe for the run's duration,
 //! stop everything and report.
@@ -22,9 +22,11 @@ use crate::metrics::RunStats;
 use crate::nodes::{NodeCommands, msu_starts};
 use crate::observe::{observe, open_observer};
 use crate::report::{RunFacts, SimReport, render_report};
+use crate::router_load::RouterLoad;
 use crate::secure::SimSecurity;
 use crate::supervisor::Supervisor;
 use crate::usage;
+use crate::zones::ZonedMesh;
 use ickon_operator::secure::Identity;
 
 /// How long the nodes get to come up and announce themselves.
@@ -106,14 +108,15 @@ pub async fn measure(
         .map(|r| r.id.clone())
         .collect();
     let security = SimSecurity::prepare(args, site, &robots)?;
-    let hub_port = free_port(&[]).map_err(failed)?;
     let scheme = security.as_ref().map_or("tcp", SimSecurity::scheme);
-    let hub = format!("{scheme}/127.0.0.1:{hub_port}");
+    let zoned = zoned_mesh(args, site, &robots, scheme)?;
+    let hub = zoned.hub().to_string();
+    let router_ports: Vec<u16> = zoned.listeners().iter().map(|(_, p)| *p).collect();
     let recorder_endpoint = match args.record {
-        // Not bound before the router starts: the hub's port is excluded.
+        // Not bound before the routers start: their ports are excluded.
         Some(_) => Some(format!(
             "tcp/127.0.0.1:{}",
-            free_port(&[hub_port]).map_err(failed)?
+            free_port(&router_ports).map_err(failed)?
         )),
         None => None,
     };
@@ -122,7 +125,7 @@ pub async fn measure(
         args,
         site,
         profile,
-        &hub,
+        &zoned,
         recorder_endpoint.as_deref(),
         &msus,
         security.as_ref(),
@@ -133,8 +136,7 @@ pub async fn measure(
         args,
         site,
         &keys,
-        &hub,
-        hub_port,
+        &zoned,
         recorder_endpoint.as_deref(),
         &msus,
         security.as_ref(),
@@ -180,6 +182,7 @@ pub async fn measure(
             .and_then(Result::ok)
             .as_ref(),
     );
+    let routers = RouterLoad::of_run(args.mesh, &zoned, &used);
     // The nodes stop first, so that the file holds everything they
     // published, the last poses the observer counted among it.
     let killed = sup.stop_all(GRACE_TO_STOP);
@@ -207,6 +210,7 @@ pub async fn measure(
             central_endpoint: hub,
             processes: usage::by_kind(&used),
             cost,
+            routers,
             recorded: recorded.as_ref().and_then(|r| r.as_ref().ok()).cloned(),
         },
     );
@@ -252,7 +256,7 @@ impl StartedMesh {
     }
 }
 
-/// Starts the router (waiting until it listens), the central unit and its
+/// Starts the routers (waiting until each listens), the central unit and its
 /// standby, the launcher's observer and recorder (before the first cell,
 /// so that the recording holds every burst), then the cells, the world
 /// and the agents.
@@ -261,20 +265,21 @@ async fn start_mesh(
     args: &SimArgs,
     site: &Site,
     keys: &Keys,
-    hub: &str,
-    hub_port: u16,
+    zoned: &ZonedMesh,
     recorder_endpoint: Option<&str>,
     msus: &[sim_hook::MsuStart],
     security: Option<&SimSecurity>,
     commands: NodeCommands,
     sup: &mut Supervisor,
 ) -> Result<StartedMesh, CommandError> {
-    if let Some(router) = commands.router {
-        sup.spawn("router", router).map_err(failed)?;
-        wait_for_listener(hub_port, sup, STARTUP_TIMEOUT)
+    // The hub first: the others link to it as they start.
+    for ((name, router), (_, port)) in commands.routers.into_iter().zip(zoned.listeners()) {
+        sup.spawn(&name, router).map_err(failed)?;
+        wait_for_listener(*port, sup, STARTUP_TIMEOUT)
             .await
             .map_err(failed)?;
     }
+    let hub = zoned.hub();
     sup.spawn("central", commands.central).map_err(failed)?;
     if let Some(standby) = commands.standby {
         sup.spawn("central standby", standby).map_err(failed)?;
@@ -329,6 +334,28 @@ async fn start_mesh(
         return Err(failed(e));
     }
     Ok(mesh)
+}
+
+/// The run's zones (`--routers`) and a free loopback port for each zone's
+/// router (in a full mesh of peers, one: the central unit's).
+fn zoned_mesh(
+    args: &SimArgs,
+    site: &Site,
+    robots: &[String],
+    scheme: &str,
+) -> Result<ZonedMesh, CommandError> {
+    let zones = crate::zones::split(site, robots, args.routers)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    let mut ports = Vec::new();
+    for _ in &zones {
+        ports.push(free_port(&ports).map_err(failed)?);
+    }
+    let listeners = ports
+        .iter()
+        .map(|p| (format!("{scheme}/127.0.0.1:{p}"), *p))
+        .collect();
+    ZonedMesh::new(zones, listeners)
+        .ok_or_else(|| CommandError::failure("a run needs at least one zone"))
 }
 
 /// Spawns each named command under the supervisor.

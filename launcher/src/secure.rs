@@ -1,4 +1,4 @@
-//! `ickon sim --secure [DIR]`: the run's router with access control and
+//! `ickon sim --secure [DIR]`: the run's routers with access control and
 //! every node, the launcher included, authenticated with its own credential
 //! over mutual TLS, as `ickon site secure --sim` writes them (into a
 //! temporary directory removed at exit, or DIR; a DIR written with `tcp/`
@@ -9,7 +9,9 @@ use std::process::Command;
 
 use ickon_proto::site::Site;
 
-use ickon_operator::secure::{Identity, Layout, SecuredDir, acl::Ros2Scope, write_dir};
+use ickon_operator::secure::{
+    Identity, Layout, SecureError, SecuredDir, acl::Ros2Scope, write_dir,
+};
 use ickon_runtime::CommandError;
 
 use crate::args::Mesh;
@@ -46,11 +48,14 @@ impl SimSecurity {
             if args.record.is_some() {
                 needed.push(Identity::Recorder);
             }
-            SecuredDir::open(wanted, &needed).map(|dir| SimSecurity { dir, _temp: None })
+            SecuredDir::open(wanted, &needed)
+                .and_then(|dir| check_routers(dir, args.routers))
+                .map(|dir| SimSecurity { dir, _temp: None })
         } else {
             generate(
                 site,
-                &crate::nodes::fleets(robots, args.robots_per_process()),
+                args.routers,
+                &crate::nodes::fleets(site, robots, args.robots_per_process(), args.routers),
             )
         };
         result
@@ -64,9 +69,10 @@ impl SimSecurity {
         if self.dir.uses_tls() { "tls" } else { "tcp" }
     }
 
-    /// Starts the router with the ACL and the user/password check.
-    pub(crate) fn router(&self, cmd: &mut Command) {
-        cmd.arg("--zenoh-config").arg(self.dir.router());
+    /// Starts router `k` (from 1; the first is the hub the others link
+    /// to) with the ACL and the user/password check.
+    pub(crate) fn router(&self, cmd: &mut Command, k: usize) {
+        cmd.arg("--zenoh-config").arg(self.dir.router_k(k));
     }
 
     /// Gives a node its credential (the flags on its command line still
@@ -89,16 +95,43 @@ impl SimSecurity {
     }
 }
 
-/// A fresh set of credentials for every identity of the site, and one for
-/// each of `fleets` (the robots of each process that hosts several).
+/// Checks that a secured directory has the files of routers 2 to
+/// `routers` (the first was checked when it was opened), each a router
+/// configuration the router would accept.
+fn check_routers(dir: SecuredDir, routers: usize) -> Result<SecuredDir, SecureError> {
+    for k in 2..=routers {
+        let file = dir.router_k(k);
+        if !file.exists() {
+            return Err(SecureError::Field {
+                file,
+                field: "(file)".into(),
+                problem: format!(
+                    "missing: --routers {routers} needs the files of {routers} linked routers (`ickon site secure --sim --routers {routers}`)"
+                ),
+            });
+        }
+        let config = zenoh::Config::from_file(&file).map_err(|e| SecureError::Field {
+            file: file.clone(),
+            field: "(file)".into(),
+            problem: e.to_string(),
+        })?;
+        ickon_operator::secure::check::router(&file, &config)?;
+    }
+    Ok(dir)
+}
+
+/// A fresh set of credentials for every identity of the site, with the
+/// files of `routers` linked routers, and one for each of `fleets` (the
+/// robots of each process that hosts several).
 fn generate(
     site: &Site,
+    routers: usize,
     fleets: &[Vec<String>],
-) -> Result<SimSecurity, ickon_operator::secure::SecureError> {
+) -> Result<SimSecurity, SecureError> {
     let temp = tempfile::Builder::new()
         .prefix("ickon-secure-")
         .tempdir()
-        .map_err(|e| ickon_operator::secure::SecureError::Io {
+        .map_err(|e| SecureError::Io {
             path: std::env::temp_dir(),
             source: e,
         })?;
@@ -107,7 +140,7 @@ fn generate(
         listen: vec!["tls/127.0.0.1:7447".into()],
         connect: vec!["tls/127.0.0.1:7447".into()],
         link: vec![],
-        routers: 1,
+        routers,
         sim: true,
         fleets: fleets.to_vec(),
         ros2: Ros2Scope { domain },
@@ -141,5 +174,44 @@ pub(crate) fn base_config(file: Option<&Path>) -> anyhow::Result<zenoh::Config> 
             Ok(config)
         }
         None => Ok(zenoh::Config::default()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn written(dir: &Path, routers: usize) -> SecuredDir {
+        let site = Site::load_or_default(None).unwrap().0;
+        let layout = Layout {
+            // Links in clear: no certificates to make, the same files.
+            listen: vec!["tcp/127.0.0.1:7447".into()],
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            link: vec![],
+            routers,
+            sim: true,
+            fleets: vec![],
+            ros2: Ros2Scope { domain: 0 },
+            valid_days: 1,
+            ca: None,
+        };
+        write_dir(&site, dir, &layout).unwrap()
+    }
+
+    #[test]
+    fn a_directory_needs_the_files_of_every_router_of_the_run() {
+        let tmp = tempfile::tempdir().unwrap();
+        let one = written(&tmp.path().join("one"), 1);
+        assert!(check_routers(one.clone(), 1).is_ok());
+        let err = check_routers(one, 3).unwrap_err().to_string();
+        assert!(err.contains("router-2.json5"), "{err}");
+        assert!(err.contains("--routers 3"), "{err}");
+        let three = written(&tmp.path().join("three"), 3);
+        assert!(check_routers(three.clone(), 3).is_ok());
+        assert!(check_routers(three.clone(), 2).is_ok());
+        // A router file that is not a router configuration is named.
+        std::fs::write(three.router_k(3), "{ not json5").unwrap();
+        let err = check_routers(three, 3).unwrap_err().to_string();
+        assert!(err.contains("router-3.json5"), "{err}");
     }
 }

@@ -48,6 +48,9 @@ pub struct ScaleArgs {
     /// Through a router (as on a site) or a full mesh of peers (to compare).
     #[arg(long, value_enum, default_value = "router")]
     pub mesh: Mesh,
+    /// Routers, one per zone of the site (`ickon sim --routers`).
+    #[arg(long, default_value_t = 1)]
+    pub routers: usize,
     /// Print one JSON document (every size's full `ickon sim` report) instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -102,6 +105,7 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             // Quiet: no live status line between the tables.
             json: true,
             mesh: args.mesh,
+            routers: args.routers,
             http: None,
             http_token_file: None,
             foxglove: None,

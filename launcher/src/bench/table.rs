@@ -1,6 +1,6 @@
 //! The table of `ickon bench scale`: one row per fleet size, then the CPU
-//! and memory of each kind of process, then each side's CPU and one
-//! robot's agent while watched.
+//! and memory of each kind of process, what each router carried, then
+//! each side's CPU and one robot's agent while watched.
 
 use std::fmt::Write;
 
@@ -80,6 +80,17 @@ pub fn render(reports: &[&SimReport]) -> String {
             })
             .collect();
         let _ = writeln!(out, "{:>6}  {}", r.robots.len(), kinds.join("; "));
+    }
+    if reports.iter().any(|r| !r.routers.is_empty()) {
+        let _ = writeln!(
+            out,
+            "\nEach router: its zone's cells and robots, CPU seconds, peak memory"
+        );
+        for r in reports {
+            for router in &r.routers {
+                let _ = writeln!(out, "{:>6}  {}", r.robots.len(), router.render());
+            }
+        }
     }
     let _ = writeln!(
         out,

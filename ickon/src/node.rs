@@ -19,6 +19,10 @@ pub enum Role {
     World(ickon_sim::node::WorldArgs),
     /// One robot's MSU agent.
     Msu(ickon_msu::node::MsuArgs),
+    /// A benchmark tool, not a node of a site: stands in for the MSU
+    /// agents of many robots in one process, publishing what they publish
+    /// (`ickon bench central`).
+    SyntheticFleet(ickon_launcher::synthetic_fleet::SyntheticFleetArgs),
 }
 
 /// Runs one node and returns the exit code.
@@ -28,5 +32,6 @@ pub fn run(role: Role) -> ExitCode {
         Role::Cell(args) => ickon_cell::node::main_with(args),
         Role::World(args) => ickon_sim::node::main_with(args),
         Role::Msu(args) => ickon_msu::node::main_with(args),
+        Role::SyntheticFleet(args) => ickon_launcher::synthetic_fleet::main_with(args),
     }
 }

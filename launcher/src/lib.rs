@@ -15,12 +15,14 @@
 //! status line, and a summary at the end.
 //!
 //! `ickon bench scale` runs the same mesh at several fleet sizes
-//! ([`BenchCommand`]).
+//! ([`BenchCommand`]); `ickon bench central` runs the site's servers
+//! against a [`synthetic_fleet`] standing in for many robots' agents.
 
 mod args;
 mod bench;
 mod device_plan;
 mod faults;
+mod fleet_site;
 mod launch;
 mod metrics;
 mod msu_file;
@@ -31,6 +33,8 @@ mod run;
 mod secure;
 mod supervisor;
 mod usage;
+
+pub mod synthetic_fleet;
 
 pub use args::Mesh;
 pub use args::SimArgs;

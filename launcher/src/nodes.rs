@@ -2,6 +2,7 @@
 //! starts: the router, the central unit (and its standby), one cell
 //! controller per cell, the world, one MSU agent per robot.
 
+use std::path::Path;
 use std::process::Command;
 
 use ickon_operator::secure::Identity;
@@ -42,7 +43,9 @@ pub(crate) struct NodeCommands {
 
 impl NodeCommands {
     /// Builds every command line of the run; the nodes connect to `hub`
-    /// (and, in a full mesh, those a replay needs to the recorder too).
+    /// (and, in a full mesh, those a replay needs to the recorder too); with
+    /// robots added to the site, every node reads it from `extended_site`.
+    #[allow(clippy::too_many_arguments)]
     pub fn build(
         args: &SimArgs,
         site: &Site,
@@ -51,6 +54,7 @@ impl NodeCommands {
         recorder: Option<&str>,
         msus: &[sim_hook::MsuStart],
         security: Option<&SimSecurity>,
+        extended_site: Option<&Path>,
     ) -> anyhow::Result<Self> {
         // The clock steps of the plan (checked already), given to each node at
         // its start: it takes the next at each SIGUSR1 the plan sends.
@@ -71,6 +75,7 @@ impl NodeCommands {
         let b = Builder {
             args,
             site,
+            site_file: extended_site.or(args.site.as_deref()),
             hub,
             security,
             plan,
@@ -78,7 +83,14 @@ impl NodeCommands {
         };
         let (router, central_at) = b.router()?;
         let central_flags = central_flags(args, profile);
-        let mut central = node_command(args, site, "central", central_at.0, central_at.1)?;
+        let mut central = node_command(
+            args,
+            site,
+            b.site_file,
+            "central",
+            central_at.0,
+            central_at.1,
+        )?;
         central.args(&central_flags);
         b.credential(&mut central, Identity::Central);
         let web = launch::http_flags(args, &mut central)?;
@@ -86,7 +98,14 @@ impl NodeCommands {
         b.clock_steps(&mut central, "central");
         let standby = if args.standby {
             // A second central unit that follows the first and takes over.
-            let mut standby = node_command(args, site, "central", central_at.0, central_at.1)?;
+            let mut standby = node_command(
+                args,
+                site,
+                b.site_file,
+                "central",
+                central_at.0,
+                central_at.1,
+            )?;
             standby.arg("--standby").args(&central_flags);
             b.clock_steps(&mut standby, "central standby");
             b.credential(&mut standby, Identity::Central);
@@ -123,6 +142,9 @@ impl NodeCommands {
 struct Builder<'a> {
     args: &'a SimArgs,
     site: &'a Site,
+    /// The file every node reads the site from (`lab` when `None`): the
+    /// run's `--site`, or the site with the robots added to it.
+    site_file: Option<&'a Path>,
     /// Where the nodes connect.
     hub: &'a str,
     security: Option<&'a SimSecurity>,
@@ -169,7 +191,14 @@ impl<'a> Builder<'a> {
         let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
         let mut cells = Vec::new();
         for cell in &site.cells {
-            let mut cmd = node_command(args, site, "cell", self.hub, "tcp/127.0.0.1:0")?;
+            let mut cmd = node_command(
+                args,
+                site,
+                self.site_file,
+                "cell",
+                self.hub,
+                "tcp/127.0.0.1:0",
+            )?;
             cmd.args(["--cell", &cell.id])
                 .args(clock_flags(&mut clocks))
                 .args(to_recorder);
@@ -192,7 +221,14 @@ impl<'a> Builder<'a> {
     ) -> anyhow::Result<Command> {
         let args = self.args;
         let robots: Vec<&str> = msus.iter().map(|m| m.robot.as_str()).collect();
-        let mut world = node_command(args, self.site, "world", self.hub, "tcp/127.0.0.1:0")?;
+        let mut world = node_command(
+            args,
+            self.site,
+            self.site_file,
+            "world",
+            self.hub,
+            "tcp/127.0.0.1:0",
+        )?;
         world.args([
             "--robots",
             &robots.join(","),
@@ -236,7 +272,14 @@ impl<'a> Builder<'a> {
         )?)?;
         let mut agents = Vec::new();
         for msu in msus {
-            let mut cmd = node_command(args, site, "msu", self.hub, "tcp/127.0.0.1:0")?;
+            let mut cmd = node_command(
+                args,
+                site,
+                self.site_file,
+                "msu",
+                self.hub,
+                "tcp/127.0.0.1:0",
+            )?;
             cmd.args(["--robot", &msu.robot, "--config"])
                 .arg(msu_file.path())
                 .args(to_recorder);

@@ -93,6 +93,10 @@ pub async fn measure(
         )),
         None => None,
     };
+    // Robots added to the site: every node reads the same extended site
+    // from this file, kept until the run is over.
+    let extended_site =
+        crate::fleet_site::write_for_run(args.site.as_deref(), args.robots, args.seed)?;
     let msus = msu_starts(args, site, profile, &robots).map_err(failed)?;
     let commands = NodeCommands::build(
         args,
@@ -102,6 +106,7 @@ pub async fn measure(
         recorder_endpoint.as_deref(),
         &msus,
         security.as_ref(),
+        extended_site.as_ref().map(tempfile::NamedTempFile::path),
     )
     .map_err(failed)?;
     let mut sup = Supervisor::new();

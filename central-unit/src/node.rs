@@ -445,7 +445,11 @@ pub async fn run(
                 None => continue,
             },
         };
+        let handling = std::time::Instant::now();
         let outputs = core.handle(clock.now(), event);
+        if outputs.iter().any(|o| matches!(o, Output::Survey(_))) {
+            core.note_survey_cost(handling.elapsed());
+        }
         follow_role(session, &keys, &core, &epoch, &mut token).await;
         failed_puts += ends.publish(outputs).await;
     }

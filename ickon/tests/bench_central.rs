@@ -91,6 +91,14 @@ fn bench_central_serves_every_synthetic_robot_with_sane_figures() {
     assert!(number(r, "fleet_cpu_share") > 0.0, "{r}");
     // The cells fired, in sync within the simulated clocks' reach.
     assert!(number(r, "sync_error_max_us") < 10_000.0, "{r}");
+    // The survey calibration published (once a second by default), and its
+    // step's time is a time.
+    assert!(number(r, "survey_publications") >= 1.0, "{r}");
+    let mean_ms = number(r, "survey_publish_mean_ms");
+    assert!(
+        mean_ms > 0.0 && mean_ms <= number(r, "survey_publish_max_ms"),
+        "{r}"
+    );
     // The admin status and the web API answered, nearly every time.
     for (asked, failed, p50, p99) in [
         (

@@ -134,6 +134,14 @@ pub struct CentralReport {
     pub web_status_asked: usize,
     /// See `web_status_asked`.
     pub web_status_failed: usize,
+    /// Survey calibrations the central unit published during the whole
+    /// run (its start-up included), from its last status.
+    pub survey_publications: u64,
+    /// How long the central unit's step that computed and published one
+    /// took, ms: mean and longest (as its status reports them).
+    pub survey_publish_mean_ms: Option<f64>,
+    /// See `survey_publish_mean_ms`.
+    pub survey_publish_max_ms: Option<f64>,
 }
 
 /// Runs `ickon bench central`.
@@ -568,6 +576,13 @@ impl Observed {
             web_status_p99_ms: percentile(&self.web_ms, 99.0),
             web_status_asked: self.web_asked,
             web_status_failed: self.web_asked - self.web_ms.len(),
+            survey_publications: status.map_or(0, |s| s.survey_publications),
+            survey_publish_mean_ms: status
+                .filter(|s| s.survey_publications > 0)
+                .map(|s| s.survey_publish_mean_us / 1e3),
+            survey_publish_max_ms: status
+                .filter(|s| s.survey_publications > 0)
+                .map(|s| s.survey_publish_max_us / 1e3),
         }
     }
 
@@ -627,7 +642,7 @@ fn render(reports: &[CentralReport]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9}",
+        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
         "robots",
         "up/posed",
         "cycles",
@@ -638,17 +653,18 @@ fn render(reports: &[CentralReport]) -> String {
         "admin p50/p99",
         "web p50/p99",
         "sync p99",
-        "fleet"
+        "fleet",
+        "survey mean/max"
     );
     let _ = writeln!(
         out,
-        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9}",
-        "", "", "", "% core", "", "µs", "µs", "ms", "ms", "µs", "% core"
+        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+        "", "", "", "% core", "", "µs", "µs", "ms", "ms", "µs", "% core", "ms"
     );
     for r in reports {
         let _ = writeln!(
             out,
-            "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9}",
+            "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
             r.robots,
             format!("{}/{}", r.robots_up_at_central, r.robots_posed_at_central),
             r.cycles,
@@ -672,6 +688,11 @@ fn render(reports: &[CentralReport]) -> String {
             ),
             show(r.sync_error_p99_us, 0),
             show(r.fleet_cpu_share.map(|s| s * 100.0), 0),
+            format!(
+                "{}/{}",
+                show(r.survey_publish_mean_ms, 1),
+                show(r.survey_publish_max_ms, 1)
+            ),
         );
     }
     out

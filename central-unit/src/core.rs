@@ -217,6 +217,9 @@ pub struct CentralCore {
     survey_fix_rate: FixRate,
     /// What computing the survey calibrations cost, as the node measured it.
     survey_cost: admin::SurveyCost,
+    /// The last tick triggered a cycle: the survey calibration, if due, is
+    /// computed in the next tick, after the trigger is published.
+    survey_deferred: bool,
     /// Cycles triggered by this central unit, or heard from the active one
     /// while a standby (never counted again from 0): what each robot's
     /// share refills with.
@@ -271,6 +274,7 @@ impl CentralCore {
             survey_skipped: BTreeMap::new(),
             survey_fix_rate: FixRate::default(),
             survey_cost: admin::SurveyCost::default(),
+            survey_deferred: false,
             cycles_heard: 0,
         })
     }

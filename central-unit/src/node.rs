@@ -368,7 +368,11 @@ pub async fn run(
     let mut reloads = reload::Reloads::new();
     let mut unknown_admin = LogLimiter::default();
     loop {
-        let wake = core.next_wake().since(clock.now()).to_std();
+        let wake = if core.tick_pending() {
+            std::time::Duration::ZERO
+        } else {
+            core.next_wake().since(clock.now()).to_std()
+        };
         let event = tokio::select! {
             _ = &mut shutdown => break,
             _ = tokio::time::sleep(wake) => Event::Tick,

@@ -167,6 +167,13 @@ pub struct StatusJson {
     pub schedule_version: u32,
     /// Cycles per second of the schedule in force.
     pub update_rate_hz: f64,
+    /// Survey calibrations computed and published since it started.
+    pub survey_publications: u64,
+    /// How long the step that computed and published one took,
+    /// microseconds: mean and longest (`null` before the first).
+    pub survey_publish_mean_us: Option<f64>,
+    /// See `survey_publish_mean_us`.
+    pub survey_publish_max_us: Option<f64>,
     /// Every cell, when asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cells: Option<Vec<CellJson>>,
@@ -187,6 +194,9 @@ impl StatusJson {
             paused: s.paused,
             schedule_version: s.schedule_version,
             update_rate_hz: s.update_rate_hz,
+            survey_publications: s.survey_publications,
+            survey_publish_mean_us: (s.survey_publications > 0).then_some(s.survey_publish_mean_us),
+            survey_publish_max_us: (s.survey_publications > 0).then_some(s.survey_publish_max_us),
             cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
             robots: robots.then(|| s.robots.iter().map(RobotJson::from).collect()),
         }

@@ -215,6 +215,11 @@ pub struct CentralCore {
     survey_skipped: BTreeMap<&'static str, u64>,
     /// Each robot's share of the survey calibration.
     survey_fix_rate: FixRate,
+    /// What computing the survey calibrations cost, as the node measured it.
+    survey_cost: admin::SurveyCost,
+    /// The last tick triggered a cycle: the survey calibration, if due, is
+    /// computed in the next tick, after the trigger is published.
+    survey_deferred: bool,
     /// Cycles triggered by this central unit, or heard from the active one
     /// while a standby (never counted again from 0): what each robot's
     /// share refills with.
@@ -268,6 +273,8 @@ impl CentralCore {
                 .map(|c| SurveyPublisher::new(&site_for_survey, c)),
             survey_skipped: BTreeMap::new(),
             survey_fix_rate: FixRate::default(),
+            survey_cost: admin::SurveyCost::default(),
+            survey_deferred: false,
             cycles_heard: 0,
         })
     }

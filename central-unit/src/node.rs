@@ -368,7 +368,11 @@ pub async fn run(
     let mut reloads = reload::Reloads::new();
     let mut unknown_admin = LogLimiter::default();
     loop {
-        let wake = core.next_wake().since(clock.now()).to_std();
+        let wake = if core.tick_pending() {
+            std::time::Duration::ZERO
+        } else {
+            core.next_wake().since(clock.now()).to_std()
+        };
         let event = tokio::select! {
             _ = &mut shutdown => break,
             _ = tokio::time::sleep(wake) => Event::Tick,
@@ -445,7 +449,11 @@ pub async fn run(
                 None => continue,
             },
         };
+        let handling = std::time::Instant::now();
         let outputs = core.handle(clock.now(), event);
+        if outputs.iter().any(|o| matches!(o, Output::Survey(_))) {
+            core.note_survey_cost(handling.elapsed());
+        }
         follow_role(session, &keys, &core, &epoch, &mut token).await;
         failed_puts += ends.publish(outputs).await;
     }

@@ -430,28 +430,51 @@ impl SurveyCalibration {
         Ok(rows)
     }
 
+    /// No correction, each transmitter as surveyed with the survey's and
+    /// the cells' prior uncertainty.
+    fn prior_corrections(&self) -> Vec<TransmitterCorrection> {
+        let sigma = self.config.survey_sigma_m;
+        self.ids
+            .iter()
+            .map(|&tx_id| TransmitterCorrection {
+                tx_id,
+                offset_m: [0.0; 3],
+                sigma_m: [sigma; 3],
+                late_m: 0.0,
+                late_sigma_m: self.config.cell_sync_sigma_m,
+            })
+            .collect()
+    }
+
     /// The corrections from everything taken so far, one per transmitter
     /// of the site, in the site's order.
     pub fn corrections(&self) -> Vec<TransmitterCorrection> {
+        self.corrections_and_estimate().0
+    }
+
+    /// The corrections ([`Self::corrections`]) and the estimate of every
+    /// parameter ([`Self::estimate`]) from one factorisation: the work of a
+    /// publication, a dense solve over every transmitter, done once.
+    pub fn corrections_and_estimate(&self) -> (Vec<TransmitterCorrection>, Option<DVector<f64>>) {
         let n_tx = self.ids.len();
+        // The prior alone is positive definite and every fix adds a
+        // positive semi-definite term: only numbers gone wrong fail here.
         let Some(cholesky) = self.information.clone().cholesky() else {
-            // The prior alone is positive definite and every fix adds a
-            // positive semi-definite term: only numbers gone wrong end here.
-            let sigma = self.config.survey_sigma_m;
-            return self
-                .ids
-                .iter()
-                .map(|&tx_id| TransmitterCorrection {
-                    tx_id,
-                    offset_m: [0.0; 3],
-                    sigma_m: [sigma; 3],
-                    late_m: 0.0,
-                    late_sigma_m: self.config.cell_sync_sigma_m,
-                })
-                .collect();
+            return (self.prior_corrections(), None);
         };
         let estimate = cholesky.solve(&self.weighted);
-        let covariance = cholesky.inverse();
+        // Only the covariance's diagonal is published: with the
+        // information L L^T, the inverse is L^-T L^-1 and its i-th diagonal
+        // entry the squared norm of column i of L^-1 (one triangular solve,
+        // half the work of the whole inverse).
+        let n = estimate.len();
+        let Some(l_inverse) = cholesky
+            .l()
+            .solve_lower_triangular(&DMatrix::identity(n, n))
+        else {
+            return (self.prior_corrections(), None);
+        };
+        let variance: Vec<f64> = (0..n).map(|i| l_inverse.column(i).norm_squared()).collect();
         let scale = estimate.len() - 1;
         let cell_of = |tx_id: u32| {
             self.index
@@ -459,24 +482,23 @@ impl SurveyCalibration {
                 .map(|&(_, cell)| cell)
                 .filter(|&cell| cell < scale)
         };
-        (0..n_tx)
+        let corrections = (0..n_tx)
             .map(|i| {
                 let tx_id = self.ids[i];
                 let (late_m, late_sigma_m) = cell_of(tx_id)
                     .map_or((0.0, self.config.cell_sync_sigma_m), |cell| {
-                        (estimate[cell], covariance[(cell, cell)].max(0.0).sqrt())
+                        (estimate[cell], variance[cell].max(0.0).sqrt())
                     });
                 TransmitterCorrection {
                     tx_id,
                     offset_m: std::array::from_fn(|a| estimate[3 * i + a]),
-                    sigma_m: std::array::from_fn(|a| {
-                        covariance[(3 * i + a, 3 * i + a)].max(0.0).sqrt()
-                    }),
+                    sigma_m: std::array::from_fn(|a| variance[3 * i + a].max(0.0).sqrt()),
                     late_m,
                     late_sigma_m,
                 }
             })
-            .collect()
+            .collect();
+        (corrections, Some(estimate))
     }
 }
 
@@ -693,16 +715,15 @@ impl SurveyPublisher {
             self.calibration
                 .forget_cell_sync((now - last).as_secs_f64());
         }
-        if let Some(estimate) = self.calibration.estimate() {
+        let (corrections, estimate) = self.calibration.corrections_and_estimate();
+        if let Some(estimate) = estimate {
             self.estimate = estimate;
         }
         let from_clock = u32::try_from(now.as_nanos().max(0) / 1_000_000_000).unwrap_or(u32::MAX);
         let last = self.history.back().map_or(0, |(v, _, _)| *v);
         let version = from_clock.max(last.saturating_add(1)).max(1);
         let config = self.calibration.config;
-        let offsets: Vec<TransmitterOffset> = self
-            .calibration
-            .corrections()
+        let offsets: Vec<TransmitterOffset> = corrections
             .into_iter()
             .map(|c| {
                 let (offset, plausible) = publishable(c, &config);

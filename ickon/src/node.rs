@@ -23,6 +23,10 @@ pub enum Role {
     /// Several robots' MSU agents in one process, each as a lone agent,
     /// sharing one Zenoh session (`ickon sim --robots-per-process`).
     Fleet(ickon_msu::fleet::FleetArgs),
+    /// A benchmark tool, not a node of a site: stands in for the MSU
+    /// agents of many robots in one process, publishing what they publish
+    /// (`ickon bench central`).
+    SyntheticFleet(ickon_launcher::synthetic_fleet::SyntheticFleetArgs),
 }
 
 /// Runs one node and returns the exit code.
@@ -33,5 +37,6 @@ pub fn run(role: Role) -> ExitCode {
         Role::World(args) => ickon_sim::node::main_with(args),
         Role::Msu(args) => ickon_msu::node::main_with(args),
         Role::Fleet(args) => ickon_msu::fleet::main_with(args),
+        Role::SyntheticFleet(args) => ickon_launcher::synthetic_fleet::main_with(args),
     }
 }

@@ -27,7 +27,9 @@ pub struct SimArgs {
     /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); `lab` when omitted.
     #[arg(long)]
     pub site: Option<PathBuf>,
-    /// Number of robots: the first N robots of the site, each on its own route.
+    /// Number of robots: the first N robots of the site, each on its own
+    /// route; above the robots the site defines (up to 4096), the site's
+    /// robots and more added on its routes, spread along them by the seed.
     #[arg(long, default_value_t = 3)]
     pub robots: usize,
     /// How long to run once every node is live, seconds.
@@ -234,17 +236,12 @@ fn router_names(site: &Site, routers: usize) -> Vec<String> {
 pub fn check_args(
     args: &SimArgs,
 ) -> Result<(Site, ickon_sim::profile::NoiseProfile), CommandError> {
-    let (site, _text, _name) = Site::load_or_default(args.site.as_deref())
-        .map_err(|e| CommandError::bad_input(e.to_string()))?;
-    if args.robots == 0 || args.robots > site.robots.len() {
-        return Err(CommandError::bad_input(format!(
-            "--robots {} is not possible: the site {:?} has {} robots (1 to {})",
-            args.robots,
-            site.name,
-            site.robots.len(),
-            site.robots.len()
-        )));
+    if args.robots == 0 {
+        return Err(CommandError::bad_input(
+            "--robots 0 is not possible: a run needs at least one robot",
+        ));
     }
+    let (site, _) = crate::fleet_site::load(args.site.as_deref(), args.robots, args.seed)?;
     let profile = ickon_sim::profile::NoiseProfile::load(&args.profile)
         .map_err(|e| CommandError::bad_input(e.to_string()))?;
     ickon_fusion::estimator::EstimatorConfig::default_for(&args.estimator)

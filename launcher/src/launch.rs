@@ -46,10 +46,12 @@ pub(crate) fn free_port(taken: &[u16]) -> std::io::Result<u16> {
 
 /// The `ickon node <role>` command line shared by every node of the mesh:
 /// a client of the router at `hub` (`Mesh::Router`), or a peer listening on
-/// `listen` and connected to `hub` (`Mesh::Peer`; no `hub` for the first).
+/// `listen` and connected to `hub` (`Mesh::Peer`; no `hub` for the first),
+/// reading the site from `site_file` (the built-in `lab` when `None`).
 pub(crate) fn node_command(
     args: &SimArgs,
     site: &Site,
+    site_file: Option<&std::path::Path>,
     role: &str,
     hub: &str,
     listen: &str,
@@ -68,8 +70,8 @@ pub(crate) fn node_command(
     if !hub.is_empty() {
         cmd.args(["--connect", hub]);
     }
-    if let Some(site) = &args.site {
-        cmd.arg("--site").arg(site);
+    if let Some(file) = site_file {
+        cmd.arg("--site").arg(file);
     }
     cmd.arg("--exit-with-parent");
     Ok(cmd)

@@ -16,7 +16,8 @@
 //! status line, and a summary at the end.
 //!
 //! `ickon bench scale` runs the same mesh at several fleet sizes
-//! ([`BenchCommand`]).
+//! ([`BenchCommand`]); `ickon bench central` runs the site's servers
+//! against a [`synthetic_fleet`] standing in for many robots' agents.
 
 mod args;
 mod bench;
@@ -24,6 +25,7 @@ mod core_split;
 mod cost;
 mod device_plan;
 mod faults;
+mod fleet_site;
 mod launch;
 mod metrics;
 mod msu_file;
@@ -36,6 +38,8 @@ mod secure;
 mod supervisor;
 mod usage;
 mod zones;
+
+pub mod synthetic_fleet;
 
 pub use args::Mesh;
 pub use args::SimArgs;

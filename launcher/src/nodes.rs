@@ -2,6 +2,7 @@
 //! starts: the routers (one per zone), the central unit (and its standby),
 //! one cell controller per cell, the world, one MSU agent per robot.
 
+use std::path::Path;
 use std::process::Command;
 
 use ickon_operator::secure::Identity;
@@ -47,7 +48,9 @@ pub(crate) struct NodeCommands {
 impl NodeCommands {
     /// Builds every command line of the run; the nodes connect to their
     /// zone's router of `mesh` (in a full mesh, to its hub: the central
-    /// unit; and those a replay needs to the recorder too).
+    /// unit; and those a replay needs to the recorder too); with robots
+    /// added to the site, every node reads it from `extended_site`.
+    #[allow(clippy::too_many_arguments)]
     pub fn build(
         args: &SimArgs,
         site: &Site,
@@ -56,6 +59,7 @@ impl NodeCommands {
         recorder: Option<&str>,
         msus: &[sim_hook::MsuStart],
         security: Option<&SimSecurity>,
+        extended_site: Option<&Path>,
     ) -> anyhow::Result<Self> {
         // The clock steps of the plan (checked already), given to each node at
         // its start: it takes the next at each SIGUSR1 the plan sends.
@@ -71,6 +75,7 @@ impl NodeCommands {
         let b = Builder {
             args,
             site,
+            site_file: extended_site.or(args.site.as_deref()),
             hub: mesh.hub(),
             mesh,
             security,
@@ -79,7 +84,14 @@ impl NodeCommands {
         };
         let (routers, central_at) = b.routers()?;
         let central_flags = central_flags(args, profile);
-        let mut central = node_command(args, site, "central", central_at.0, central_at.1)?;
+        let mut central = node_command(
+            args,
+            site,
+            b.site_file,
+            "central",
+            central_at.0,
+            central_at.1,
+        )?;
         central.args(&central_flags);
         b.credential(&mut central, Identity::Central);
         let web = launch::http_flags(args, &mut central)?;
@@ -87,7 +99,14 @@ impl NodeCommands {
         b.clock_steps(&mut central, "central");
         let standby = if args.standby {
             // A second central unit that follows the first and takes over.
-            let mut standby = node_command(args, site, "central", central_at.0, central_at.1)?;
+            let mut standby = node_command(
+                args,
+                site,
+                b.site_file,
+                "central",
+                central_at.0,
+                central_at.1,
+            )?;
             standby.arg("--standby").args(&central_flags);
             b.clock_steps(&mut standby, "central standby");
             b.credential(&mut standby, Identity::Central);
@@ -174,6 +193,9 @@ type Named = (String, Command);
 struct Builder<'a> {
     args: &'a SimArgs,
     site: &'a Site,
+    /// The file every node reads the site from (`lab` when `None`): the
+    /// run's `--site`, or the site with the robots added to it.
+    site_file: Option<&'a Path>,
     /// Where the central unit, its standby and the world connect: the
     /// first router (in a full mesh, the central unit's listener).
     hub: &'a str,
@@ -231,7 +253,7 @@ impl<'a> Builder<'a> {
         let mut cells = Vec::new();
         for cell in &site.cells {
             let hub = self.mesh.endpoint_of_cell(&cell.id);
-            let mut cmd = node_command(args, site, "cell", hub, "tcp/127.0.0.1:0")?;
+            let mut cmd = node_command(args, site, self.site_file, "cell", hub, "tcp/127.0.0.1:0")?;
             cmd.args(["--cell", &cell.id])
                 .args(clock_flags(&mut clocks))
                 .args(to_recorder);
@@ -254,7 +276,14 @@ impl<'a> Builder<'a> {
     ) -> anyhow::Result<Command> {
         let args = self.args;
         let robots: Vec<&str> = msus.iter().map(|m| m.robot.as_str()).collect();
-        let mut world = node_command(args, self.site, "world", self.hub, "tcp/127.0.0.1:0")?;
+        let mut world = node_command(
+            args,
+            self.site,
+            self.site_file,
+            "world",
+            self.hub,
+            "tcp/127.0.0.1:0",
+        )?;
         world.args([
             "--robots",
             &robots.join(","),
@@ -302,7 +331,8 @@ impl<'a> Builder<'a> {
             let mut agents = Vec::new();
             for group in groups {
                 let hub = self.mesh.endpoint_of_robot(&group[0]);
-                let mut cmd = node_command(args, site, "fleet", hub, "tcp/127.0.0.1:0")?;
+                let mut cmd =
+                    node_command(args, site, self.site_file, "fleet", hub, "tcp/127.0.0.1:0")?;
                 cmd.args(["--robots", &group.join(","), "--config"])
                     .arg(msu_file.path())
                     .args(to_recorder);
@@ -320,7 +350,7 @@ impl<'a> Builder<'a> {
         let mut agents = Vec::new();
         for msu in msus {
             let hub = self.mesh.endpoint_of_robot(&msu.robot);
-            let mut cmd = node_command(args, site, "msu", hub, "tcp/127.0.0.1:0")?;
+            let mut cmd = node_command(args, site, self.site_file, "msu", hub, "tcp/127.0.0.1:0")?;
             cmd.args(["--robot", &msu.robot, "--config"])
                 .arg(msu_file.path())
                 .args(to_recorder);

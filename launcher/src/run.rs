@@ -109,8 +109,7 @@ pub async fn measure(
         .collect();
     let security = SimSecurity::prepare(args, site, &robots)?;
     let scheme = security.as_ref().map_or("tcp", SimSecurity::scheme);
-    let zoned = zoned_mesh(args, site, &robots, scheme)?;
-    let hub = zoned.hub().to_string();
+    let (zoned, hub, _) = zoned_mesh(args, site, &robots, scheme)?;
     let router_ports: Vec<u16> = zoned.listeners().iter().map(|(_, p)| *p).collect();
     let recorder_endpoint = match args.record {
         // Not bound before the routers start: their ports are excluded.
@@ -120,6 +119,10 @@ pub async fn measure(
         )),
         None => None,
     };
+    // Robots added to the site: every node reads the same extended site
+    // from this file, kept until the run is over.
+    let extended_site =
+        crate::fleet_site::write_for_run(args.site.as_deref(), args.robots, args.seed)?;
     let msus = msu_starts(args, site, profile, &robots).map_err(failed)?;
     let commands = NodeCommands::build(
         args,
@@ -129,6 +132,7 @@ pub async fn measure(
         recorder_endpoint.as_deref(),
         &msus,
         security.as_ref(),
+        extended_site.as_ref().map(tempfile::NamedTempFile::path),
     )
     .map_err(failed)?;
     let mut sup = Supervisor::new();
@@ -337,13 +341,14 @@ async fn start_mesh(
 }
 
 /// The run's zones (`--routers`) and a free loopback port for each zone's
-/// router (in a full mesh of peers, one: the central unit's).
-fn zoned_mesh(
+/// router (in a full mesh of peers, one: the central unit's), with the
+/// hub's endpoint and port.
+pub(crate) fn zoned_mesh(
     args: &SimArgs,
     site: &Site,
     robots: &[String],
     scheme: &str,
-) -> Result<ZonedMesh, CommandError> {
+) -> Result<(ZonedMesh, String, u16), CommandError> {
     let zones = crate::zones::split(site, robots, args.routers)
         .map_err(|e| CommandError::bad_input(e.to_string()))?;
     let mut ports = Vec::new();
@@ -354,8 +359,11 @@ fn zoned_mesh(
         .iter()
         .map(|p| (format!("{scheme}/127.0.0.1:{p}"), *p))
         .collect();
-    ZonedMesh::new(zones, listeners)
-        .ok_or_else(|| CommandError::failure("a run needs at least one zone"))
+    let zoned = ZonedMesh::new(zones, listeners)
+        .ok_or_else(|| CommandError::failure("a run needs at least one zone"))?;
+    let hub = zoned.hub().to_string();
+    let hub_port = ports.first().copied().unwrap_or_default();
+    Ok((zoned, hub, hub_port))
 }
 
 /// Spawns each named command under the supervisor.

@@ -10,6 +10,25 @@ use crate::survey_calibration::SurveyPublisher;
 
 use super::{CentralCore, Output, make_schedule};
 
+/// What computing the survey calibrations has cost so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct SurveyCost {
+    publications: u64,
+    total_us: f64,
+    max_us: f64,
+}
+
+impl SurveyCost {
+    /// The mean per publication, microseconds (0 before the first).
+    fn mean_us(&self) -> f64 {
+        if self.publications == 0 {
+            0.0
+        } else {
+            self.total_us / self.publications as f64
+        }
+    }
+}
+
 impl CentralCore {
     /// The answer to `status`, `cells`, `robots` and `sync`.
     pub fn status(&self, now: Time) -> StatusReport {
@@ -40,7 +59,21 @@ impl CentralCore {
             epoch: self.epoch,
             foreign_control: self.foreign_control,
             active: self.standby.is_none(),
+            survey_publications: self.survey_cost.publications,
+            survey_publish_mean_us: self.survey_cost.mean_us(),
+            survey_publish_max_us: self.survey_cost.max_us,
         }
+    }
+
+    /// Notes that the step that computed and published a survey
+    /// calibration took `took` (measured by the node around
+    /// [`CentralCore::handle`]: the core reads no clock of its own).
+    pub fn note_survey_cost(&mut self, took: std::time::Duration) {
+        let us = took.as_secs_f64() * 1e6;
+        let cost = &mut self.survey_cost;
+        cost.publications += 1;
+        cost.total_us += us;
+        cost.max_us = cost.max_us.max(us);
     }
 
     /// The answer to `coverage`: the floor as the transmitters of the

@@ -30,6 +30,13 @@ impl CentralCore {
         }
     }
 
+    /// Whether a tick is due at once, before [`Self::next_wake`]: the
+    /// survey calibration put off by the last tick's triggers, to be
+    /// computed as soon as they are published.
+    pub fn tick_pending(&self) -> bool {
+        self.standby.is_none() && self.survey_deferred
+    }
+
     /// When the next trigger goes out.
     pub(super) fn next_trigger_at(&self) -> Time {
         self.next_start - self.config.trigger_lead
@@ -43,6 +50,7 @@ impl CentralCore {
             return out;
         }
         self.skip_stale_cycles(now);
+        let first_cycle = self.next_cycle;
         while now >= self.next_trigger_at() {
             let before = self.next_start;
             let cycle = self.next_cycle;
@@ -79,8 +87,20 @@ impl CentralCore {
             self.next_reannounce = now + self.config.schedule_reannounce;
             out.push(Output::Schedule(self.latest_schedule().clone()));
         }
-        if let Some(survey) = self.survey.as_mut().and_then(|p| p.due(now, self.epoch)) {
-            out.push(Output::Survey(survey));
+        // A calibration takes milliseconds to compute (a dense solve over
+        // every transmitter), and the node publishes a tick's outputs when
+        // the tick is done: computed with a cycle's trigger it would hold
+        // the trigger back by that long. So it is computed in the tick
+        // right after (the node wakes at once), in the cycle's idle time;
+        // a subscriber still hears it between the same two triggers.
+        let cycled = self.next_cycle != first_cycle;
+        if self.survey.is_some() && cycled && !self.survey_deferred {
+            self.survey_deferred = true;
+        } else {
+            self.survey_deferred = false;
+            if let Some(survey) = self.survey.as_mut().and_then(|p| p.due(now, self.epoch)) {
+                out.push(Output::Survey(survey));
+            }
         }
         out.extend(self.reconcile_membership(now));
         self.update_states(now);

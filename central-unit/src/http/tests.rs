@@ -83,6 +83,9 @@ fn report(site: &Site) -> StatusReport {
         epoch: 1,
         foreign_control: 0,
         active: true,
+        survey_publications: 3,
+        survey_publish_mean_us: 410.0,
+        survey_publish_max_us: 900.0,
     }
 }
 

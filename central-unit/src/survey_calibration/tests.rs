@@ -547,6 +547,37 @@ fn estimate_and_covariance(c: &SurveyCalibration) -> (DVector<f64>, DMatrix<f64>
 }
 
 #[test]
+fn the_published_uncertainties_are_the_covariances_diagonal_and_the_estimate_its_own() {
+    let site = Site::default_site();
+    let truth = true_offsets(&site, true);
+    let mut noise = Noise(0x51_7cc1_b727_220a);
+    let mut c = SurveyCalibration::new(&site, config());
+    let none = Applied::new();
+    for at in places(500, &mut noise) {
+        if let Some(fix) = fix_at(&site, at, &truth, &none, 0, &mut noise) {
+            let _ = c.take_fix(&fix, &none, &AppliedLate::new());
+        }
+    }
+    assert!(c.fixes_taken() > 50, "{}", c.fixes_taken());
+    let (estimate, covariance) = estimate_and_covariance(&c);
+    let (corrections, one_solve) = c.corrections_and_estimate();
+    let one_solve = one_solve.expect("positive definite");
+    assert!((&one_solve - &estimate).amax() < 1e-12);
+    assert!((&one_solve - c.estimate().expect("solves")).amax() < 1e-12);
+    for (i, k) in corrections.iter().enumerate() {
+        for a in 0..3 {
+            let want = covariance[(3 * i + a, 3 * i + a)].sqrt();
+            assert!(
+                (k.sigma_m[a] - want).abs() <= 1e-9 * want,
+                "tx {} axis {a}: {} against {want}",
+                k.tx_id,
+                k.sigma_m[a]
+            );
+        }
+    }
+}
+
+#[test]
 fn forgetting_lets_only_the_cells_lateness_drift_as_a_gauss_markov_process() {
     let site = Site::default_site();
     let truth = true_offsets(&site, true);

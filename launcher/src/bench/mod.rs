@@ -2,8 +2,10 @@
 //! on one site, in real time, with what a site's operator asks of each size:
 //! do the cells fire every cycle, in sync; does every robot get its arrivals
 //! and a fix every cycle; how late are the poses; what does it cost in CPU
-//! and memory per kind of process.
+//! and memory per kind of process. `ickon bench central`: the site's
+//! servers against a synthetic fleet, what one central unit can serve.
 
+pub mod central;
 mod table;
 
 use std::path::PathBuf;
@@ -22,6 +24,11 @@ use ickon_runtime::CommandError;
 pub enum BenchCommand {
     /// Run the simulation at each fleet size and tabulate how the site holds up.
     Scale(ScaleArgs),
+    /// Run the router, the central unit and the cells against a synthetic
+    /// fleet (one process publishing what N robots' agents publish) at each
+    /// size, the central unit alone on CPU 0, and tabulate its CPU, memory,
+    /// trigger jitter and how fast it answers.
+    Central(central::CentralArgs),
 }
 
 /// Arguments of `ickon bench scale`.
@@ -30,7 +37,8 @@ pub struct ScaleArgs {
     /// A built-in site (`lab`, `warehouse`, `hall`) or a site file.
     #[arg(long, default_value = "warehouse")]
     pub site: PathBuf,
-    /// Fleet sizes, comma-separated: the first N robots of the site each.
+    /// Fleet sizes, comma-separated: the first N robots of the site each
+    /// (above its robots, more added on its routes, as `ickon sim --robots`).
     #[arg(long, value_delimiter = ',', default_value = "16,32,64,128")]
     pub robots: Vec<usize>,
     /// Seconds each size runs once every node is live.
@@ -88,7 +96,10 @@ struct SizeResult {
 
 /// Runs `ickon bench scale` and returns the exit code.
 pub fn run(command: BenchCommand) -> Result<(), CommandError> {
-    let BenchCommand::Scale(args) = command;
+    let args = match command {
+        BenchCommand::Scale(args) => args,
+        BenchCommand::Central(args) => return central::run(args),
+    };
     if args.robots.is_empty() {
         return Err(CommandError::bad_input("--robots needs at least one size"));
     }

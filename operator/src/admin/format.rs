@@ -335,6 +335,9 @@ mod tests {
             epoch: 1,
             foreign_control: 0,
             active: true,
+            survey_publications: 0,
+            survey_publish_mean_us: 0.0,
+            survey_publish_max_us: 0.0,
         }
     }
 

@@ -162,6 +162,13 @@ pub struct StatusReport {
     /// Whether the answering central unit is the active one (`false`: a
     /// hot standby).
     pub active: bool,
+    /// Survey calibrations it computed and published since it started.
+    pub survey_publications: u64,
+    /// How long the step that computed and published one took on the
+    /// central unit, microseconds: the mean over them (0 before the first).
+    pub survey_publish_mean_us: f64,
+    /// The same, the longest.
+    pub survey_publish_max_us: f64,
 }
 
 /// Optional query payload of `coverage`.

@@ -243,6 +243,9 @@ fn admin_messages_round_trip() {
         epoch: 42,
         foreign_control: 1,
         active: true,
+        survey_publications: 3,
+        survey_publish_mean_us: 410.0,
+        survey_publish_max_us: 900.0,
     });
     round_trip(sample_coverage());
     round_trip(CoverageRequest { resolution_m: 0.5 });

@@ -1,0 +1,736 @@
+//! `ickon bench central`: how many robots one central unit serves. The
+//! site's servers run as `ickon sim` starts them (the router, the central
+//! unit, one cell controller per cell, the same command lines) against a
+//! synthetic fleet ([`crate::synthetic_fleet`]): one process publishing
+//! what N robots' MSU agents publish. The central unit is pinned to CPU 0
+//! and everything else to the other CPUs, so that its figures are one
+//! core's. Per size it reports the central unit's CPU and memory, how
+//! regularly its cycle triggers arrive, the cells' sync error, and how fast
+//! it answers `ickon admin status` and the web API while the fleet runs.
+
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use serde::Serialize;
+use zenoh::sample::SampleKind;
+
+use ickon_proto::decode;
+use ickon_proto::keys::Keys;
+use ickon_proto::msg::admin::StatusReport;
+use ickon_proto::msg::control::{Burst, CycleTrigger};
+use ickon_proto::site::Site;
+use ickon_runtime::CommandError;
+
+use crate::args::{Mesh, SimArgs};
+use crate::launch::{node_command, wait_for_listener};
+use crate::metrics::{CellStats, percentile};
+use crate::nodes::NodeCommands;
+use crate::observe::open_observer;
+use crate::supervisor::Supervisor;
+use crate::usage::ProcUsage;
+
+/// How long the processes get to come up and announce themselves.
+const STARTUP_TIMEOUT: Duration = Duration::from_secs(60);
+/// How long the processes get to stop after SIGTERM before they are killed.
+const GRACE_TO_STOP: Duration = Duration::from_secs(5);
+/// How often the admin status and the web API are asked during a run: an
+/// operator's console refreshing twice a second.
+const PROBE_PERIOD: Duration = Duration::from_millis(500);
+/// How long an admin query or a web request may take before it counts as
+/// unanswered.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(5);
+/// The environment variable that pins an `ickon` process to CPUs.
+const CPUS_ENV: &str = "ICKON_CPUS";
+
+/// Arguments of `ickon bench central`.
+#[derive(Debug, Args)]
+pub struct CentralArgs {
+    /// A built-in site (`lab`, `warehouse`, `hall`) or a site file;
+    /// extended with robots on its routes when a size exceeds its own.
+    #[arg(long, default_value = "warehouse")]
+    pub site: PathBuf,
+    /// Fleet sizes, comma-separated (each up to 4096).
+    #[arg(long, value_delimiter = ',', default_value = "100,300,1000")]
+    pub robots: Vec<usize>,
+    /// Seconds each size runs once every process is live.
+    #[arg(long, default_value_t = 30.0)]
+    pub duration: f64,
+    /// Noise profile the fixes' residuals and hearing range follow, and
+    /// the cells' clocks (as `ickon sim --profile`).
+    #[arg(long, default_value = "paper")]
+    pub profile: String,
+    /// Seed of every random draw.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Which transmitters fire each cycle (`ickon sim --firing`).
+    #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
+    pub firing: ickon_central::node::Firing,
+    /// Print one JSON document instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What one size measured.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CentralReport {
+    /// Robots of the synthetic fleet.
+    pub robots: usize,
+    /// Seconds measured.
+    pub duration_s: f64,
+    /// Why the run failed (a process died), if it did; the numbers are
+    /// of what was measured until then.
+    pub failure: Option<String>,
+    /// Robots the central unit listed as up in its last status.
+    pub robots_up_at_central: usize,
+    /// Robots in its last status with a pose.
+    pub robots_posed_at_central: usize,
+    /// Cycle triggers received.
+    pub cycles: usize,
+    /// Mean cycle period of the triggers, ms.
+    pub cycle_period_ms: Option<f64>,
+    /// How far each trigger's arrival was from its predecessor's plus
+    /// the cycle's nominal length, µs: median, 99th percentile, largest.
+    pub trigger_jitter_p50_us: Option<f64>,
+    /// See `trigger_jitter_p50_us`.
+    pub trigger_jitter_p99_us: Option<f64>,
+    /// See `trigger_jitter_p50_us`.
+    pub trigger_jitter_max_us: Option<f64>,
+    /// The central unit's CPU over the run, share of one core.
+    pub central_cpu_share: Option<f64>,
+    /// The same per robot, millionths of a core.
+    pub central_cpu_per_robot_ppm: Option<f64>,
+    /// The central unit's peak resident memory, MiB.
+    pub central_peak_rss_mib: Option<f64>,
+    /// The router's CPU, share of one core.
+    pub router_cpu_share: Option<f64>,
+    /// The synthetic fleet's CPU, share of one core (near 1: it could not
+    /// keep up, and the central unit saw less than the fleet's rates).
+    pub fleet_cpu_share: Option<f64>,
+    /// The cells' sync error (burst fired vs scheduled), 99th percentile
+    /// and largest, µs.
+    pub sync_error_p99_us: Option<f64>,
+    /// See `sync_error_p99_us`.
+    pub sync_error_max_us: Option<f64>,
+    /// `ickon admin status` (the `central/admin/status` query) answered
+    /// in, ms: median and 99th percentile.
+    pub admin_status_p50_ms: Option<f64>,
+    /// See `admin_status_p50_ms`.
+    pub admin_status_p99_ms: Option<f64>,
+    /// Admin queries asked, and those not answered in time.
+    pub admin_status_asked: usize,
+    /// See `admin_status_asked`.
+    pub admin_status_unanswered: usize,
+    /// The web API's `/api/status` answered in, ms: median and 99th
+    /// percentile.
+    pub web_status_p50_ms: Option<f64>,
+    /// See `web_status_p50_ms`.
+    pub web_status_p99_ms: Option<f64>,
+    /// Web requests made, and those that failed or timed out.
+    pub web_status_asked: usize,
+    /// See `web_status_asked`.
+    pub web_status_failed: usize,
+    /// Survey calibrations the central unit published during the whole
+    /// run (its start-up included), from its last status.
+    pub survey_publications: u64,
+    /// How long the central unit's step that computed and published one
+    /// took, ms: mean and longest (as its status reports them).
+    pub survey_publish_mean_ms: Option<f64>,
+    /// See `survey_publish_mean_ms`.
+    pub survey_publish_max_ms: Option<f64>,
+}
+
+/// Runs `ickon bench central`.
+pub fn run(args: CentralArgs) -> Result<(), CommandError> {
+    if args.robots.is_empty() {
+        return Err(CommandError::bad_input("--robots needs at least one size"));
+    }
+    if !(args.duration.is_finite() && args.duration > 0.0 && args.duration <= 86_400.0) {
+        return Err(CommandError::bad_input(
+            "--duration must be between 0 and 86400 seconds",
+        ));
+    }
+    ickon_sim::profile::NoiseProfile::load(&args.profile)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    // Every size checked before the first runs.
+    for &n in &args.robots {
+        if n == 0 {
+            return Err(CommandError::bad_input(
+                "--robots 0 is not possible: a fleet needs at least one robot",
+            ));
+        }
+        crate::fleet_site::load(Some(&args.site), n, args.seed)?;
+    }
+    let mut reports = Vec::new();
+    for &n in &args.robots {
+        if !args.json {
+            eprintln!(
+                "ickon bench central: {n} robots on {} for {} s",
+                args.site.display(),
+                args.duration
+            );
+        }
+        let report = ickon_runtime::block_on(2, measure(&args, n))
+            .ok_or_else(|| CommandError::failure("cannot start the runtime"))??;
+        if let Some(why) = &report.failure {
+            eprintln!("warning: {n} robots: {why}");
+        }
+        reports.push(report);
+    }
+    if args.json {
+        let text = serde_json::to_string_pretty(&reports)
+            .map_err(|e| CommandError::failure(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print!("{}", render(&reports));
+    }
+    if reports.iter().any(|r| r.failure.is_some()) {
+        Err(CommandError::failure("a run failed (see its warning)"))
+    } else {
+        Ok(())
+    }
+}
+
+/// The `ickon sim` arguments whose command lines the servers get.
+fn sim_args(args: &CentralArgs, robots: usize) -> SimArgs {
+    SimArgs {
+        site: Some(args.site.clone()),
+        robots,
+        duration: args.duration,
+        estimator: "tdoa-ekf".to_string(),
+        profile: args.profile.clone(),
+        seed: args.seed,
+        json: true,
+        mesh: Mesh::Router,
+        http: Some(std::net::SocketAddr::from(([127, 0, 0, 1], 18_080))),
+        http_token_file: None,
+        foxglove: None,
+        record: None,
+        record_foxglove_view: false,
+        ros2: false,
+        secure: None,
+        firing: args.firing,
+        restart: false,
+        standby: false,
+        faults: None,
+        learn_cell_sync: false,
+        no_survey_calibration: false,
+        devices: Default::default(),
+        receivers: Default::default(),
+        robots_per_process: None,
+        split_cores: false,
+        routers: 1,
+    }
+}
+
+/// The CPUs of the central unit and of everything else, as
+/// [`CPUS_ENV`] takes them (`None`: one CPU, nothing to separate).
+fn cpu_split() -> Option<(&'static str, String)> {
+    let cpus = std::thread::available_parallelism().map_or(1, usize::from);
+    (cpus >= 2).then(|| {
+        let rest = if cpus == 2 {
+            "1".to_string()
+        } else {
+            format!("1-{}", cpus - 1)
+        };
+        ("0", rest)
+    })
+}
+
+/// Runs the servers and the synthetic fleet of `robots` once and measures.
+async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, CommandError> {
+    let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
+    let sim = sim_args(args, robots);
+    let (site, _) = crate::fleet_site::load(sim.site.as_deref(), robots, args.seed)?;
+    let profile = ickon_sim::profile::NoiseProfile::load(&args.profile)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    let extended = crate::fleet_site::write_for_run(sim.site.as_deref(), robots, args.seed)?;
+    let site_file = extended
+        .as_ref()
+        .map(|f| f.path().to_path_buf())
+        .or(sim.site.clone());
+    let keys = Keys::new(&site.name).map_err(|e| failed(&e))?;
+    let (zoned, hub, hub_port) = crate::run::zoned_mesh(&sim, &site, &[], "tcp")?;
+    let commands = NodeCommands::build(
+        &sim,
+        &site,
+        &profile,
+        &zoned,
+        None,
+        &[],
+        None,
+        site_file.as_deref(),
+    )
+    .map_err(|e| failed(&e))?;
+    let ids: Vec<String> = site
+        .robots
+        .iter()
+        .take(robots)
+        .map(|r| r.id.clone())
+        .collect();
+    let mut fleet = node_command(
+        &sim,
+        &site,
+        site_file.as_deref(),
+        "synthetic-fleet",
+        &hub,
+        "tcp/127.0.0.1:0",
+    )
+    .map_err(|e| failed(&e))?;
+    fleet.args([
+        "--robots",
+        &ids.join(","),
+        "--profile",
+        &args.profile,
+        "--seed",
+        &args.seed.to_string(),
+    ]);
+    let mut central = commands.central;
+    let mut others: Vec<(String, Command)> = commands.cells;
+    others.push(("fleet".to_string(), fleet));
+    let mut router = commands
+        .routers
+        .into_iter()
+        .next()
+        .map(|(_, cmd)| cmd)
+        .ok_or_else(|| CommandError::failure("no router"))?;
+    if let Some((central_cpus, rest)) = cpu_split() {
+        central.env(CPUS_ENV, central_cpus);
+        router.env(CPUS_ENV, &rest);
+        for (_, cmd) in &mut others {
+            cmd.env(CPUS_ENV, &rest);
+        }
+    }
+    let mut sup = Supervisor::new();
+    let outcome = run_measured(
+        args,
+        (&site, &ids),
+        &keys,
+        &hub,
+        hub_port,
+        (router, central, others),
+        commands.web,
+        &mut sup,
+    )
+    .await;
+    sup.stop_all(GRACE_TO_STOP);
+    drop(commands.msu_file);
+    drop(extended);
+    let (observed, failure) = outcome?;
+    Ok(observed.report(robots, failure))
+}
+
+/// The processes of one run: the router, the central unit, and the cells
+/// and the fleet, with their names.
+type Processes = (Command, Command, Vec<(String, Command)>);
+
+/// Starts the processes, waits until they are live, and observes.
+#[allow(clippy::too_many_arguments)]
+async fn run_measured(
+    args: &CentralArgs,
+    (site, robots): (&Site, &[String]),
+    keys: &Keys,
+    hub: &str,
+    hub_port: u16,
+    (router, central, others): Processes,
+    web: Option<std::net::SocketAddr>,
+    sup: &mut Supervisor,
+) -> Result<(Observed, Option<String>), CommandError> {
+    let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
+    sup.spawn("router", router).map_err(|e| failed(&e))?;
+    wait_for_listener(hub_port, sup, STARTUP_TIMEOUT)
+        .await
+        .map_err(|e| failed(&e))?;
+    sup.spawn("central", central).map_err(|e| failed(&e))?;
+    let session = open_observer(hub, Mesh::Router, None)
+        .await
+        .map_err(|e| failed(&e))?;
+    let result = async {
+        let alive = session
+            .liveliness()
+            .declare_subscriber(keys.alive_all())
+            .history(true)
+            .await
+            .map_err(|e| failed(&e))?;
+        for (name, cmd) in others {
+            sup.spawn(&name, cmd).map_err(|e| failed(&e))?;
+        }
+        wait_live(site, robots, keys, &alive, sup).await?;
+        observe(args, keys, &session, web, sup).await
+    }
+    .await;
+    let _ = session.close().await;
+    result
+}
+
+/// Waits until the central unit, every cell and every robot of the fleet
+/// hold their liveliness tokens.
+async fn wait_live(
+    site: &Site,
+    robots: &[String],
+    keys: &Keys,
+    alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    sup: &mut Supervisor,
+) -> Result<(), CommandError> {
+    let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
+    let mut expected: BTreeSet<String> = std::iter::once(keys.alive_central())
+        .map(Ok)
+        .chain(site.cells.iter().map(|c| keys.alive_cell(&c.id)))
+        .chain(robots.iter().map(|r| keys.alive_robot(r)))
+        .collect::<Result<_, _>>()
+        .map_err(|e| failed(&e))?;
+    let started = Instant::now();
+    while !expected.is_empty() {
+        if let Some(dead) = sup.first_dead() {
+            return Err(CommandError::failure(format!(
+                "process {} {} during start-up",
+                dead.name, dead.status
+            )));
+        }
+        if started.elapsed() > STARTUP_TIMEOUT {
+            let missing: Vec<String> = expected.into_iter().collect();
+            return Err(CommandError::failure(format!(
+                "not live after {} s: {}",
+                STARTUP_TIMEOUT.as_secs(),
+                missing.join(", ")
+            )));
+        }
+        if let Ok(Ok(sample)) =
+            tokio::time::timeout(Duration::from_millis(100), alive.recv_async()).await
+            && sample.kind() == SampleKind::Put
+        {
+            expected.remove(sample.key_expr().as_str());
+        }
+    }
+    Ok(())
+}
+
+/// What the observer gathered over a run.
+#[derive(Debug, Default)]
+struct Observed {
+    duration_s: f64,
+    /// Each trigger's arrival: (epoch, cycle), cycle start (master time,
+    /// ns), when it arrived.
+    triggers: Vec<((u64, u64), i64, Instant)>,
+    cells: CellStats,
+    admin_ms: Vec<f64>,
+    admin_asked: usize,
+    last_status: Option<StatusReport>,
+    web_ms: Vec<f64>,
+    web_asked: usize,
+    /// CPU and memory of each process at the start and the end.
+    usage_from: Vec<(String, ProcUsage)>,
+    usage_to: Vec<(String, ProcUsage)>,
+}
+
+/// Watches the triggers and the bursts for the run's duration while the
+/// admin status and the web API are asked, and reads every process's
+/// CPU at both ends.
+async fn observe(
+    args: &CentralArgs,
+    keys: &Keys,
+    session: &zenoh::Session,
+    web: Option<std::net::SocketAddr>,
+    sup: &mut Supervisor,
+) -> Result<(Observed, Option<String>), CommandError> {
+    let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
+    let triggers = session
+        .declare_subscriber(keys.central_cycle())
+        .await
+        .map_err(|e| failed(&e))?;
+    let bursts = session
+        .declare_subscriber(keys.cell_burst_all())
+        .await
+        .map_err(|e| failed(&e))?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let web_probe = web.map(|addr| {
+        let stop = stop.clone();
+        tokio::task::spawn_blocking(move || probe_web(addr, &stop))
+    });
+    let mut seen = Observed {
+        usage_from: sup.usage(),
+        ..Observed::default()
+    };
+    let started = Instant::now();
+    let until = started + Duration::from_secs_f64(args.duration);
+    let mut probes = tokio::time::interval(PROBE_PERIOD);
+    let mut failure = None;
+    let status_key = keys.central_admin("status").map_err(|e| failed(&e))?;
+    while Instant::now() < until {
+        tokio::select! {
+            _ = tokio::time::sleep_until(until.into()) => break,
+            _ = probes.tick() => {
+                if let Some(dead) = sup.first_dead() {
+                    failure = Some(format!("process {} {}", dead.name, dead.status));
+                    break;
+                }
+                seen.admin_asked += 1;
+                let asked = Instant::now();
+                if let Some(status) = ask_status(session, &status_key).await {
+                    seen.admin_ms.push(asked.elapsed().as_secs_f64() * 1e3);
+                    seen.last_status = Some(status);
+                }
+            }
+            Ok(s) = triggers.recv_async() => {
+                if let Ok(t) = decode::<CycleTrigger>(&s.payload().to_bytes()) {
+                    seen.triggers.push(((t.epoch, t.cycle), t.start.as_nanos(), Instant::now()));
+                }
+            }
+            Ok(s) = bursts.recv_async() => {
+                if let Ok(b) = decode::<Burst>(&s.payload().to_bytes()) {
+                    seen.cells.on_burst(&b);
+                }
+            }
+        }
+    }
+    seen.duration_s = started.elapsed().as_secs_f64();
+    seen.usage_to = sup.usage();
+    stop.store(true, Ordering::Relaxed);
+    if let Some(probe) = web_probe
+        && let Ok((ms, asked)) = probe.await
+    {
+        seen.web_ms = ms;
+        seen.web_asked = asked;
+    }
+    Ok((seen, failure))
+}
+
+/// The central unit's status, or `None` when it did not answer in time.
+async fn ask_status(session: &zenoh::Session, key: &str) -> Option<StatusReport> {
+    let replies = session.get(key).timeout(PROBE_TIMEOUT).await.ok()?;
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result()
+            && let Ok(status) = decode::<StatusReport>(&sample.payload().to_bytes())
+        {
+            return Some(status);
+        }
+    }
+    None
+}
+
+/// Asks the web API for the status every [`PROBE_PERIOD`] until `stop`:
+/// how long each answer took, ms, and how many were asked.
+fn probe_web(addr: std::net::SocketAddr, stop: &AtomicBool) -> (Vec<f64>, usize) {
+    let (mut ms, mut asked) = (Vec::new(), 0);
+    while !stop.load(Ordering::Relaxed) {
+        asked += 1;
+        let started = Instant::now();
+        if get_status(addr).is_ok() {
+            ms.push(started.elapsed().as_secs_f64() * 1e3);
+        }
+        std::thread::sleep(PROBE_PERIOD);
+    }
+    (ms, asked)
+}
+
+/// One `GET /api/status`, read to its end; an error unless it is a 200.
+fn get_status(addr: std::net::SocketAddr) -> std::io::Result<()> {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect_timeout(&addr, PROBE_TIMEOUT)?;
+    s.set_read_timeout(Some(PROBE_TIMEOUT))?;
+    s.write_all(b"GET /api/status HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")?;
+    let mut answer = Vec::new();
+    s.read_to_end(&mut answer)?;
+    if answer.starts_with(b"HTTP/1.1 200") {
+        Ok(())
+    } else {
+        Err(std::io::Error::other("not a 200 answer"))
+    }
+}
+
+impl Observed {
+    /// The figures of one size.
+    fn report(&self, robots: usize, failure: Option<String>) -> CentralReport {
+        let (jitter_us, period_ms) = self.trigger_jitter();
+        let share = |kind: &str| self.cpu_share(kind);
+        let central_cpu_share = share("central");
+        let sync = self.cells.summary("all", &BTreeSet::new());
+        let status = self.last_status.as_ref();
+        CentralReport {
+            robots,
+            duration_s: self.duration_s,
+            failure,
+            robots_up_at_central: status.map_or(0, |s| s.robots.iter().filter(|r| r.up).count()),
+            robots_posed_at_central: status
+                .map_or(0, |s| s.robots.iter().filter(|r| r.pose_valid).count()),
+            cycles: self.triggers.len(),
+            cycle_period_ms: period_ms,
+            trigger_jitter_p50_us: percentile(&jitter_us, 50.0),
+            trigger_jitter_p99_us: percentile(&jitter_us, 99.0),
+            trigger_jitter_max_us: jitter_us.iter().copied().reduce(f64::max),
+            central_cpu_share,
+            central_cpu_per_robot_ppm: central_cpu_share.map(|s| s * 1e6 / robots as f64),
+            central_peak_rss_mib: self
+                .usage_to
+                .iter()
+                .find(|(n, _)| n == "central")
+                .map(|(_, u)| u.peak_rss_bytes as f64 / (1024.0 * 1024.0)),
+            router_cpu_share: share("router"),
+            fleet_cpu_share: share("fleet"),
+            sync_error_p99_us: sync.sync_error_us,
+            sync_error_max_us: sync.sync_error_max_us,
+            admin_status_p50_ms: percentile(&self.admin_ms, 50.0),
+            admin_status_p99_ms: percentile(&self.admin_ms, 99.0),
+            admin_status_asked: self.admin_asked,
+            admin_status_unanswered: self.admin_asked - self.admin_ms.len(),
+            web_status_p50_ms: percentile(&self.web_ms, 50.0),
+            web_status_p99_ms: percentile(&self.web_ms, 99.0),
+            web_status_asked: self.web_asked,
+            web_status_failed: self.web_asked - self.web_ms.len(),
+            survey_publications: status.map_or(0, |s| s.survey_publications),
+            survey_publish_mean_ms: status
+                .filter(|s| s.survey_publications > 0)
+                .map(|s| s.survey_publish_mean_us / 1e3),
+            survey_publish_max_ms: status
+                .filter(|s| s.survey_publications > 0)
+                .map(|s| s.survey_publish_max_us / 1e3),
+        }
+    }
+
+    /// Each trigger's lateness against its predecessor's arrival plus the
+    /// cycle between their starts (µs), and the mean cycle (ms).
+    fn trigger_jitter(&self) -> (Vec<f64>, Option<f64>) {
+        trigger_jitter(&self.triggers)
+    }
+
+    /// The CPU share of one core the processes named `kind` (or starting
+    /// with `kind `) used between the two readings.
+    fn cpu_share(&self, kind: &str) -> Option<f64> {
+        let of = |usage: &[(String, ProcUsage)]| -> Option<f64> {
+            let mut found = false;
+            let mut cpu_s = 0.0;
+            for (name, u) in usage {
+                if name == kind || name.starts_with(&format!("{kind} ")) {
+                    found = true;
+                    cpu_s += u.cpu_s;
+                }
+            }
+            found.then_some(cpu_s)
+        };
+        let used_s = of(&self.usage_to)? - of(&self.usage_from)?;
+        (self.duration_s > 0.0).then(|| used_s / self.duration_s)
+    }
+}
+
+/// How late each trigger arrived against its predecessor's arrival plus
+/// the time between their cycle starts, µs (the absolute value; only
+/// consecutive cycles of one epoch), and the mean time between cycle
+/// starts, ms.
+fn trigger_jitter(triggers: &[((u64, u64), i64, Instant)]) -> (Vec<f64>, Option<f64>) {
+    let mut jitter_us = Vec::new();
+    let mut periods_ms = Vec::new();
+    for w in triggers.windows(2) {
+        let ((e0, c0), start0, at0) = w[0];
+        let ((e1, c1), start1, at1) = w[1];
+        if e0 != e1 || c1 != c0 + 1 {
+            continue;
+        }
+        let nominal_s = (start1 - start0) as f64 * 1e-9;
+        let seen_s = at1.duration_since(at0).as_secs_f64();
+        jitter_us.push((seen_s - nominal_s).abs() * 1e6);
+        periods_ms.push(nominal_s * 1e3);
+    }
+    let period =
+        (!periods_ms.is_empty()).then(|| periods_ms.iter().sum::<f64>() / periods_ms.len() as f64);
+    (jitter_us, period)
+}
+
+/// The table: one row per size.
+fn render(reports: &[CentralReport]) -> String {
+    use std::fmt::Write;
+    let show =
+        |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |v| format!("{v:.digits$}"));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+        "robots",
+        "up/posed",
+        "cycles",
+        "central",
+        "RSS MiB",
+        "jitter p50/p99",
+        "jitter max",
+        "admin p50/p99",
+        "web p50/p99",
+        "sync p99",
+        "fleet",
+        "survey mean/max"
+    );
+    let _ = writeln!(
+        out,
+        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+        "", "", "", "% core", "", "µs", "µs", "ms", "ms", "µs", "% core", "ms"
+    );
+    for r in reports {
+        let _ = writeln!(
+            out,
+            "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+            r.robots,
+            format!("{}/{}", r.robots_up_at_central, r.robots_posed_at_central),
+            r.cycles,
+            show(r.central_cpu_share.map(|s| s * 100.0), 1),
+            show(r.central_peak_rss_mib, 1),
+            format!(
+                "{}/{}",
+                show(r.trigger_jitter_p50_us, 0),
+                show(r.trigger_jitter_p99_us, 0)
+            ),
+            show(r.trigger_jitter_max_us, 0),
+            format!(
+                "{}/{}",
+                show(r.admin_status_p50_ms, 1),
+                show(r.admin_status_p99_ms, 1)
+            ),
+            format!(
+                "{}/{}",
+                show(r.web_status_p50_ms, 1),
+                show(r.web_status_p99_ms, 1)
+            ),
+            show(r.sync_error_p99_us, 0),
+            show(r.fleet_cpu_share.map(|s| s * 100.0), 0),
+            format!(
+                "{}/{}",
+                show(r.survey_publish_mean_ms, 1),
+                show(r.survey_publish_max_ms, 1)
+            ),
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jitter_is_the_arrival_interval_against_the_cycle_starts() {
+        let t0 = Instant::now();
+        let ms = |m: u64| t0 + Duration::from_millis(m);
+        let triggers = vec![
+            ((1, 0), 0, ms(0)),
+            ((1, 1), 100_000_000, ms(101)),
+            ((1, 2), 200_000_000, ms(200)),
+            // A gap in the cycles and another epoch are not compared.
+            ((1, 4), 400_000_000, ms(450)),
+            ((2, 5), 500_000_000, ms(460)),
+        ];
+        let (jitter_us, period_ms) = trigger_jitter(&triggers);
+        assert_eq!(jitter_us.len(), 2);
+        assert!((jitter_us[0] - 1_000.0).abs() < 1.0);
+        assert!((jitter_us[1] - 1_000.0).abs() < 1.0);
+        assert!((period_ms.expect("cycles") - 100.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_cpu_split_keeps_cpu_0_for_the_central_unit() {
+        if let Some((central, rest)) = cpu_split() {
+            assert_eq!(central, "0");
+            assert!(rest.starts_with('1'));
+        }
+    }
+}

@@ -270,6 +270,11 @@ impl SpacingTable {
             .collect()
     }
 
+    /// How many sample points the table holds (indices `0..point_count`).
+    pub fn point_count(&self) -> usize {
+        self.points.len()
+    }
+
     /// The sample points within `radius_m` of `centre` (indices).
     pub fn points_within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
         // Squared distances: the plan asks this for every robot, and

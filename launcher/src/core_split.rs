@@ -64,6 +64,31 @@ impl CoreSplit {
             .map_err(SplitError::Read)
     }
 
+    /// The first CPU this process may use alone, and the rest (`ickon
+    /// bench central`: the central unit on one core, everything else on
+    /// the others).
+    pub fn first_alone() -> Result<Self, SplitError> {
+        let available = Cpus::available()?;
+        let first: Vec<usize> = available.iter().take(1).collect();
+        let rest: Vec<usize> = available.iter().skip(1).collect();
+        if rest.is_empty() {
+            return Err(SplitError::OneCpu(available));
+        }
+        let list = |cpus: &[usize]| {
+            Cpus::parse(
+                &cpus
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+                    .join(","),
+            )
+        };
+        Ok(Self {
+            servers: list(&first)?,
+            simulation: list(&rest)?,
+        })
+    }
+
     /// Splits `available` in two.
     fn split(available: Result<Cpus, CpusError>) -> Result<Self, SplitError> {
         let available = available?;
@@ -116,6 +141,17 @@ mod tests {
             (two.servers.to_string(), two.simulation.to_string()),
             ("2".into(), "5".into())
         );
+    }
+
+    #[test]
+    fn the_first_cpu_alone_and_the_rest() {
+        // This machine's: at least the shape, whatever its CPUs.
+        if let Ok(split) = CoreSplit::first_alone() {
+            assert_eq!(split.servers.len(), 1);
+            let all = Cpus::available().unwrap();
+            assert_eq!(split.servers.len() + split.simulation.len(), all.len());
+            assert_eq!(split.servers.iter().next(), all.iter().next());
+        }
     }
 
     #[test]

@@ -27,6 +27,7 @@ use ickon_proto::site::Site;
 use ickon_runtime::CommandError;
 
 use crate::args::{Mesh, SimArgs};
+use crate::core_split::{CoreSplit, Side};
 use crate::launch::{node_command, wait_for_listener};
 use crate::metrics::{CellStats, percentile};
 use crate::nodes::NodeCommands;
@@ -44,8 +45,6 @@ const PROBE_PERIOD: Duration = Duration::from_millis(500);
 /// How long an admin query or a web request may take before it counts as
 /// unanswered.
 const PROBE_TIMEOUT: Duration = Duration::from_secs(5);
-/// The environment variable that pins an `ickon` process to CPUs.
-const CPUS_ENV: &str = "ICKON_CPUS";
 
 /// Arguments of `ickon bench central`.
 #[derive(Debug, Args)]
@@ -227,20 +226,6 @@ fn sim_args(args: &CentralArgs, robots: usize) -> SimArgs {
     }
 }
 
-/// The CPUs of the central unit and of everything else, as
-/// [`CPUS_ENV`] takes them (`None`: one CPU, nothing to separate).
-fn cpu_split() -> Option<(&'static str, String)> {
-    let cpus = std::thread::available_parallelism().map_or(1, usize::from);
-    (cpus >= 2).then(|| {
-        let rest = if cpus == 2 {
-            "1".to_string()
-        } else {
-            format!("1-{}", cpus - 1)
-        };
-        ("0", rest)
-    })
-}
-
 /// Runs the servers and the synthetic fleet of `robots` once and measures.
 async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, CommandError> {
     let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
@@ -298,11 +283,13 @@ async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, Com
         .next()
         .map(|(_, cmd)| cmd)
         .ok_or_else(|| CommandError::failure("no router"))?;
-    if let Some((central_cpus, rest)) = cpu_split() {
-        central.env(CPUS_ENV, central_cpus);
-        router.env(CPUS_ENV, &rest);
+    // The central unit alone on the first CPU, the rest on the others
+    // (one CPU: nothing to separate).
+    if let Ok(split) = CoreSplit::first_alone() {
+        split.pin(&mut central, Side::Servers);
+        split.pin(&mut router, Side::Simulation);
         for (_, cmd) in &mut others {
-            cmd.env(CPUS_ENV, &rest);
+            split.pin(cmd, Side::Simulation);
         }
     }
     let mut sup = Supervisor::new();
@@ -724,13 +711,5 @@ mod tests {
         assert!((jitter_us[0] - 1_000.0).abs() < 1.0);
         assert!((jitter_us[1] - 1_000.0).abs() < 1.0);
         assert!((period_ms.expect("cycles") - 100.0).abs() < 1e-9);
-    }
-
-    #[test]
-    fn the_cpu_split_keeps_cpu_0_for_the_central_unit() {
-        if let Some((central, rest)) = cpu_split() {
-            assert_eq!(central, "0");
-            assert!(rest.starts_with('1'));
-        }
     }
 }

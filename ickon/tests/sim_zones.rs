@@ -144,7 +144,7 @@ fn impossible_router_counts_are_refused_before_anything_starts() {
         ("0", "at least one router"),
         ("5", "more than the 4 cells"),
         ("1000000", "more than the 4 cells"),
-        ("-1", "'-1'"),
+        ("-1", "invalid value '-1' for '--routers"),
         ("two", "--routers"),
         ("99999999999999999999999", "--routers"),
     ] {

@@ -73,7 +73,7 @@ pub struct SimArgs {
     /// where it starts) a client of its zone's router; routers 2 to N linked
     /// to the first, where the central unit, the world and the launcher
     /// connect. 1 is one router for the whole site.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_hyphen_values = true)]
     pub routers: usize,
     /// Record every message of the run into this MCAP file (as `ickon
     /// record`; refused if it exists), with what a replay needs to run the

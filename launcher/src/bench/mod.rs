@@ -57,7 +57,7 @@ pub struct ScaleArgs {
     #[arg(long, value_enum, default_value = "router")]
     pub mesh: Mesh,
     /// Routers, one per zone of the site (`ickon sim --routers`).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_hyphen_values = true)]
     pub routers: usize,
     /// Print one JSON document (every size's full `ickon sim` report) instead of the table.
     #[arg(long)]

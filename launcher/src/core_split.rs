@@ -69,24 +69,13 @@ impl CoreSplit {
     /// the others).
     pub fn first_alone() -> Result<Self, SplitError> {
         let available = Cpus::available()?;
-        let first: Vec<usize> = available.iter().take(1).collect();
-        let rest: Vec<usize> = available.iter().skip(1).collect();
-        if rest.is_empty() {
-            return Err(SplitError::OneCpu(available));
+        match available.split_after(1) {
+            Some((servers, simulation)) => Ok(Self {
+                servers,
+                simulation,
+            }),
+            None => Err(SplitError::OneCpu(available)),
         }
-        let list = |cpus: &[usize]| {
-            Cpus::parse(
-                &cpus
-                    .iter()
-                    .map(usize::to_string)
-                    .collect::<Vec<_>>()
-                    .join(","),
-            )
-        };
-        Ok(Self {
-            servers: list(&first)?,
-            simulation: list(&rest)?,
-        })
     }
 
     /// Splits `available` in two.

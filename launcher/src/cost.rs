@@ -8,7 +8,7 @@ use std::fmt::Write;
 use serde::Serialize;
 
 use crate::core_split::{CoreSplit, Side};
-use crate::usage::ProcUsage;
+use crate::usage::{ProcUsage, kind_of};
 
 /// The CPU one side of the run used while it was watched.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -50,11 +50,6 @@ pub struct Cost {
     pub agent: Option<AgentCost>,
 }
 
-/// The kind of a process: the first word of its name.
-fn kind(name: &str) -> &str {
-    name.split_whitespace().next().unwrap_or(name)
-}
-
 impl Cost {
     /// The cost between two readings of every process (`before` when the
     /// run started to be watched, `after` `watched_s` later) for `robots`
@@ -77,7 +72,7 @@ impl Cost {
         let side = |which: Side| {
             let mine: Vec<f64> = after
                 .iter()
-                .filter(|(n, _)| Side::of_kind(kind(n)) == which)
+                .filter(|(n, _)| Side::of_kind(kind_of(n)) == which)
                 .map(|(n, u)| used(n, u))
                 .collect();
             let cpu_s: f64 = mine.iter().sum();
@@ -94,7 +89,7 @@ impl Cost {
         };
         let agents: Vec<(&String, &ProcUsage)> = after
             .iter()
-            .filter(|(n, _)| matches!(kind(n), "msu" | "fleet"))
+            .filter(|(n, _)| matches!(kind_of(n), "msu" | "fleet"))
             .map(|(n, u)| (n, u))
             .collect();
         let agent = (!agents.is_empty() && robots > 0 && watched_s > 0.0).then(|| {

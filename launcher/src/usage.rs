@@ -64,11 +64,16 @@ fn peak_rss_from_status(status: &str) -> Option<u64> {
     Some(kib * 1024)
 }
 
+/// The kind of a process: the first word of its name (`cell c2` -> `cell`).
+pub fn kind_of(name: &str) -> &str {
+    name.split_whitespace().next().unwrap_or(name)
+}
+
 /// Sums `(name, usage)` per kind of process, kinds in name order.
 pub fn by_kind(named: &[(String, ProcUsage)]) -> Vec<KindUsage> {
     let mut kinds: BTreeMap<String, KindUsage> = BTreeMap::new();
     for (name, u) in named {
-        let kind = name.split_whitespace().next().unwrap_or(name).to_string();
+        let kind = kind_of(name).to_string();
         let k = kinds.entry(kind.clone()).or_insert(KindUsage {
             kind,
             processes: 0,

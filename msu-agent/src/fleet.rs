@@ -12,7 +12,7 @@ use std::process::ExitCode;
 use clap::Args;
 use ickon_runtime::{NodeArgs, NodeError};
 
-use crate::node::{MsuArgs, MsuSettings, run, settings_from_args};
+use crate::node::{MsuArgs, MsuSettings, run, settings_from_args, settings_with_tuning};
 use crate::receivers::ReceiverKind;
 use crate::ros2::Ros2Options;
 
@@ -96,31 +96,26 @@ pub fn fleet_settings(args: &FleetArgs) -> Result<(Vec<MsuSettings>, Vec<String>
             return Err(format!("--receivers names {:?} twice", r.robot));
         }
     }
-    let mut all = Vec::new();
-    let mut warnings = Vec::new();
-    for robot in &args.robots {
-        let source = args
+    let lone = |robot: &str| MsuArgs {
+        mesh: args.mesh.clone(),
+        robot: robot.to_string(),
+        config: args.config.clone(),
+        estimator: args.estimator.clone(),
+        timing_sigma_us: None,
+        wheel_base_m: None,
+        m_per_tick: None,
+        receivers: args
             .receivers
             .iter()
-            .find(|r| &r.robot == robot)
-            .map_or(ReceiverKind::Sim, |r| r.source.clone());
-        let lone = MsuArgs {
-            mesh: args.mesh.clone(),
-            robot: robot.clone(),
-            config: args.config.clone(),
-            estimator: args.estimator.clone(),
-            timing_sigma_us: None,
-            wheel_base_m: None,
-            m_per_tick: None,
-            receivers: source,
-            ros2: Box::new(Ros2Options::default()),
-        };
-        let (settings, file_warnings) = settings_from_args(&lone)?;
-        // Every agent reads the same file: its warnings once.
-        if warnings.is_empty() {
-            warnings = file_warnings;
-        }
-        all.push(settings);
+            .find(|r| r.robot == robot)
+            .map_or(ReceiverKind::Sim, |r| r.source.clone()),
+        ros2: Box::new(Ros2Options::default()),
+    };
+    // Every agent reads the same file: read once, its warnings once.
+    let (first, warnings) = settings_from_args(&lone(&args.robots[0]))?;
+    let mut all = vec![first];
+    for robot in &args.robots[1..] {
+        all.push(settings_with_tuning(&lone(robot), all[0].tuning.clone())?);
     }
     Ok((all, warnings))
 }

@@ -741,6 +741,12 @@ pub fn settings_from_args(args: &MsuArgs) -> Result<(MsuSettings, Vec<String>), 
         .iter()
         .map(|w| format!("{file}:{w}"))
         .collect();
+    Ok((settings_with_tuning(args, tuning)?, warnings))
+}
+
+/// An agent's settings from its flags and a tuning already read (a
+/// process hosting several robots reads their shared file once).
+pub fn settings_with_tuning(args: &MsuArgs, tuning: MsuTuning) -> Result<MsuSettings, String> {
     let ros2_options = match &tuning.ros2 {
         Some(file) => Ros2Options::under_flags(file, &args.ros2),
         None => (*args.ros2).clone(),
@@ -762,7 +768,7 @@ pub fn settings_from_args(args: &MsuArgs) -> Result<(MsuSettings, Vec<String>), 
         clock: args.mesh.clock(),
         ros2,
     };
-    Ok((settings, warnings))
+    Ok(settings)
 }
 
 /// Runs an MSU agent as a process until Ctrl-C/SIGTERM. Exit code 2 for bad

@@ -108,10 +108,15 @@ impl Cpus {
     /// Splits the CPUs in two: the lower half (at least one) and the rest;
     /// `None` with fewer than two.
     pub fn split_in_two(&self) -> Option<(Cpus, Cpus)> {
-        if self.len() < 2 {
+        self.split_after(self.len() / 2)
+    }
+
+    /// The lowest `first` CPUs and the rest; `None` unless both sides get
+    /// at least one.
+    pub fn split_after(&self, first: usize) -> Option<(Cpus, Cpus)> {
+        if first == 0 || first >= self.len() {
             return None;
         }
-        let first = self.len() / 2;
         let low = self.0.iter().copied().take(first).collect();
         let high = self.0.iter().copied().skip(first).collect();
         Some((Self(low), Self(high)))
@@ -225,6 +230,12 @@ mod tests {
             ("0".into(), "1-2".into())
         );
         assert!(Cpus::parse("5").unwrap().split_in_two().is_none());
+        let (first, rest) = Cpus::parse("2,4-6").unwrap().split_after(1).unwrap();
+        assert_eq!(
+            (first.to_string(), rest.to_string()),
+            ("2".into(), "4-6".into())
+        );
+        assert!(Cpus::parse("0-3").unwrap().split_after(4).is_none());
     }
 
     #[test]

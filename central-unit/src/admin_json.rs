@@ -6,7 +6,9 @@
 //! name says so (`sync_error_us`, `offset_us`, `drift_ppm`, `period_ms`);
 //! a figure that is not known yet is `null`, never a made-up zero.
 
-use ickon_proto::msg::admin::{CellHealth, CoverageReport, RobotHealth, StatusReport};
+use ickon_proto::msg::admin::{
+    CellHealth, CoverageReport, RobotHealth, StatusReport, TransmittersReport,
+};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
@@ -174,6 +176,17 @@ pub struct StatusJson {
     pub survey_publish_mean_us: Option<f64>,
     /// See `survey_publish_mean_us`.
     pub survey_publish_max_us: Option<f64>,
+    /// The speed of sound the MSUs solve with, m/s: the one learnt from the
+    /// fleet's fixes, or the site file's (`speed_of_sound_learnt` says which).
+    pub speed_of_sound_m_s: f64,
+    /// Its one-sigma uncertainty, m/s (`null`: the site file's, not learnt).
+    pub speed_of_sound_sigma_m_s: Option<f64>,
+    /// Whether `speed_of_sound_m_s` is learnt.
+    pub speed_of_sound_learnt: bool,
+    /// The site file's speed of sound, m/s.
+    pub site_speed_of_sound_m_s: f64,
+    /// Transmitters left out of the fixes (dead, weak or moved).
+    pub transmitters_left_out: Vec<u32>,
     /// Every cell, when asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cells: Option<Vec<CellJson>>,
@@ -197,6 +210,16 @@ impl StatusJson {
             survey_publications: s.survey_publications,
             survey_publish_mean_us: (s.survey_publications > 0).then_some(s.survey_publish_mean_us),
             survey_publish_max_us: (s.survey_publications > 0).then_some(s.survey_publish_max_us),
+            speed_of_sound_m_s: if s.speed_of_sound_m_s > 0.0 {
+                s.speed_of_sound_m_s
+            } else {
+                s.site_speed_of_sound_m_s
+            },
+            speed_of_sound_sigma_m_s: (s.speed_of_sound_m_s > 0.0)
+                .then_some(s.speed_of_sound_sigma_m_s),
+            speed_of_sound_learnt: s.speed_of_sound_m_s > 0.0,
+            site_speed_of_sound_m_s: s.site_speed_of_sound_m_s,
+            transmitters_left_out: s.transmitters_left_out.clone(),
             cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
             robots: robots.then(|| s.robots.iter().map(RobotJson::from).collect()),
         }
@@ -350,6 +373,97 @@ impl<'a> From<&'a CoverageReport> for CoverageJson<'a> {
             on_floor: &r.on_floor,
             visible: &r.visible,
             hdop: &r.hdop,
+        }
+    }
+}
+
+/// One transmitter in `transmitters --json` and `/api/transmitters`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TransmitterJson {
+    /// Transmitter id.
+    pub id: u32,
+    /// Its cell.
+    pub cell: String,
+    /// `unknown`, `healthy`, `dead`, `weak` or `moved`.
+    pub condition: String,
+    /// Whether its arrivals are left out of the fixes.
+    pub left_out: bool,
+    /// The evidence behind the condition, in words.
+    pub evidence: String,
+    /// Recent fixes a robot was near it in.
+    pub due: f64,
+    /// Share of them it was heard in, percent.
+    pub heard_pct: Option<f64>,
+    /// Share its cell's others were heard in from the same fixes, percent.
+    pub expected_pct: Option<f64>,
+    /// Share of its heard arrivals the robots rejected, percent.
+    pub rejected_pct: Option<f64>,
+    /// Mean of its residuals in the fixes that used it, mm.
+    pub residual_mean_mm: Option<f64>,
+    /// Their standard deviation, mm.
+    pub residual_std_mm: Option<f64>,
+    /// Seconds since a robot last heard it.
+    pub last_heard_s_ago: Option<f64>,
+    /// What the survey calibration adds to its surveyed position, mm.
+    pub offset_mm: [f64; 3],
+}
+
+/// `transmitters --json` and `/api/transmitters`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TransmittersJson {
+    /// Site name.
+    pub site: String,
+    /// Whether the central unit learns from the fleet's fixes at all.
+    pub learning: bool,
+    /// Fixes of the fleet behind the calibration.
+    pub fixes_taken: u64,
+    /// The speed of sound the MSUs solve with, m/s.
+    pub speed_of_sound_m_s: f64,
+    /// Its one-sigma uncertainty, m/s (`null`: the site file's).
+    pub speed_of_sound_sigma_m_s: Option<f64>,
+    /// Whether `speed_of_sound_m_s` is learnt.
+    pub speed_of_sound_learnt: bool,
+    /// The site file's speed of sound, m/s.
+    pub site_speed_of_sound_m_s: f64,
+    /// Every transmitter, in the site's order.
+    pub transmitters: Vec<TransmitterJson>,
+}
+
+impl From<&TransmittersReport> for TransmittersJson {
+    fn from(r: &TransmittersReport) -> Self {
+        let known = |v: f64| (v >= 0.0).then_some(v);
+        Self {
+            site: r.site.clone(),
+            learning: r.learning,
+            fixes_taken: r.fixes_taken,
+            speed_of_sound_m_s: if r.speed_of_sound_m_s > 0.0 {
+                r.speed_of_sound_m_s
+            } else {
+                r.site_speed_of_sound_m_s
+            },
+            speed_of_sound_sigma_m_s: (r.speed_of_sound_m_s > 0.0)
+                .then_some(r.speed_of_sound_sigma_m_s),
+            speed_of_sound_learnt: r.speed_of_sound_m_s > 0.0,
+            site_speed_of_sound_m_s: r.site_speed_of_sound_m_s,
+            transmitters: r
+                .transmitters
+                .iter()
+                .map(|t| TransmitterJson {
+                    id: t.tx_id,
+                    cell: t.cell_id.clone(),
+                    condition: t.condition.clone(),
+                    left_out: t.left_out,
+                    evidence: t.evidence.clone(),
+                    due: (t.due * 10.0).round() / 10.0,
+                    heard_pct: known(t.heard_pct),
+                    expected_pct: known(t.expected_pct),
+                    rejected_pct: known(t.rejected_pct),
+                    residual_mean_mm: t.residuals_known.then(|| round_mm(t.residual_mean_m)),
+                    residual_std_mm: t.residuals_known.then(|| round_mm(t.residual_std_m)),
+                    last_heard_s_ago: known(t.last_heard_s_ago),
+                    offset_mm: t.offset_m.map(round_mm),
+                })
+                .collect(),
         }
     }
 }

@@ -33,5 +33,6 @@ pub mod schedule;
 pub mod selection;
 pub mod spacing;
 pub mod survey_calibration;
+pub mod transmitter_health;
 
 pub use schedule::{ScheduleError, compute_schedule, update_rate_hz};

@@ -58,6 +58,10 @@ pub struct CentralArgs {
     /// (nor publish them on `central/survey`).
     #[arg(long)]
     pub no_survey_calibration: bool,
+    /// Do not publish the speed of sound learnt from the robots' fixes:
+    /// the MSUs use the site file's throughout.
+    #[arg(long)]
+    pub no_speed_of_sound: bool,
     /// One-sigma timing noise of one arrival, microseconds: what the MSUs'
     /// data sheet states (their `timing_sigma_us`); weighs each fix in the
     /// survey calibration.
@@ -200,6 +204,7 @@ impl CentralArgs {
                 range_sigma_m: self.timing_sigma_us * 1e-6 * site.speed_of_sound_m_s,
                 cell_sync_sigma_m: self.cell_sync_sigma_us * 1e-6 * site.speed_of_sound_m_s,
                 cell_sync_memory_s: self.cell_sync_memory_h * 3600.0,
+                learn_speed_of_sound: !self.no_speed_of_sound,
                 ..Default::default()
             });
         config
@@ -829,6 +834,7 @@ async fn answer_admin(
     match command.as_str() {
         "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
         "schedule" => reply(q, &core.current_firing()).await,
+        "transmitters" => reply(q, &core.transmitters(now)).await,
         "coverage" => {
             // No payload (or an unreadable one): the default grid.
             let resolution_m = q

@@ -1,5 +1,5 @@
-//! The fleet's calibration of the transmitters' surveyed positions
-//! (issues 18 and 20).
+//! The fleet's calibration of the transmitters' surveyed positions, the
+//! cells' lateness and the speed of sound.
 //!
 //! A robot hears most transmitters steeply from below, so an error in a
 //! transmitter's surveyed height goes almost whole into its range, while
@@ -25,8 +25,11 @@
 //! history: the transmitters do not move; the cells' lateness, which
 //! changes with their network paths, is forgotten over
 //! [`CalibrationConfig::cell_sync_memory_s`], see `forgetting`). The speed
-//! of sound is estimated only so that it does not leak into the positions;
-//! it changes with the air and is not published. The cells' sync errors are published, as each
+//! of sound changes with the air: it is forgotten over
+//! [`CalibrationConfig::sound_memory_s`] and published as a speed, which
+//! every MSU turns its arrival times into ranges with from the next cycle
+//! (the fixes solved with it are read with it put back, as the offsets
+//! are). The cells' sync errors are published, as each
 //! transmitter's lateness (`late_m`), which the MSUs take from its
 //! pseudo-ranges: what a cell's sync is off by is mostly the asymmetry of
 //! its network path, which no clock exchange can see and which stays
@@ -47,7 +50,8 @@
 use std::collections::BTreeMap;
 
 use ickon_proto::msg::control::{
-    MAX_LATE_M, MAX_SURVEY_OFFSET_M, SurveyCalibration as SurveyMessage, TransmitterOffset,
+    MAX_LATE_M, MAX_SOUND_SPEED_CHANGE, MAX_SURVEY_OFFSET_M, SurveyCalibration as SurveyMessage,
+    TransmitterOffset,
 };
 use ickon_proto::msg::robot::{Fix, FixQuality};
 use ickon_proto::site::{Column, Site, Wall, line_of_sight};
@@ -55,6 +59,8 @@ use ickon_proto::time::{Duration, Time};
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use consensus::{Consensus, RobotCheck};
+
+use crate::transmitter_health::{HealthConfig, TransmitterHealth, TransmitterReport};
 
 /// What the calibration assumes of the site's sensors (data-sheet values)
 /// and how often it is published.
@@ -70,9 +76,19 @@ pub struct CalibrationConfig {
     /// times the speed of sound; never less than 1 cm is used, see
     /// `MIN_RANGE_SIGMA_M`).
     pub range_sigma_m: f64,
-    /// One-sigma relative error of the speed of sound the MSUs assume (the
-    /// air's temperature off by a degree: 0.0018).
+    /// One-sigma relative error of the site's speed of sound in the hall's
+    /// air at any one time (0.0018 per degree Celsius): the stationary
+    /// sigma of the learnt speed of sound. 0: the site's speed is held.
     pub sound_scale_sigma: f64,
+    /// The correlation time of the air's speed of sound, seconds: the
+    /// learnt speed follows a change of the air within a fraction of this
+    /// (with the fixes of a few robots, seconds; `forgetting`). 0: the
+    /// speed is learnt once for good.
+    pub sound_memory_s: f64,
+    /// Whether the learnt speed of sound is published for the MSUs to
+    /// solve with (`false`: it is still estimated, so that the air does not
+    /// leak into the transmitters' positions, but the site's is used).
+    pub learn_speed_of_sound: bool,
     /// How long a cell's lateness is remembered, seconds: its correlation
     /// time (`survey_calibration::forgetting`); a re-routed cell's new
     /// lateness is followed within about this long. 0: for good.
@@ -84,16 +100,25 @@ pub struct CalibrationConfig {
 impl Default for CalibrationConfig {
     /// The values a site states before it has measured anything: a survey
     /// to 1 cm per axis (a tape and a laser meter), the cells' sync within
-    /// about 60 us, the seeds' receivers' 50 us timing noise at 343 m/s,
-    /// the air within a degree, a cell's lateness remembered for a day (a
-    /// network path is re-routed rarely; a day keeps what was learnt
-    /// through a night the fleet stands idle), published every second.
+    /// about 60 us, a receiver's 50 us timing noise at 343 m/s, a cell's
+    /// lateness remembered for a day (a network path is re-routed rarely; a
+    /// day keeps what was learnt through a night the fleet stands idle),
+    /// published every second, the speed of sound learnt. The air: a heated hall stays within about 5
+    /// degrees of its nominal temperature (one sigma, 0.009 of the speed of
+    /// sound) and wanders over tens of minutes (a memory of 600 s): its
+    /// daily swing of 5 to 15 degrees takes hours, a door opened changes it
+    /// by a few degrees within a minute. That random walk (0.0018 per
+    /// degree, 2 sigma^2 / memory = 2.7e-7 per second) lets the speed move
+    /// by a degree's worth in about 45 s of no fixes; with a few robots'
+    /// fixes the estimate settles within seconds.
     fn default() -> Self {
         Self {
             survey_sigma_m: 0.01,
             cell_sync_sigma_m: 0.02,
             range_sigma_m: 50e-6 * 343.0,
-            sound_scale_sigma: 0.0018,
+            sound_scale_sigma: 0.009,
+            sound_memory_s: 600.0,
+            learn_speed_of_sound: true,
             cell_sync_memory_s: 86_400.0,
             publish_every: Duration::from_millis(1_000),
         }
@@ -261,6 +286,19 @@ pub struct SurveyCalibration {
     information: DMatrix<f64>,
     weighted: DVector<f64>,
     fixes_taken: u64,
+    /// The site's speed of sound, m/s: the learnt relative error scales it.
+    site_speed_m_s: f64,
+}
+
+/// The speed of sound learnt from the fleet's fixes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LearntSpeed {
+    /// The speed of sound, m/s.
+    pub speed_m_s: f64,
+    /// Its one-sigma uncertainty, m/s.
+    pub sigma_m_s: f64,
+    /// Its relative change from the site's speed.
+    pub scale: f64,
 }
 
 impl SurveyCalibration {
@@ -306,6 +344,18 @@ impl SurveyCalibration {
             information,
             weighted: DVector::zeros(n),
             fixes_taken: 0,
+            site_speed_m_s: site.speed_of_sound_m_s,
+        }
+    }
+
+    /// The speed of sound learnt so far (`estimate` of every parameter,
+    /// [`Self::estimate`]; its variance from `variance`): the site's speed
+    /// scaled by the learnt relative error.
+    fn learnt_speed(&self, scale: f64, variance: f64) -> LearntSpeed {
+        LearntSpeed {
+            speed_m_s: self.site_speed_m_s * (1.0 + scale),
+            sigma_m_s: self.site_speed_m_s * variance.max(0.0).sqrt(),
+            scale,
         }
     }
 
@@ -452,15 +502,31 @@ impl SurveyCalibration {
         self.corrections_and_estimate().0
     }
 
+    /// The speed of sound learnt from everything taken so far (the site's,
+    /// with its prior sigma, when numbers went wrong).
+    pub fn speed_of_sound(&self) -> LearntSpeed {
+        self.corrections_estimate_and_speed().2
+    }
+
     /// The corrections ([`Self::corrections`]) and the estimate of every
     /// parameter ([`Self::estimate`]) from one factorisation: the work of a
     /// publication, a dense solve over every transmitter, done once.
     pub fn corrections_and_estimate(&self) -> (Vec<TransmitterCorrection>, Option<DVector<f64>>) {
+        let (corrections, estimate, _) = self.corrections_estimate_and_speed();
+        (corrections, estimate)
+    }
+
+    /// [`Self::corrections_and_estimate`] and the learnt speed of sound
+    /// from the same factorisation.
+    pub fn corrections_estimate_and_speed(
+        &self,
+    ) -> (Vec<TransmitterCorrection>, Option<DVector<f64>>, LearntSpeed) {
         let n_tx = self.ids.len();
+        let prior_speed = self.learnt_speed(0.0, self.config.sound_scale_sigma.powi(2));
         // The prior alone is positive definite and every fix adds a
         // positive semi-definite term: only numbers gone wrong fail here.
         let Some(cholesky) = self.information.clone().cholesky() else {
-            return (self.prior_corrections(), None);
+            return (self.prior_corrections(), None, prior_speed);
         };
         let estimate = cholesky.solve(&self.weighted);
         // Only the covariance's diagonal is published: with the
@@ -472,7 +538,7 @@ impl SurveyCalibration {
             .l()
             .solve_lower_triangular(&DMatrix::identity(n, n))
         else {
-            return (self.prior_corrections(), None);
+            return (self.prior_corrections(), None, prior_speed);
         };
         let variance: Vec<f64> = (0..n).map(|i| l_inverse.column(i).norm_squared()).collect();
         let scale = estimate.len() - 1;
@@ -498,7 +564,8 @@ impl SurveyCalibration {
                 }
             })
             .collect();
-        (corrections, Some(estimate))
+        let speed = self.learnt_speed(estimate[scale], variance[scale]);
+        (corrections, Some(estimate), speed)
     }
 }
 
@@ -560,6 +627,7 @@ fn publishable(c: TransmitterCorrection, config: &CalibrationConfig) -> (Transmi
         sigma_m,
         late_m,
         late_sigma_m,
+        left_out: false,
     };
     (offset, position_plausible && late_plausible)
 }
@@ -598,8 +666,9 @@ pub struct SurveyPublisher {
     /// When the last calibration was published: the cells' lateness
     /// drifts from there.
     last_at: Option<Time>,
-    /// The versions published, oldest first.
-    history: std::collections::VecDeque<(u32, Applied, AppliedLate)>,
+    /// The versions published, oldest first: what each made the MSUs
+    /// apply.
+    history: std::collections::VecDeque<Published>,
     /// Transmitters already reported beyond a calibration's reach.
     warned: std::collections::BTreeSet<u32>,
     /// The fleet's check of each robot's fixes.
@@ -607,6 +676,24 @@ pub struct SurveyPublisher {
     /// The estimate of every parameter at the last publication: what the
     /// robots' fixes are checked against.
     estimate: DVector<f64>,
+    /// The speed of sound last published (`None`: the site's).
+    published_speed: Option<LearntSpeed>,
+    /// Each transmitter's health, from the trusted robots' fixes.
+    health: TransmitterHealth,
+    /// The transmitters left out at the last publication.
+    left_out: std::collections::BTreeSet<u32>,
+    /// Whether a speed beyond the bound was reported already.
+    warned_speed: bool,
+}
+
+/// What one published calibration made the MSUs apply.
+#[derive(Debug, Clone)]
+struct Published {
+    version: u32,
+    applied: Applied,
+    late: AppliedLate,
+    /// The relative change of the speed of sound from the site's.
+    sound_scale: f64,
 }
 
 impl SurveyPublisher {
@@ -624,6 +711,10 @@ impl SurveyPublisher {
             warned: std::collections::BTreeSet::new(),
             consensus: Consensus::new(config.range_sigma_m.max(MIN_RANGE_SIGMA_M)),
             estimate,
+            published_speed: None,
+            warned_speed: false,
+            health: TransmitterHealth::new(site, HealthConfig::default()),
+            left_out: std::collections::BTreeSet::new(),
         }
     }
 
@@ -667,6 +758,11 @@ impl SurveyPublisher {
     /// for the fleet's check ([`consensus`]); a fix of the robot's that the
     /// check lets through is learnt from.
     pub fn offer_fix(&mut self, key: &str, fix: &Fix, now: Time) -> Result<(), FixSkipped> {
+        // What a robot the fleet distrusts says of the transmitters is not
+        // taken either: a forger must not get a healthy one left out.
+        if self.consensus.robot(key).check != consensus::Check::Quarantined {
+            self.health.observe(fix, now);
+        }
         let read = self.read(fix)?;
         let misfit_m = read.misfit_m(&self.estimate);
         if let Some(agreed) = self.consensus.offer(key, read, misfit_m, now) {
@@ -692,12 +788,42 @@ impl SurveyPublisher {
                 .calibration
                 .read_fix(fix, &Applied::new(), &AppliedLate::new());
         }
-        let (_, applied, late) = self
+        let published = self
             .history
             .iter()
-            .find(|(v, _, _)| *v == fix.survey_version)
+            .find(|p| p.version == fix.survey_version)
             .ok_or(FixSkipped::UnknownCalibration)?;
-        self.calibration.read_fix(fix, applied, late)
+        self.calibration.read_fix_solved_with(
+            fix,
+            &published.applied,
+            &published.late,
+            published.sound_scale,
+        )
+    }
+
+    /// The offsets of the calibration published last, by transmitter id.
+    pub fn published_offsets(&self) -> Option<&Applied> {
+        self.history.back().map(|p| &p.applied)
+    }
+
+    /// The transmitters left out at the last publication, by id.
+    pub fn left_out(&self) -> &std::collections::BTreeSet<u32> {
+        &self.left_out
+    }
+
+    /// The site's speed of sound, m/s.
+    pub fn site_speed_m_s(&self) -> f64 {
+        self.calibration.site_speed_m_s
+    }
+
+    /// What the fleet saw of every transmitter at `now`, in the site's order.
+    pub fn transmitters(&self, now: Time) -> Vec<TransmitterReport> {
+        self.health.report(now)
+    }
+
+    /// The speed of sound published last (the site's before the first).
+    pub fn published_speed(&self) -> Option<LearntSpeed> {
+        self.published_speed
     }
 
     /// The calibration to publish at `now` in `epoch`, if one is due.
@@ -715,18 +841,55 @@ impl SurveyPublisher {
             self.calibration
                 .forget_cell_sync((now - last).as_secs_f64());
         }
-        let (corrections, estimate) = self.calibration.corrections_and_estimate();
+        let (corrections, estimate, speed) = self.calibration.corrections_estimate_and_speed();
         if let Some(estimate) = estimate {
             self.estimate = estimate;
         }
+        // Air further off than any hall's is no air's: the site's speed.
+        let plausible = speed.scale.abs() <= MAX_SOUND_SPEED_CHANGE && speed.sigma_m_s.is_finite();
+        let learn = self.calibration.config.learn_speed_of_sound;
+        let speed = (learn && plausible).then_some(speed);
+        if learn && !plausible && !self.warned_speed {
+            self.warned_speed = true;
+            tracing::warn!(
+                "the fleet's fixes put the speed of sound more than {} % from the site's: \
+                 the site's speed is published (check the site file's temperature)",
+                MAX_SOUND_SPEED_CHANGE * 100.0
+            );
+        }
+        self.published_speed = speed;
         let from_clock = u32::try_from(now.as_nanos().max(0) / 1_000_000_000).unwrap_or(u32::MAX);
-        let last = self.history.back().map_or(0, |(v, _, _)| *v);
+        let last = self.history.back().map_or(0, |p| p.version);
         let version = from_clock.max(last.saturating_add(1)).max(1);
         let config = self.calibration.config;
+        let left_out = self.health.left_out();
+        if left_out != self.left_out {
+            let reports = self.health.report(now);
+            for r in reports.iter().filter(|r| {
+                left_out.contains(&r.tx_id) != self.left_out.contains(&r.tx_id)
+            }) {
+                if left_out.contains(&r.tx_id) {
+                    tracing::warn!(
+                        "transmitter {} is {}: {}; left out of the robots' fixes until it is healthy",
+                        r.tx_id,
+                        r.condition.label(),
+                        TransmitterHealth::evidence(r)
+                    );
+                } else {
+                    tracing::info!(
+                        "transmitter {} is healthy again ({}): back in the robots' fixes",
+                        r.tx_id,
+                        TransmitterHealth::evidence(r)
+                    );
+                }
+            }
+            self.left_out = left_out;
+        }
         let offsets: Vec<TransmitterOffset> = corrections
             .into_iter()
             .map(|c| {
-                let (offset, plausible) = publishable(c, &config);
+                let (mut offset, plausible) = publishable(c, &config);
+                offset.left_out = self.left_out.contains(&c.tx_id);
                 if !plausible && self.warned.insert(c.tx_id) {
                     tracing::warn!(
                         "transmitter {}: the fleet's fixes put it {:?} m from its surveyed \
@@ -744,16 +907,19 @@ impl SurveyPublisher {
         if self.history.len() == HISTORY_KEPT {
             self.history.pop_front();
         }
-        self.history.push_back((
+        self.history.push_back(Published {
             version,
-            offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect(),
-            offsets.iter().map(|o| (o.tx_id, o.late_m)).collect(),
-        ));
+            applied: offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect(),
+            late: offsets.iter().map(|o| (o.tx_id, o.late_m)).collect(),
+            sound_scale: speed.map_or(0.0, |s| s.scale),
+        });
         Some(SurveyMessage {
             epoch,
             version,
             fixes_taken: self.calibration.fixes_taken(),
             offsets,
+            speed_of_sound_m_s: speed.map_or(0.0, |s| s.speed_m_s),
+            speed_of_sound_sigma_m_s: speed.map_or(0.0, |s| s.sigma_m_s),
         })
     }
 }

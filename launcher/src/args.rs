@@ -38,7 +38,7 @@ pub struct SimArgs {
     /// Estimator every MSU agent runs (`tdoa-ekf`, ours, by default).
     #[arg(long, default_value = "tdoa-ekf")]
     pub estimator: String,
-    /// Noise profile of the simulated world: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
+    /// Noise profile of the simulated world: ideal, paper, building, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Seed of every random draw (world noise, injected clock errors).
@@ -119,6 +119,10 @@ pub struct SimArgs {
     /// from the robots' fixes (on by default).
     #[arg(long)]
     pub no_survey_calibration: bool,
+    /// The central unit does not publish the speed of sound it learns
+    /// from the robots' fixes: the MSUs use the site file's throughout.
+    #[arg(long)]
+    pub no_speed_of_sound: bool,
     /// How the nodes reach the simulated hardware: `direct` (the simulated
     /// driver and receivers), or `emulated`: every cell fires through a
     /// transmitter board and every robot hears (and reads its wheel ticks

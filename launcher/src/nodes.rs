@@ -372,6 +372,9 @@ fn central_flags(args: &SimArgs, profile: &NoiseProfile) -> Vec<String> {
         .map(|v| v.get_name().to_string())
         .unwrap_or_default();
     let mut flags = vec!["--firing".to_string(), firing];
+    if args.no_speed_of_sound {
+        flags.push("--no-speed-of-sound".into());
+    }
     if args.no_survey_calibration {
         flags.push("--no-survey-calibration".into());
     } else {

@@ -124,6 +124,8 @@ mod tests {
             version,
             fixes_taken: 10,
             offsets: Vec::new(),
+            speed_of_sound_m_s: 0.0,
+            speed_of_sound_sigma_m_s: 0.0,
         }
     }
 

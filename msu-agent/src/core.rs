@@ -6,7 +6,8 @@
 
 use ickon_fusion::estimator::{EncoderSample, Estimator, GyroSample, Input, RangeSample};
 use ickon_proto::msg::control::{
-    CellStatus, CycleTrigger, MAX_LATE_M, MAX_SURVEY_OFFSET_M, Schedule, SurveyCalibration,
+    CellStatus, CycleTrigger, MAX_LATE_M, MAX_SOUND_SPEED_CHANGE, MAX_SURVEY_OFFSET_M, Schedule,
+    SurveyCalibration,
 };
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
@@ -305,7 +306,8 @@ impl MsuCore {
     /// calibration of another epoch than the schedules followed, an
     /// unknown or repeated transmitter, an offset or sigma that is not a
     /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`] or a
-    /// lateness beyond [`MAX_LATE_M`].
+    /// lateness beyond [`MAX_LATE_M`], a speed of sound more than
+    /// [`MAX_SOUND_SPEED_CHANGE`] from the site's.
     pub(crate) fn on_survey_calibration(
         &mut self,
         c: &SurveyCalibration,
@@ -376,6 +378,23 @@ impl MsuCore {
                 )));
             }
         }
+        let site_m_s = self.solver.site_speed_of_sound_m_s();
+        if c.speed_of_sound_m_s != 0.0
+            && !(c.speed_of_sound_m_s.is_finite()
+                && (c.speed_of_sound_m_s / site_m_s - 1.0).abs() <= MAX_SOUND_SPEED_CHANGE)
+        {
+            return Err(refuse(format!(
+                "speed of sound {} m/s is not a number or more than {} % from the site's {site_m_s:.2} m/s",
+                c.speed_of_sound_m_s,
+                MAX_SOUND_SPEED_CHANGE * 100.0
+            )));
+        }
+        if !(c.speed_of_sound_sigma_m_s.is_finite() && c.speed_of_sound_sigma_m_s >= 0.0) {
+            return Err(refuse(format!(
+                "speed of sound sigma {} m/s is not a number or negative",
+                c.speed_of_sound_sigma_m_s
+            )));
+        }
         if self.first_input.is_none() {
             return Ok(false);
         }
@@ -438,6 +457,12 @@ impl MsuCore {
     /// The primary estimator's fused pose, once it is initialised.
     pub fn pose(&self) -> Option<RobotPose> {
         self.pose_of(0)
+    }
+
+    /// The speed of sound the fixes are solved with now, m/s: the survey
+    /// calibration's when one applies, else the site's.
+    pub fn speed_of_sound_m_s(&self) -> f64 {
+        self.solver.config().speed_of_sound_m_s
     }
 
     /// Estimator `i`'s fused pose, once it is initialised. A stale pose

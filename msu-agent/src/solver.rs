@@ -81,6 +81,12 @@ pub struct FixSolver {
     /// How late each transmitter's bursts arrive, metres of path, by id
     /// (the calibration's `late_m`; absent: on time).
     late_m: std::collections::BTreeMap<u32, f64>,
+    /// Transmitters the calibration leaves out (dead, weak or moved):
+    /// their arrivals are dropped before any fix.
+    left_out: std::collections::BTreeSet<u32>,
+    /// The site's speed of sound, m/s: what is solved with when no
+    /// calibration says otherwise.
+    site_speed_of_sound_m_s: f64,
     /// `(epoch, version)` of the survey calibration the table carries.
     survey: Option<(u64, u32)>,
     /// A calibration and sync sigmas taken while triggers are followed,
@@ -99,6 +105,8 @@ impl FixSolver {
         Self {
             surveyed_m,
             late_m: std::collections::BTreeMap::new(),
+            left_out: std::collections::BTreeSet::new(),
+            site_speed_of_sound_m_s: config.speed_of_sound_m_s,
             survey: None,
             pending: PendingControl::default(),
             config,
@@ -152,8 +160,10 @@ impl FixSolver {
     /// Solves from now on with each transmitter at its surveyed position
     /// plus its offset in `calibration`, its pseudo-ranges shortened by its
     /// lateness (a transmitter it does not name: the surveyed position, on
-    /// time); `None`: the surveyed positions, on time. The caller checks
-    /// the calibration ([`crate::MsuCore::on_survey_calibration`]).
+    /// time), the transmitters it leaves out left out, and its speed of
+    /// sound; `None`: the surveyed positions, on time, every transmitter,
+    /// the site's speed of sound. The caller checks the calibration
+    /// ([`crate::MsuCore::on_survey_calibration`]).
     pub fn set_survey_calibration(&mut self, calibration: Option<&SurveyCalibration>) {
         let offsets: std::collections::BTreeMap<u32, [f64; 3]> = calibration
             .map(|c| c.offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect())
@@ -167,6 +177,18 @@ impl FixSolver {
         self.late_m = calibration
             .map(|c| c.offsets.iter().map(|o| (o.tx_id, o.late_m)).collect())
             .unwrap_or_default();
+        self.left_out = calibration
+            .map(|c| {
+                c.offsets
+                    .iter()
+                    .filter(|o| o.left_out)
+                    .map(|o| o.tx_id)
+                    .collect()
+            })
+            .unwrap_or_default();
+        self.config.speed_of_sound_m_s = calibration.map_or(self.site_speed_of_sound_m_s, |c| {
+            c.speed_of_sound_or(self.site_speed_of_sound_m_s)
+        });
         self.survey = calibration.map(|c| (c.epoch, c.version));
     }
 
@@ -213,6 +235,12 @@ impl FixSolver {
     /// The epoch of the schedules followed.
     pub fn schedule_epoch(&self) -> Option<u64> {
         self.schedules.epoch()
+    }
+
+    /// The site's speed of sound, m/s (the configuration's is the one
+    /// solved with, the calibration's when one applies).
+    pub fn site_speed_of_sound_m_s(&self) -> f64 {
+        self.site_speed_of_sound_m_s
     }
 
     /// The configuration.
@@ -291,6 +319,19 @@ impl FixSolver {
         let schedule = of_cycle.as_ref().unwrap_or(published);
         let c = self.config.speed_of_sound_m_s;
         let mut cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
+        if !self.left_out.is_empty() {
+            // Heard, but not solved with: listed as rejected, so that the
+            // central unit sees when a left-out transmitter is heard again.
+            let left_out = &self.left_out;
+            cycle.rejected.extend(
+                cycle
+                    .signals
+                    .iter()
+                    .filter(|s| left_out.contains(&s.tx_id))
+                    .map(|s| s.tx_id),
+            );
+            cycle.signals.retain(|s| !left_out.contains(&s.tx_id));
+        }
         for s in &mut cycle.signals {
             s.pseudo_range_m -= self.late_m.get(&s.tx_id).copied().unwrap_or(0.0);
         }

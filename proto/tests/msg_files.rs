@@ -381,6 +381,7 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
         sigma_m: [0.006, 0.007, 0.003],
         late_m: -0.0071,
         late_sigma_m: 0.0042,
+        left_out: true,
     };
     check("TransmitterOffset", &offset, &mut checked);
     check(
@@ -396,6 +397,8 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
                     ..offset
                 },
             ],
+            speed_of_sound_m_s: 346.25,
+            speed_of_sound_sigma_m_s: 0.125,
         },
         &mut checked,
     );

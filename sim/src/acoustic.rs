@@ -4,6 +4,7 @@
 use ickon_proto::site::{Site, Transmitter};
 use rand_chacha::ChaCha8Rng;
 
+use crate::air::AirField;
 use crate::profile::UltrasoundNoise;
 use crate::rng;
 
@@ -23,18 +24,18 @@ pub struct Heard {
     pub path_m: f64,
 }
 
-/// Straight-line flight time from `tx` to the MSU, with the MSU moving:
-/// solves `c tau = |tx - p(t_emit + tau)|` by fixed-point iteration (it
-/// contracts by `v / c`, about 1e-3 per step).
+/// Flight time from `tx` to the MSU through the air `air`, with the MSU
+/// moving: solves `tau = travel(tx, p(t_emit + tau))` by fixed-point
+/// iteration (it contracts by `v / c`, about 1e-3 per step).
 pub fn flight_time_s(
     tx: [f64; 3],
     t_emit_s: f64,
-    c_m_s: f64,
+    air: &AirField,
     msu_at: &impl Fn(f64) -> [f64; 3],
 ) -> f64 {
-    let mut tau = distance(tx, msu_at(t_emit_s)) / c_m_s;
+    let mut tau = air.travel_s(tx, msu_at(t_emit_s), t_emit_s);
     for _ in 0..4 {
-        tau = distance(tx, msu_at(t_emit_s + tau)) / c_m_s;
+        tau = air.travel_s(tx, msu_at(t_emit_s + tau), t_emit_s);
     }
     tau
 }
@@ -75,19 +76,19 @@ pub struct Path {
 /// The direct path of a burst of `tx` emitted at true time `t_emit_s`.
 pub fn propagate(
     site: &Site,
-    c_true_m_s: f64,
+    air: &AirField,
     tx: &Transmitter,
     t_emit_s: f64,
     pose_at: &impl Fn(f64) -> ([f64; 3], f64),
 ) -> Path {
     let msu_at = |t: f64| pose_at(t).0;
-    let tau = flight_time_s(tx.position_m, t_emit_s, c_true_m_s, &msu_at);
+    let tau = flight_time_s(tx.position_m, t_emit_s, air, &msu_at);
     let (p, heading) = pose_at(t_emit_s + tau);
     Path {
         tau_s: tau,
         msu_m: p,
         heading_rad: heading,
-        direct_m: tau * c_true_m_s,
+        direct_m: distance(tx.position_m, p),
         in_sight: site.line_of_sight(tx.position_m, p),
     }
 }
@@ -97,14 +98,14 @@ pub fn propagate(
 pub fn hear(
     site: &Site,
     noise: &UltrasoundNoise,
-    c_true_m_s: f64,
+    air: &AirField,
     tx: &Transmitter,
     t_emit_s: f64,
     pose_at: &impl Fn(f64) -> ([f64; 3], f64),
     rng: &mut ChaCha8Rng,
 ) -> Option<Heard> {
-    let path = propagate(site, c_true_m_s, tx, t_emit_s, pose_at);
-    detect(site, noise, c_true_m_s, tx, t_emit_s, &path, rng)
+    let path = propagate(site, air, tx, t_emit_s, pose_at);
+    detect(site, noise, tx, t_emit_s, &path, rng)
 }
 
 /// Whether and how the MSU's detector picks up a burst that took `path`
@@ -113,7 +114,6 @@ pub fn hear(
 pub fn detect(
     site: &Site,
     noise: &UltrasoundNoise,
-    c_true_m_s: f64,
     tx: &Transmitter,
     t_emit_s: f64,
     path: &Path,
@@ -144,7 +144,9 @@ pub fn detect(
         0.0
     };
     let jitter_s = rng::normal(rng, noise.timing_jitter_us) * 1e-6;
-    let t_true_s = t_emit_s + tau + extra_m / c_true_m_s + jitter_s;
+    // A reflection's extra path flies at the direct path's mean speed.
+    let path_speed_m_s = if tau > 0.0 { direct_m / tau } else { 343.0 };
+    let t_true_s = t_emit_s + tau + extra_m / path_speed_m_s + jitter_s;
     // A reflection comes from wherever the reflecting surface is.
     let bearing = if reflected {
         rng::uniform(rng, -std::f64::consts::PI, std::f64::consts::PI)
@@ -172,6 +174,7 @@ pub fn detect(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::air::Air;
     use crate::profile::NoiseProfile;
     use rand::SeedableRng;
 
@@ -181,12 +184,13 @@ mod tests {
         let noise = NoiseProfile::ideal().ultrasound;
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let c = site.speed_of_sound_m_s;
+        let air = AirField::new(&site, &Air::default(), 0.0);
         // In the corridor at x = 14, y = 2.2: transmitter 41 (room, y = 4.7) is behind the wall.
         let tx41 = site.transmitter(41).unwrap();
         let tx22 = site.transmitter(22).unwrap();
         let at = |_t: f64| ([14.0, 2.2, site.msu.height_m], 0.0);
-        assert!(hear(&site, &noise, c, tx41, 0.0, &at, &mut rng).is_none());
-        let h = hear(&site, &noise, c, tx22, 0.0, &at, &mut rng).unwrap();
+        assert!(hear(&site, &noise, &air, tx41, 0.0, &at, &mut rng).is_none());
+        let h = hear(&site, &noise, &air, tx22, 0.0, &at, &mut rng).unwrap();
         let d = distance(tx22.position_m, [14.0, 2.2, site.msu.height_m]);
         assert!((h.t_true_s - d / c).abs() < 1e-12);
         assert!(!h.reflected);
@@ -200,9 +204,10 @@ mod tests {
         noise.reflection_extra_m = [0.5, 0.5];
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let c = site.speed_of_sound_m_s;
+        let air = AirField::new(&site, &Air::default(), 0.0);
         let tx41 = site.transmitter(41).unwrap();
         let p = [14.0, 2.2, site.msu.height_m];
-        let h = hear(&site, &noise, c, tx41, 0.0, &|_t| (p, 0.0), &mut rng).unwrap();
+        let h = hear(&site, &noise, &air, tx41, 0.0, &|_t| (p, 0.0), &mut rng).unwrap();
         assert!(h.reflected);
         assert!((h.t_true_s - (distance(tx41.position_m, p) + 0.5) / c).abs() < 1e-12);
     }
@@ -218,10 +223,13 @@ mod tests {
 
     #[test]
     fn moving_msu_flight_time_solves_the_light_cone() {
+        let site = Site::default_site();
+        let air = AirField::new(&site, &Air::default(), 0.0);
         let tx = [0.0, 0.0, 3.0];
         let at = |t: f64| [1.0 + 0.5 * t, 0.0, 0.0];
-        let tau = flight_time_s(tx, 0.0, 343.0, &at);
-        assert!((343.0 * tau - distance(tx, at(tau))).abs() < 1e-9);
+        let tau = flight_time_s(tx, 0.0, &air, &at);
+        let c = site.speed_of_sound_m_s;
+        assert!((c * tau - distance(tx, at(tau))).abs() < 1e-9);
     }
 
     #[test]
@@ -231,12 +239,13 @@ mod tests {
         noise.timing_jitter_us = 50.0;
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let c = site.speed_of_sound_m_s;
+        let air = AirField::new(&site, &Air::default(), 0.0);
         let tx = site.transmitter(22).unwrap();
         let p = [14.0, 1.2, site.msu.height_m];
         let exact = distance(tx.position_m, p) / c;
         let errs: Vec<f64> = (0..5000)
             .map(|_| {
-                hear(&site, &noise, c, tx, 0.0, &|_t| (p, 0.0), &mut rng)
+                hear(&site, &noise, &air, tx, 0.0, &|_t| (p, 0.0), &mut rng)
                     .unwrap()
                     .t_true_s
                     - exact
@@ -255,11 +264,11 @@ mod tests {
         let mut noise = NoiseProfile::ideal().ultrasound;
         noise.drop_probability = 0.2;
         let mut rng = ChaCha8Rng::seed_from_u64(10);
-        let c = site.speed_of_sound_m_s;
+        let air = AirField::new(&site, &Air::default(), 0.0);
         let tx = site.transmitter(22).unwrap();
         let p = [14.0, 1.2, site.msu.height_m];
         let lost = (0..10_000)
-            .filter(|_| hear(&site, &noise, c, tx, 0.0, &|_t| (p, 0.0), &mut rng).is_none())
+            .filter(|_| hear(&site, &noise, &air, tx, 0.0, &|_t| (p, 0.0), &mut rng).is_none())
             .count();
         // 0.2 +- 4 sigma of a binomial share over 10 000 draws.
         assert!((lost as f64 / 10_000.0 - 0.2).abs() < 0.016, "{lost} lost");

@@ -149,6 +149,26 @@ pub struct TracePoint {
     pub xy_m: [f64; 2],
 }
 
+/// The speed of sound at one moment of a run.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct AirSample {
+    /// True time, seconds.
+    pub t_s: f64,
+    /// What a system that knew the air would use for the robot's paths:
+    /// the mean over the transmitters within [`AIR_PATHS_M`] of the
+    /// receiver of each path's effective speed, m/s (`None`: none that near).
+    pub true_m_s: Option<f64>,
+    /// What the MSU solved with, m/s.
+    pub used_m_s: f64,
+}
+
+/// The paths the true speed of sound is averaged over, metres: those a
+/// fix is made of.
+pub const AIR_PATHS_M: f64 = 8.0;
+
+/// Seconds between two samples of the air.
+const AIR_DT_S: f64 = 1.0;
+
 /// Everything a run recorded.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunOutput {
@@ -177,6 +197,8 @@ pub struct RunOutput {
     /// Inputs the MSU core refused, by kind, with the first reason (`None`:
     /// none was).
     pub refused_inputs: Option<String>,
+    /// The speed of sound the MSU used against the air's, every second.
+    pub air: Vec<AirSample>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -429,6 +451,7 @@ impl<'a> RouteRun<'a> {
             fixes: Vec::new(),
             truth_trace: Vec::new(),
             estimate_traces: vec![Vec::new(); n_est],
+            air: Vec::new(),
             refs_per_tour: n_refs,
             schedule: schedule.clone(),
             virtual_s: 0.0,
@@ -607,6 +630,13 @@ impl<'a> RouteRun<'a> {
                     xy_m: [p.x_m, p.y_m],
                 });
             }
+        }
+        if self.out.air.last().is_none_or(|a| t - a.t_s >= AIR_DT_S - 1e-9) {
+            self.out.air.push(AirSample {
+                t_s: t,
+                true_m_s: self.world.path_speed_m_s(t, AIR_PATHS_M),
+                used_m_s: self.msu_driver.core().speed_of_sound_m_s(),
+            });
         }
         self.q.push(t + TRACE_DT_S, Event::Trace);
     }

@@ -5,6 +5,7 @@
 //!
 //! - [`profile`]: named noise profiles (`ideal`, `paper`, `harsh`).
 //! - [`robot`]: a differential drive following a route by pure pursuit.
+//! - [`air`]: the hall's temperature and drafts, and a burst's travel time through them.
 //! - [`acoustic`]: sound flight, line of sight, reflections, receiver choice.
 //! - [`collision`]: bursts on one carrier channel colliding, reverberation tails masking.
 //! - [`sensors`]: gyro, encoders, obstacle rangers.
@@ -22,6 +23,7 @@
 //! seed and a label ([`rng::stream`]): the same seed gives the same numbers.
 
 pub mod acoustic;
+pub mod air;
 pub mod board;
 pub mod clock;
 pub mod collision;

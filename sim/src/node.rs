@@ -398,7 +398,7 @@ pub struct WorldArgs {
     /// Robots to simulate, comma-separated ids.
     #[arg(long, value_delimiter = ',', required = true)]
     pub robots: Vec<String>,
-    /// Noise profile: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
+    /// Noise profile: ideal, paper, building, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Seed of every random draw.

@@ -8,7 +8,8 @@
 //!   during a cycle: [`UltrasoundNoise::motion_during_cycle`]).
 //! - `paper`: calibrated against seed 000 (see [`NoiseProfile::paper`] for the
 //!   values and how they were chosen).
-//! - `harsh`: more reflections, blockage, slip and gyro drift, and a more
+//! - `building`: `paper` in the air of a real hall ([`crate::air`]).
+//! - `harsh`: the same air, more reflections, blockage, slip and gyro drift, and a more
 //!   reverberant room.
 //!
 //! Every profile models collisions between bursts on one carrier channel
@@ -16,8 +17,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::air::Air;
+
 /// The ultrasonic channel and the MSU's receivers (DESIGN section 7).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct UltrasoundNoise {
     /// Whether the robot moves while the sound flies and between the
@@ -52,6 +55,11 @@ pub struct UltrasoundNoise {
     pub temperature_error_c: f64,
     /// Collisions and reverberation between bursts on one carrier channel.
     pub collisions: CollisionModel,
+    /// The hall's air around the mean set by `temperature_error_c`: its
+    /// swing over the run, gradient, spots, drafts and steps (still and
+    /// even when absent).
+    #[serde(default, skip_serializing_if = "Air::is_calm")]
+    pub air: Air,
 }
 
 /// How bursts on one carrier channel spoil each other at a receiver
@@ -198,14 +206,14 @@ pub struct NoiseProfile {
 /// A profile name that is not one of [`NoiseProfile::names`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "unknown noise profile `{0}` (known: ideal, paper, harsh, or a TOML file such as deploy/profiles/paper.toml)"
+    "unknown noise profile `{0}` (known: ideal, paper, building, harsh, or a TOML file such as deploy/profiles/paper.toml)"
 )]
 pub struct UnknownProfile(pub String);
 
 impl NoiseProfile {
     /// The profile names, mildest first.
     pub fn names() -> &'static [&'static str] {
-        &["ideal", "paper", "harsh"]
+        &["ideal", "paper", "building", "harsh"]
     }
 
     /// The profile called `name`.
@@ -213,6 +221,7 @@ impl NoiseProfile {
         match name {
             "ideal" => Ok(Self::ideal()),
             "paper" => Ok(Self::paper()),
+            "building" => Ok(Self::building()),
             "harsh" => Ok(Self::harsh()),
             _ => Err(UnknownProfile(name.to_owned())),
         }
@@ -244,6 +253,7 @@ impl NoiseProfile {
                     misdecode_probability: 0.0,
                     ..CollisionModel::paper()
                 },
+                air: Air::default(),
             },
             encoders: EncoderNoise {
                 left_radius_error: 0.0,
@@ -323,6 +333,7 @@ impl NoiseProfile {
                 survey_sigma_m: 0.01,
                 temperature_error_c: 1.0,
                 collisions: CollisionModel::paper(),
+                air: Air::default(),
             },
             encoders: EncoderNoise {
                 left_radius_error: 0.0025,
@@ -355,10 +366,23 @@ impl NoiseProfile {
         }
     }
 
-    /// Like `paper`, with more reflections, blockage, drops, slip and drift.
+    /// `paper`'s sensors in the air of a real hall ([`Air::building`]):
+    /// the temperature swinging by 10 degrees over the run, a degree
+    /// warmer per metre of height, a heater and a cold gate, drafts of
+    /// 1 m/s and a gate opened at 240 s. The mean is `paper`'s, a degree
+    /// off the site's nominal temperature.
+    pub fn building() -> Self {
+        let mut p = Self::paper();
+        p.name = "building".into();
+        p.ultrasound.air = Air::building();
+        p
+    }
+
+    /// Like `building`, with more reflections, blockage, drops, slip and drift.
     pub fn harsh() -> Self {
         let mut p = Self::paper();
         p.name = "harsh".into();
+        p.ultrasound.air = Air::building();
         p.ultrasound.timing_jitter_us = 80.0;
         p.ultrasound.drop_probability = 0.15;
         p.ultrasound.blocked_reflection_probability = 0.7;

@@ -193,6 +193,7 @@ impl NoiseProfile {
                 ));
             }
         }
+        u.air.check()?;
         let [lo, hi] = u.reflection_extra_m;
         if !(hi.is_finite() && hi >= lo) {
             return Err((
@@ -223,6 +224,12 @@ mod tests {
             std::fs::write(&path, toml::to_string(&p).unwrap()).unwrap();
             assert_eq!(NoiseProfile::load(path.to_str().unwrap()).unwrap(), p);
         }
+    }
+
+    #[test]
+    fn the_shipped_building_file_is_building() {
+        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../deploy/profiles/building.toml");
+        assert_eq!(NoiseProfile::load(file).unwrap(), NoiseProfile::building());
     }
 
     #[test]

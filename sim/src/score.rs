@@ -76,6 +76,78 @@ pub struct Score {
     /// timid one. `None` when the estimator published no usable covariance.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub inside_95_pct: Option<f64>,
+    /// The average normalised estimation error squared of the scored points
+    /// (`e' P^-1 e` of the 2D position) and its two-sided 95 % bounds for
+    /// that many samples ([`nees_bounds`]): inside them, the covariance is
+    /// consistent with the errors. `None` as for `inside_95_pct`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nees: Option<Nees>,
+}
+
+/// Bar-Shalom's consistency test of a covariance: the average NEES of `n`
+/// points and the interval it falls in 95 % of the time when the errors are
+/// zero-mean Gaussians with that covariance, independent from point to
+/// point (reference points are seconds apart; a filter's errors are
+/// correlated over its time constant, so the interval is narrower than the
+/// truth's and a value just outside it says less than it seems).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Nees {
+    /// Average NEES (2 for an honest 2D covariance).
+    pub mean: f64,
+    /// Lower 95 % bound: `chi2(2.5 %, 2n) / n`.
+    pub low: f64,
+    /// Upper 95 % bound: `chi2(97.5 %, 2n) / n`.
+    pub high: f64,
+    /// Points averaged.
+    pub samples: usize,
+}
+
+impl Nees {
+    /// The test of the NEES values `values`; `None` when there are none.
+    pub fn of(values: &[f64]) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
+        let n = values.len();
+        let (low, high) = nees_bounds(2, n);
+        Some(Self {
+            mean: values.iter().sum::<f64>() / n as f64,
+            low,
+            high,
+            samples: n,
+        })
+    }
+
+    /// Whether the average lies within its bounds.
+    pub fn consistent(&self) -> bool {
+        (self.low..=self.high).contains(&self.mean)
+    }
+}
+
+/// The two-sided 95 % bounds of the average NEES of `samples` independent
+/// `dim`-dimensional errors: the chi-square quantiles with `dim * samples`
+/// degrees of freedom over `samples`, by the Wilson-Hilferty cube-root
+/// approximation (relative error under 1e-3 from 10 degrees of freedom up).
+pub fn nees_bounds(dim: usize, samples: usize) -> (f64, f64) {
+    let k = (dim * samples.max(1)) as f64;
+    let z = 1.959_963_984_540_054;
+    let quantile = |z: f64| {
+        let a = 2.0 / (9.0 * k);
+        k * (1.0 - a + z * a.sqrt()).max(0.0).powi(3)
+    };
+    let n = samples.max(1) as f64;
+    (quantile(-z) / n, quantile(z) / n)
+}
+
+/// The NEES `e' C^-1 e` of the error `e` (metres) under the covariance
+/// `xx, xy, yy` (m^2); `None` when it is not positive definite.
+pub fn nees_2d(e: [f64; 2], c: [f64; 3]) -> Option<f64> {
+    let [xx, xy, yy] = c;
+    let det = xx * yy - xy * xy;
+    if !(xx > 0.0 && det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    Some((yy * e[0] * e[0] - 2.0 * xy * e[0] * e[1] + xx * e[1] * e[1]) / det)
 }
 
 /// The chi-square quantile of 95 % with two degrees of freedom:
@@ -85,14 +157,7 @@ const CHI2_2D_95: f64 = 5.991_464_547_107_979;
 /// Whether the error `e` (metres) lies inside the 95 % ellipse of the
 /// covariance `xx, xy, yy` (m^2); `None` when it is not positive definite.
 pub fn inside_95_ellipse(e: [f64; 2], c: [f64; 3]) -> Option<bool> {
-    let [xx, xy, yy] = c;
-    let det = xx * yy - xy * xy;
-    if !(xx > 0.0 && det > 0.0 && det.is_finite()) {
-        return None;
-    }
-    // e^T C^-1 e with C^-1 = [yy, -xy; -xy, xx] / det.
-    let d2 = (yy * e[0] * e[0] - 2.0 * xy * e[0] * e[1] + xx * e[1] * e[1]) / det;
-    Some(d2 <= CHI2_2D_95)
+    nees_2d(e, c).map(|d2| d2 <= CHI2_2D_95)
 }
 
 /// The row of one tour (or of any set of scored points): position errors
@@ -179,7 +244,7 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
         .map(|(k, name)| {
             let mut all_pos = Vec::new();
             let mut all_head = Vec::new();
-            let mut ellipse: Vec<Option<bool>> = Vec::new();
+            let mut nees: Vec<Option<f64>> = Vec::new();
             let mut tours = Vec::new();
             for tour in 1..=out.config.tours {
                 let mut pos = Vec::new();
@@ -191,10 +256,9 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                         pos.push((e[0] - r.truth.x_m).hypot(e[1] - r.truth.y_m));
                         head.push(ickon_fusion::angle::diff(e[2], r.truth.theta_rad));
                         let c = r.covariances.get(k).copied().flatten();
-                        let inside = c.and_then(|c| {
-                            inside_95_ellipse([e[0] - r.truth.x_m, e[1] - r.truth.y_m], c)
-                        });
-                        ellipse.push(inside);
+                        nees.push(
+                            c.and_then(|c| nees_2d([e[0] - r.truth.x_m, e[1] - r.truth.y_m], c)),
+                        );
                     }
                 }
                 tours.push(row(Some(tour), &pos, &head));
@@ -215,11 +279,7 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
             };
             // Only when every scored point had a covariance: a share over
             // some of them would hide the rest.
-            let inside_95_pct =
-                (!ellipse.is_empty() && ellipse.iter().all(Option::is_some)).then(|| {
-                    let n = ellipse.iter().filter(|v| **v == Some(true)).count();
-                    100.0 * n as f64 / ellipse.len() as f64
-                });
+            let (inside_95_pct, nees) = consistency(&nees);
             let raw = name == "msu-raw";
             let uses_fixes = !matches!(name.as_str(), "odometry" | "cda");
             Score {
@@ -259,7 +319,67 @@ pub fn score(out: &RunOutput, speed_of_sound_m_s: f64, height_m: f64) -> Vec<Sco
                     None
                 },
                 inside_95_pct,
+                nees,
             }
         })
         .collect()
+}
+
+/// The share inside the 95 % ellipse and the NEES test of points' NEES
+/// values, only when every scored point had a covariance: a share over
+/// some of them would hide the rest.
+pub fn consistency(nees: &[Option<f64>]) -> (Option<f64>, Option<Nees>) {
+    if nees.is_empty() || !nees.iter().all(Option::is_some) {
+        return (None, None);
+    }
+    let values: Vec<f64> = nees.iter().flatten().copied().collect();
+    let inside = values.iter().filter(|d2| **d2 <= CHI2_2D_95).count();
+    (
+        Some(100.0 * inside as f64 / values.len() as f64),
+        Nees::of(&values),
+    )
+}
+
+/// How well the speed of sound the MSU used matched the air over a run
+/// ([`crate::engine::AirSample`]), in percent of the true path average.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AirScore {
+    /// Mean absolute error of the speed used, percent.
+    pub used_mean_pct: f64,
+    /// Largest absolute error of the speed used after the first minute
+    /// (the calibration's start), percent.
+    pub used_max_pct: f64,
+    /// Mean absolute error of the site file's speed, percent: what the
+    /// MSU would have made of the air without learning it.
+    pub site_mean_pct: f64,
+    /// Slowest and fastest true path average seen, m/s.
+    pub true_range_m_s: [f64; 2],
+}
+
+impl AirScore {
+    /// The score of `samples` on a site whose speed is `site_m_s`; `None`
+    /// when no sample had a transmitter near.
+    pub fn of(samples: &[crate::engine::AirSample], site_m_s: f64) -> Option<Self> {
+        let known: Vec<(f64, f64, f64)> = samples
+            .iter()
+            .filter_map(|a| a.true_m_s.map(|t| (a.t_s, t, a.used_m_s)))
+            .collect();
+        if known.is_empty() {
+            return None;
+        }
+        let n = known.len() as f64;
+        let pct = |v: f64, t: f64| 100.0 * (v / t - 1.0).abs();
+        Some(Self {
+            used_mean_pct: known.iter().map(|&(_, t, u)| pct(u, t)).sum::<f64>() / n,
+            used_max_pct: known
+                .iter()
+                .filter(|(s, _, _)| *s >= 60.0)
+                .map(|&(_, t, u)| pct(u, t))
+                .fold(0.0, f64::max),
+            site_mean_pct: known.iter().map(|&(_, t, _)| pct(site_m_s, t)).sum::<f64>() / n,
+            true_range_m_s: known.iter().fold([f64::INFINITY, 0.0], |r, &(_, t, _)| {
+                [r[0].min(t), r[1].max(t)]
+            }),
+        })
+    }
 }

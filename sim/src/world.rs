@@ -6,11 +6,12 @@
 use std::collections::VecDeque;
 
 use ickon_proto::msg::robot::{Arrival, Imu, ObstacleRanges, Odometry, UltrasoundArrivals};
-use ickon_proto::site::{Route, Site, speed_of_sound_at};
+use ickon_proto::site::{Route, Site};
 use ickon_proto::time::Time;
 use rand_chacha::ChaCha8Rng;
 
 use crate::acoustic;
+use crate::air::AirField;
 use crate::clock::DeviceClock;
 use crate::collision::{self, BurstTiming, CollisionCounts, Detection, Sound};
 use crate::profile::NoiseProfile;
@@ -56,7 +57,7 @@ pub struct World {
     recent_sounds: Vec<Sound>,
     collisions: CollisionCounts,
     ranger_rng: ChaCha8Rng,
-    c_true_m_s: f64,
+    air: AirField,
     odom: [f64; 3],
     last_ticks: (i64, i64),
     seq: u64,
@@ -90,11 +91,13 @@ impl World {
             offset_s: rng::normal(&mut clock_rng, profile.clocks.msu_offset_sigma_ms) * 1e-3,
             drift: rng::normal(&mut clock_rng, profile.clocks.msu_drift_sigma_ppm) * 1e-6,
         };
-        // The MSU assumes the site's speed of sound; the air is off by the profile's error.
-        let t_c = site.temperature_c.unwrap_or(20.0);
-        let c_true_m_s = site.speed_of_sound_m_s
-            * speed_of_sound_at(t_c + profile.ultrasound.temperature_error_c)
-            / speed_of_sound_at(t_c);
+        // The MSU assumes the site's speed of sound; the air is off by the
+        // profile's error on average, and varies with time and place.
+        let air = AirField::new(
+            site,
+            &profile.ultrasound.air,
+            profile.ultrasound.temperature_error_c,
+        );
         let s = robot.state;
         // The world's transmitters hang where they really are; the MSU's table keeps the surveyed values.
         let mut true_site = site.clone();
@@ -122,13 +125,37 @@ impl World {
             recent_sounds: Vec::new(),
             collisions: CollisionCounts::default(),
             ranger_rng: rng::stream(seed, &format!("robot/{label}/rangers")),
-            c_true_m_s,
+            air,
             odom: [s.x_m, s.y_m, s.theta_rad],
             last_ticks: (0, 0),
             seq: 0,
         };
         w.record(0.0);
         w
+    }
+
+    /// The air the bursts fly through.
+    pub fn air(&self) -> &AirField {
+        &self.air
+    }
+
+    /// The speed of sound a system that knew the air would use at `t_s`
+    /// for this robot: the mean of the path speeds from the transmitters
+    /// within `range_m` of the receiver (slowness-averaged), m/s; `None`
+    /// when none is that near.
+    pub fn path_speed_m_s(&self, t_s: f64, range_m: f64) -> Option<f64> {
+        let s = self.robot.state;
+        let p = [s.x_m, s.y_m, self.site.msu.height_m];
+        let mut slowness = 0.0;
+        let mut n = 0usize;
+        for tx in &self.site.transmitters {
+            let d = (0..3).map(|k| (tx.position_m[k] - p[k]).powi(2)).sum::<f64>().sqrt();
+            if d <= range_m && d > 0.0 {
+                slowness += 1.0 / self.air.path_speed_m_s(tx.position_m, p, t_s);
+                n += 1;
+            }
+        }
+        (n > 0).then(|| n as f64 / slowness)
     }
 
     /// What collisions and reverberation did to this robot's detections so far.
@@ -356,7 +383,7 @@ impl World {
         let mut sounds = Vec::with_capacity(emissions.len());
         for &(tx, t_emit) in emissions {
             let tx = &self.site.transmitters[tx];
-            let path = acoustic::propagate(&self.site, self.c_true_m_s, tx, t_emit, &pose_at);
+            let path = acoustic::propagate(&self.site, &self.air, tx, t_emit, &pose_at);
             let own = if path.in_sight && path.direct_m <= noise.max_range_m {
                 sounds.push(Sound {
                     tx_id: tx.id,
@@ -368,8 +395,7 @@ impl World {
             } else {
                 None
             };
-            let heard =
-                acoustic::detect(&self.site, noise, self.c_true_m_s, tx, t_emit, &path, rng);
+            let heard = acoustic::detect(&self.site, noise, tx, t_emit, &path, rng);
             if let Some(heard) = heard {
                 detections.push(Detection {
                     heard,

@@ -1,7 +1,9 @@
 //! What the admin CLI asks: status, coverage, pause, and reloading the
 //! site.
 
-use ickon_proto::msg::admin::{AdminAck, CoverageReport, RobotHealth, StatusReport};
+use ickon_proto::msg::admin::{
+    AdminAck, CoverageReport, RobotHealth, StatusReport, TransmitterStatus, TransmittersReport,
+};
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
@@ -62,6 +64,69 @@ impl CentralCore {
             survey_publications: self.survey_cost.publications,
             survey_publish_mean_us: self.survey_cost.mean_us(),
             survey_publish_max_us: self.survey_cost.max_us,
+            speed_of_sound_m_s: self.published_speed().0,
+            speed_of_sound_sigma_m_s: self.published_speed().1,
+            site_speed_of_sound_m_s: self.site.speed_of_sound_m_s,
+            transmitters_left_out: self
+                .survey
+                .as_ref()
+                .map(|p| p.left_out().iter().copied().collect())
+                .unwrap_or_default(),
+        }
+    }
+
+    /// The speed of sound published to the MSUs and its sigma, m/s
+    /// (`(0, 0)`: none, the site's).
+    fn published_speed(&self) -> (f64, f64) {
+        self.survey
+            .as_ref()
+            .and_then(SurveyPublisher::published_speed)
+            .map_or((0.0, 0.0), |s| (s.speed_m_s, s.sigma_m_s))
+    }
+
+    /// The answer to `transmitters`: every transmitter's health, from the
+    /// fleet's fixes, and the air's speed of sound.
+    pub fn transmitters(&self, now: Time) -> TransmittersReport {
+        let (speed, sigma) = self.published_speed();
+        let transmitters = match self.survey.as_ref() {
+            None => Vec::new(),
+            Some(p) => p
+                .transmitters(now)
+                .into_iter()
+                .zip(&self.site.transmitters)
+                .map(|(r, t)| TransmitterStatus {
+                    tx_id: r.tx_id,
+                    cell_id: t.cell.clone(),
+                    condition: r.condition.label().to_string(),
+                    left_out: p.left_out().contains(&r.tx_id),
+                    evidence: crate::transmitter_health::TransmitterHealth::evidence(&r),
+                    due: r.due,
+                    heard_pct: r.heard_pct.unwrap_or(-1.0),
+                    expected_pct: r.expected_pct.unwrap_or(-1.0),
+                    rejected_pct: r.rejected_pct.unwrap_or(-1.0),
+                    residuals_known: r.residual_mean_m.is_some(),
+                    residual_mean_m: r.residual_mean_m.unwrap_or(0.0),
+                    residual_std_m: r.residual_std_m.unwrap_or(0.0),
+                    last_heard_s_ago: r.last_heard_s_ago.unwrap_or(-1.0),
+                    offset_m: p
+                        .published_offsets()
+                        .and_then(|o| o.get(&r.tx_id).copied())
+                        .unwrap_or([0.0; 3]),
+                })
+                .collect(),
+        };
+        TransmittersReport {
+            site: self.site.name.clone(),
+            stamp: now,
+            learning: self.survey.is_some(),
+            fixes_taken: self
+                .survey
+                .as_ref()
+                .map_or(0, |p| p.calibration().fixes_taken()),
+            speed_of_sound_m_s: speed,
+            speed_of_sound_sigma_m_s: sigma,
+            site_speed_of_sound_m_s: self.site.speed_of_sound_m_s,
+            transmitters,
         }
     }
 

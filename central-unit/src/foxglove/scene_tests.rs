@@ -77,6 +77,10 @@ fn report(site: &Site, down: &str) -> StatusReport {
         survey_publications: 3,
         survey_publish_mean_us: 410.0,
         survey_publish_max_us: 900.0,
+        speed_of_sound_m_s: 345.1,
+        speed_of_sound_sigma_m_s: 0.3,
+        site_speed_of_sound_m_s: 343.2,
+        transmitters_left_out: vec![],
     }
 }
 

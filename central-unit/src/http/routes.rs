@@ -19,7 +19,7 @@ use axum::routing::{get, post};
 use futures_util::Stream;
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, StatusReport,
+    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, StatusReport, TransmittersReport,
 };
 use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::site::Site;
@@ -32,7 +32,7 @@ use zenoh::Session;
 use super::fanout::Hub;
 use super::feed::SharedView;
 use super::site_view::SiteView;
-use crate::admin_json::{CoverageJson, ScheduleJson, StatusJson};
+use crate::admin_json::{CoverageJson, ScheduleJson, StatusJson, TransmittersJson};
 
 /// How long the central unit gets to answer an admin query from a page.
 const ADMIN_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(3);
@@ -114,6 +114,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/cells", get(cells))
         .route("/api/robots", get(robots))
         .route("/api/schedule", get(schedule))
+        .route("/api/transmitters", get(transmitters))
         .route("/api/coverage", get(coverage))
         .route("/api/pause", post(pause))
         .route("/api/resume", post(resume))
@@ -251,6 +252,14 @@ async fn schedule(State(st): State<AppState>) -> Result<axum::Json<ScheduleJson>
     let key = admin_key(&st, "schedule")?;
     let s: Schedule = ask(&st, key, None).await?;
     Ok(axum::Json(ScheduleJson::from(&s)))
+}
+
+async fn transmitters(
+    State(st): State<AppState>,
+) -> Result<axum::Json<TransmittersJson>, ApiError> {
+    let key = admin_key(&st, "transmitters")?;
+    let r: TransmittersReport = ask(&st, key, None).await?;
+    Ok(axum::Json(TransmittersJson::from(&r)))
 }
 
 /// The query of `/api/coverage`.

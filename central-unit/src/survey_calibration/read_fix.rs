@@ -51,13 +51,25 @@ impl ReadFix {
 
 impl SurveyCalibration {
     /// What one robot's fix, solved with the positions corrected by
-    /// `applied` and the pseudo-ranges by `late`, says of the parameters,
-    /// without adding it (see [`Self::add`]).
+    /// `applied` and the pseudo-ranges by `late` at the site's speed of
+    /// sound, says of the parameters, without adding it (see [`Self::add`]).
     pub fn read_fix(
         &self,
         fix: &Fix,
         applied: &Applied,
         late: &AppliedLate,
+    ) -> Result<ReadFix, FixSkipped> {
+        self.read_fix_solved_with(fix, applied, late, 0.0)
+    }
+
+    /// [`Self::read_fix`] of a fix solved with the site's speed of sound
+    /// changed by the fraction `sound_scale`.
+    pub fn read_fix_solved_with(
+        &self,
+        fix: &Fix,
+        applied: &Applied,
+        late: &AppliedLate,
+        sound_scale: f64,
     ) -> Result<ReadFix, FixSkipped> {
         let receiver = checked_receiver(fix)?;
         let n = fix.used.len();
@@ -97,10 +109,11 @@ impl SurveyCalibration {
             jacobian[(i, column_of(scale))] = -r.range;
         }
         let pj = &projector * &jacobian;
-        // Put back the offsets and lateness the MSU solved with: the
-        // estimate is of the whole error.
-        let used_offsets =
-            DVector::from_fn(n, |i, _| rows[i].toward.dot(&rows[i].offset) + rows[i].late);
+        // Put back the offsets, lateness and speed of sound the MSU solved
+        // with: the estimate is of the whole error.
+        let used_offsets = DVector::from_fn(n, |i, _| {
+            rows[i].toward.dot(&rows[i].offset) + rows[i].late - sound_scale * rows[i].range
+        });
         let residuals = DVector::from_vec(fix.residuals_m.clone()) + &projector * used_offsets;
         let sigma = self.config.range_sigma_m.max(MIN_RANGE_SIGMA_M);
         let worst = fix.residuals_m.iter().fold(0.0_f64, |m, e| m.max(e.abs()));

@@ -578,7 +578,7 @@ fn the_published_uncertainties_are_the_covariances_diagonal_and_the_estimate_its
 }
 
 #[test]
-fn forgetting_lets_only_the_cells_lateness_drift_as_a_gauss_markov_process() {
+fn forgetting_lets_only_the_lateness_and_the_speed_of_sound_drift_as_gauss_markov_processes() {
     let site = Site::default_site();
     let truth = true_offsets(&site, true);
     let late = cells_late(&site);
@@ -602,16 +602,25 @@ fn forgetting_lets_only_the_cells_lateness_drift_as_a_gauss_markov_process() {
     let dt_s = 150.0;
     c.forget_cell_sync(dt_s);
     let (x2, p2) = estimate_and_covariance(&c);
-    let keep = (-dt_s / memory_s).exp();
-    let fresh = config().cell_sync_sigma_m.powi(2) * (1.0 - keep * keep);
     let (first, m) = c.cell_parameters();
-    let is_cell = |i: usize| (first..first + m).contains(&i);
     let n = x.len();
+    // Each drifting parameter's `a` and `q`; the rest keep `1` and `0`.
+    let drift = |i: usize| {
+        let (sigma, memory) = if (first..first + m).contains(&i) {
+            (config().cell_sync_sigma_m, memory_s)
+        } else if i == n - 1 {
+            (config().sound_scale_sigma, config().sound_memory_s)
+        } else {
+            return (1.0, 0.0);
+        };
+        let keep = (-dt_s / memory).exp();
+        (keep, sigma.powi(2) * (1.0 - keep * keep))
+    };
     let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-6 * scale;
     let x_scale = x.amax();
     let p_scale = p.amax();
     for i in 0..n {
-        let a_i = if is_cell(i) { keep } else { 1.0 };
+        let (a_i, fresh) = drift(i);
         assert!(
             close(x2[i], a_i * x[i], x_scale),
             "mean {i}: {} vs {}",
@@ -619,8 +628,8 @@ fn forgetting_lets_only_the_cells_lateness_drift_as_a_gauss_markov_process() {
             a_i * x[i]
         );
         for j in 0..n {
-            let a_j = if is_cell(j) { keep } else { 1.0 };
-            let added = if i == j && is_cell(i) { fresh } else { 0.0 };
+            let a_j = drift(j).0;
+            let added = if i == j { fresh } else { 0.0 };
             let want = a_i * a_j * p[(i, j)] + added;
             assert!(
                 close(p2[(i, j)], want, p_scale),
@@ -637,11 +646,13 @@ fn forgetting_lets_only_the_cells_lateness_drift_as_a_gauss_markov_process() {
     c.forget_cell_sync(-5.0);
     c.forget_cell_sync(f64::NAN);
     c.config.cell_sync_memory_s = 0.0;
+    c.config.sound_memory_s = 0.0;
     c.forget_cell_sync(100.0);
     assert_eq!(c.information, before);
     // A step far longer than the memory (a clock jump) leaves the cells at
     // their prior, and the rest as it was.
     c.config.cell_sync_memory_s = memory_s;
+    c.config.sound_memory_s = config().sound_memory_s;
     c.forget_cell_sync(1e12);
     let (x3, p3) = estimate_and_covariance(&c);
     for i in first..first + m {
@@ -653,6 +664,12 @@ fn forgetting_lets_only_the_cells_lateness_drift_as_a_gauss_markov_process() {
         ));
     }
     assert!(close(x3[0], x[0], x_scale));
+    assert!(x3[n - 1].abs() < 1e-9);
+    assert!(close(
+        p3[(n - 1, n - 1)],
+        config().sound_scale_sigma.powi(2),
+        p_scale
+    ));
 }
 
 /// Learns for `seconds` with a fix every second, the bursts late by

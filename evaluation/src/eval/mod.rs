@@ -37,7 +37,7 @@ pub struct EvalArgs {
     /// Tours per route (not with `--robots`, which runs for `--duration`).
     #[arg(long, default_value_t = 10, conflicts_with = "robots")]
     pub tours: u32,
-    /// Noise profile: ideal, paper, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
+    /// Noise profile: ideal, paper, building, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Run seed: the same seed gives the same numbers.
@@ -80,6 +80,10 @@ pub struct EvalArgs {
     /// `ickon_central::survey_calibration`).
     #[arg(long)]
     pub no_survey_calibration: bool,
+    /// The central unit does not publish the speed of sound it learns from
+    /// the fleet's fixes: the MSUs use the site file's throughout.
+    #[arg(long)]
+    pub no_speed_of_sound: bool,
 }
 
 /// The central unit's survey calibration for `args` on `site` under
@@ -89,7 +93,11 @@ pub(super) fn survey_calibration(
     site: &Site,
     profile: &ickon_sim::NoiseProfile,
 ) -> Option<ickon_central::survey_calibration::CalibrationConfig> {
-    (!args.no_survey_calibration).then(|| ickon_sim::engine::survey_calibration(site, profile))
+    (!args.no_survey_calibration).then(|| {
+        let mut c = ickon_sim::engine::survey_calibration(site, profile);
+        c.learn_speed_of_sound = !args.no_speed_of_sound;
+        c
+    })
 }
 
 /// The filter options of `args` (with `--estimator all` they reach
@@ -169,6 +177,10 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
                 "route": o.config.route,
                 "cells": o.cells,
             })).collect::<Vec<_>>(),
+            "air": outputs.iter().map(|o| serde_json::json!({
+                "route": o.config.route,
+                "speed_of_sound": ickon_sim::score::AirScore::of(&o.air, site.speed_of_sound_m_s),
+            })).collect::<Vec<_>>(),
             "channel": outputs.iter().map(|o| serde_json::json!({
                 "route": o.config.route,
                 "cycles_per_s": ickon_central::update_rate_hz(&o.schedule),
@@ -181,6 +193,7 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
     } else {
         table::print(&flat, &profile.name, args.seed, started.elapsed());
         table::print_cells(&outputs);
+        table::print_air(&outputs, site.speed_of_sound_m_s);
     }
     if let Some(dir) = &args.plot
         && let Err(e) = plot::write_all(dir, &outputs, &scores, &flat)

@@ -52,6 +52,16 @@ pub fn print(scores: &[&Score], profile: &str, seed: u64, wall: Duration) {
         if let Some(v) = s.inside_95_pct {
             extra.push(format!("truth inside the 95 % ellipse {v:.0} %"));
         }
+        if let Some(n) = s.nees {
+            extra.push(format!(
+                "NEES {:.2} (95 % bounds {:.2}-{:.2} for {} points{})",
+                n.mean,
+                n.low,
+                n.high,
+                n.samples,
+                if n.consistent() { "" } else { ": inconsistent" }
+            ));
+        }
         if !extra.is_empty() {
             println!("      {}", extra.join(", "));
         }
@@ -138,5 +148,28 @@ fn fmt_rate(count: usize, seconds: f64) -> String {
         format!("{:.2}", count as f64 / seconds)
     } else {
         "-".into()
+    }
+}
+
+/// The speed of sound the MSU used against the air's, per route.
+pub fn print_air(outputs: &[ickon_sim::RunOutput], site_m_s: f64) {
+    println!(
+        "\nspeed of sound (the MSU's against the true average of the paths within {} m)",
+        ickon_sim::engine::AIR_PATHS_M
+    );
+    for o in outputs {
+        match ickon_sim::score::AirScore::of(&o.air, site_m_s) {
+            Some(a) => println!(
+                "{:>11}: used {:.3} % off on average, {:.3} % at worst after the first minute \
+                 (the site file's {:.3} % off); the air {:.1}-{:.1} m/s",
+                o.config.route,
+                a.used_mean_pct,
+                a.used_max_pct,
+                a.site_mean_pct,
+                a.true_range_m_s[0],
+                a.true_range_m_s[1]
+            ),
+            None => println!("{:>11}: no transmitter near the robot", o.config.route),
+        }
     }
 }

@@ -218,6 +218,7 @@ fn sim_args(args: &CentralArgs, robots: usize) -> SimArgs {
         faults: None,
         learn_cell_sync: false,
         no_survey_calibration: false,
+        no_speed_of_sound: false,
         devices: Default::default(),
         receivers: Default::default(),
         robots_per_process: None,

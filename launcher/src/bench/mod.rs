@@ -47,7 +47,7 @@ pub struct ScaleArgs {
     /// Estimator every MSU agent runs.
     #[arg(long, default_value = "tdoa-ekf")]
     pub estimator: String,
-    /// Noise profile of the simulated world: ideal, paper, harsh, or a TOML file.
+    /// Noise profile of the simulated world: ideal, paper, building, harsh, or a TOML file.
     #[arg(long, default_value = "paper")]
     pub profile: String,
     /// Seed of every random draw.
@@ -130,6 +130,7 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             faults: None,
             learn_cell_sync: args.learn_cell_sync,
             no_survey_calibration: args.no_survey_calibration,
+            no_speed_of_sound: false,
             devices: Default::default(),
             receivers: Default::default(),
             robots_per_process: args.robots_per_process,

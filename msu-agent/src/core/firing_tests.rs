@@ -132,8 +132,11 @@ fn news_applies_from_the_cycle_it_names_however_the_arrivals_raced() {
                 sigma_m: [0.005; 3],
                 late_m: 0.0,
                 late_sigma_m: 0.003,
+                left_out: false,
             })
             .collect(),
+        speed_of_sound_m_s: 0.0,
+        speed_of_sound_sigma_m_s: 0.0,
     };
     let status = CellStatus {
         cell_id: "a".into(),
@@ -246,7 +249,10 @@ fn news_held_for_a_cycle_does_not_override_newer_news_once_the_whole_schedule_fi
             sigma_m: [0.005; 3],
             late_m: 0.0,
             late_sigma_m: 0.003,
+            left_out: false,
         }],
+        speed_of_sound_m_s: 0.0,
+        speed_of_sound_sigma_m_s: 0.0,
     };
     let status = |stamp_s: f64, sigma_ns: i64| CellStatus {
         cell_id: "a".into(),

@@ -28,8 +28,11 @@ fn calibration(version: u32, dz_5: f64) -> SurveyCalibration {
                 sigma_m: [0.005; 3],
                 late_m: 0.0,
                 late_sigma_m: 0.003,
+                left_out: false,
             })
             .collect(),
+        speed_of_sound_m_s: 0.0,
+        speed_of_sound_sigma_m_s: 0.0,
     }
 }
 

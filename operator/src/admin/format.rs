@@ -5,8 +5,10 @@
 
 use std::fmt::Write;
 
-use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson};
-use ickon_proto::msg::admin::{AdminAck, CellState, RobotHealth, StatusReport};
+use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson, TransmittersJson};
+use ickon_proto::msg::admin::{
+    AdminAck, CellState, RobotHealth, StatusReport, TransmittersReport,
+};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
@@ -32,6 +34,7 @@ fn header(out: &mut String, s: &StatusReport) {
         s.schedule_version,
         s.update_rate_hz
     );
+    let _ = writeln!(out, "{}", air_line(s));
     let _ = writeln!(
         out,
         "central unit epoch {} ({}){}",
@@ -167,6 +170,97 @@ fn survey_line(r: &RobotHealth) -> Option<String> {
             r.survey_check, r.fixes_quarantined
         )
     })
+}
+
+/// The speed of sound the robots solve with, and the transmitters left out.
+fn air_line(s: &StatusReport) -> String {
+    let speed = if s.speed_of_sound_m_s > 0.0 {
+        format!(
+            "speed of sound {:.2} +- {:.2} m/s learnt from the fleet's fixes (site file {:.2})",
+            s.speed_of_sound_m_s, s.speed_of_sound_sigma_m_s, s.site_speed_of_sound_m_s
+        )
+    } else {
+        format!(
+            "speed of sound {:.2} m/s from the site file (none learnt)",
+            s.site_speed_of_sound_m_s
+        )
+    };
+    if s.transmitters_left_out.is_empty() {
+        speed
+    } else {
+        let ids: Vec<String> = s.transmitters_left_out.iter().map(u32::to_string).collect();
+        format!(
+            "{speed}; transmitters left out: {} (ickon admin transmitters)",
+            ids.join(", ")
+        )
+    }
+}
+
+/// `transmitters`: every transmitter's health and the air.
+pub fn transmitters(r: &TransmittersReport, json: bool) -> anyhow::Result<String> {
+    let doc = TransmittersJson::from(r);
+    if json {
+        return to_json(&doc);
+    }
+    let mut out = String::new();
+    if !doc.learning {
+        let _ = writeln!(
+            out,
+            "site {}: the central unit learns nothing from the fleet's fixes (--no-survey-calibration): no transmitter is judged",
+            doc.site
+        );
+        return Ok(out);
+    }
+    let _ = writeln!(
+        out,
+        "site {}: speed of sound {:.2}{} m/s ({}), {} fixes learnt from",
+        doc.site,
+        doc.speed_of_sound_m_s,
+        doc.speed_of_sound_sigma_m_s
+            .map_or(String::new(), |s| format!(" +- {s:.2}")),
+        if doc.speed_of_sound_learnt {
+            format!("learnt; site file {:.2}", doc.site_speed_of_sound_m_s)
+        } else {
+            "the site file's".to_string()
+        },
+        doc.fixes_taken
+    );
+    let _ = writeln!(
+        out,
+        "{:>5} {:<8} {:<9} {:>6} {:>7} {:>8} {:>7} {:>9} {:>8} {:>10}",
+        "tx", "cell", "condition", "due", "heard", "others", "reject", "resid mm", "std mm", "last heard"
+    );
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0}%"));
+    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+    for t in &doc.transmitters {
+        let _ = writeln!(
+            out,
+            "{:>5} {:<8} {:<9} {:>6.1} {:>7} {:>8} {:>7} {:>9} {:>8} {:>10}",
+            t.id,
+            t.cell,
+            if t.left_out {
+                format!("{}*", t.condition)
+            } else {
+                t.condition.clone()
+            },
+            t.due,
+            pct(t.heard_pct),
+            pct(t.expected_pct),
+            pct(t.rejected_pct),
+            mm(t.residual_mean_mm),
+            mm(t.residual_std_mm),
+            t.last_heard_s_ago
+                .map_or("never".to_string(), |s| format!("{s:.1} s ago"))
+        );
+    }
+    for t in doc.transmitters.iter().filter(|t| t.left_out) {
+        let _ = writeln!(out, "tx {} {}: {}", t.id, t.condition, t.evidence);
+    }
+    let _ = writeln!(
+        out,
+        "*: left out of the robots' fixes. due: recent fixes within 6 m of it; heard: share of them that heard it; others: share that heard its cell's other transmitters"
+    );
+    Ok(out)
 }
 
 /// `status`: everything in one view.
@@ -338,6 +432,10 @@ mod tests {
             survey_publications: 0,
             survey_publish_mean_us: 0.0,
             survey_publish_max_us: 0.0,
+            speed_of_sound_m_s: 345.1,
+            speed_of_sound_sigma_m_s: 0.25,
+            site_speed_of_sound_m_s: 343.21,
+            transmitters_left_out: vec![12],
         }
     }
 

@@ -22,7 +22,7 @@ use std::time::Duration;
 use clap::{Args, Subcommand};
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, StatusReport,
+    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, StatusReport, TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
 use ickon_runtime::{RunDir, ZenohArgs, query_once, wait_for_token};
@@ -63,6 +63,11 @@ pub enum AdminCommand {
     /// Clock synchronisation of every cell: estimate, uncertainty, and the
     /// residual error of its bursts against the true time base.
     Sync(Common),
+    /// Every transmitter's health as the fleet's fixes show it (how often
+    /// it is heard when a robot is near, its residuals, when it was last
+    /// heard; dead, weak and moved ones flagged and left out of the
+    /// fixes), and the speed of sound the robots solve with.
+    Transmitters(Common),
     /// Transmitters in line of sight and HDOP over a grid of the floor.
     Coverage {
         /// Connection and output flags.
@@ -131,6 +136,7 @@ fn prepare(command: &AdminCommand) -> Result<(&Common, Request), String> {
         AdminCommand::Robots(c) => (c, Request::new("robots", None, true)),
         AdminCommand::Schedule(c) => (c, Request::new("schedule", None, true)),
         AdminCommand::Sync(c) => (c, Request::new("sync", None, true)),
+        AdminCommand::Transmitters(c) => (c, Request::new("transmitters", None, true)),
         AdminCommand::Coverage {
             common,
             resolution_m,
@@ -296,6 +302,7 @@ enum Answer {
     Status(StatusReport),
     Schedule(Schedule),
     Coverage(CoverageReport),
+    Transmitters(TransmittersReport),
     Ack(AdminAck),
 }
 
@@ -312,6 +319,7 @@ async fn answer(
         | AdminCommand::Sync(_) => Answer::Status(ask(common, request).await?),
         AdminCommand::Schedule(_) => Answer::Schedule(ask(common, request).await?),
         AdminCommand::Coverage { .. } => Answer::Coverage(ask(common, request).await?),
+        AdminCommand::Transmitters(_) => Answer::Transmitters(ask(common, request).await?),
         AdminCommand::Pause(_) | AdminCommand::Resume(_) | AdminCommand::Reload { .. } => {
             Answer::Ack(ask(common, request).await?)
         }
@@ -328,6 +336,7 @@ fn show(command: &AdminCommand, common: &Common, answer: Answer) -> Result<(), C
         (AdminCommand::Sync(_), Answer::Status(s)) => format::sync(&s, json).map_err(failed)?,
         (_, Answer::Status(s)) => format::status(&s, json).map_err(failed)?,
         (_, Answer::Schedule(s)) => format::schedule(&s, json).map_err(failed)?,
+        (_, Answer::Transmitters(t)) => format::transmitters(&t, json).map_err(failed)?,
         (AdminCommand::Coverage { png: file, .. }, Answer::Coverage(report)) => {
             if let Some(file) = file {
                 png::heat_map(file, &report).map_err(|e| {

@@ -4,7 +4,8 @@
 //! [`ReloadRequest`], and `coverage`, which may carry a [`CoverageRequest`].
 //! `status`, `cells`, `robots` and `sync` answer a [`StatusReport`];
 //! `schedule` answers a [`Schedule`](crate::msg::control::Schedule);
-//! `coverage` a [`CoverageReport`]; `pause`, `resume` and `reload` an
+//! `coverage` a [`CoverageReport`]; `transmitters` a
+//! [`TransmittersReport`]; `pause`, `resume` and `reload` an
 //! [`AdminAck`].
 
 use serde::{Deserialize, Serialize};
@@ -169,6 +170,74 @@ pub struct StatusReport {
     pub survey_publish_mean_us: f64,
     /// The same, the longest.
     pub survey_publish_max_us: f64,
+    /// The speed of sound the MSUs are told to solve with, m/s (0: none
+    /// learnt or published, the site's).
+    pub speed_of_sound_m_s: f64,
+    /// Its one-sigma uncertainty, m/s.
+    pub speed_of_sound_sigma_m_s: f64,
+    /// The site file's speed of sound, m/s.
+    pub site_speed_of_sound_m_s: f64,
+    /// Transmitters left out of the fixes (dead, weak or moved), by id.
+    pub transmitters_left_out: Vec<u32>,
+}
+
+/// What the fleet saw of one transmitter (`transmitters`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TransmitterStatus {
+    /// Transmitter id.
+    pub tx_id: u32,
+    /// Its cell.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// `unknown`, `healthy`, `dead`, `weak` or `moved`.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub condition: String,
+    /// Whether its arrivals are left out of the fixes.
+    pub left_out: bool,
+    /// The evidence behind the condition, in words.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub evidence: String,
+    /// Fixes a robot was near it in (recent, forgotten over tens of seconds).
+    pub due: f64,
+    /// Share of them it was heard in, percent (-1: none yet).
+    pub heard_pct: f64,
+    /// Share its cell's others were heard in from the same fixes, percent (-1: none).
+    pub expected_pct: f64,
+    /// Share of its heard arrivals the robots rejected, percent (-1: none heard).
+    pub rejected_pct: f64,
+    /// Whether its residuals below are known.
+    pub residuals_known: bool,
+    /// Mean of its residuals in the fixes that used it, metres.
+    pub residual_mean_m: f64,
+    /// Their standard deviation, metres.
+    pub residual_std_m: f64,
+    /// Seconds since a robot last heard it (-1: never).
+    pub last_heard_s_ago: f64,
+    /// What the survey calibration adds to its surveyed position, metres.
+    pub offset_m: [f64; 3],
+}
+
+/// Answer to `transmitters`: every transmitter's health and the air.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TransmittersReport {
+    /// Site name.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub site: String,
+    /// Master time when the report was made.
+    pub stamp: Time,
+    /// Whether the central unit learns a survey calibration at all (when
+    /// not, nothing below is measured).
+    pub learning: bool,
+    /// Fixes of the fleet behind the calibration.
+    pub fixes_taken: u64,
+    /// The speed of sound the MSUs are told to solve with, m/s (0: the site's).
+    pub speed_of_sound_m_s: f64,
+    /// Its one-sigma uncertainty, m/s.
+    pub speed_of_sound_sigma_m_s: f64,
+    /// The site file's speed of sound, m/s.
+    pub site_speed_of_sound_m_s: f64,
+    /// Every transmitter, in the site's order.
+    pub transmitters: Vec<TransmitterStatus>,
 }
 
 /// Optional query payload of `coverage`.

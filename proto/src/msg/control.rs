@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use crate::codec::{DecodeError, decode};
 use crate::time::{Duration, Time};
 
+pub mod survey_before_air;
 pub mod survey_before_lateness;
 
 /// One row of the transmitter lookup table the MSU uses to turn an id into a position.
@@ -55,7 +56,16 @@ pub struct TransmitterOffset {
     pub late_m: f64,
     /// One-sigma uncertainty of `late_m`, metres.
     pub late_sigma_m: f64,
+    /// The fleet has found the transmitter dead, weak or moved: the MSUs
+    /// leave its arrivals out of their fixes until it is healthy again.
+    pub left_out: bool,
 }
+
+/// The largest relative change of the speed of sound from the site's that
+/// a calibration may publish (5 %, about 28 degrees Celsius): air further
+/// off is no hall's, and a calibration that says so is broken or forged
+/// (the MSU refuses it; the central unit publishes the site's speed).
+pub const MAX_SOUND_SPEED_CHANGE: f64 = 0.05;
 
 /// `central/survey`: the fleet's calibration of the transmitters' surveyed
 /// positions, learnt by the central unit from every robot's fixes
@@ -71,20 +81,42 @@ pub struct SurveyCalibration {
     pub fixes_taken: u64,
     /// One per transmitter of the site.
     pub offsets: Vec<TransmitterOffset>,
+    /// The speed of sound the fleet's fixes say the air has now, m/s (the
+    /// MSUs turn arrival times into ranges with it); 0: none learnt, the
+    /// site's.
+    pub speed_of_sound_m_s: f64,
+    /// One-sigma uncertainty of `speed_of_sound_m_s`, m/s.
+    pub speed_of_sound_sigma_m_s: f64,
 }
 
 impl SurveyCalibration {
-    /// Decodes a `central/survey` payload: the current layout, or the one
-    /// before transmitters carried their lateness (read with no lateness;
-    /// the two cannot be mistaken for each other, an offset of the older
-    /// layout being 16 bytes shorter). A payload that is neither fails with
-    /// the current layout's error.
+    /// Decodes a `central/survey` payload: the current layout, the one
+    /// before it carried the speed of sound and which transmitters are
+    /// left out (read with the site's speed and none left out), or the one
+    /// before transmitters carried their lateness (read with no lateness).
+    /// None can be mistaken for another: each layout's offsets are longer
+    /// than the one before's. A payload of none fails with the current
+    /// layout's error.
     pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
         decode::<Self>(payload).or_else(|current| {
-            decode::<survey_before_lateness::CalibrationWithoutLateness>(payload)
+            decode::<survey_before_air::CalibrationWithoutAir>(payload)
                 .map(Self::from)
+                .or_else(|_| {
+                    decode::<survey_before_lateness::CalibrationWithoutLateness>(payload)
+                        .map(Self::from)
+                })
                 .map_err(|_| current)
         })
+    }
+
+    /// The speed of sound to solve with on a site whose own is
+    /// `site_m_s`: the learnt one when there is one, else the site's.
+    pub fn speed_of_sound_or(&self, site_m_s: f64) -> f64 {
+        if self.speed_of_sound_m_s > 0.0 {
+            self.speed_of_sound_m_s
+        } else {
+            site_m_s
+        }
     }
 }
 

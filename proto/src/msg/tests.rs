@@ -246,6 +246,35 @@ fn admin_messages_round_trip() {
         survey_publications: 3,
         survey_publish_mean_us: 410.0,
         survey_publish_max_us: 900.0,
+        speed_of_sound_m_s: 345.5,
+        speed_of_sound_sigma_m_s: 0.2,
+        site_speed_of_sound_m_s: 343.2,
+        transmitters_left_out: vec![12],
+    });
+    round_trip(TransmittersReport {
+        site: "lab".into(),
+        stamp: Time(9),
+        learning: true,
+        fixes_taken: 77,
+        speed_of_sound_m_s: 0.0,
+        speed_of_sound_sigma_m_s: 0.0,
+        site_speed_of_sound_m_s: 343.2,
+        transmitters: vec![TransmitterStatus {
+            tx_id: 12,
+            cell_id: "c1".into(),
+            condition: "dead".into(),
+            left_out: true,
+            evidence: "heard in none of 12 fixes near it".into(),
+            due: 12.5,
+            heard_pct: 0.0,
+            expected_pct: 93.0,
+            rejected_pct: -1.0,
+            residuals_known: false,
+            residual_mean_m: 0.0,
+            residual_std_m: 0.0,
+            last_heard_s_ago: -1.0,
+            offset_m: [0.0, 0.001, -0.002],
+        }],
     });
     round_trip(sample_coverage());
     round_trip(CoverageRequest { resolution_m: 0.5 });

@@ -529,6 +529,7 @@ fn print_text(
                     crlb_ratio: None,
                     crlb_mm: None,
                     inside_95_pct: None,
+                    nees: None,
                 })
             })
         })

@@ -46,6 +46,7 @@ impl From<CalibrationWithoutLateness> for SurveyCalibration {
                 sigma_m: o.sigma_m,
                 late_m: 0.0,
                 late_sigma_m: 0.0,
+                left_out: false,
             })
             .collect();
         SurveyCalibration {
@@ -53,6 +54,8 @@ impl From<CalibrationWithoutLateness> for SurveyCalibration {
             version: old.version,
             fixes_taken: old.fixes_taken,
             offsets,
+            speed_of_sound_m_s: 0.0,
+            speed_of_sound_sigma_m_s: 0.0,
         }
     }
 }

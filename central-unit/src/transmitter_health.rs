@@ -1,0 +1,431 @@
+//! Each transmitter's health, from what the fleet's fixes say of it: how
+//! often it was heard when a robot was near it, what its residuals are,
+//! when it was last heard. A transmitter that is dead (never heard while
+//! its cell's others are), weak (heard far less often than its cell's
+//! others from the same fixes) or moved (heard, but its arrivals mostly
+//! rejected by the MSUs' gates, or its residuals off by centimetres) is
+//! flagged with its evidence and left out of the fixes while it is bad
+//! ([`ickon_proto::msg::control::TransmitterOffset::left_out`]).
+//!
+//! A transmitter is "due" in a fix when the fix puts the receiver within
+//! [`HealthConfig::near_m`] of it with nothing in between. Whether its cell
+//! fired in that cycle the central unit cannot tell from a fix (the fix is
+//! stamped on the robot's clock), so a transmitter is judged against its
+//! own cell's others due in the same fix, which fired or did not with it:
+//! its expected share heard is theirs. Counts are forgotten with
+//! [`HealthConfig::memory_s`], so that a repaired transmitter is healthy
+//! again within about that long.
+//!
+//! The MSUs list a left-out transmitter's arrivals as rejected, so its
+//! heard share keeps being measured: a dead or weak one that recovers is
+//! taken back. A moved one stays left out (its arrivals stay off), until
+//! it is surveyed again and the site reloaded.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use ickon_proto::msg::robot::Fix;
+use ickon_proto::site::{Column, Site, Wall, line_of_sight};
+use ickon_proto::time::Time;
+
+/// What the health check assumes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HealthConfig {
+    /// A transmitter is due in a fix within this distance, metres: well
+    /// inside any receiver's range, so that a healthy transmitter is heard
+    /// about as often as its neighbours.
+    pub near_m: f64,
+    /// Counts are forgotten with this time constant, seconds.
+    pub memory_s: f64,
+    /// Fixes a transmitter must be due in (forgotten count) before it is
+    /// judged dead.
+    pub min_due_dead: f64,
+    /// The same, to be judged weak or moved.
+    pub min_due_weak: f64,
+    /// Weak: heard less than this fraction of its cell's others' share.
+    pub weak_ratio: f64,
+    /// Moved: more than this share of its heard arrivals rejected by the
+    /// MSUs' gates.
+    pub moved_rejected_share: f64,
+    /// Moved: its used residuals' mean beyond this, metres.
+    pub moved_residual_m: f64,
+}
+
+impl Default for HealthConfig {
+    /// 6 m (the receivers hear to 10 m or more), a memory of 20 s, judged
+    /// dead after 8 fixes due (about a second of one robot nearby) and weak
+    /// or moved after 25. Weak below half its cell's share: a healthy
+    /// transmitter is heard as often as its neighbours, within the few
+    /// percent its drops and blocked paths take, and 25 draws at 90 %
+    /// fall under 45 % with a probability under 1e-7. Moved when more
+    /// than half its arrivals fail the MSUs' gates (a healthy one's
+    /// reflections fail a few percent) or its residuals' mean is beyond
+    /// 5 cm (the MSUs' gate is about 10 cm, a healthy mean millimetres).
+    fn default() -> Self {
+        Self {
+            near_m: 6.0,
+            memory_s: 20.0,
+            min_due_dead: 8.0,
+            min_due_weak: 25.0,
+            weak_ratio: 0.5,
+            moved_rejected_share: 0.5,
+            moved_residual_m: 0.05,
+        }
+    }
+}
+
+/// What is wrong with a transmitter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Condition {
+    /// Not enough fixes near it yet to say.
+    Unknown,
+    /// Heard as often as its neighbours, residuals small.
+    Healthy,
+    /// Never heard while its cell's others are.
+    Dead,
+    /// Heard far less often than its cell's others.
+    Weak,
+    /// Heard, but its arrivals fail the gates or its residuals are off.
+    Moved,
+}
+
+impl Condition {
+    /// The word for it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Unknown => "unknown",
+            Self::Healthy => "healthy",
+            Self::Dead => "dead",
+            Self::Weak => "weak",
+            Self::Moved => "moved",
+        }
+    }
+
+    /// Whether its arrivals are left out of the fixes.
+    pub fn left_out(self) -> bool {
+        matches!(self, Self::Dead | Self::Weak | Self::Moved)
+    }
+}
+
+/// What the fleet saw of one transmitter.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct TransmitterReport {
+    /// Transmitter id.
+    pub tx_id: u32,
+    /// Its cell.
+    #[serde(skip)]
+    pub cell_index: usize,
+    /// What is wrong with it.
+    pub condition: Condition,
+    /// Fixes it was due in (forgotten count).
+    pub due: f64,
+    /// Share of them it was heard in, percent (`None` before any).
+    pub heard_pct: Option<f64>,
+    /// Share its cell's others were heard in from the same fixes, percent.
+    pub expected_pct: Option<f64>,
+    /// Share of its heard arrivals rejected by the MSUs, percent.
+    pub rejected_pct: Option<f64>,
+    /// Mean of its used residuals, metres.
+    pub residual_mean_m: Option<f64>,
+    /// Standard deviation of its used residuals, metres.
+    pub residual_std_m: Option<f64>,
+    /// Seconds since it was last heard (`None`: never).
+    pub last_heard_s_ago: Option<f64>,
+    /// Master time the condition began, seconds.
+    pub since_s: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Counts {
+    due: f64,
+    heard: f64,
+    expected: f64,
+    /// Arrivals heard in any fix (due or not), and of them rejected.
+    heard_any: f64,
+    rejected_any: f64,
+    residual_n: f64,
+    residual_sum: f64,
+    residual_sq: f64,
+}
+
+impl Counts {
+    fn scale(&mut self, k: f64) {
+        for v in [
+            &mut self.due,
+            &mut self.heard,
+            &mut self.expected,
+            &mut self.heard_any,
+            &mut self.rejected_any,
+            &mut self.residual_n,
+            &mut self.residual_sum,
+            &mut self.residual_sq,
+        ] {
+            *v *= k;
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Entry {
+    tx_id: u32,
+    position_m: [f64; 3],
+    cell: usize,
+    counts: Counts,
+    last_heard: Option<Time>,
+    condition: Condition,
+    since: Option<Time>,
+}
+
+/// The fleet's view of every transmitter's health.
+#[derive(Debug, Clone)]
+pub struct TransmitterHealth {
+    config: HealthConfig,
+    entries: Vec<Entry>,
+    index: BTreeMap<u32, usize>,
+    walls: Vec<Wall>,
+    columns: Vec<Column>,
+    last_at: Option<Time>,
+}
+
+impl TransmitterHealth {
+    /// Nothing seen yet of `site`'s transmitters.
+    pub fn new(site: &Site, config: HealthConfig) -> Self {
+        let cells: BTreeMap<&str, usize> = site
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.id.as_str(), i))
+            .collect();
+        let entries: Vec<Entry> = site
+            .transmitters
+            .iter()
+            .map(|t| Entry {
+                tx_id: t.id,
+                position_m: t.position_m,
+                cell: cells.get(t.cell.as_str()).copied().unwrap_or(usize::MAX),
+                counts: Counts::default(),
+                last_heard: None,
+                condition: Condition::Unknown,
+                since: None,
+            })
+            .collect();
+        let index = entries
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e.tx_id, i))
+            .collect();
+        Self {
+            config,
+            entries,
+            index,
+            walls: site.walls.clone(),
+            columns: site.columns.clone(),
+            last_at: None,
+        }
+    }
+
+    /// Takes what one fix (of a robot the fleet's check trusts) says,
+    /// taken at `now`. A fix with fewer than three used signals, or whose
+    /// numbers are not numbers, places nothing and is ignored.
+    pub fn observe(&mut self, fix: &Fix, now: Time) {
+        self.forget(now);
+        let p = [fix.x_m, fix.y_m, fix.z_m];
+        if fix.used.len() < 3
+            || !p.iter().all(|v| v.is_finite())
+            || fix.residuals_m.len() != fix.used.len()
+        {
+            return;
+        }
+        let heard: BTreeSet<u32> = fix.used.iter().chain(&fix.rejected).copied().collect();
+        for id in &heard {
+            if let Some(&i) = self.index.get(id) {
+                let e = &mut self.entries[i];
+                e.last_heard = Some(now);
+                e.counts.heard_any += 1.0;
+                if !fix.used.contains(id) {
+                    e.counts.rejected_any += 1.0;
+                }
+            }
+        }
+        for (id, r) in fix.used.iter().zip(&fix.residuals_m) {
+            if let (Some(&i), true) = (self.index.get(id), r.is_finite()) {
+                let c = &mut self.entries[i].counts;
+                c.residual_n += 1.0;
+                c.residual_sum += r;
+                c.residual_sq += r * r;
+            }
+        }
+        let near = self.config.near_m;
+        let due: Vec<usize> = (0..self.entries.len())
+            .filter(|&i| {
+                let t = self.entries[i].position_m;
+                let d = ((t[0] - p[0]).powi(2) + (t[1] - p[1]).powi(2) + (t[2] - p[2]).powi(2))
+                    .sqrt();
+                d <= near && line_of_sight(&self.walls, &self.columns, t, p)
+            })
+            .collect();
+        for &i in &due {
+            let cell = self.entries[i].cell;
+            let others: Vec<usize> = due
+                .iter()
+                .copied()
+                .filter(|&k| k != i && self.entries[k].cell == cell)
+                .collect();
+            if others.is_empty() {
+                continue;
+            }
+            let heard_others = others
+                .iter()
+                .filter(|&&k| heard.contains(&self.entries[k].tx_id))
+                .count();
+            let was_heard = heard.contains(&self.entries[i].tx_id);
+            let c = &mut self.entries[i].counts;
+            c.due += 1.0;
+            c.expected += heard_others as f64 / others.len() as f64;
+            if was_heard {
+                c.heard += 1.0;
+            }
+        }
+        for i in 0..self.entries.len() {
+            let judged = self.judge(&self.entries[i].counts, self.entries[i].condition);
+            let e = &mut self.entries[i];
+            // Unknown never replaces a judgement: a transmitter nobody is
+            // near keeps what was last seen of it.
+            if judged != Condition::Unknown && judged != e.condition {
+                if e.condition.left_out() {
+                    // Its arrivals were rejected because it was left out:
+                    // not evidence of a move.
+                    e.counts.heard_any = 0.0;
+                    e.counts.rejected_any = 0.0;
+                }
+                e.condition = judged;
+                e.since = Some(now);
+            }
+        }
+    }
+
+    /// Forgets counts up to `now` (see [`HealthConfig::memory_s`]).
+    fn forget(&mut self, now: Time) {
+        let Some(last) = self.last_at.replace(now) else {
+            return;
+        };
+        let dt_s = (now - last).as_secs_f64();
+        if dt_s > 0.0 && self.config.memory_s > 0.0 {
+            let k = (-dt_s / self.config.memory_s).exp();
+            for e in &mut self.entries {
+                e.counts.scale(k);
+            }
+        }
+    }
+
+    /// The condition the counts `c` say, for a transmitter now `current`.
+    /// A moved transmitter stays moved (its arrivals are left out, so
+    /// nothing can show it back in place); a left-out dead or weak one is
+    /// judged by how often it is heard only (its arrivals are all rejected
+    /// while it is left out).
+    fn judge(&self, c: &Counts, current: Condition) -> Condition {
+        if current == Condition::Moved {
+            return current;
+        }
+        let cfg = &self.config;
+        if c.due < cfg.min_due_dead {
+            return Condition::Unknown;
+        }
+        let expected = c.expected / c.due;
+        let heard = c.heard / c.due;
+        if c.heard < 0.5 && expected >= 0.5 {
+            return Condition::Dead;
+        }
+        if c.due < cfg.min_due_weak {
+            return Condition::Unknown;
+        }
+        if heard < cfg.weak_ratio * expected {
+            return Condition::Weak;
+        }
+        if current.left_out() {
+            return Condition::Healthy;
+        }
+        let rejected = if c.heard_any > 0.0 {
+            c.rejected_any / c.heard_any
+        } else {
+            0.0
+        };
+        let residual_mean = if c.residual_n >= cfg.min_due_weak / 2.0 {
+            (c.residual_sum / c.residual_n).abs()
+        } else {
+            0.0
+        };
+        if rejected > cfg.moved_rejected_share || residual_mean > cfg.moved_residual_m {
+            return Condition::Moved;
+        }
+        Condition::Healthy
+    }
+
+    /// The transmitters to leave out of the fixes, by id.
+    pub fn left_out(&self) -> BTreeSet<u32> {
+        self.entries
+            .iter()
+            .filter(|e| e.condition.left_out())
+            .map(|e| e.tx_id)
+            .collect()
+    }
+
+    /// What the fleet saw of every transmitter, in the site's order, at `now`.
+    pub fn report(&self, now: Time) -> Vec<TransmitterReport> {
+        self.entries
+            .iter()
+            .map(|e| {
+                let c = &e.counts;
+                let share = |a: f64, b: f64| (b > 1e-9).then(|| 100.0 * a / b);
+                let mean = (c.residual_n > 1e-9).then(|| c.residual_sum / c.residual_n);
+                TransmitterReport {
+                    tx_id: e.tx_id,
+                    cell_index: e.cell,
+                    condition: e.condition,
+                    due: c.due,
+                    heard_pct: share(c.heard, c.due),
+                    expected_pct: share(c.expected, c.due),
+                    rejected_pct: share(c.rejected_any, c.heard_any),
+                    residual_mean_m: mean,
+                    residual_std_m: mean.map(|m| {
+                        (c.residual_sq / c.residual_n - m * m).max(0.0).sqrt()
+                    }),
+                    last_heard_s_ago: e.last_heard.map(|t| (now - t).as_secs_f64().max(0.0)),
+                    since_s: e.since.map(Time::as_secs_f64),
+                }
+            })
+            .collect()
+    }
+
+    /// The evidence behind a condition, in words.
+    pub fn evidence(r: &TransmitterReport) -> String {
+        let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0} %"));
+        match r.condition {
+            Condition::Unknown => "no robot has been near it long enough".into(),
+            Condition::Dead => format!(
+                "heard in none of {:.0} fixes near it, its cell's others in {}",
+                r.due,
+                pct(r.expected_pct)
+            ),
+            Condition::Weak => format!(
+                "heard in {} of the fixes near it, its cell's others in {}",
+                pct(r.heard_pct),
+                pct(r.expected_pct)
+            ),
+            Condition::Moved => format!(
+                "{} of its arrivals rejected by the robots' gates, residuals {} mm on average",
+                pct(r.rejected_pct),
+                r.residual_mean_m
+                    .map_or("-".into(), |m| format!("{:.0}", m * 1e3))
+            ),
+            Condition::Healthy => format!(
+                "heard in {} of the fixes near it (its cell's others {})",
+                pct(r.heard_pct),
+                pct(r.expected_pct)
+            ),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,156 @@
+use ickon_proto::msg::robot::{Fix, FixQuality};
+use ickon_proto::site::Site;
+use ickon_proto::time::{Duration, Time};
+
+use super::*;
+
+/// A fix at `p` that heard every transmitter within `near_m` in sight,
+/// but for `missing`; `rejected` are heard but not used; `residual` gives
+/// each used one's residual.
+fn fix_at(
+    site: &Site,
+    p: [f64; 2],
+    missing: &[u32],
+    rejected: &[u32],
+    residual: impl Fn(u32) -> f64,
+) -> Fix {
+    let at = [p[0], p[1], site.msu.height_m];
+    let mut used = Vec::new();
+    let mut rejected_ids = Vec::new();
+    for t in &site.transmitters {
+        let d = (0..3)
+            .map(|k| (t.position_m[k] - at[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if d > 8.0 || !site.line_of_sight(t.position_m, at) || missing.contains(&t.id) {
+            continue;
+        }
+        if rejected.contains(&t.id) {
+            rejected_ids.push(t.id);
+        } else {
+            used.push(t.id);
+        }
+    }
+    Fix {
+        stamp: Time::ZERO,
+        arrivals_seq: 0,
+        x_m: at[0],
+        y_m: at[1],
+        z_m: at[2],
+        covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-4],
+        heading_rad: 0.0,
+        heading_valid: false,
+        residuals_m: used.iter().map(|&id| residual(id)).collect(),
+        used,
+        rejected: rejected_ids,
+        quality: FixQuality::Good,
+        survey_version: 0,
+    }
+}
+
+/// A place on `lab` near transmitter `id`, and a cell-mate of it in range.
+fn near(site: &Site, id: u32) -> [f64; 2] {
+    let t = site.transmitter(id).unwrap();
+    [t.position_m[0] + 0.3, t.position_m[1] + 0.2]
+}
+
+fn condition(h: &TransmitterHealth, id: u32) -> Condition {
+    h.report(Time::ZERO)
+        .iter()
+        .find(|r| r.tx_id == id)
+        .unwrap()
+        .condition
+}
+
+/// Feeds `n` fixes, ten a second, from `at(k)` built by `fix(k, p)`.
+fn feed(
+    h: &mut TransmitterHealth,
+    start: Time,
+    n: u32,
+    mut fix: impl FnMut(u32) -> Fix,
+) -> Time {
+    let mut now = start;
+    for k in 0..n {
+        h.observe(&fix(k), now);
+        now = now + Duration::from_millis(100);
+    }
+    now
+}
+
+#[test]
+fn a_dead_transmitter_is_flagged_within_a_few_seconds_and_its_neighbours_are_not() {
+    let site = Site::default_site();
+    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
+    let dead = site.transmitters[5].id;
+    let p = near(&site, dead);
+    feed(&mut h, Time::ZERO, 20, |_| fix_at(&site, p, &[dead], &[], |_| 0.002));
+    assert_eq!(condition(&h, dead), Condition::Dead);
+    assert!(h.left_out().contains(&dead));
+    assert_eq!(h.left_out().len(), 1, "{:?}", h.left_out());
+    let r = h.report(Time::ZERO).into_iter().find(|r| r.tx_id == dead).unwrap();
+    assert!(TransmitterHealth::evidence(&r).contains("none"), "{r:?}");
+}
+
+#[test]
+fn a_weak_transmitter_heard_a_quarter_of_the_time_is_flagged_and_recovers() {
+    let site = Site::default_site();
+    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
+    let weak = site.transmitters[9].id;
+    let p = near(&site, weak);
+    let now = feed(&mut h, Time::ZERO, 200, |k| {
+        let missing: &[u32] = if k % 4 == 0 { &[] } else { &[weak] };
+        fix_at(&site, p, missing, &[], |_| 0.0)
+    });
+    assert_eq!(condition(&h, weak), Condition::Weak);
+    // Repaired: heard every time again (its arrivals rejected, as the MSUs
+    // list a left-out transmitter's).
+    feed(&mut h, now, 300, |_| fix_at(&site, p, &[], &[weak], |_| 0.0));
+    assert_eq!(condition(&h, weak), Condition::Healthy);
+    assert!(h.left_out().is_empty());
+}
+
+#[test]
+fn a_moved_transmitter_whose_arrivals_fail_the_gates_is_flagged_and_stays_so() {
+    let site = Site::default_site();
+    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
+    let moved = site.transmitters[2].id;
+    let p = near(&site, moved);
+    let now = feed(&mut h, Time::ZERO, 100, |k| {
+        let rejected: &[u32] = if k % 5 == 0 { &[] } else { &[moved] };
+        fix_at(&site, p, &[], rejected, |id| if id == moved { 0.08 } else { 0.0 })
+    });
+    assert_eq!(condition(&h, moved), Condition::Moved);
+    feed(&mut h, now, 100, |_| fix_at(&site, p, &[], &[moved], |_| 0.0));
+    assert_eq!(condition(&h, moved), Condition::Moved);
+}
+
+#[test]
+fn a_fleet_that_hears_everything_flags_nothing_and_garbage_fixes_change_nothing() {
+    let site = Site::default_site();
+    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
+    let (lo, hi) = site.bounds();
+    let mut now = Time::ZERO;
+    for k in 0..2000u32 {
+        let f = f64::from(k) / 2000.0;
+        let p = [lo[0] + f * (hi[0] - lo[0]), lo[1] + (0.3 + 0.4 * f) * (hi[1] - lo[1])];
+        // One arrival in twenty lost anywhere, as the air and the gates do.
+        let lost: Vec<u32> = site
+            .transmitters
+            .iter()
+            .filter(|t| (t.id + k) % 20 == 0)
+            .map(|t| t.id)
+            .collect();
+        h.observe(&fix_at(&site, p, &lost, &[], |_| 0.003), now);
+        now = now + Duration::from_millis(100);
+    }
+    assert!(h.left_out().is_empty(), "{:?}", h.left_out());
+    let before = h.report(now);
+    let mut garbage = fix_at(&site, near(&site, site.transmitters[0].id), &[], &[], |_| 0.0);
+    garbage.x_m = f64::NAN;
+    h.observe(&garbage, now);
+    let mut short = garbage.clone();
+    short.x_m = 1.0;
+    short.residuals_m.pop();
+    h.observe(&short, now);
+    assert_eq!(h.report(now), before);
+}

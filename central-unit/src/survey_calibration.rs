@@ -86,8 +86,9 @@ pub struct CalibrationConfig {
     /// speed is learnt once for good.
     pub sound_memory_s: f64,
     /// Whether the learnt speed of sound is published for the MSUs to
-    /// solve with (`false`: it is still estimated, so that the air does not
-    /// leak into the transmitters' positions, but the site's is used).
+    /// solve with (`false`: it is still estimated, within a degree's worth
+    /// and for good, so that the air does not leak into the transmitters'
+    /// positions, but the site's is used).
     pub learn_speed_of_sound: bool,
     /// How long a cell's lateness is remembered, seconds: its correlation
     /// time (`survey_calibration::forgetting`); a re-routed cell's new
@@ -95,6 +96,33 @@ pub struct CalibrationConfig {
     pub cell_sync_memory_s: f64,
     /// How often the calibration is published.
     pub publish_every: Duration,
+}
+
+/// The speed of sound's relative sigma when it is not learnt: the site
+/// file's temperature within a degree.
+const UNLEARNT_SOUND_SCALE_SIGMA: f64 = 0.0018;
+
+impl CalibrationConfig {
+    /// The prior (and stationary) sigma of the speed of sound's relative
+    /// error: the air's when the speed is learnt, else a degree's (the
+    /// site's speed is then held, as the MSUs use it).
+    pub fn sound_prior_sigma(&self) -> f64 {
+        if self.learn_speed_of_sound {
+            self.sound_scale_sigma
+        } else {
+            UNLEARNT_SOUND_SCALE_SIGMA
+        }
+    }
+
+    /// The speed of sound's memory, seconds (0: held; see
+    /// [`Self::sound_memory_s`]).
+    pub fn sound_memory(&self) -> f64 {
+        if self.learn_speed_of_sound {
+            self.sound_memory_s
+        } else {
+            0.0
+        }
+    }
 }
 
 impl Default for CalibrationConfig {
@@ -329,7 +357,7 @@ impl SurveyCalibration {
             information[(i, i)] = if i < 3 * n_tx {
                 prior(config.survey_sigma_m)
             } else if i == n - 1 {
-                prior(config.sound_scale_sigma)
+                prior(config.sound_prior_sigma())
             } else {
                 prior(config.cell_sync_sigma_m)
             };
@@ -522,7 +550,7 @@ impl SurveyCalibration {
         &self,
     ) -> (Vec<TransmitterCorrection>, Option<DVector<f64>>, LearntSpeed) {
         let n_tx = self.ids.len();
-        let prior_speed = self.learnt_speed(0.0, self.config.sound_scale_sigma.powi(2));
+        let prior_speed = self.learnt_speed(0.0, self.config.sound_prior_sigma().powi(2));
         // The prior alone is positive definite and every fix adds a
         // positive semi-definite term: only numbers gone wrong fail here.
         let Some(cholesky) = self.information.clone().cholesky() else {

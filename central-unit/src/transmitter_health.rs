@@ -43,6 +43,9 @@ pub struct HealthConfig {
     pub min_due_weak: f64,
     /// Weak: heard less than this fraction of its cell's others' share.
     pub weak_ratio: f64,
+    /// Dead: this many fixes in a row that heard none of it while they
+    /// heard most of its cell's others.
+    pub dead_misses_in_a_row: u32,
     /// Moved: more than this share of its heard arrivals rejected by the
     /// MSUs' gates.
     pub moved_rejected_share: f64,
@@ -52,14 +55,19 @@ pub struct HealthConfig {
 
 impl Default for HealthConfig {
     /// 6 m (the receivers hear to 10 m or more), a memory of 20 s, judged
-    /// dead after 8 fixes due (about a second of one robot nearby) and weak
-    /// or moved after 25. Weak below half its cell's share: a healthy
-    /// transmitter is heard as often as its neighbours, within the few
-    /// percent its drops and blocked paths take, and 25 draws at 90 %
-    /// fall under 45 % with a probability under 1e-7. Moved when more
-    /// than half its arrivals fail the MSUs' gates (a healthy one's
-    /// reflections fail a few percent) or its residuals' mean is beyond
-    /// 5 cm (the MSUs' gate is about 10 cm, a healthy mean millimetres).
+    /// dead after 20 fixes in a row that missed it (a few seconds of one
+    /// robot nearby; a healthy transmitter heard 90 % of the time misses
+    /// 20 in a row with a probability of 1e-20, a weak one heard a quarter
+    /// of the time with 0.3 %) or when its forgotten count of heard fixes
+    /// falls under one half, and weak or moved after 25 fixes due. Weak
+    /// below half its cell's share: a healthy transmitter is heard as often
+    /// as its neighbours, within the few percent its drops and blocked
+    /// paths take, and 25 draws at 90 % fall under 45 % with a probability
+    /// under 1e-7. Moved when more than 30 % of its arrivals fail the
+    /// MSUs' gates (a healthy one's fail when reflected or collided: 2 to
+    /// 10 % in a hall, the `paper` and `harsh` profiles' physics) or the
+    /// mean of five or more of its residuals is beyond 5 cm (the MSUs'
+    /// gate is about 10 cm, a healthy mean millimetres).
     fn default() -> Self {
         Self {
             near_m: 6.0,
@@ -67,7 +75,8 @@ impl Default for HealthConfig {
             min_due_dead: 8.0,
             min_due_weak: 25.0,
             weak_ratio: 0.5,
-            moved_rejected_share: 0.5,
+            dead_misses_in_a_row: 20,
+            moved_rejected_share: 0.3,
             moved_residual_m: 0.05,
         }
     }
@@ -167,6 +176,8 @@ impl Counts {
 
 #[derive(Debug, Clone)]
 struct Entry {
+    /// Fixes in a row that heard most of its cell's others but not it.
+    misses_in_a_row: u32,
     tx_id: u32,
     position_m: [f64; 3],
     cell: usize,
@@ -200,6 +211,7 @@ impl TransmitterHealth {
             .transmitters
             .iter()
             .map(|t| Entry {
+                misses_in_a_row: 0,
                 tx_id: t.id,
                 position_m: t.position_m,
                 cell: cells.get(t.cell.as_str()).copied().unwrap_or(usize::MAX),
@@ -279,7 +291,14 @@ impl TransmitterHealth {
                 .filter(|&&k| heard.contains(&self.entries[k].tx_id))
                 .count();
             let was_heard = heard.contains(&self.entries[i].tx_id);
-            let c = &mut self.entries[i].counts;
+            let expected = heard_others as f64 / others.len() as f64;
+            let e = &mut self.entries[i];
+            if was_heard {
+                e.misses_in_a_row = 0;
+            } else if expected >= 0.5 {
+                e.misses_in_a_row = e.misses_in_a_row.saturating_add(1);
+            }
+            let c = &mut e.counts;
             c.due += 1.0;
             c.expected += heard_others as f64 / others.len() as f64;
             if was_heard {
@@ -287,7 +306,14 @@ impl TransmitterHealth {
             }
         }
         for i in 0..self.entries.len() {
-            let judged = self.judge(&self.entries[i].counts, self.entries[i].condition);
+            let e = &self.entries[i];
+            let judged = if e.misses_in_a_row >= self.config.dead_misses_in_a_row
+                && e.condition != Condition::Moved
+            {
+                Condition::Dead
+            } else {
+                self.judge(&e.counts, e.condition)
+            };
             let e = &mut self.entries[i];
             // Unknown never replaces a judgement: a transmitter nobody is
             // near keeps what was last seen of it.
@@ -350,7 +376,7 @@ impl TransmitterHealth {
         } else {
             0.0
         };
-        let residual_mean = if c.residual_n >= cfg.min_due_weak / 2.0 {
+        let residual_mean = if c.residual_n >= 5.0 {
             (c.residual_sum / c.residual_n).abs()
         } else {
             0.0
@@ -403,8 +429,8 @@ impl TransmitterHealth {
         match r.condition {
             Condition::Unknown => "no robot has been near it long enough".into(),
             Condition::Dead => format!(
-                "heard in none of {:.0} fixes near it, its cell's others in {}",
-                r.due,
+                "not heard in the last fixes near it, heard in {} of the recent ones, its cell's others in {}",
+                pct(r.heard_pct),
                 pct(r.expected_pct)
             ),
             Condition::Weak => format!(

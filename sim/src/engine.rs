@@ -48,6 +48,8 @@ pub struct RunConfig {
     pub central: ickon_central::core::CentralConfig,
     /// Filter options a user sets in the MSU configuration.
     pub filter: FilterOptions,
+    /// Transmitters that fail during the run.
+    pub transmitter_faults: Vec<crate::tx_faults::TransmitterFault>,
 }
 
 /// Options of the MSU's filter that a user turns on in its configuration
@@ -415,7 +417,8 @@ impl<'a> RouteRun<'a> {
         let control =
             ControlPlane::with_config(site, &config.profile.clocks, config.seed, config.central)?;
         let schedule = control.central().latest_schedule().clone();
-        let world = World::new(site, route, &config.profile, config.seed);
+        let mut world = World::new(site, route, &config.profile, config.seed);
+        world.set_transmitter_faults(&config.transmitter_faults);
         let s0 = world.robot.state;
         let start = [s0.x_m, s0.y_m, s0.theta_rad];
         let wheels = world.drive.geometry();

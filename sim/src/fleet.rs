@@ -47,6 +47,8 @@ pub struct FleetConfig {
     pub central: CentralConfig,
     /// Filter options a user sets in the MSU configuration.
     pub filter: FilterOptions,
+    /// Transmitters that fail during the run.
+    pub transmitter_faults: Vec<crate::tx_faults::TransmitterFault>,
 }
 
 /// One robot's results.
@@ -73,6 +75,25 @@ pub struct RobotResult {
     /// none was).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refused_inputs: Option<String>,
+    /// Mean error of each [`ERROR_WINDOW_S`] of the run after the
+    /// warm-up, mm (`null`: no pose in it).
+    pub window_err_mm: Vec<Option<f64>>,
+}
+
+/// Seconds of one window of [`RobotResult::window_err_mm`].
+pub const ERROR_WINDOW_S: f64 = 30.0;
+
+/// A transmitter left out of the fixes, or taken back, by the central unit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TransmitterEvent {
+    /// When, seconds of the run.
+    pub t_s: f64,
+    /// The transmitter.
+    pub tx_id: u32,
+    /// Its condition then (`dead`, `weak`, `moved`, `healthy`).
+    pub condition: String,
+    /// The evidence, in words.
+    pub evidence: String,
 }
 
 /// A fleet run's results.
@@ -98,6 +119,12 @@ pub struct FleetOutput {
     /// Fixes the central unit's survey calibration learnt from (`None`:
     /// the calibration was off).
     pub survey_fixes_taken: Option<u64>,
+    /// Transmitters left out of the fixes and taken back, in time order.
+    pub transmitter_events: Vec<TransmitterEvent>,
+    /// The speed of sound the central unit published against the air's,
+    /// every second: the true value is the mean over the robots of their
+    /// paths' ([`crate::engine::AirSample`]).
+    pub air: Vec<crate::engine::AirSample>,
 }
 
 /// One robot of the fleet: its world, its MSU and what is scored of it.
@@ -149,7 +176,8 @@ fn build_members(
                 known: String::new(),
             })?
             .starting_near([spec.start[0], spec.start[1]]);
-        let world = World::for_robot(site, &route, &config.profile, config.seed, &spec.id);
+        let mut world = World::for_robot(site, &route, &config.profile, config.seed, &spec.id);
+        world.set_transmitter_faults(&config.transmitter_faults);
         let s0 = world.robot.state;
         let start = [s0.x_m, s0.y_m, s0.theta_rad];
         let est = estimator::build(&estimator_config(
@@ -212,6 +240,10 @@ struct Fleet<'a> {
     slot_sum: u64,
     /// Their periods added up, seconds.
     period_sum_s: f64,
+    /// The transmitters left out at the last look.
+    left_out: std::collections::BTreeSet<u32>,
+    transmitter_events: Vec<TransmitterEvent>,
+    air: Vec<crate::engine::AirSample>,
 }
 
 impl<'a> Fleet<'a> {
@@ -248,6 +280,50 @@ impl<'a> Fleet<'a> {
             firing_sum: 0,
             slot_sum: 0,
             period_sum_s: 0.0,
+            left_out: std::collections::BTreeSet::new(),
+            transmitter_events: Vec::new(),
+            air: Vec::new(),
+        }
+    }
+
+    /// Notes the transmitters the central unit left out or took back by
+    /// `t`, and every second the speed of sound it published against the
+    /// air's.
+    fn watch_central(&mut self, t: f64) {
+        let now = ickon_proto::time::Time::from_secs_f64(t);
+        let Some(publisher) = self.control.central().survey() else {
+            return;
+        };
+        if publisher.left_out() != &self.left_out {
+            for r in publisher.transmitters(now) {
+                if publisher.left_out().contains(&r.tx_id) != self.left_out.contains(&r.tx_id) {
+                    self.transmitter_events.push(TransmitterEvent {
+                        t_s: t,
+                        tx_id: r.tx_id,
+                        condition: r.condition.label().to_string(),
+                        evidence: ickon_central::transmitter_health::TransmitterHealth::evidence(
+                            &r,
+                        ),
+                    });
+                }
+            }
+            self.left_out = publisher.left_out().clone();
+        }
+        if self.air.last().is_none_or(|a| t - a.t_s >= 1.0 - 1e-9) {
+            let speeds: Vec<f64> = self
+                .members
+                .iter()
+                .filter_map(|m| m.world.path_speed_m_s(t, crate::engine::AIR_PATHS_M))
+                .collect();
+            let used = publisher
+                .published_speed()
+                .map_or(publisher.site_speed_m_s(), |s| s.speed_m_s);
+            self.air.push(crate::engine::AirSample {
+                t_s: t,
+                true_m_s: (!speeds.is_empty())
+                    .then(|| speeds.len() as f64 / speeds.iter().map(|v| 1.0 / v).sum::<f64>()),
+                used_m_s: used,
+            });
         }
     }
 
@@ -272,6 +348,7 @@ impl<'a> Fleet<'a> {
         self.deliver_due(t, scoring);
         self.forget_stale(t);
         if step.is_multiple_of(self.pose_every) {
+            self.watch_central(t);
             self.sample_poses(t, scoring);
         }
     }
@@ -440,6 +517,8 @@ impl<'a> Fleet<'a> {
                 .central()
                 .survey()
                 .map(|p| p.calibration().fixes_taken()),
+            transmitter_events: self.transmitter_events,
+            air: self.air,
         }
     }
 }
@@ -450,6 +529,12 @@ impl Member {
     fn result(mut self, scored_s: f64, total: &mut CollisionCounts) -> RobotResult {
         let c = self.world.collision_counts();
         total.add(&c);
+        let per_window = ((ERROR_WINDOW_S / POSE_DT_S).round() as usize).max(1);
+        let window_err_mm = self
+            .errors_mm
+            .chunks(per_window)
+            .map(|w| (!w.is_empty()).then(|| w.iter().sum::<f64>() / w.len() as f64))
+            .collect();
         self.errors_mm.sort_by(f64::total_cmp);
         let n = self.errors_mm.len();
         RobotResult {
@@ -474,6 +559,7 @@ impl Member {
             collisions: c,
             calibrated_fixes: self.calibrated_fixes,
             refused_inputs: self.msu.refusal_summary(),
+            window_err_mm,
         }
     }
 }

@@ -17,6 +17,7 @@
 //! - [`score`]: the seeds' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
 //! - [`board`]: an emulated transmitter or receiver board of the device protocol.
+//! - [`tx_faults`]: transmitters dying, growing weak or knocked out of place.
 //! - [`hedgehog`]: an emulated Marvelmind hedgehog streaming raw distances on a route.
 //!
 //! Every random draw comes from a `ChaCha8Rng` stream derived from the run
@@ -50,6 +51,7 @@ pub mod ros2_sensors;
 pub mod schedule_audit;
 pub mod score;
 pub mod sensors;
+pub mod tx_faults;
 pub mod world;
 
 pub use engine::{RunConfig, RunError, RunOutput, run};

@@ -49,6 +49,9 @@ pub struct WorldSettings {
     pub ros2: bool,
     /// The devices to emulate, fed by this world.
     pub devices: Vec<DeviceEndpoint>,
+    /// Transmitters that fail during the run, as `--faults` items
+    /// ([`crate::tx_faults`]), read against the site once it is known.
+    pub transmitter_faults: Option<String>,
 }
 
 /// One robot's publishers.
@@ -94,6 +97,11 @@ pub async fn run(
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
     let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)
         .map_err(|e| NodeError::Setup(e.to_string()))?;
+    if let Some(plan) = &settings.transmitter_faults {
+        let faults = crate::tx_faults::TransmitterFault::parse_plan(plan, &site)
+            .map_err(|e| NodeError::Setup(e.to_string()))?;
+        world.set_transmitter_faults(&faults);
+    }
     let mut devices = if bound.is_empty() {
         None
     } else {
@@ -416,6 +424,11 @@ pub struct WorldArgs {
     /// `--receivers marvelmind:tcp:HOST:PORT`). Repeat for each device.
     #[arg(long = "device", value_name = "OWNER=KIND@HOST:PORT")]
     pub devices: Vec<DeviceEndpoint>,
+    /// Transmitters that fail, comma-separated, times from the world's
+    /// start: `dead:tx/ID@T`, `weak:tx/ID@T=FRACTION`,
+    /// `moved:tx/ID@T=DX,DY,DZ` (metres); T in s or ms.
+    #[arg(long)]
+    pub transmitter_faults: Option<String>,
 }
 
 /// Runs the world as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
@@ -435,6 +448,7 @@ pub fn main_with(args: WorldArgs) -> ExitCode {
         seed: args.seed,
         ros2: args.ros2,
         devices: args.devices.clone(),
+        transmitter_faults: args.transmitter_faults.clone(),
     };
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;

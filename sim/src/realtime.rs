@@ -139,6 +139,13 @@ fn robot_seed(seed: u64, index: usize) -> u64 {
 }
 
 impl RealtimeWorld {
+    /// Makes transmitters fail as `faults` say, in every robot's world.
+    pub fn set_transmitter_faults(&mut self, faults: &[crate::tx_faults::TransmitterFault]) {
+        for w in &mut self.worlds {
+            w.set_transmitter_faults(faults);
+        }
+    }
+
     /// The world of the robots `robot_ids` of `site`, each on its own route.
     pub fn new(
         site: &Site,

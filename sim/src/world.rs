@@ -18,6 +18,7 @@ use crate::profile::NoiseProfile;
 use crate::rng;
 use crate::robot::{DriveSpec, Robot};
 use crate::sensors::{self, Gyro, RangerMount};
+use crate::tx_faults::{TransmitterFault, TransmitterFaults};
 
 /// How long a burst's sound is remembered for collisions with later bursts,
 /// seconds: after it, every profile's tail is far under any burst.
@@ -58,6 +59,10 @@ pub struct World {
     collisions: CollisionCounts,
     ranger_rng: ChaCha8Rng,
     air: AirField,
+    faults: TransmitterFaults,
+    /// Draws of the weak transmitters' losses: a stream of their own, so
+    /// that a fault changes nothing else the world draws.
+    fault_rng: ChaCha8Rng,
     odom: [f64; 3],
     last_ticks: (i64, i64),
     seq: u64,
@@ -126,12 +131,19 @@ impl World {
             collisions: CollisionCounts::default(),
             ranger_rng: rng::stream(seed, &format!("robot/{label}/rangers")),
             air,
+            faults: TransmitterFaults::default(),
+            fault_rng: rng::stream(seed, &format!("robot/{label}/transmitter-faults")),
             odom: [s.x_m, s.y_m, s.theta_rad],
             last_ticks: (0, 0),
             seq: 0,
         };
         w.record(0.0);
         w
+    }
+
+    /// Makes transmitters fail as `faults` say.
+    pub fn set_transmitter_faults(&mut self, faults: &[TransmitterFault]) {
+        self.faults = TransmitterFaults::new(faults.to_vec());
     }
 
     /// The air the bursts fly through.
@@ -290,7 +302,7 @@ impl World {
     /// `t_guess_s` starts the search for the mean arrival time when the robot
     /// is frozen during the cycle.
     fn hear_cycle(&mut self, emissions: &[(usize, f64)], t_guess_s: f64) -> UltrasoundArrivals {
-        let (detections, sounds) = if self.profile.ultrasound.motion_during_cycle {
+        let (detections, sounds, strengths) = if self.profile.ultrasound.motion_during_cycle {
             let mut rng = self.acoustic_rng.clone();
             let heard = self.hear_all(emissions, None, &mut rng);
             self.acoustic_rng = rng;
@@ -301,7 +313,7 @@ impl World {
             let mut t_ref = t_guess_s;
             for _ in 0..4 {
                 let mut trial = self.acoustic_rng.clone();
-                let (h, _) = self.hear_all(emissions, Some(t_ref), &mut trial);
+                let (h, _, _) = self.hear_all(emissions, Some(t_ref), &mut trial);
                 if !h.is_empty() {
                     t_ref = h.iter().map(|a| a.heard.t_true_s).sum::<f64>() / h.len() as f64;
                 }
@@ -310,6 +322,16 @@ impl World {
             let heard = self.hear_all(emissions, Some(t_ref), &mut rng);
             self.acoustic_rng = rng;
             heard
+        };
+        let detections = if self.faults.is_empty() {
+            detections
+        } else {
+            detections
+                .into_iter()
+                .zip(strengths)
+                .filter(|(_, k)| *k >= 1.0 || rng::chance(&mut self.fault_rng, *k))
+                .map(|(d, _)| d)
+                .collect()
         };
         let heard = self.collide(detections, sounds);
         let q_s = self.profile.ultrasound.quantisation_us * 1e-6;
@@ -364,14 +386,17 @@ impl World {
         heard
     }
 
-    /// What the detector picks up of each emission, and the sound each
-    /// leaves at the MSU (direct, in line of sight, within range).
+    /// What the detector picks up of each emission, the sound each leaves
+    /// at the MSU (direct, in line of sight, within range), and each
+    /// detection's transmitter's strength (the probability it is kept, of
+    /// a weak transmitter's: [`TransmitterFaults::strength`]). A dead
+    /// transmitter makes no sound; a moved one makes it from where it hangs.
     fn hear_all(
         &self,
         emissions: &[(usize, f64)],
         frozen_at: Option<f64>,
         rng: &mut ChaCha8Rng,
-    ) -> (Vec<Detection>, Vec<Sound>) {
+    ) -> (Vec<Detection>, Vec<Sound>, Vec<f64>) {
         let h = self.site.msu.height_m;
         let frozen = frozen_at.map(|t| self.truth_at(t));
         let pose_at = |t: f64| {
@@ -381,8 +406,23 @@ impl World {
         let noise = &self.profile.ultrasound;
         let mut detections = Vec::with_capacity(emissions.len());
         let mut sounds = Vec::with_capacity(emissions.len());
+        let mut strengths = Vec::with_capacity(emissions.len());
         for &(tx, t_emit) in emissions {
-            let tx = &self.site.transmitters[tx];
+            let mut moved;
+            let mut tx = &self.site.transmitters[tx];
+            if !self.faults.is_empty() {
+                if self.faults.dead(tx.id, t_emit) {
+                    continue;
+                }
+                let d = self.faults.displacement(tx.id, t_emit);
+                if d != [0.0; 3] {
+                    moved = tx.clone();
+                    for k in 0..3 {
+                        moved.position_m[k] += d[k];
+                    }
+                    tx = &moved;
+                }
+            }
             let path = acoustic::propagate(&self.site, &self.air, tx, t_emit, &pose_at);
             let own = if path.in_sight && path.direct_m <= noise.max_range_m {
                 sounds.push(Sound {
@@ -402,8 +442,9 @@ impl World {
                     channel: tx.channel,
                     own,
                 });
+                strengths.push(self.faults.strength(tx.id, t_emit));
             }
         }
-        (detections, sounds)
+        (detections, sounds, strengths)
     }
 }

@@ -46,8 +46,8 @@ impl SurveyCalibration {
             .map(|i| (i, c.cell_sync_sigma_m, c.cell_sync_memory_s))
             .chain(std::iter::once((
                 first + m,
-                c.sound_scale_sigma,
-                c.sound_memory_s,
+                c.sound_prior_sigma(),
+                c.sound_memory(),
             )))
             .filter_map(|(i, sigma, memory_s)| {
                 if !(memory_s > 0.0 && sigma > 0.0) {

@@ -125,6 +125,7 @@ fn fleet_config<'a>(
             ..CentralConfig::default()
         },
         filter: super::filter_options(args),
+        transmitter_faults: super::transmitter_faults(args, site)?,
     };
     Ok((config, firing))
 }
@@ -145,6 +146,7 @@ fn print_json(site: &Site, config: &FleetConfig, firing: &str, args: &EvalArgs, 
         "collision_loss_share": out.collisions.lost_share(),
         "median_robot_mean_err_mm": median(out.robots.iter().map(|r| r.mean_err_mm)),
         "mean_hdop": out.plan.mean_hdop(),
+        "speed_of_sound": ickon_sim::score::AirScore::of(&out.air, site.speed_of_sound_m_s),
     });
     println!("{doc}");
 }
@@ -221,6 +223,43 @@ fn print_report(
         c.blocked_lost,
         c.blocked_detected
     );
+    if let Some(a) = ickon_sim::score::AirScore::of(&out.air, site.speed_of_sound_m_s) {
+        println!(
+            "speed of sound published: {:.3} % off the robots' paths on average, {:.3} % at worst after the first minute (the site file's {:.3} % off); the air {:.1}-{:.1} m/s",
+            a.used_mean_pct,
+            a.used_max_pct,
+            a.site_mean_pct,
+            a.true_range_m_s[0],
+            a.true_range_m_s[1]
+        );
+    }
+    for r in &out.robots {
+        let windows: Vec<String> = r
+            .window_err_mm
+            .iter()
+            .map(|w| w.map_or("-".to_string(), |v| format!("{v:.1}")))
+            .collect();
+        println!(
+            "{:>6} mean error per {:.0} s after the warm-up, mm: {}",
+            r.id,
+            ickon_sim::fleet::ERROR_WINDOW_S,
+            windows.join(" ")
+        );
+    }
+    if out.transmitter_events.is_empty() {
+        println!("transmitters: none left out of the fixes");
+    }
+    for e in &out.transmitter_events {
+        let what = if e.condition == "healthy" {
+            "taken back"
+        } else {
+            "left out"
+        };
+        println!(
+            "transmitter {} {what} at {:.1} s ({}: {})",
+            e.tx_id, e.t_s, e.condition, e.evidence
+        );
+    }
 }
 
 /// The median of `values` (NaN for none; the mean of the middle two for an even count).

@@ -84,6 +84,35 @@ pub struct EvalArgs {
     /// the fleet's fixes: the MSUs use the site file's throughout.
     #[arg(long)]
     pub no_speed_of_sound: bool,
+    /// Transmitters that fail during the run, comma-separated:
+    /// `dead:tx/ID@T`, `weak:tx/ID@T=FRACTION` (each burst heard with that
+    /// probability), `moved:tx/ID@T=DX,DY,DZ` (metres); T in s or ms.
+    #[arg(long)]
+    pub faults: Option<String>,
+}
+
+/// The transmitter faults `--faults` names on `site` (none without it);
+/// a bad plan is bad input.
+pub(super) fn transmitter_faults(
+    args: &EvalArgs,
+    site: &Site,
+) -> Result<Vec<ickon_sim::tx_faults::TransmitterFault>, CommandError> {
+    let Some(plan) = &args.faults else {
+        return Ok(Vec::new());
+    };
+    for item in ickon_sim::tx_faults::split_plan(plan) {
+        if !ickon_sim::tx_faults::TransmitterFault::is_one(&item) {
+            return Err(CommandError::bad_input(format!(
+                "--faults: {item:?}: `ickon eval` takes transmitter faults only (dead, weak, moved)"
+            )));
+        }
+    }
+    let faults = ickon_sim::tx_faults::TransmitterFault::parse_plan(plan, site)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    if faults.is_empty() {
+        return Err(CommandError::bad_input("--faults: no fault in the plan"));
+    }
+    Ok(faults)
 }
 
 /// The central unit's survey calibration for `args` on `site` under
@@ -153,7 +182,8 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
         return Err(CommandError::bad_input("--tours must be at least 1"));
     }
     let started = Instant::now();
-    let outputs = simulate(&site, &routes, &estimators, &profile, &args)
+    let faults = transmitter_faults(&args, &site)?;
+    let outputs = simulate(&site, &routes, &estimators, &profile, &args, &faults)
         .map_err(|e| CommandError::failure(e.to_string()))?;
     let scores: Vec<Vec<Score>> = outputs
         .iter()
@@ -232,6 +262,7 @@ fn simulate(
     estimators: &[String],
     profile: &NoiseProfile,
     args: &EvalArgs,
+    faults: &[ickon_sim::tx_faults::TransmitterFault],
 ) -> Result<Vec<RunOutput>, ickon_sim::RunError> {
     const STEPS: u64 = 1000;
     let pb = progress_bar(STEPS * routes.len() as u64);
@@ -260,6 +291,7 @@ fn simulate(
                         ..Default::default()
                     },
                     filter: filter_options(args),
+                    transmitter_faults: faults.to_vec(),
                 };
                 scope.spawn(move || {
                     let mut done = 0u64;

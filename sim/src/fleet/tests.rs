@@ -17,6 +17,7 @@ fn config(robots: usize, occupancy: bool) -> FleetConfig {
             ..CentralConfig::default()
         },
         filter: FilterOptions::default(),
+        transmitter_faults: Vec::new(),
     }
 }
 

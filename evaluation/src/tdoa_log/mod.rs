@@ -68,7 +68,7 @@ pub struct TdoaArgs {
     /// Acceleration density of the constant-velocity filters (`tdoa-ekf`,
     /// `cv-ekf`, `cv-fix`), m^2/s^3: how fast the mobile changes its
     /// velocity (1: about 1 m/s within a second, a flying tag).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = cv_fix::ACCEL_PSD_M2_S3)]
     pub accel_psd_m2_s3: f64,
     /// The mobile's body shadow for `tdoa-ekf`, metres (0: no body model).
     #[arg(long, default_value_t = 0.0)]

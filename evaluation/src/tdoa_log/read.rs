@@ -633,7 +633,7 @@ impl TruthReader {
     }
 
     /// The next row, `None` at the end.
-    pub fn next(&mut self) -> Result<Option<TruthRow>, LogError> {
+    pub fn next_row(&mut self) -> Result<Option<TruthRow>, LogError> {
         let Some(r) = self.file.next_fields()? else {
             return Ok(None);
         };

@@ -332,7 +332,7 @@ fn estimate_offset(
     };
     let margin = offset::MAX_OFFSET_S + 0.1;
     let mut samples = Vec::new();
-    while let Some(r) = truth.next()? {
+    while let Some(r) = truth.next_row()? {
         if r.t_s > t1 + margin {
             break;
         }
@@ -374,7 +374,7 @@ impl TruthStream {
     fn advance(&mut self, until_s: f64, slots: &mut [Slot]) -> Result<(), LogError> {
         loop {
             if self.next.is_none() && !self.ended {
-                match self.reader.next()? {
+                match self.reader.next_row()? {
                     Some(r) => {
                         let t_s = r.t_s + self.offset_s;
                         self.span_s = Some(match self.span_s {

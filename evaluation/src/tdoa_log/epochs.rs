@@ -3,7 +3,8 @@
 
 use super::epoch::{Units, same_family};
 use super::format::{Anchors, Arrival, measurement_columns as mc};
-use super::read::{LogError, MeasurementReader};
+use super::read::LogError;
+use super::rows::MeasurementReader;
 
 /// Most rows one epoch may hold: far more arrivals than any array has
 /// receivers, small enough that an epoch id repeated down a huge file

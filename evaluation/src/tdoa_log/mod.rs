@@ -2,8 +2,8 @@
 //! times in one documented CSV format (`docs/log-format.md`).
 //!
 //! - [`format`]: what the files hold and their column names;
-//! - [`read`]: the files streamed line by line, every problem named by
-//!   file, line and column;
+//! - [`read`]: a file streamed line by line, every problem named by file,
+//!   line and column; [`rows`]: the anchors, measurement and truth rows;
 //! - [`epochs`], [`epoch`]: rows grouped into epochs, turned into range
 //!   differences for the filters and into the per-epoch least-squares fix
 //!   of the MSU's solver (the baseline);
@@ -22,6 +22,7 @@ pub mod format;
 mod offset;
 pub mod read;
 mod replay;
+pub mod rows;
 pub mod synth;
 #[cfg(test)]
 mod tests;

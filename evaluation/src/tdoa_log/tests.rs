@@ -265,3 +265,79 @@ fn epochs_the_solver_cannot_fix_are_counted_not_dropped() {
     let r = replay(&args(dir.path(), false)).unwrap();
     assert_eq!((r.epochs, r.solved, r.unsolved.too_few_arrivals), (6, 5, 1));
 }
+
+/// The example's arrival times rewritten as time differences against each
+/// epoch's first arrival, and as ranges (pseudo-ranges): the same epochs
+/// give the same least-squares positions whichever kind carries them.
+#[test]
+fn every_kind_of_value_gives_the_same_fixes() {
+    let example = example_dir();
+    let text = std::fs::read_to_string(example.join("measurements.csv")).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header = lines.next().unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let c = synth::SPEED_OF_SOUND_M_S;
+    let mut tdoa = format!(
+        "# format: ickon-tdoa-log/1\n# clock: array\n# propagation_speed_m_s: {c}\n{header}\n"
+    );
+    let mut range = tdoa.clone();
+    let mut first: Option<(&str, &str, f64)> = None;
+    for r in &rows {
+        let toa: f64 = r[5].parse().unwrap();
+        range.push_str(&format!(
+            "{},{},{},,range_m,{},{}\n",
+            r[0],
+            r[1],
+            r[2],
+            toa * c,
+            5e-5 * c
+        ));
+        match first {
+            Some((epoch, anchor, t0)) if epoch == r[0] => {
+                tdoa.push_str(&format!(
+                    "{},{},{},{anchor},tdoa_s,{},{}\n",
+                    r[0],
+                    r[1],
+                    r[2],
+                    toa - t0,
+                    5e-5
+                ));
+            }
+            _ => first = Some((r[0], r[2], toa)),
+        }
+    }
+    let positions = |measurements: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["anchors.csv", "truth.csv"] {
+            std::fs::copy(example.join(name), dir.path().join(name)).unwrap();
+        }
+        write(dir.path(), "measurements.csv", measurements);
+        let mut a = args(dir.path(), true);
+        a.estimator = "ls".into();
+        a.plot = Some(dir.path().join("plots"));
+        let r = replay(&a).unwrap();
+        r.replayed.tracks[0]
+            .series
+            .clone()
+            .unwrap()
+            .iter()
+            .map(|p| p.estimate_m)
+            .collect::<Vec<_>>()
+    };
+    let from_toa = positions(&std::fs::read_to_string(example.join("measurements.csv")).unwrap());
+    assert!(from_toa.len() > 50);
+    for (kind, text) in [("tdoa_s", &tdoa), ("range_m", &range)] {
+        let other = positions(text);
+        // Stamped at the emission (arrival times) or at the mean arrival
+        // (the others), an epoch at the truth's edge may be scored in one
+        // run only.
+        assert!(other.len().abs_diff(from_toa.len()) <= 1, "{kind}");
+        for b in &other {
+            let nearest = from_toa
+                .iter()
+                .map(|a| (a[0] - b[0]).hypot(a[1] - b[1]))
+                .fold(f64::INFINITY, f64::min);
+            assert!(nearest < 1e-6, "{kind}: {b:?} is {nearest} m from any");
+        }
+    }
+}

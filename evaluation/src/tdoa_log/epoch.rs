@@ -184,7 +184,10 @@ impl EpochSolver {
         let one_reference = first
             .reference
             .filter(|&r| rows.iter().all(|a| a.reference == Some(r)));
-        ids.extend(one_reference);
+        match one_reference {
+            Some(r) => ids.push(r),
+            None => ids.extend(rows.iter().filter_map(|a| a.reference)),
+        }
         let distinct = {
             let mut d = ids.clone();
             d.sort_unstable();

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use ickon_evaluation::{EvalArgs, PlazaArgs, UtilArgs};
+use ickon_evaluation::{ConvertUtilArgs, EvalArgs, PlazaArgs, TdoaArgs, UtilArgs};
 use ickon_launcher::{BenchCommand, SimArgs};
 use ickon_operator::{AdminCommand, DeviceCheckArgs, RouterArgs, SecureArgs};
 use ickon_recording::{McapArgs, RecordArgs};
@@ -85,6 +85,20 @@ pub enum Command {
         #[command(subcommand)]
         source: ReplaySource,
     },
+    /// Write a recorded data set in another format.
+    Convert {
+        /// Which recorded data set.
+        #[command(subcommand)]
+        source: ConvertSource,
+    },
+}
+
+/// Data sets `ickon convert` reads.
+#[derive(Debug, Subcommand)]
+pub enum ConvertSource {
+    /// A UTIL UWB TDOA flight, written as an arrival-time log
+    /// (`--to tdoa`, docs/log-format.md).
+    Util(ConvertUtilArgs),
 }
 
 /// Actions on site files.
@@ -114,6 +128,10 @@ pub enum ReplaySource {
     /// An MCAP recording of `ickon record` or `ickon sim --record`, through
     /// the MSU cores again (scored against its truth).
     Mcap(McapArgs),
+    /// An arrival-time log of any system (docs/log-format.md): anchors,
+    /// measurements, optionally truth; the estimators beside the per-epoch
+    /// least-squares fix.
+    Tdoa(TdoaArgs),
 }
 
 /// Actions on device boards.
@@ -155,7 +173,11 @@ pub fn run(cli: Cli) -> ExitCode {
             ReplaySource::Util(args) => ickon_evaluation::run_util(&args),
             ReplaySource::Plaza(args) => ickon_evaluation::run_plaza(&args),
             ReplaySource::Mcap(args) => ickon_recording::run_replay(&args),
+            ReplaySource::Tdoa(args) => ickon_evaluation::run_tdoa(&args),
         },
+        Command::Convert {
+            source: ConvertSource::Util(args),
+        } => ickon_evaluation::run_convert_util(&args),
         Command::Sim(args) => ickon_launcher::run_sim(args),
         Command::Eval(args) => ickon_evaluation::run_eval(args),
         Command::Router(args) => ickon_operator::run_router(args),

@@ -412,17 +412,48 @@ impl Table {
     }
 }
 
+/// The reader's complaint in words (a binary file is not UTF-8 text; a
+/// line has more fields than the header).
 fn csv_error(path: &Path, e: csv::Error) -> InputError {
     let line = e.position().map_or(1, |p| p.line());
+    let message = match e.kind() {
+        csv::ErrorKind::Utf8 { err, .. } => format!(
+            "field {} is not UTF-8 text (byte {} of the field): not a CSV file of this format",
+            err.field() + 1,
+            err.valid_up_to() + 1
+        ),
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => format!("{len} fields where the header has {expected_len}"),
+        _ => e.to_string(),
+    };
     match e.into_kind() {
         csv::ErrorKind::Io(source) => InputError::Io {
             path: path.to_owned(),
             source,
         },
-        kind => InputError::Malformed {
+        _ => InputError::Malformed {
             path: path.to_owned(),
             line,
-            message: format!("{kind:?}"),
+            message,
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_binary_file_is_refused_in_words() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("flight.csv");
+        let mut bytes = DATA_COLUMNS.join(",").into_bytes();
+        bytes.extend(b"\n1,2,0.5,");
+        bytes.extend([0xff, 0xfe, 0x00, b'\n']);
+        std::fs::write(&path, bytes).unwrap();
+        let mut reader = UtilReader::open(&path).unwrap();
+        let e = reader.next_row().err().unwrap().to_string();
+        assert!(e.contains("flight.csv:2: field 4 is not UTF-8 text"), "{e}");
     }
 }

@@ -238,6 +238,7 @@ pub struct WindowRunner {
     window: Vec<(f64, PairMeasurement)>,
     window_start_s: Option<f64>,
     last_m: Vector3<f64>,
+    sigma_m: f64,
     /// Rejections so far.
     pub rejections: Rejections,
 }
@@ -246,14 +247,20 @@ impl WindowRunner {
     /// Starts its first solve from `start_m`, later ones from the previous
     /// solution.
     pub fn new(start_m: [f64; 3]) -> Self {
+        Self::with_sigma(start_m, MEASUREMENT_SIGMA_M)
+    }
+
+    /// The same, for measurements of standard deviation `sigma_m`.
+    pub fn with_sigma(start_m: [f64; 3], sigma_m: f64) -> Self {
         Self {
             config: RefineConfig {
-                sigma_m: MEASUREMENT_SIGMA_M,
+                sigma_m,
                 ..RefineConfig::default()
             },
             window: Vec::new(),
             window_start_s: None,
             last_m: Vector3::from(start_m),
+            sigma_m,
             rejections: Rejections::default(),
         }
     }
@@ -294,7 +301,7 @@ impl WindowRunner {
             return None;
         };
         // One pass of residual rejection at 3 sigma, then the final solve.
-        let gate_m = 3.0 * MEASUREMENT_SIGMA_M;
+        let gate_m = 3.0 * self.sigma_m;
         let keep: Vec<usize> = (0..pairs.len())
             .filter(|&i| first.residuals_m[i].abs() <= gate_m)
             .collect();

@@ -9,12 +9,12 @@
 //! optionally PNG plots ([`plot`]). A bad file is reported with its name
 //! and line and exit code 2.
 
-mod attitude;
-mod dataset;
-mod estimators;
-mod plot;
-mod run;
-mod score;
+pub(crate) mod attitude;
+pub(crate) mod dataset;
+pub(crate) mod estimators;
+pub(crate) mod plot;
+pub(crate) mod run;
+pub(crate) mod score;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -101,27 +101,27 @@ fn parse_bounds(s: &str) -> Result<FlightVolume, String> {
 
 /// The result of one estimator on one flight.
 #[derive(Debug, serde::Serialize)]
-struct EstimatorReport {
-    name: &'static str,
+pub(crate) struct EstimatorReport {
+    pub(crate) name: &'static str,
     #[serde(flatten)]
-    summary: Summary,
-    estimates: u64,
-    unscored: u64,
+    pub(crate) summary: Summary,
+    pub(crate) estimates: u64,
+    pub(crate) unscored: u64,
     /// Seconds from the first measurement to the first published estimate.
-    output_began_s: Option<f64>,
+    pub(crate) output_began_s: Option<f64>,
     /// Share of the measurements after which an estimate was published.
-    published_pct: f64,
-    output_rate_hz: f64,
-    rejected_pct: f64,
-    rejected: Rejections,
-    recoveries: u64,
+    pub(crate) published_pct: f64,
+    pub(crate) output_rate_hz: f64,
+    pub(crate) rejected_pct: f64,
+    pub(crate) rejected: Rejections,
+    pub(crate) recoveries: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
-    guard: Option<GuardCounts>,
+    pub(crate) guard: Option<GuardCounts>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    shadow_m: Option<f64>,
+    pub(crate) shadow_m: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    attitude: Option<AttitudeSummary>,
-    wall_s: f64,
+    pub(crate) attitude: Option<AttitudeSummary>,
+    pub(crate) wall_s: f64,
 }
 
 /// Replays one flight through every estimator and prints the result.
@@ -173,7 +173,7 @@ pub fn run(args: &UtilArgs) -> Result<(), CommandError> {
     Ok(())
 }
 
-fn print_table(file: &str, r: &Replayed, wall: Duration) {
+pub(crate) fn print_table(file: &str, r: &Replayed, wall: Duration) {
     println!(
         "{file}: {} measurements over {:.1} s, replayed in {:.2} s",
         r.measurements,

@@ -28,12 +28,12 @@ const ANTENNA_BODY_M: [f64; 3] = [-0.01245, 0.00127, 0.0908];
 const VOLUME_MARGIN_M: f64 = 0.5;
 
 /// Everything a replay produced.
-pub(super) struct Replayed {
-    pub(super) measurements: u64,
-    pub(super) duration_s: f64,
-    pub(super) volume: FlightVolume,
-    pub(super) reports: Vec<EstimatorReport>,
-    pub(super) tracks: Vec<Track>,
+pub(crate) struct Replayed {
+    pub(crate) measurements: u64,
+    pub(crate) duration_s: f64,
+    pub(crate) volume: FlightVolume,
+    pub(crate) reports: Vec<EstimatorReport>,
+    pub(crate) tracks: Vec<Track>,
 }
 
 /// The file's streams, each in time order.
@@ -65,7 +65,7 @@ fn read_streams(args: &UtilArgs, reader: &mut UtilReader) -> Result<Streams, Inp
 
 /// The antenna's true position: with the orientation, the whole lever
 /// arm; without, its height only (nearly all of it).
-fn antenna(row: &TruthRow) -> TruthRow {
+pub(crate) fn antenna(row: &TruthRow) -> TruthRow {
     let p = Vector3::from(row.position_m);
     let offset = match row.attitude_xyzw {
         Some(q) => {
@@ -348,7 +348,8 @@ fn sample(
     })
 }
 
-fn report(
+/// One estimator's report from its scored track.
+pub(crate) fn report(
     name: &'static str,
     track: &Track,
     measurements: u64,

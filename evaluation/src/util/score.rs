@@ -51,6 +51,8 @@ pub struct Summary {
     pub rmse_xy_m: f64,
     /// Mean 3D error, metres.
     pub mean_3d_m: f64,
+    /// Median 3D error, metres.
+    pub median_3d_m: f64,
     /// 95th percentile of the 3D error, metres.
     pub p95_3d_m: f64,
     /// Largest 3D error, metres.
@@ -128,6 +130,7 @@ impl Track {
                 rmse_3d_m: 0.0,
                 rmse_xy_m: 0.0,
                 mean_3d_m: 0.0,
+                median_3d_m: 0.0,
                 p95_3d_m: 0.0,
                 max_3d_m: 0.0,
             };
@@ -142,6 +145,11 @@ impl Track {
             rmse_3d_m: (sorted.iter().map(|e| e * e).sum::<f64>() / nf).sqrt(),
             rmse_xy_m: (self.sum2_xy / nf).sqrt(),
             mean_3d_m: sorted.iter().sum::<f64>() / nf,
+            median_3d_m: if n % 2 == 1 {
+                sorted[n / 2]
+            } else {
+                0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+            },
             p95_3d_m: sorted[rank],
             max_3d_m: sorted[n - 1],
         }

@@ -1,0 +1,147 @@
+//! `ickon convert util --to tdoa DIR`: a UTIL flight written in the log
+//! format, so that `ickon replay tdoa` on it can be held against
+//! `ickon replay util` on the original.
+//!
+//! Each UTIL range difference becomes one `tdoa_m` row (`anchor` = its
+//! anchor B, `reference` = its anchor A, the UTIL sigma), grouped into
+//! epochs of [`EPOCH_S`]; the truth is the antenna's position (the lever
+//! arm applied as the UTIL replay applies it), on the same clock.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+use ickon_runtime::CommandError;
+
+use super::format::FORMAT;
+use crate::util::dataset::{UtilReader, read_anchors};
+use crate::util::estimators::{MEASUREMENT_SIGMA_M, WINDOW_S};
+
+/// Length of an epoch of a converted UTIL flight, seconds: the window of
+/// `window-gn`, several measurements per anchor pair.
+pub const EPOCH_S: f64 = WINDOW_S;
+
+/// The formats `ickon convert` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Target {
+    /// The arrival-time log format (`docs/log-format.md`).
+    Tdoa,
+}
+
+/// Arguments of `ickon convert util`.
+#[derive(Debug, Args)]
+pub struct ConvertUtilArgs {
+    /// The UTIL measurement CSV (as for `ickon replay util`).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// The UTIL anchor CSV.
+    #[arg(long)]
+    pub anchors: PathBuf,
+    /// Which anchor constellation the flight used.
+    #[arg(long)]
+    pub constellation: Option<u32>,
+    /// The format to write.
+    #[arg(long, value_enum)]
+    pub to: Target,
+    /// The directory to write `anchors.csv`, `measurements.csv` and
+    /// `truth.csv` into (created; existing files are refused).
+    pub dir: PathBuf,
+}
+
+/// Converts a UTIL flight.
+pub fn run(args: &ConvertUtilArgs) -> Result<(), CommandError> {
+    let Target::Tdoa = args.to;
+    let anchors = read_anchors(&args.anchors, args.constellation)
+        .map_err(|e| CommandError::bad_input(e.to_string()))?;
+    let mut reader =
+        UtilReader::open(&args.data).map_err(|e| CommandError::bad_input(e.to_string()))?;
+    std::fs::create_dir_all(&args.dir)
+        .map_err(|e| CommandError::failure(format!("cannot create {}: {e}", args.dir.display())))?;
+    let mut out = Writers::create(&args.dir)?;
+    let mut ids: Vec<_> = anchors.iter().collect();
+    ids.sort_by_key(|(id, _)| **id);
+    out.line(0, "# written by ickon convert util from UTIL anchors")?;
+    out.line(0, "id,x_m,y_m,z_m,role")?;
+    for (id, p) in ids {
+        out.line(0, &format!("{id},{},{},{},transmitter", p[0], p[1], p[2]))?;
+    }
+    out.line(1, &format!("# format: {FORMAT}"))?;
+    out.line(1, "# clock: tag")?;
+    out.line(1, "# propagation_speed_m_s: 299792458")?;
+    out.line(1, "epoch,time_s,anchor,reference,kind,value,sigma")?;
+    out.line(2, "# clock: tag")?;
+    out.line(2, "time_s,x_m,y_m,z_m")?;
+    let mut first_s = None;
+    let mut rows = 0_u64;
+    while let Some(row) = reader
+        .next_row()
+        .map_err(|e| CommandError::bad_input(e.to_string()))?
+    {
+        if let Some(m) = row.tdoa {
+            let t0 = *first_s.get_or_insert(m.t_s);
+            let epoch = ((m.t_s - t0) / EPOCH_S).floor() as u64;
+            out.line(
+                1,
+                &format!(
+                    "{epoch},{},{},{},tdoa_m,{},{MEASUREMENT_SIGMA_M}",
+                    m.t_s, m.id_b, m.id_a, m.d_m
+                ),
+            )?;
+            rows += 1;
+        }
+        if let Some(t) = row.truth {
+            let p = crate::util::run::antenna(&t).position_m;
+            out.line(2, &format!("{},{},{},{}", t.t_s, p[0], p[1], p[2]))?;
+        }
+    }
+    out.flush()?;
+    eprintln!(
+        "{}: {rows} range differences written to {}",
+        args.data.display(),
+        args.dir.display()
+    );
+    Ok(())
+}
+
+/// The three files of the log, written in step.
+pub struct Writers {
+    files: Vec<(PathBuf, BufWriter<File>)>,
+}
+
+impl Writers {
+    /// Creates `anchors.csv`, `measurements.csv`, `truth.csv` in `dir`,
+    /// refusing to overwrite.
+    pub fn create(dir: &Path) -> Result<Self, CommandError> {
+        let mut files = Vec::new();
+        for name in ["anchors.csv", "measurements.csv", "truth.csv"] {
+            let path = dir.join(name);
+            let f = File::options()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+                .map_err(|e| {
+                    CommandError::failure(format!("cannot create {}: {e}", path.display()))
+                })?;
+            files.push((path, BufWriter::new(f)));
+        }
+        Ok(Self { files })
+    }
+
+    /// Writes one line into file `k` (0 anchors, 1 measurements, 2 truth).
+    pub fn line(&mut self, k: usize, text: &str) -> Result<(), CommandError> {
+        let (path, w) = &mut self.files[k];
+        writeln!(w, "{text}")
+            .map_err(|e| CommandError::failure(format!("cannot write {}: {e}", path.display())))
+    }
+
+    /// Flushes every file.
+    pub fn flush(&mut self) -> Result<(), CommandError> {
+        for (path, w) in &mut self.files {
+            w.flush().map_err(|e| {
+                CommandError::failure(format!("cannot write {}: {e}", path.display()))
+            })?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,184 @@
+//! `ickon replay tdoa` and `ickon convert ... --to tdoa`: anyone's arrival
+//! times in one documented CSV format (`docs/log-format.md`).
+//!
+//! - [`format`]: what the files hold and their column names;
+//! - [`read`]: a file streamed line by line, every problem named by file,
+//!   line and column; [`rows`]: the anchors, measurement and truth rows;
+//! - [`epochs`], [`epoch`]: rows grouped into epochs, turned into range
+//!   differences for the filters and into the per-epoch least-squares fix
+//!   of the MSU's solver (the baseline);
+//! - [`offset`]: the truth clock's offset, when it runs on another clock;
+//! - [`replay`]: the estimators of `ickon replay util` over the epochs,
+//!   scored and printed by the same code;
+//! - [`convert`]: a UTIL flight written in the format;
+//! - [`synth`]: a microphone network hearing a mobile emitter, generated
+//!   (the example set and the measured expectations of the docs).
+
+pub mod convert;
+mod cv_fix;
+mod epoch;
+mod epochs;
+pub mod format;
+mod offset;
+pub mod read;
+mod replay;
+pub mod rows;
+pub mod synth;
+#[cfg(test)]
+mod tests;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use ickon_runtime::CommandError;
+
+use crate::util::{plot, print_table};
+
+pub use convert::{ConvertUtilArgs, run as run_convert_util};
+
+/// Arguments of `ickon replay tdoa`.
+#[derive(Debug, Args)]
+pub struct TdoaArgs {
+    /// The anchors file (`id,x_m,y_m[,z_m],role`).
+    #[arg(long)]
+    pub anchors: PathBuf,
+    /// The measurements file (`epoch,time_s,anchor,reference,kind,value[,sigma]`).
+    #[arg(long)]
+    pub measurements: PathBuf,
+    /// The truth file (`time_s,x_m,y_m[,z_m][,heading_rad]`); without it
+    /// the estimates are counted, not scored.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// The dimension the log must have (2 or 3): a check, the anchors
+    /// file decides (3D when it has `z_m`).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(2..=3))]
+    pub dim: Option<u8>,
+    /// The estimators, comma-separated, or `all`: in 3D `tdoa-ekf`,
+    /// `cv-ekf`, `window-gn`, `cv-fix`, `ls`; in 2D `cv-fix`, `ls` (`ls`: the per-epoch least-squares fix, the baseline).
+    #[arg(long, default_value = "all")]
+    pub estimator: String,
+    /// Propagation speed, m/s (overrides the file's
+    /// `# propagation_speed_m_s:` line; needed for `toa_s`, `tdoa_s`).
+    #[arg(long)]
+    pub speed_m_s: Option<f64>,
+    /// Standard deviation of a row without its own `sigma`, metres
+    /// (default: the UWB flights' measurement RMS, rounded up).
+    #[arg(long, default_value_t = 0.1)]
+    pub sigma_m: f64,
+    /// Acceleration density of the constant-velocity filters (`tdoa-ekf`,
+    /// `cv-ekf`, `cv-fix`), m^2/s^3: how fast the mobile changes its
+    /// velocity (1: about 1 m/s within a second, a flying tag).
+    #[arg(long, default_value_t = cv_fix::ACCEL_PSD_M2_S3)]
+    pub accel_psd_m2_s3: f64,
+    /// The mobile's body shadow for `tdoa-ekf`, metres (0: no body model).
+    #[arg(long, default_value_t = 0.0)]
+    pub shadow_m: f64,
+    /// Print one JSON document on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write PNG plots into this directory.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Replays a log of the format and prints the tables.
+pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
+    if args.speed_m_s.is_some_and(|c| !(c.is_finite() && c > 0.0)) {
+        return Err(CommandError::bad_input("--speed-m-s must be positive"));
+    }
+    if !(args.sigma_m.is_finite() && args.sigma_m > 0.0) {
+        return Err(CommandError::bad_input("--sigma-m must be positive"));
+    }
+    if !(args.accel_psd_m2_s3.is_finite() && args.accel_psd_m2_s3 > 0.0) {
+        return Err(CommandError::bad_input(
+            "--accel-psd-m2-s3 must be positive",
+        ));
+    }
+    if !(args.shadow_m.is_finite() && args.shadow_m >= 0.0) {
+        return Err(CommandError::bad_input("--shadow-m must not be negative"));
+    }
+    let started = Instant::now();
+    let out = replay::replay(args).map_err(|e| CommandError::bad_input(e.to_string()))?;
+    let wall = started.elapsed();
+    let file = args.measurements.display().to_string();
+    let r = &out.replayed;
+    if args.json {
+        let doc = serde_json::json!({
+            "file": file,
+            "anchors": args.anchors.display().to_string(),
+            "truth": args.truth.as_ref().map(|p| p.display().to_string()),
+            "dim": out.dim,
+            "role": out.role,
+            "rows": out.rows,
+            "epochs": out.epochs,
+            "solved_epochs": out.solved,
+            "unsolved_epochs": out.unsolved,
+            "truth_offset": out.truth_offset,
+            "volume": r.volume,
+            "measurements": r.measurements,
+            "duration_s": r.duration_s,
+            "wall_s": wall.as_secs_f64(),
+            "estimators": r.reports,
+        });
+        println!("{doc}");
+    } else {
+        print_summary(&out);
+        if out.has_truth {
+            print_table(&file, r, wall);
+            let medians: Vec<String> = r
+                .reports
+                .iter()
+                .filter(|e| e.summary.scored > 0)
+                .map(|e| format!("{} {:.4}", e.name, e.summary.median_3d_m))
+                .collect();
+            println!("median error, m: {}", medians.join(", "));
+        } else {
+            for e in &r.reports {
+                println!(
+                    "{:<10} {} estimates (no truth to score them)",
+                    e.name, e.estimates
+                );
+            }
+        }
+    }
+    if let Some(dir) = &args.plot {
+        let stem = args
+            .measurements
+            .file_stem()
+            .map_or("replay".into(), |s| s.to_string_lossy());
+        let series: Vec<&[crate::util::score::SeriesPoint]> = r
+            .tracks
+            .iter()
+            .map(|t| t.series.as_deref().unwrap_or(&[]))
+            .collect();
+        let names: Vec<&str> = r.reports.iter().map(|r| r.name).collect();
+        plot::write_all(dir, &stem, &names, &series).map_err(|e| {
+            CommandError::failure(format!("cannot write plots to {}: {e}", dir.display()))
+        })?;
+    }
+    Ok(())
+}
+
+fn print_summary(out: &replay::TdoaReplayed) {
+    let u = &out.unsolved;
+    println!(
+        "{}D, {}s fixed: {} rows in {} epochs; least squares fixed {} epochs, not {} (too few arrivals {}, no fix {}, invalid {}, 2D with several references {})",
+        out.dim,
+        out.role.as_str(),
+        out.rows,
+        out.epochs,
+        out.solved,
+        u.total(),
+        u.too_few_arrivals,
+        u.no_fix,
+        u.invalid,
+        u.mixed_references_2d,
+    );
+    if let Some(o) = &out.truth_offset {
+        println!(
+            "truth clock: measurements minus truth = {:+.4} s (median fix error {:.3} m over {} fixes)",
+            o.offset_s, o.median_error_m, o.fixes
+        );
+    }
+}

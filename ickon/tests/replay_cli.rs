@@ -402,3 +402,118 @@ fn bad_input_exits_with_code_two_naming_file_and_line() {
         std::fs::remove_file(p).unwrap();
     }
 }
+
+/// Ten seconds of the IMU flight with its IMU rows rewritten by `edit`
+/// (the fields of one line, its index), as a temporary file.
+fn imu_flight(name: &str, edit: impl Fn(&mut Vec<String>, usize)) -> PathBuf {
+    let text = std::fs::read_to_string(imu_data("pre0425-traj1-tdoa2.csv")).unwrap();
+    let mut out = String::new();
+    for (k, line) in text.lines().enumerate().take(10_000) {
+        let mut f: Vec<String> = line.split(',').map(str::to_owned).collect();
+        if k > 0 {
+            edit(&mut f, k);
+        }
+        out.push_str(&f.join(","));
+        out.push('\n');
+    }
+    temp_file(name, &out)
+}
+
+/// NaN, clipped, out-of-order and future-stamped IMU samples are dropped,
+/// counted by reason in the report, and the replay goes on; a file whose
+/// IMU columns hold no sample is refused under `--imu`, naming it.
+#[test]
+fn bad_imu_samples_are_counted_and_dropped_not_fatal() {
+    if !have_data() {
+        return;
+    }
+    // Columns: t_acc 4, acc_x..z 5-7, t_gyro 8, gyro_x..z 9-11.
+    let flawed = imu_flight("flawed-imu.csv", |f, k| match k {
+        2000 => f[5] = "NaN".into(),
+        2100 => f[10] = "inf".into(),
+        3000 => f[7] = "30".into(),
+        3100 => f[11] = "2100".into(),
+        4000 => f[4] = "0.5".into(),
+        5000 => f[4] = "1e6".into(),
+        _ => {}
+    });
+    let run = ickon()
+        .args(["replay", "util", "--imu", "--json", "--data"])
+        .arg(&flawed)
+        .arg("--anchors")
+        .arg(imu_data("anchors_0425.csv"))
+        .output()
+        .unwrap();
+    let doc = json(&run);
+    let imu = estimator(&doc, "imu-eskf");
+    let dropped = &imu["imu_dropped"];
+    for (reason, n) in [
+        ("non_finite", 2),
+        ("saturated", 2),
+        ("out_of_order", 1),
+        ("future", 1),
+    ] {
+        assert_eq!(dropped[reason].as_u64(), Some(n), "{reason}: {imu}");
+    }
+    assert!(imu["rmse_3d_m"].as_f64().is_some(), "{imu}");
+    // The table says so too.
+    let table = ickon()
+        .args(["replay", "util", "--imu", "--data"])
+        .arg(&flawed)
+        .arg("--anchors")
+        .arg(imu_data("anchors_0425.csv"))
+        .output()
+        .unwrap();
+    assert!(table.status.success(), "{table:?}");
+    let text = String::from_utf8_lossy(&table.stdout);
+    assert!(
+        text.contains(
+            "IMU samples dropped: 2 not finite, 2 saturated, 1 out of order, 1 from the future"
+        ),
+        "{text}"
+    );
+
+    let no_imu = imu_flight("no-imu.csv", |f, _| {
+        for v in &mut f[4..12] {
+            v.clear();
+        }
+    });
+    let out = ickon()
+        .args(["replay", "util", "--imu", "--data"])
+        .arg(&no_imu)
+        .arg("--anchors")
+        .arg(imu_data("anchors_0425.csv"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no usable IMU sample") && err.contains("no-imu.csv"),
+        "{err}"
+    );
+    for p in [flawed, no_imu] {
+        std::fs::remove_file(p).unwrap();
+    }
+}
+
+/// An estimator that publishes nothing reports `null` errors, not zeros:
+/// a flight too short for the watch to place its filter.
+#[test]
+fn an_estimator_with_no_estimate_reports_null_errors() {
+    if !have_data() {
+        return;
+    }
+    let out = replay("const1-trial1-tdoa2.csv", "1", &["--max-seconds", "0.05"]);
+    let doc = json(&out);
+    let ours = estimator(&doc, "tdoa-ekf");
+    assert_eq!(ours["scored"].as_u64(), Some(0), "{ours}");
+    for key in [
+        "rmse_3d_m",
+        "rmse_xy_m",
+        "mean_3d_m",
+        "p95_3d_m",
+        "max_3d_m",
+    ] {
+        assert!(ours[key].is_null(), "{key}: {ours}");
+    }
+}

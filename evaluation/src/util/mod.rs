@@ -12,6 +12,7 @@
 pub(crate) mod attitude;
 pub(crate) mod dataset;
 pub(crate) mod estimators;
+mod imu_input;
 pub(crate) mod plot;
 pub(crate) mod run;
 pub(crate) mod score;
@@ -121,6 +122,9 @@ pub(crate) struct EstimatorReport {
     pub(crate) shadow_m: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(crate) attitude: Option<AttitudeSummary>,
+    /// IMU samples not integrated, by reason (the IMU filter only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) imu_dropped: Option<imu_input::ImuDropped>,
     pub(crate) wall_s: f64,
 }
 
@@ -184,23 +188,35 @@ pub(crate) fn print_table(file: &str, r: &Replayed, wall: Duration) {
         "estimator  rmse_3d_m rmse_xy_m mean_3d_m  p95_3d_m  max_3d_m rejected_%  rate_hz began_s published_%"
     );
     for e in &r.reports {
+        if let Some(d) = e.imu_dropped.filter(|d| d.total() > 0) {
+            println!(
+                "{:<10} IMU samples dropped: {} not finite, {} saturated, {} out of order, {} from the future",
+                e.name, d.non_finite, d.saturated, d.out_of_order, d.future
+            );
+        }
         let s = &e.summary;
-        if s.scored == 0 {
+        let (Some(rmse_3d_m), Some(rmse_xy_m), Some(mean_3d_m), Some(p95_3d_m), Some(max_3d_m)) = (
+            s.rmse_3d_m,
+            s.rmse_xy_m,
+            s.mean_3d_m,
+            s.p95_3d_m,
+            s.max_3d_m,
+        ) else {
             // No estimate to score: say so rather than print zero errors.
             println!(
                 "{:<10} published no estimate ({:.2} % of the measurements rejected)",
                 e.name, e.rejected_pct
             );
             continue;
-        }
+        };
         println!(
             "{:<10} {:9.4} {:9.4} {:9.4} {:9.4} {:9.4} {:10.2} {:8.1} {:7.2} {:11.1}",
             e.name,
-            s.rmse_3d_m,
-            s.rmse_xy_m,
-            s.mean_3d_m,
-            s.p95_3d_m,
-            s.max_3d_m,
+            rmse_3d_m,
+            rmse_xy_m,
+            mean_3d_m,
+            p95_3d_m,
+            max_3d_m,
             e.rejected_pct,
             e.output_rate_hz,
             e.output_began_s.unwrap_or(0.0),

@@ -14,6 +14,7 @@ use super::dataset::{self, InputError, TruthRow, UtilReader};
 use super::estimators::{
     self, CvRunner, EkfRunner, ImuRunner, MEASUREMENT_SIGMA_M, Rejections, WindowRunner,
 };
+use super::imu_input;
 use super::score::{Track, Truth};
 use super::{EstimatorReport, UtilArgs};
 
@@ -96,14 +97,34 @@ pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
         None => FlightVolume::around(&positions, VOLUME_MARGIN_M)
             .map_err(|e| bad_input(args, e.to_string()))?,
     };
-    let streams = read_streams(args, &mut reader)?;
+    let mut streams = read_streams(args, &mut reader)?;
+    let imu_dropped = if args.imu {
+        let (kept, dropped) = imu_input::screen(&streams.imu);
+        if kept.is_empty() {
+            return Err(bad_input(
+                args,
+                format!(
+                    "--imu: the file has no usable IMU sample ({} read, {} dropped: {dropped:?})",
+                    streams.imu.len(),
+                    dropped.total()
+                ),
+            ));
+        }
+        streams.imu = kept;
+        Some(dropped)
+    } else {
+        None
+    };
     let mut runners = Runners::new(args, &anchors, volume)?;
     let mut runs = runners.run(&streams, &anchors, &reader, args.plot.is_some())?;
     score(&streams, &mut runs);
     let measurements = streams.tdoa.len() as u64;
     let first_s = streams.tdoa.first().map(|m| m.1.t_s);
     let duration_s = streams.tdoa.last().map_or(0.0, |m| m.1.t_s) - first_s.unwrap_or(0.0);
-    let reports = runners.reports(&runs, measurements, duration_s, first_s);
+    let mut reports = runners.reports(&runs, measurements, duration_s, first_s);
+    if let Some(r) = reports.iter_mut().find(|r| r.name == "imu-eskf") {
+        r.imu_dropped = imu_dropped;
+    }
     Ok(Replayed {
         measurements,
         duration_s,
@@ -377,6 +398,7 @@ pub(crate) fn report(
         guard: None,
         shadow_m: None,
         attitude: None,
+        imu_dropped: None,
         wall_s: wall.as_secs_f64(),
     }
 }

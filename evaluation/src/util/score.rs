@@ -40,23 +40,24 @@ pub struct Track {
     pub series: Option<Vec<SeriesPoint>>,
 }
 
-/// The summary of a [`Track`].
+/// The summary of a [`Track`]: every error statistic is `None` (`null` in
+/// JSON) when no estimate was scored, never a zero that reads as perfect.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Summary {
     /// Estimates scored.
     pub scored: u64,
     /// Root mean square of the 3D error, metres.
-    pub rmse_3d_m: f64,
+    pub rmse_3d_m: Option<f64>,
     /// Root mean square of the horizontal error, metres.
-    pub rmse_xy_m: f64,
+    pub rmse_xy_m: Option<f64>,
     /// Mean 3D error, metres.
-    pub mean_3d_m: f64,
+    pub mean_3d_m: Option<f64>,
     /// Median 3D error, metres.
-    pub median_3d_m: f64,
+    pub median_3d_m: Option<f64>,
     /// 95th percentile of the 3D error, metres.
-    pub p95_3d_m: f64,
+    pub p95_3d_m: Option<f64>,
     /// Largest 3D error, metres.
-    pub max_3d_m: f64,
+    pub max_3d_m: Option<f64>,
 }
 
 impl Track {
@@ -121,18 +122,18 @@ impl Track {
         }
     }
 
-    /// The error statistics (zeros when nothing was scored).
+    /// The error statistics (none when nothing was scored).
     pub fn summary(&self) -> Summary {
         let n = self.errors_3d_m.len();
         if n == 0 {
             return Summary {
                 scored: 0,
-                rmse_3d_m: 0.0,
-                rmse_xy_m: 0.0,
-                mean_3d_m: 0.0,
-                median_3d_m: 0.0,
-                p95_3d_m: 0.0,
-                max_3d_m: 0.0,
+                rmse_3d_m: None,
+                rmse_xy_m: None,
+                mean_3d_m: None,
+                median_3d_m: None,
+                p95_3d_m: None,
+                max_3d_m: None,
             };
         }
         let nf = n as f64;
@@ -142,16 +143,16 @@ impl Track {
         let rank = ((0.95 * nf).ceil() as usize).clamp(1, n) - 1;
         Summary {
             scored: n as u64,
-            rmse_3d_m: (sorted.iter().map(|e| e * e).sum::<f64>() / nf).sqrt(),
-            rmse_xy_m: (self.sum2_xy / nf).sqrt(),
-            mean_3d_m: sorted.iter().sum::<f64>() / nf,
-            median_3d_m: if n % 2 == 1 {
+            rmse_3d_m: Some((sorted.iter().map(|e| e * e).sum::<f64>() / nf).sqrt()),
+            rmse_xy_m: Some((self.sum2_xy / nf).sqrt()),
+            mean_3d_m: Some(sorted.iter().sum::<f64>() / nf),
+            median_3d_m: Some(if n % 2 == 1 {
                 sorted[n / 2]
             } else {
                 0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
-            },
-            p95_3d_m: sorted[rank],
-            max_3d_m: sorted[n - 1],
+            }),
+            p95_3d_m: Some(sorted[rank]),
+            max_3d_m: Some(sorted[n - 1]),
         }
     }
 }
@@ -251,7 +252,7 @@ mod tests {
         truth.finish(&mut [&mut track]);
         let s = track.summary();
         assert_eq!((s.scored, track.unscored), (2, 1));
-        assert!(s.rmse_3d_m < 1e-12, "{s:?}");
+        assert!(s.rmse_3d_m.is_some_and(|e| e < 1e-12), "{s:?}");
     }
 
     #[test]
@@ -267,8 +268,30 @@ mod tests {
         track.push(0.03, [0.0, 0.0, 1.0]);
         truth.finish(&mut [&mut track]);
         let s = track.summary();
-        assert!((s.rmse_3d_m - (25.0_f64 / 3.0).sqrt()).abs() < 1e-12);
-        assert!((s.mean_3d_m - 7.0 / 3.0).abs() < 1e-12);
-        assert_eq!((s.p95_3d_m, s.max_3d_m), (4.0, 4.0));
+        assert!((s.rmse_3d_m.unwrap() - (25.0_f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert!((s.mean_3d_m.unwrap() - 7.0 / 3.0).abs() < 1e-12);
+        assert_eq!((s.p95_3d_m, s.max_3d_m), (Some(4.0), Some(4.0)));
+    }
+
+    #[test]
+    fn a_track_with_nothing_scored_has_no_error_statistics() {
+        let mut truth = Truth::new([0.0; 3]);
+        let mut track = Track::new(false);
+        truth.push(row(0.0, 0.0), &mut [&mut track]);
+        // Before the truth begins: not scored.
+        track.push(-1.0, [0.0, 0.0, 1.0]);
+        truth.finish(&mut [&mut track]);
+        let s = track.summary();
+        assert_eq!((s.scored, track.unscored), (0, 1));
+        let json = serde_json::to_value(s).unwrap();
+        for key in [
+            "rmse_3d_m",
+            "rmse_xy_m",
+            "mean_3d_m",
+            "p95_3d_m",
+            "max_3d_m",
+        ] {
+            assert!(json[key].is_null(), "{key}: {json}");
+        }
     }
 }

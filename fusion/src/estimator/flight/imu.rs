@@ -345,6 +345,12 @@ impl GuardedFilter for ImuFilter {
         }
     }
 
+    /// The IMU carries position, velocity and attitude through the time
+    /// the watch holds the filter lost (once levelled).
+    fn tracks_while_lost(&self) -> bool {
+        self.levelled
+    }
+
     fn constrain(&mut self, volume: &FlightVolume) -> bool {
         let a = self.antenna_m();
         let (q, moved) = volume.clamp(&a);

@@ -20,7 +20,14 @@
 //!   since its last confirmed estimate at its top speed
 //!   ([`LostParams::max_speed_m_s`]); a window farther away waits (the
 //!   reach grows with time, so a wrong confirmed estimate does not hold the
-//!   filter for ever), and nothing is published meanwhile.
+//!   filter for ever), and nothing is published meanwhile;
+//! - a filter that keeps tracking while lost (an IMU-driven one,
+//!   [`GuardedFilter::tracks_while_lost`]) is resumed, not restarted, when
+//!   it was lost for failing the gate and the window puts the receiver
+//!   within [`LostParams::disagree_m`] of it:
+//!   a lost verdict during a run of biased range differences says the run
+//!   disagreed with the filter, and a window of that same run is no better
+//!   a start than the height and velocity the IMU carried through it.
 //!
 //! Any filter implementing [`GuardedFilter`] can be watched: the 3D
 //! constant-velocity and IMU filters of [`crate::estimator::flight`] do; a planar
@@ -51,6 +58,14 @@ pub trait GuardedFilter {
     fn reset(&mut self, t_s: f64, position_m: Vector3<f64>, sigma_m: f64);
     /// Projects the state into `volume`; whether it was outside.
     fn constrain(&mut self, volume: &FlightVolume) -> bool;
+    /// Whether the state keeps following the receiver while the watch
+    /// holds it lost: a state driven by an IMU does, a constant-velocity
+    /// extrapolation does not. Such a state, lost for failing the gate, is
+    /// resumed, not restarted, when a window puts the receiver where it
+    /// already is.
+    fn tracks_while_lost(&self) -> bool {
+        false
+    }
 }
 
 /// When the filter counts as lost.
@@ -150,6 +165,9 @@ pub struct GuardCounts {
     /// Consistent windows not used to re-place the filter: farther from
     /// its last confirmed estimate than the receiver can have moved.
     pub unreachable_windows: u64,
+    /// Times a lost filter that kept tracking was resumed where a window
+    /// agreed with it instead of being re-placed.
+    pub resumed: u64,
 }
 
 /// What one measurement did.
@@ -182,6 +200,9 @@ pub struct Guarded<F> {
     trusted_m: Option<Vector3<f64>>,
     confirmed: Option<Confirmed>,
     confirmed_since_placed: bool,
+    /// Why the filter was last declared lost (none before the first
+    /// placement).
+    lost_for: Option<LostReason>,
     counts: GuardCounts,
 }
 
@@ -218,6 +239,7 @@ impl<F: GuardedFilter> Guarded<F> {
             trusted_m: start_hint_m.map(Vector3::from),
             confirmed: None,
             confirmed_since_placed: false,
+            lost_for: None,
             counts: GuardCounts::default(),
         }
     }
@@ -258,6 +280,9 @@ impl<F: GuardedFilter> Guarded<F> {
                 self.window.clear();
                 self.last_check_s = f64::NEG_INFINITY;
                 lost = self.lose(LostReason::TimeJump);
+                // Also while already lost: a state from the old clock is
+                // not resumed.
+                self.lost_for = Some(LostReason::TimeJump);
             }
         }
         if self.last_t_s.is_none_or(|l| m.t_s > l) || lost.is_some() {
@@ -376,6 +401,7 @@ impl<F: GuardedFilter> Guarded<F> {
             LostReason::TimeJump => self.counts.lost_time_jump += 1,
         }
         self.placed = false;
+        self.lost_for = Some(reason);
         Some(reason)
     }
 
@@ -392,6 +418,20 @@ impl<F: GuardedFilter> Guarded<F> {
                         + 3.0 * (c.sigma_m.powi(2) + sigma.powi(2)).sqrt();
                     if (position_m - c.position_m).norm() > reach_m {
                         self.counts.unreachable_windows += 1;
+                        return;
+                    }
+                }
+                if self.filter.tracks_while_lost() && self.lost_for == Some(LostReason::Rejections)
+                {
+                    self.filter.predict_to(t_s);
+                    let apart = (self.filter.position_m() - position_m).norm();
+                    if apart <= self.params.lost.disagree_m {
+                        self.placed = true;
+                        self.counts.resumed += 1;
+                        self.watch_share = 0.0;
+                        self.watch_seen = 0;
+                        self.outside_run = 0;
+                        self.disagree_run = 0;
                         return;
                     }
                 }

@@ -51,7 +51,7 @@ struct Flown {
 /// of noise; `clock` maps true time to the receiver's clock.
 #[allow(clippy::too_many_arguments)]
 fn fly(
-    guard: &mut Guarded<CvFilter>,
+    guard: &mut Guarded<impl GuardedFilter>,
     anchors: &[[f64; 3]],
     path: impl Fn(f64) -> Vector3<f64>,
     seconds: f64,
@@ -287,4 +287,70 @@ fn a_window_farther_than_the_motion_allows_waits_for_the_reach_to_grow() {
     assert_eq!(f.counts.placements, 2, "{:?}", f.counts);
     let end = jump(16.0);
     assert!((g.filter().position_m() - end).norm() < 0.1);
+}
+
+/// A constant-velocity filter that claims to keep tracking while lost (as
+/// an IMU-driven one does): over a quarter of a second its extrapolation
+/// stays within centimetres on the circle.
+struct Tracking(CvFilter);
+
+impl GuardedFilter for Tracking {
+    fn predict_to(&mut self, t_s: f64) {
+        self.0.predict_to(t_s);
+    }
+    fn position_m(&self) -> Vector3<f64> {
+        self.0.position_m()
+    }
+    fn position_sigma_m(&self) -> f64 {
+        self.0.position_sigma_m()
+    }
+    fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {
+        self.0.predicted_m(m)
+    }
+    fn update(&mut self, m: &RangeDifferenceSample) -> crate::estimator::tdoa_ekf::Outcome {
+        self.0.update(m)
+    }
+    fn reset(&mut self, t_s: f64, position_m: Vector3<f64>, sigma_m: f64) {
+        self.0.reset(t_s, position_m, sigma_m);
+    }
+    fn constrain(&mut self, volume: &FlightVolume) -> bool {
+        self.0.constrain(volume)
+    }
+    fn tracks_while_lost(&self) -> bool {
+        true
+    }
+}
+
+/// A quarter of a second in which every range difference is wild makes
+/// the filter fail its gate and be declared lost. A filter that keeps
+/// tracking is resumed where the first clean window agrees with it (not
+/// restarted at rest); one that does not is re-placed.
+#[test]
+fn a_filter_that_tracks_while_lost_is_resumed_not_restarted() {
+    let tx = corners();
+    let burst = |seed: u64| {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let wild = rand_distr::Uniform::new(-3.0, 3.0).unwrap();
+        move |t: f64, _: usize, _: usize| {
+            Some(if (10.0..10.25).contains(&t) {
+                wild.sample(&mut rng)
+            } else {
+                0.0
+            })
+        }
+    };
+    let volume = FlightVolume::around(&tx, 0.5).unwrap();
+    let filter = CvFilter::new(CvParams::default()).unwrap();
+    let mut tracking = Guarded::new(Tracking(filter), volume, GuardParams::default(), None);
+    let f = fly(&mut tracking, &tx, circle, 20.0, 7, &mut burst(8), |t| t);
+    assert!(f.counts.lost_rejections >= 1, "{:?}", f.counts);
+    assert!(f.counts.resumed >= 1, "{:?}", f.counts);
+    assert_eq!(f.counts.placements, 1, "{:?}", f.counts);
+    assert!(f.worst_m < 0.3, "{} {:?}", f.worst_m, f.counts);
+
+    let mut plain = guarded(&tx, None, None);
+    let f = fly(&mut plain, &tx, circle, 20.0, 7, &mut burst(8), |t| t);
+    assert!(f.counts.lost_rejections >= 1, "{:?}", f.counts);
+    assert_eq!(f.counts.resumed, 0, "{:?}", f.counts);
+    assert!(f.counts.placements >= 2, "{:?}", f.counts);
 }

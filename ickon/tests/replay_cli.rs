@@ -1,7 +1,8 @@
-//! `ickon replay util` on the real UTIL flights in `../shared/data/util/`
-//! and `../shared/data/util-imu/` (relative to the repository root): the
-//! JSON shape, the accuracy targets of issues 8 and 19, and bad input (exit
-//! code 2 with the file and line named).
+//! `ickon replay util` on the real UTIL flights in `$ICKON_DATA/util/`
+//! and `$ICKON_DATA/util-imu/`: the JSON shape, the accuracy targets of
+//! `docs/estimators.md`, and bad input (exit code 2 with the file and line
+//! named). Without the data each test says so on one line and passes,
+//! unless `ICKON_REQUIRE_DATA=1`.
 //!
 //! A debug build replays a prefix of each flight (`--max-seconds`) to stay
 //! within seconds; one test replays a whole flight, and the targets on
@@ -13,17 +14,22 @@ use std::path::PathBuf;
 use std::process::{Command, Output};
 
 /// Whether the UTIL flights are there (absent: said in one line, and a
-/// failure under `CI=true`).
+/// failure when `ICKON_REQUIRE_DATA=1`).
 fn have_data() -> bool {
     ickon_testkit::real_data("util").is_some() && ickon_testkit::real_data("util-imu").is_some()
 }
 
+/// The data folder; called only after [`have_data`].
+fn root() -> PathBuf {
+    ickon_testkit::data::data_root().expect("ICKON_DATA is checked by have_data first")
+}
+
 fn data(name: &str) -> PathBuf {
-    ickon_testkit::data::data_root().join("util").join(name)
+    root().join("util").join(name)
 }
 
 fn imu_data(name: &str) -> PathBuf {
-    ickon_testkit::data::data_root().join("util-imu").join(name)
+    root().join("util-imu").join(name)
 }
 
 fn ickon() -> Command {

@@ -1,5 +1,5 @@
 //! The fleet's calibration of the transmitters' surveyed positions
-//! (issues 18 and 20).
+//! (docs/architecture.md, "The fleet's survey calibration").
 //!
 //! A robot hears most transmitters steeply from below, so an error in a
 //! transmitter's surveyed height goes almost whole into its range, while
@@ -84,7 +84,7 @@ pub struct CalibrationConfig {
 impl Default for CalibrationConfig {
     /// The values a site states before it has measured anything: a survey
     /// to 1 cm per axis (a tape and a laser meter), the cells' sync within
-    /// about 60 us, the seeds' receivers' 50 us timing noise at 343 m/s,
+    /// about 60 us, the ICKON paper's receivers' 50 us timing noise at 343 m/s,
     /// the air within a degree, a cell's lateness remembered for a day (a
     /// network path is re-routed rarely; a day keeps what was learnt
     /// through a night the fleet stands idle), published every second.

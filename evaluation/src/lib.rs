@@ -10,7 +10,7 @@
 //! - `ickon replay plaza` ([`PlazaArgs`], [`run_plaza`]): the ground
 //!   filter on a real wheeled robot (CMU Plaza), scored against its truth;
 //! - [`chart`]: the font and styling every PNG picture of the tools shares;
-//! - [`print_estimator_table`]: the seeds' accuracy table, also printed by
+//! - [`print_estimator_table`]: the papers' accuracy table, also printed by
 //!   the MCAP replay.
 //!
 //! No Zenoh: everything here runs in one process from files and seeds.

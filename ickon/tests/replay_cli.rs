@@ -135,7 +135,7 @@ fn tdoa3_outliers_are_rejected_and_do_not_spoil_the_estimate() {
     assert!(ekf["rmse_3d_m"].as_f64().unwrap() < 0.10, "{ekf}");
 }
 
-/// The targets of issues 8 and 19 on whole flights, for the causal filter
+/// The accuracy targets on whole flights, for the causal filter
 /// with its one parameter set: 3D RMSE at most 0.09 m on both TDoA2
 /// flights and 0.10 m on the TDoA3 flight, no published estimate 0.75 m
 /// from the truth, and never worse than the plain CV-EKF beside it.
@@ -171,7 +171,7 @@ fn full_flights_meet_the_targets() {
 
 /// The 27-column flight with the IMU and the truth orientation: every
 /// estimator runs, the IMU filter's attitude is scored, and ours keeps
-/// the issue-19 bounds on a flight much harder than the extracts (a third
+/// its whole-flight bounds on a flight much harder than the extracts (a third
 /// of its measurements are over 0.5 m off, most of them before take-off).
 #[test]
 fn imu_flight_scores_position_and_attitude() {

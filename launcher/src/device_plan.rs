@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use clap::ValueEnum;
 use ickon_proto::site::Site;
 
-use crate::launch::free_port;
+use crate::ports::free_port;
 
 /// How the nodes reach the simulated hardware.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]

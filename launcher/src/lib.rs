@@ -31,6 +31,7 @@ mod metrics;
 mod msu_file;
 mod nodes;
 mod observe;
+mod ports;
 mod report;
 mod router_load;
 mod run;

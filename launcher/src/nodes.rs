@@ -160,23 +160,6 @@ impl NodeCommands {
     }
 }
 
-/// The robots of each agent process that hosts several: `k` at most
-/// each, in the site's order, never two zones in one (a process has one
-/// session, to its zone's router); none when each robot has its own (`k`
-/// 1).
-pub(crate) fn fleets(site: &Site, robots: &[String], k: usize, routers: usize) -> Vec<Vec<String>> {
-    if k <= 1 {
-        return Vec::new();
-    }
-    match crate::zones::split(site, robots, routers.max(1)) {
-        Ok(zones) if !zones.is_empty() => zones
-            .iter()
-            .flat_map(|z| z.robots.chunks(k).map(<[String]>::to_vec))
-            .collect(),
-        _ => robots.chunks(k).map(<[String]>::to_vec).collect(),
-    }
-}
-
 /// The name of a fleet process as the run reports it: `fleet r1..r16`.
 pub(crate) fn fleet_name(robots: &[String]) -> String {
     match robots {
@@ -326,7 +309,7 @@ impl<'a> Builder<'a> {
             args.ros2,
         )?)?;
         let robots: Vec<String> = msus.iter().map(|m| m.robot.clone()).collect();
-        let groups = fleets(site, &robots, args.robots_per_process(), args.routers);
+        let groups = crate::zones::fleets(site, &robots, args.robots_per_process(), args.routers);
         if !groups.is_empty() {
             let mut agents = Vec::new();
             for group in groups {

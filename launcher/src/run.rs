@@ -17,10 +17,11 @@ use zenoh::sample::SampleKind;
 
 use crate::args::{SimArgs, check_args};
 use crate::device_plan::Devices;
-use crate::launch::{free_port, wait_for_listener};
+use crate::launch::wait_for_listener;
 use crate::metrics::RunStats;
 use crate::nodes::{NodeCommands, msu_starts};
 use crate::observe::{observe, open_observer};
+use crate::ports::free_port;
 use crate::report::{RunFacts, SimReport, render_report};
 use crate::router_load::RouterLoad;
 use crate::secure::SimSecurity;

@@ -55,7 +55,7 @@ impl SimSecurity {
             generate(
                 site,
                 args.routers,
-                &crate::nodes::fleets(site, robots, args.robots_per_process(), args.routers),
+                &crate::zones::fleets(site, robots, args.robots_per_process(), args.routers),
             )
         };
         result

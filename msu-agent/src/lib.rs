@@ -31,6 +31,8 @@ pub mod motion;
 #[cfg(feature = "zenoh")]
 pub mod node;
 #[cfg(feature = "zenoh")]
+pub mod receiver_input;
+#[cfg(feature = "zenoh")]
 pub mod receivers;
 #[cfg(feature = "zenoh")]
 pub mod ros2;

@@ -33,6 +33,8 @@ pub mod devices;
 pub mod emulate;
 #[cfg(feature = "zenoh")]
 pub mod emulate_hedgehog;
+#[cfg(feature = "zenoh")]
+mod emulate_listen;
 pub mod engine;
 pub mod fleet;
 pub mod hedgehog;

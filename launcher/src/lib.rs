@@ -24,6 +24,7 @@ mod bench;
 mod core_split;
 mod cost;
 mod device_plan;
+mod error;
 mod faults;
 mod fleet_site;
 mod launch;

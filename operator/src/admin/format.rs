@@ -14,7 +14,12 @@ fn status_json(s: &StatusReport, cells: bool, robots: bool) -> StatusJson {
     StatusJson::new(s, cells, robots)
 }
 
-pub(super) fn to_json<T: Serialize>(value: &T) -> anyhow::Result<String> {
+/// Why an answer could not be printed: it does not serialise as JSON.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write the answer as JSON: {0}")]
+pub struct FormatError(#[from] serde_json::Error);
+
+pub(super) fn to_json<T: Serialize>(value: &T) -> Result<String, FormatError> {
     Ok(serde_json::to_string_pretty(value)? + "\n")
 }
 
@@ -170,7 +175,7 @@ fn survey_line(r: &RobotHealth) -> Option<String> {
 }
 
 /// `status`: everything in one view.
-pub fn status(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn status(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, true, true));
     }
@@ -182,7 +187,7 @@ pub fn status(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `cells`.
-pub fn cells(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn cells(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, true, false));
     }
@@ -193,7 +198,7 @@ pub fn cells(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `robots`.
-pub fn robots(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn robots(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, false, true));
     }
@@ -204,7 +209,7 @@ pub fn robots(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `sync`: the cells' clock estimates and their residual error against truth.
-pub fn sync(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn sync(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, true, false));
     }
@@ -237,7 +242,7 @@ pub fn sync(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `schedule`.
-pub fn schedule(s: &Schedule, json: bool) -> anyhow::Result<String> {
+pub fn schedule(s: &Schedule, json: bool) -> Result<String, FormatError> {
     let ms = |d: ickon_proto::time::Duration| d.as_secs_f64() * 1e3;
     let rate = ickon_central::update_rate_hz(s);
     if json {
@@ -272,7 +277,7 @@ pub fn schedule(s: &Schedule, json: bool) -> anyhow::Result<String> {
 }
 
 /// `pause`, `resume`, `reload`.
-pub fn ack(a: &AdminAck, json: bool) -> anyhow::Result<String> {
+pub fn ack(a: &AdminAck, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(a);
     }

@@ -41,7 +41,7 @@ pub(crate) fn render(
     Ok(format!(
         "# Written by `ickon sim` for its MSU agents: `{}` as `ickon eval` configures it.\n{}",
         config.name(),
-        toml::to_string(&root)?
+        toml::to_string(&root).map_err(|e| LaunchError::MsuFile(e.to_string()))?
     ))
 }
 

@@ -6,16 +6,16 @@
 //! distances to beacons are ranges instead of arrivals.
 
 use ickon_fusion::estimator::WheelGeometry;
+use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::robot::{Imu, Odometry, UltrasoundArrivals};
-use ickon_proto::{DecodeError, decode};
+use ickon_proto::msg::robot::UltrasoundArrivals;
 use ickon_runtime::link::LinkAddress;
 use ickon_runtime::{NodeError, SimulatedClock, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Subscriber;
 
 use crate::board_receivers::BoardReceivers;
-use crate::hedgehog::{HedgehogInput, MarvelmindSettings};
+use crate::hedgehog::MarvelmindSettings;
 use crate::marvelmind_receivers::{MarvelmindReceivers, RangingSite};
 // Shared with the sources below, which must not import this module.
 pub use crate::receiver_input::{ReceiverInput, SharedSummary};

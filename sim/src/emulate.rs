@@ -8,7 +8,6 @@
 //! left at.
 
 use std::io::{ErrorKind, Read, Write};
-use std::net::TcpListener;
 use std::time::Duration;
 
 use clap::{Args, Subcommand};

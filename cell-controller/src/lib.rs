@@ -1,6 +1,6 @@
 //! # ickon-cell
 //!
-//! The cell controller of ICKON (seed 000 section 3.1.1, "CCU"): it keeps its
+//! The cell controller of ICKON (the ICKON paper, section 3.1.1, "CCU"): it keeps its
 //! clock synchronised with the central unit ([`sync`]) and fires its
 //! transmitters at `cycle start + offset` on the master time base
 //! ([`timer`]), taking only the triggers [`trigger_gate`] admits. [`core`] is the whole controller as a sans-IO state

@@ -1,4 +1,4 @@
-//! Coverage of the floor from the transmitter placement (DESIGN section 5):
+//! Coverage of the floor from the transmitter placement (docs/architecture.md):
 //! over a grid at the MSU height, how many transmitters a robot hears in line
 //! of sight, and the horizontal dilution of precision of its 2D TDOA fix.
 //!

@@ -1,6 +1,6 @@
 //! # ickon-central
 //!
-//! The central unit of ICKON (seed 000 section 3.1.1, "CentCU"): it holds the
+//! The central unit of ICKON (the ICKON paper, section 3.1.1, "CentCU"): it holds the
 //! site model, computes the emission schedule ([`schedule`]), triggers every
 //! cycle and is the time master of the cell controllers, tracks the health
 //! of cells and robots ([`health`]), and evaluates the coverage of the floor
@@ -10,8 +10,8 @@
 //! admin answers' JSON documents ([`admin_json`]) are shared by the web map
 //! and `ickon admin --json`.
 //!
-//! Dependencies: besides `proto` and `runtime` (DESIGN section 2) this crate
-//! uses `ickon-fusion`, a deliberate departure from the list there: the HDOP
+//! Dependencies: besides `proto` and `runtime` this crate uses
+//! `ickon-fusion` (docs/architecture.md, "Crates"): the HDOP
 //! of the coverage grid is the same dilution of precision the MSU's TDOA
 //! solver works with ([`ickon_fusion::tdoa::dop`]), and `fusion` is pure math
 //! with no I/O, so the core stays sans-IO.

@@ -1,4 +1,4 @@
-//! The emission schedule of a site (DESIGN section 5), a pure function of the
+//! The emission schedule of a site (docs/architecture.md), a pure function of the
 //! site model and the cells taking part.
 //!
 //! [`compute_schedule`], the one the central unit runs, places every

@@ -1,5 +1,6 @@
 //! The fleet's calibration of the transmitters' surveyed positions, the
-//! cells' lateness and the speed of sound.
+//! cells' lateness and the speed of sound (docs/architecture.md, "The
+//! fleet's survey calibration").
 //!
 //! A robot hears most transmitters steeply from below, so an error in a
 //! transmitter's surveyed height goes almost whole into its range, while
@@ -128,11 +129,11 @@ impl CalibrationConfig {
 impl Default for CalibrationConfig {
     /// The values a site states before it has measured anything: a survey
     /// to 1 cm per axis (a tape and a laser meter), the cells' sync within
-    /// about 60 us, a receiver's 50 us timing noise at 343 m/s, a cell's
+    /// about 60 us, the ICKON paper's receivers' 50 us timing noise at 343 m/s, a cell's
     /// lateness remembered for a day (a network path is re-routed rarely; a
     /// day keeps what was learnt through a night the fleet stands idle),
-    /// published every second, the speed of sound learnt. The air: a heated hall stays within about 5
-    /// degrees of its nominal temperature (one sigma, 0.009 of the speed of
+    /// published every second, the speed of sound learnt. The air: a heated
+    /// hall stays within about 5 degrees of its nominal temperature (one sigma, 0.009 of the speed of
     /// sound) and wanders over tens of minutes (a memory of 600 s): its
     /// daily swing of 5 to 15 degrees takes hours, a door opened changes it
     /// by a few degrees within a minute. That random walk (0.0018 per

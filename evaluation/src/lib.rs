@@ -13,7 +13,7 @@
 //!   util --to tdoa` ([`ConvertUtilArgs`], [`run_convert_util`]): anyone's
 //!   arrival times in one documented log format ([`tdoa_log`]);
 //! - [`chart`]: the font and styling every PNG picture of the tools shares;
-//! - [`print_estimator_table`]: the seeds' accuracy table, also printed by
+//! - [`print_estimator_table`]: the papers' accuracy table, also printed by
 //!   the MCAP replay.
 //!
 //! No Zenoh: everything here runs in one process from files and seeds.

@@ -19,7 +19,7 @@ pub fn wrap_pi(angle_rad: f64) -> f64 {
 }
 
 /// Re-expresses `measured_rad` by whole turns so that it lies within half a
-/// turn of `reference_rad` (seed 000: "the MSU heading re-expressed by
+/// turn of `reference_rad` (the ICKON paper: "the MSU heading re-expressed by
 /// +-360 deg towards the prediction").
 pub fn unwrap_towards(measured_rad: f64, reference_rad: f64) -> f64 {
     reference_rad + wrap_pi(measured_rad - reference_rad)

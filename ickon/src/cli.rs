@@ -28,7 +28,7 @@ pub struct Cli {
 pub enum Command {
     /// Run the multi-robot simulation as separate processes over a loopback Zenoh mesh.
     Sim(SimArgs),
-    /// Evaluate estimators on the simulated world in virtual time (seed 000 tables).
+    /// Evaluate estimators on the simulated world in virtual time (the ICKON paper's tables).
     Eval(EvalArgs),
     /// Query and control a running site through the central unit.
     Admin {

@@ -6,6 +6,8 @@
 mod cli;
 #[cfg(test)]
 mod docs_check;
+#[cfg(test)]
+mod import_check;
 mod node;
 
 use std::process::ExitCode;

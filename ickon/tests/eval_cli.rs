@@ -7,7 +7,7 @@ fn ickon() -> Command {
 }
 
 #[test]
-fn one_tour_json_has_the_seed_000_table_for_every_estimator() {
+fn one_tour_json_has_the_the_ickon_papers_table_for_every_estimator() {
     let out = ickon()
         .args([
             "eval",

@@ -7,8 +7,8 @@
 //!
 //! The Python checks need the interpreter of the virtual environment that
 //! `.ci/run` makes (`ICKON_PYTHON`, else `target/venv/bin/python`); without
-//! it the check is skipped with a note, except under CI (`CI=true`) where a
-//! missing environment is a failure.
+//! it the check is skipped with a note, except when `ICKON_PYTHON` names
+//! an environment that is missing, which is a failure.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -30,22 +30,24 @@ fn json(out: &Output) -> serde_json::Value {
     })
 }
 
-/// The venv's Python, or `None` (skip) outside CI.
+/// The venv's Python, or `None` (skip, said in one line). A Python named
+/// by `ICKON_PYTHON` must be there: `.ci/run` names the one it makes.
 fn python() -> Option<PathBuf> {
-    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
-    let candidate = std::env::var_os("ICKON_PYTHON")
+    let named = std::env::var_os("ICKON_PYTHON").filter(|v| !v.is_empty());
+    let candidate = named
+        .clone()
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/venv/bin/python"));
     if candidate.exists() {
         return Some(candidate);
     }
     assert!(
-        !ci,
-        "CI=true but the Python environment with mcap and mcap-ros2-support is missing at {} (set ICKON_PYTHON; .ci/run makes it)",
+        named.is_none(),
+        "ICKON_PYTHON names {}, which is missing (.ci/run makes the environment with mcap and mcap-ros2-support)",
         candidate.display()
     );
     eprintln!(
-        "note: {} missing: the independent Python decoding is skipped (run .ci/run once to make the venv)",
+        "skipped: {} missing: the independent Python decoding is skipped (run .ci/run once to make the venv)",
         candidate.display()
     );
     None

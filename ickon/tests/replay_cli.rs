@@ -1,7 +1,8 @@
-//! `ickon replay util` on the real UTIL flights in `../shared/data/util/`
-//! and `../shared/data/util-imu/` (relative to the repository root): the
-//! JSON shape, the accuracy targets of issues 8 and 19, and bad input (exit
-//! code 2 with the file and line named).
+//! `ickon replay util` on the real UTIL flights in `$ICKON_DATA/util/`
+//! and `$ICKON_DATA/util-imu/`: the JSON shape, the accuracy targets of
+//! `docs/estimators.md`, and bad input (exit code 2 with the file and line
+//! named). Without the data each test says so on one line and passes,
+//! unless `ICKON_REQUIRE_DATA=1`.
 //!
 //! A debug build replays a prefix of each flight (`--max-seconds`) to stay
 //! within seconds; one test replays a whole flight, and the targets on
@@ -13,17 +14,22 @@ use std::path::PathBuf;
 use std::process::{Command, Output};
 
 /// Whether the UTIL flights are there (absent: said in one line, and a
-/// failure under `CI=true`).
+/// failure when `ICKON_REQUIRE_DATA=1`).
 fn have_data() -> bool {
     ickon_testkit::real_data("util").is_some() && ickon_testkit::real_data("util-imu").is_some()
 }
 
+/// The data folder; called only after [`have_data`].
+fn root() -> PathBuf {
+    ickon_testkit::data::data_root().expect("ICKON_DATA is checked by have_data first")
+}
+
 fn data(name: &str) -> PathBuf {
-    ickon_testkit::data::data_root().join("util").join(name)
+    root().join("util").join(name)
 }
 
 fn imu_data(name: &str) -> PathBuf {
-    ickon_testkit::data::data_root().join("util-imu").join(name)
+    root().join("util-imu").join(name)
 }
 
 fn ickon() -> Command {
@@ -129,7 +135,7 @@ fn tdoa3_outliers_are_rejected_and_do_not_spoil_the_estimate() {
     assert!(ekf["rmse_3d_m"].as_f64().unwrap() < 0.10, "{ekf}");
 }
 
-/// The targets of issues 8 and 19 on whole flights, for the causal filter
+/// The accuracy targets on whole flights, for the causal filter
 /// with its one parameter set: 3D RMSE at most 0.09 m on both TDoA2
 /// flights and 0.10 m on the TDoA3 flight, no published estimate 0.75 m
 /// from the truth, and never worse than the plain CV-EKF beside it.
@@ -165,7 +171,7 @@ fn full_flights_meet_the_targets() {
 
 /// The 27-column flight with the IMU and the truth orientation: every
 /// estimator runs, the IMU filter's attitude is scored, and ours keeps
-/// the issue-19 bounds on a flight much harder than the extracts (a third
+/// its whole-flight bounds on a flight much harder than the extracts (a third
 /// of its measurements are over 0.5 m off, most of them before take-off).
 #[test]
 fn imu_flight_scores_position_and_attitude() {

@@ -1,5 +1,5 @@
 //! `ickon replay plaza` on the real CMU Plaza runs (`$ICKON_DATA/plaza`,
-//! by default `../shared/data/plaza/` beside the repository): the targets
+//! skipped in one line without it unless `ICKON_REQUIRE_DATA=1`): the targets
 //! (2D RMSE at least 20 % below the data README's simple
 //! filter, 1.10 m and 0.81 m, with one parameter set; no error above 5 m
 //! after the first minute), the odometry baseline beside them, the plots,
@@ -8,8 +8,11 @@
 use std::path::PathBuf;
 use std::process::Command;
 
+/// The Plaza folder; called only after `real_data("plaza")` found it.
 fn data() -> PathBuf {
-    ickon_testkit::data::data_root().join("plaza")
+    ickon_testkit::data::data_root()
+        .expect("ICKON_DATA is checked by real_data first")
+        .join("plaza")
 }
 
 fn ickon() -> Command {

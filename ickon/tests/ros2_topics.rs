@@ -1,5 +1,5 @@
 //! What the MSU agent's ROS 2 side puts on Zenoh, read back by a session of
-//! the test and checked against `../shared/ROS2.md`: the rmw_zenoh data keys
+//! the test and checked against docs/ros2.md: the rmw_zenoh data keys
 //! (domain, type, RIHS01 hash), the 33-byte attachment on every sample, the
 //! liveliness tokens of the node and of each publisher and subscriber; and
 //! every payload decoded by `rosbags` (PyPI), an implementation of ROS 2
@@ -175,7 +175,7 @@ fn rmw_zenoh_keys_attachments_tokens_and_payloads_are_what_ros2_expects() {
     wait_connected(&observer, &node);
     publish_once(node.session(), &options);
 
-    // Tokens: the node, three publishers, two subscribers (ROS2.md).
+    // Tokens: the node, three publishers, two subscribers (docs/ros2.md).
     let zid = node.session().zid().to_string();
     let mut seen = BTreeSet::new();
     while let Ok(Some(s)) = tokens.try_recv() {

@@ -17,7 +17,7 @@ use zenoh::Wait;
 mod sim_run;
 use sim_run::{admin_status, finish, start_sim};
 
-/// Long enough for several looks after the start-up (the 14 s), short
+/// Long enough for several looks after the start-up (14 s), short
 /// enough for the test command.
 const RUN_S: u64 = 24;
 /// Looks at the admin status once the site has run this long, then every

@@ -19,9 +19,8 @@
 //! whole published track, ground included, which is stricter for them.
 //!
 //! The data is found under `$ICKON_DATA` (holding `util/` and
-//! `util-imu/`), by default `<workspace root>/../shared/data`. Without it
-//! the test says so on one line and passes, except under `CI=true`, where
-//! it fails.
+//! `util-imu/`). Without it the test says so on one line and passes,
+//! except when `ICKON_REQUIRE_DATA=1`, where it fails.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -117,7 +116,7 @@ const fn util(file: &'static str, constellation: u32) -> Flight {
 fn data_root() -> Option<PathBuf> {
     ickon_testkit::real_data("util")?;
     ickon_testkit::real_data("util-imu")?;
-    Some(ickon_testkit::data::data_root())
+    ickon_testkit::data::data_root()
 }
 
 /// A flight's streams: range differences `(t, id_a, id_b, d)` in time

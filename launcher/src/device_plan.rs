@@ -10,7 +10,8 @@ use std::collections::BTreeMap;
 use clap::ValueEnum;
 use ickon_proto::site::Site;
 
-use crate::launch::free_port;
+use crate::error::LaunchError;
+use crate::ports::free_port;
 
 /// How the nodes reach the simulated hardware.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
@@ -49,10 +50,10 @@ impl DevicePlan {
         site: &Site,
         robots: &[String],
         taken: &[u16],
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LaunchError> {
         let mut used = taken.to_vec();
-        let mut port = || -> anyhow::Result<u16> {
-            let p = free_port(&used)?;
+        let mut port = || -> Result<u16, LaunchError> {
+            let p = free_port(&used).map_err(LaunchError::Port)?;
             used.push(p);
             Ok(p)
         };

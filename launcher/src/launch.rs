@@ -6,43 +6,12 @@ use ickon_proto::site::Site;
 use rand::Rng;
 
 use crate::args::{Mesh, SimArgs};
+use crate::error::LaunchError;
 
 /// Injected clock errors of cells and robots: up to this offset...
 const MAX_CLOCK_OFFSET_US: f64 = 50_000.0;
 /// ...and this drift.
 const MAX_CLOCK_DRIFT_PPM: f64 = 100.0;
-
-/// A free loopback TCP port for the central unit to listen on (bound and
-/// released; the node binds it right after). It is taken below the kernel's
-/// ephemeral range: the other nodes connect to it before it listens, and a
-/// connect to a free port inside that range can be given the same port as
-/// its own source and connect to itself (seen once: the central then found
-/// its port taken). `taken`: ports already handed out but not bound yet.
-pub(crate) fn free_port(taken: &[u16]) -> std::io::Result<u16> {
-    let ephemeral_low = std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse::<u16>().ok())
-        .unwrap_or(32_768);
-    const LOWEST: u16 = 10_000;
-    if ephemeral_low > LOWEST + 100 {
-        let span = u32::from(ephemeral_low - LOWEST);
-        let start = std::process::id() % span;
-        for k in 0..span.min(2_000) {
-            let port = LOWEST + u16::try_from((start + k * 7) % span).unwrap_or(0);
-            if !taken.contains(&port) && std::net::TcpListener::bind(("127.0.0.1", port)).is_ok() {
-                return Ok(port);
-            }
-        }
-    }
-    loop {
-        let port = std::net::TcpListener::bind("127.0.0.1:0")?
-            .local_addr()?
-            .port();
-        if !taken.contains(&port) {
-            return Ok(port);
-        }
-    }
-}
 
 /// The `ickon node <role>` command line shared by every node of the mesh:
 /// a client of the router at `hub` (`Mesh::Router`), or a peer listening on
@@ -55,7 +24,7 @@ pub(crate) fn node_command(
     role: &str,
     hub: &str,
     listen: &str,
-) -> anyhow::Result<Command> {
+) -> Result<Command, LaunchError> {
     let mut cmd = lean_command()?;
     cmd.args(["node", role, "--no-multicast-scouting"]);
     match args.mesh {
@@ -79,7 +48,7 @@ pub(crate) fn node_command(
 
 /// The `ickon router` command line of a run's router, listening on
 /// `endpoint` and linked to the router at `link`, if any.
-pub(crate) fn router_command(endpoint: &str, link: Option<&str>) -> anyhow::Result<Command> {
+pub(crate) fn router_command(endpoint: &str, link: Option<&str>) -> Result<Command, LaunchError> {
     let mut cmd = lean_command()?;
     cmd.args(["router", "--no-multicast-scouting", "--listen", endpoint]);
     if let Some(link) = link {
@@ -91,8 +60,8 @@ pub(crate) fn router_command(endpoint: &str, link: Option<&str>) -> anyhow::Resu
 
 /// This executable, with Zenoh's thread pools kept small (unless the user
 /// chose their own `ZENOH_RUNTIME`): a hundred processes on two cores.
-fn lean_command() -> anyhow::Result<Command> {
-    let mut cmd = Command::new(std::env::current_exe()?);
+fn lean_command() -> Result<Command, LaunchError> {
+    let mut cmd = Command::new(std::env::current_exe().map_err(LaunchError::Executable)?);
     if std::env::var_os(ickon_runtime::ZENOH_RUNTIME_ENV).is_none() {
         cmd.env(
             ickon_runtime::ZENOH_RUNTIME_ENV,
@@ -108,7 +77,7 @@ pub(crate) async fn wait_for_listener(
     port: u16,
     sup: &mut crate::supervisor::Supervisor,
     timeout: std::time::Duration,
-) -> anyhow::Result<()> {
+) -> Result<(), LaunchError> {
     let deadline = tokio::time::Instant::now() + timeout;
     loop {
         // A loopback connect is answered at once: accepted or refused.
@@ -116,13 +85,16 @@ pub(crate) async fn wait_for_listener(
             return Ok(());
         }
         if let Some(dead) = sup.first_dead() {
-            anyhow::bail!("node {} {} during start-up", dead.name, dead.status);
+            return Err(LaunchError::DiedAtStart {
+                name: dead.name.clone(),
+                status: dead.status.to_string(),
+            });
         }
         if tokio::time::Instant::now() > deadline {
-            anyhow::bail!(
-                "the router does not listen on port {port} after {} s",
-                timeout.as_secs()
-            );
+            return Err(LaunchError::RouterSilent {
+                port,
+                after_s: timeout.as_secs(),
+            });
         }
         tokio::time::sleep(std::time::Duration::from_millis(20)).await;
     }
@@ -149,12 +121,14 @@ pub(crate) fn clock_flags(rng: &mut rand_chacha::ChaCha8Rng) -> [String; 4] {
 pub(crate) fn foxglove_flag(
     args: &SimArgs,
     central: &mut Command,
-) -> anyhow::Result<Option<std::net::SocketAddr>> {
+) -> Result<Option<std::net::SocketAddr>, LaunchError> {
     let Some(wanted) = args.foxglove else {
         return Ok(None);
     };
-    let addr = ickon_central::http::first_free_addr(wanted)
-        .ok_or_else(|| anyhow::anyhow!("no free port for the Foxglove server from {wanted}"))?;
+    let addr = ickon_central::http::first_free_addr(wanted).ok_or(LaunchError::NoFreeAddress {
+        server: "Foxglove server",
+        from: wanted,
+    })?;
     central.arg("--foxglove").arg(addr.to_string());
     Ok(Some(addr))
 }
@@ -165,12 +139,14 @@ pub(crate) fn foxglove_flag(
 pub(crate) fn http_flags(
     args: &SimArgs,
     central: &mut Command,
-) -> anyhow::Result<Option<std::net::SocketAddr>> {
+) -> Result<Option<std::net::SocketAddr>, LaunchError> {
     let Some(wanted) = args.http else {
         return Ok(None);
     };
-    let addr = ickon_central::http::first_free_addr(wanted)
-        .ok_or_else(|| anyhow::anyhow!("no free port for the web map from {wanted}"))?;
+    let addr = ickon_central::http::first_free_addr(wanted).ok_or(LaunchError::NoFreeAddress {
+        server: "web map",
+        from: wanted,
+    })?;
     central.arg("--http").arg(addr.to_string());
     if let Some(token) = &args.http_token_file {
         central.arg("--http-token-file").arg(token);

@@ -5,6 +5,8 @@
 
 use ickon_fusion::estimator::{EstimatorConfig, WheelGeometry};
 
+use crate::error::LaunchError;
+
 /// The file's text: `[filter]` with every parameter of `config` (the site
 /// re-applies the start pose, receiver height and floor), the drive, and
 /// the arrivals' timing noise.
@@ -13,8 +15,9 @@ pub(crate) fn render(
     timing_sigma_s: f64,
     wheels: WheelGeometry,
     ros2: bool,
-) -> anyhow::Result<String> {
-    let mut params = toml::Table::try_from(config)?;
+) -> Result<String, LaunchError> {
+    let mut params =
+        toml::Table::try_from(config).map_err(|e| LaunchError::MsuFile(e.to_string()))?;
     params.remove("name");
     let mut filter = toml::Table::new();
     filter.insert("estimator".into(), config.name().into());
@@ -38,7 +41,7 @@ pub(crate) fn render(
     Ok(format!(
         "# Written by `ickon sim` for its MSU agents: `{}` as `ickon eval` configures it.\n{}",
         config.name(),
-        toml::to_string(&root)?
+        toml::to_string(&root).map_err(|e| LaunchError::MsuFile(e.to_string()))?
     ))
 }
 

@@ -15,6 +15,7 @@ use crate::args::Mesh;
 use crate::args::SimArgs;
 use crate::core_split::{CoreSplit, Side};
 use crate::device_plan::DevicePlan;
+use crate::error::LaunchError;
 use crate::faults;
 use crate::launch::{self, CLOCK_STREAM, clock_flags, node_command, router_command};
 use crate::msu_file;
@@ -60,7 +61,7 @@ impl NodeCommands {
         msus: &[sim_hook::MsuStart],
         security: Option<&SimSecurity>,
         extended_site: Option<&Path>,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LaunchError> {
         // The clock steps of the plan (checked already), given to each node at
         // its start: it takes the next at each SIGUSR1 the plan sends.
         let plan = args
@@ -160,23 +161,6 @@ impl NodeCommands {
     }
 }
 
-/// The robots of each agent process that hosts several: `k` at most
-/// each, in the site's order, never two zones in one (a process has one
-/// session, to its zone's router); none when each robot has its own (`k`
-/// 1).
-pub(crate) fn fleets(site: &Site, robots: &[String], k: usize, routers: usize) -> Vec<Vec<String>> {
-    if k <= 1 {
-        return Vec::new();
-    }
-    match crate::zones::split(site, robots, routers.max(1)) {
-        Ok(zones) if !zones.is_empty() => zones
-            .iter()
-            .flat_map(|z| z.robots.chunks(k).map(<[String]>::to_vec))
-            .collect(),
-        _ => robots.chunks(k).map(<[String]>::to_vec).collect(),
-    }
-}
-
 /// The name of a fleet process as the run reports it: `fleet r1..r16`.
 pub(crate) fn fleet_name(robots: &[String]) -> String {
     match robots {
@@ -227,7 +211,7 @@ impl<'a> Builder<'a> {
     /// where the central unit connects and listens. Routers 2 to N link to
     /// the first: a star, as `ickon site secure --routers N` writes their
     /// access control (the first trusts the others as linking routers).
-    fn routers(&self) -> anyhow::Result<(Vec<Named>, (&'a str, &'a str))> {
+    fn routers(&self) -> Result<(Vec<Named>, (&'a str, &'a str)), LaunchError> {
         Ok(match self.args.mesh {
             Mesh::Router => {
                 let mut routers = Vec::new();
@@ -247,7 +231,7 @@ impl<'a> Builder<'a> {
 
     /// One cell controller per cell, each with its own clock error drawn
     /// from the run's seed.
-    fn cells(&self, to_recorder: &[String]) -> anyhow::Result<Vec<(String, Command)>> {
+    fn cells(&self, to_recorder: &[String]) -> Result<Vec<(String, Command)>, LaunchError> {
         let (args, site) = (self.args, self.site);
         let mut clocks = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed ^ CLOCK_STREAM);
         let mut cells = Vec::new();
@@ -273,7 +257,7 @@ impl<'a> Builder<'a> {
         &self,
         msus: &[sim_hook::MsuStart],
         to_recorder: &[String],
-    ) -> anyhow::Result<Command> {
+    ) -> Result<Command, LaunchError> {
         let args = self.args;
         let robots: Vec<&str> = msus.iter().map(|m| m.robot.as_str()).collect();
         let mut world = node_command(
@@ -309,7 +293,7 @@ impl<'a> Builder<'a> {
         profile: &NoiseProfile,
         msus: &[sim_hook::MsuStart],
         to_recorder: &[String],
-    ) -> anyhow::Result<(Vec<(String, Command)>, tempfile::NamedTempFile)> {
+    ) -> Result<(Vec<(String, Command)>, tempfile::NamedTempFile), LaunchError> {
         let (args, site) = (self.args, self.site);
         // Every agent reads one configuration file, as a deployed one does: the
         // estimator as `ickon eval` sets it up for the profile's data sheet,
@@ -327,9 +311,10 @@ impl<'a> Builder<'a> {
             ickon_sim::engine::timing_sigma_s(profile),
             drive.geometry(),
             args.ros2,
-        )?)?;
+        )?)
+        .map_err(|e| LaunchError::MsuFile(e.to_string()))?;
         let robots: Vec<String> = msus.iter().map(|m| m.robot.clone()).collect();
-        let groups = fleets(site, &robots, args.robots_per_process(), args.routers);
+        let groups = crate::zones::fleets(site, &robots, args.robots_per_process(), args.routers);
         if !groups.is_empty() {
             let mut agents = Vec::new();
             for group in groups {
@@ -400,7 +385,7 @@ pub(crate) fn msu_starts(
     site: &Site,
     profile: &NoiseProfile,
     robots: &[String],
-) -> anyhow::Result<Vec<sim_hook::MsuStart>> {
+) -> Result<Vec<sim_hook::MsuStart>, LaunchError> {
     let drive = ickon_sim::robot::DriveSpec::default();
     robots
         .iter()
@@ -422,7 +407,8 @@ pub(crate) fn msu_starts(
             let timing_sigma_us = ickon_sim::engine::timing_sigma_s(profile) * 1e6;
             Ok(sim_hook::MsuStart {
                 robot: robot.clone(),
-                estimator_json: serde_json::to_string(&config)?,
+                estimator_json: serde_json::to_string(&config)
+                    .map_err(|e| LaunchError::MsuFile(e.to_string()))?,
                 timing_sigma_us,
                 wheel_base_m: drive.wheel_base_m,
                 m_per_tick: drive.m_per_tick(),

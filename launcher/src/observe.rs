@@ -13,6 +13,7 @@ use zenoh::sample::{Sample, SampleKind};
 
 use crate::args::Mesh;
 use crate::args::SimArgs;
+use crate::error::LaunchError;
 use crate::metrics::RunStats;
 use crate::report::status_line;
 use crate::supervisor;
@@ -24,11 +25,13 @@ pub(crate) async fn open_observer(
     hub: &str,
     mesh: Mesh,
     credential: Option<&std::path::Path>,
-) -> anyhow::Result<zenoh::Session> {
+) -> Result<zenoh::Session, LaunchError> {
     let mut config = crate::secure::base_config(credential)?;
     let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v)
-            .map_err(|e| anyhow::anyhow!("zenoh config {k}: {e}"))
+        c.insert_json5(k, v).map_err(|e| LaunchError::ZenohConfig {
+            key: k.to_string(),
+            message: e.to_string(),
+        })
     };
     match mesh {
         Mesh::Router => set(&mut config, "mode", "\"client\"")?,
@@ -41,7 +44,7 @@ pub(crate) async fn open_observer(
     set(&mut config, "scouting/multicast/enabled", "false")?;
     zenoh::open(config)
         .await
-        .map_err(|e| anyhow::anyhow!("cannot open the observer's Zenoh session: {e}"))
+        .map_err(|e| LaunchError::Session(e.to_string()))
 }
 
 /// Decodes a payload, counting what cannot be decoded instead of failing.
@@ -85,7 +88,7 @@ pub(crate) async fn observe(
     quiet: bool,
     credential: Option<&std::path::Path>,
     shutdown: &mut (impl std::future::Future<Output = ()> + Unpin),
-) -> anyhow::Result<(RunStats, Option<String>)> {
+) -> Result<(RunStats, Option<String>), LaunchError> {
     let subs = MeshSubs::declare(session, keys).await?;
     let mut probe = Probe::open(args, hub, credential, sup, session, keys).await?;
     let mut stats = new_stats(site, args.robots);
@@ -168,8 +171,8 @@ struct MeshSubs {
 impl MeshSubs {
     /// Subscribes to the bursts, arrivals, fixes, poses, truth and cycle
     /// triggers of the site named by `keys`.
-    async fn declare(session: &zenoh::Session, keys: &Keys) -> anyhow::Result<Self> {
-        let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    async fn declare(session: &zenoh::Session, keys: &Keys) -> Result<Self, LaunchError> {
+        let z = LaunchError::declare;
         let bursts = session
             .declare_subscriber(keys.cell_burst_all())
             .await
@@ -249,19 +252,21 @@ impl Probe {
         sup: &mut supervisor::Supervisor,
         session: &zenoh::Session,
         keys: &Keys,
-    ) -> anyhow::Result<Self> {
-        let z = |e: zenoh::Error| anyhow::anyhow!("{e}");
+    ) -> Result<Self, LaunchError> {
+        let z = LaunchError::declare;
         let probe_session = match open_observer(hub, args.mesh, credential).await {
             Ok(s) => s,
             // The router died between the nodes' start and this session (a
             // test kills it as soon as the run is up): say which node, as the
             // run would have a moment later, not only that nothing connects.
             Err(e) => match sup.first_dead() {
-                Some(dead) => anyhow::bail!(
-                    "node {} {} while the simulation was starting ({e})",
-                    dead.name,
-                    dead.status
-                ),
+                Some(dead) => {
+                    return Err(LaunchError::DiedBeforeProbe {
+                        name: dead.name,
+                        status: dead.status,
+                        why: Box::new(e),
+                    });
+                }
                 None => return Err(e),
             },
         };
@@ -332,7 +337,7 @@ fn new_stats(site: &Site, robots: usize) -> RunStats {
 }
 
 /// The faults of `--faults`, in time order (none without it).
-fn fault_plan(args: &SimArgs) -> anyhow::Result<VecDeque<crate::faults::Fault>> {
+fn fault_plan(args: &SimArgs) -> Result<VecDeque<crate::faults::Fault>, LaunchError> {
     Ok(args
         .faults
         .as_deref()

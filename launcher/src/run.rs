@@ -17,10 +17,12 @@ use zenoh::sample::SampleKind;
 
 use crate::args::{SimArgs, check_args};
 use crate::device_plan::Devices;
-use crate::launch::{free_port, wait_for_listener};
+use crate::error::LaunchError;
+use crate::launch::wait_for_listener;
 use crate::metrics::RunStats;
 use crate::nodes::{NodeCommands, msu_starts};
 use crate::observe::{observe, open_observer};
+use crate::ports::free_port;
 use crate::report::{RunFacts, SimReport, render_report};
 use crate::router_load::RouterLoad;
 use crate::secure::SimSecurity;
@@ -326,11 +328,9 @@ async fn start_mesh(
     // With emulated devices the world is their other end: started first,
     // its boards are listening when the cells and agents first connect.
     let spawned = if args.devices == Devices::Emulated {
-        sup.spawn("world", commands.world)
-            .map_err(anyhow::Error::from)
-            .and_then(|()| spawn_all(sup, commands.cells))
+        spawn(sup, "world", commands.world).and_then(|()| spawn_all(sup, commands.cells))
     } else {
-        spawn_all(sup, commands.cells).and_then(|()| Ok(sup.spawn("world", commands.world)?))
+        spawn_all(sup, commands.cells).and_then(|()| spawn(sup, "world", commands.world))
     }
     .and_then(|()| spawn_all(sup, commands.msus));
     if let Err(e) = spawned {
@@ -367,11 +367,19 @@ pub(crate) fn zoned_mesh(
 }
 
 /// Spawns each named command under the supervisor.
-fn spawn_all(sup: &mut Supervisor, commands: Vec<(String, Command)>) -> anyhow::Result<()> {
+fn spawn_all(sup: &mut Supervisor, commands: Vec<(String, Command)>) -> Result<(), LaunchError> {
     for (name, cmd) in commands {
-        sup.spawn(&name, cmd)?;
+        spawn(sup, &name, cmd)?;
     }
     Ok(())
+}
+
+/// Spawns one named command under the supervisor.
+fn spawn(sup: &mut Supervisor, name: &str, cmd: Command) -> Result<(), LaunchError> {
+    sup.spawn(name, cmd).map_err(|error| LaunchError::Spawn {
+        name: name.to_string(),
+        error,
+    })
 }
 
 /// Opens the recorder's session (listening on `listen` for the peers of a
@@ -494,7 +502,7 @@ async fn observe_run(
     quiet: bool,
     security: Option<&SimSecurity>,
     shutdown: &mut (impl std::future::Future<Output = ()> + Unpin),
-) -> anyhow::Result<(RunStats, Option<String>)> {
+) -> Result<(RunStats, Option<String>), LaunchError> {
     let run_dir = ickon_runtime::RunDir::standard();
     let run = ickon_runtime::RunFile {
         site: site.name.clone(),

@@ -16,6 +16,7 @@ use ickon_runtime::CommandError;
 
 use crate::args::Mesh;
 use crate::args::SimArgs;
+use crate::error::LaunchError;
 
 /// The credentials of one secured run.
 pub(crate) struct SimSecurity {
@@ -55,7 +56,7 @@ impl SimSecurity {
             generate(
                 site,
                 args.routers,
-                &crate::nodes::fleets(site, robots, args.robots_per_process(), args.routers),
+                &crate::zones::fleets(site, robots, args.robots_per_process(), args.routers),
             )
         };
         result
@@ -165,11 +166,13 @@ fn ros2_domain() -> u32 {
 
 /// A Zenoh configuration starting from `file` (a credential, its TLS
 /// files checked as every node checks its own), or the default.
-pub(crate) fn base_config(file: Option<&Path>) -> anyhow::Result<zenoh::Config> {
+pub(crate) fn base_config(file: Option<&Path>) -> Result<zenoh::Config, LaunchError> {
     match file {
         Some(f) => {
-            let config = zenoh::Config::from_file(f)
-                .map_err(|e| anyhow::anyhow!("zenoh config {}: {e}", f.display()))?;
+            let config = zenoh::Config::from_file(f).map_err(|e| LaunchError::ZenohConfigFile {
+                file: f.to_path_buf(),
+                message: e.to_string(),
+            })?;
             ickon_runtime::args::check_tls_files(&config)?;
             Ok(config)
         }

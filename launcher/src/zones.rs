@@ -201,6 +201,23 @@ fn nearest(centres: &[[f64; 2]], p: [f64; 2]) -> usize {
         .unwrap_or(0)
 }
 
+/// The robots of each agent process that hosts several: `k` at most
+/// each, in the site's order, never two zones in one (a process has one
+/// session, to its zone's router); none when each robot has its own (`k`
+/// 1).
+pub(crate) fn fleets(site: &Site, robots: &[String], k: usize, routers: usize) -> Vec<Vec<String>> {
+    if k <= 1 {
+        return Vec::new();
+    }
+    match split(site, robots, routers.max(1)) {
+        Ok(zones) if !zones.is_empty() => zones
+            .iter()
+            .flat_map(|z| z.robots.chunks(k).map(<[String]>::to_vec))
+            .collect(),
+        _ => robots.chunks(k).map(<[String]>::to_vec).collect(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

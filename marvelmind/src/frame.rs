@@ -9,7 +9,7 @@
 
 use crc::{CRC_16_MODBUS, Crc};
 
-use crate::packet::{self, PacketError};
+use crate::codes::{self, PacketError};
 
 /// The first byte of every streamed frame (the destination address the
 /// hedgehog writes for its host).
@@ -135,7 +135,7 @@ impl Deframer {
             self.flush_garbage(sink);
             let code = u16::from_le_bytes([self.pending[2], self.pending[3]]);
             let len = self.pending[4];
-            if !packet::length_fits(code, len) {
+            if !codes::length_fits(code, len) {
                 self.stats.bad_length += 1;
                 sink(Err(FrameError::BadLength { code, len }));
                 self.pending.drain(..1);

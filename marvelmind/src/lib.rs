@@ -16,6 +16,7 @@
 //! turns a frame into what it says; [`Packet::encode`] writes a frame (the
 //! emulated hedgehog and the tests).
 
+mod codes;
 mod frame;
 pub mod packet;
 

@@ -4,7 +4,7 @@
 //! Transmitter `i` fires at `T_k + offset_i` and is heard at `t_i` (MSU
 //! clock), so `c (t_i - offset_i) = r_i + c T_k'` where `T_k'` (the cycle
 //! start on the MSU clock) is unknown but common: range differences need no
-//! clock shared with the robot (DESIGN section 1).
+//! clock shared with the robot (docs/architecture.md, "A cycle").
 
 use ickon_proto::msg::control::{Schedule, TransmitterEntry};
 use ickon_proto::msg::robot::UltrasoundArrivals;

@@ -25,7 +25,7 @@ use ickon_runtime::link::{Backoff, Link, LinkAddress, LinkEvent};
 use ickon_runtime::{LogLimiter, SimulatedClock};
 use tokio::sync::mpsc;
 
-use crate::receivers::{ReceiverInput, SharedSummary};
+use crate::receiver_input::{ReceiverInput, SharedSummary};
 
 /// How often the board's line in the agent's status is refreshed.
 const SUMMARY_EVERY: std::time::Duration = std::time::Duration::from_secs(1);

@@ -2,7 +2,7 @@
 //!
 //! The mobile sensory unit's software as a sans-IO core: the arrivals of one
 //! cycle are assembled against the schedule ([`assembly`]), solved into a fix
-//! (TDOA, seed 000 eq. 1-3, with the heading from the first receiver, eq.
+//! (TDOA, the ICKON paper, eq. 1-3, with the heading from the first receiver, eq.
 //! 4-6), and fed with the robot's odometry, gyro and obstacle ranges into one
 //! estimator ([`core::MsuCore`]). Nothing here reads a clock or touches the
 //! network: the Zenoh adapter (feature `zenoh`) and the virtual-time engine
@@ -30,6 +30,8 @@ pub mod marvelmind_receivers;
 pub mod motion;
 #[cfg(feature = "zenoh")]
 pub mod node;
+#[cfg(feature = "zenoh")]
+pub mod receiver_input;
 #[cfg(feature = "zenoh")]
 pub mod receivers;
 #[cfg(feature = "zenoh")]

@@ -19,7 +19,7 @@ use ickon_runtime::{LogLimiter, SimulatedClock};
 use tokio::sync::mpsc;
 
 use crate::hedgehog::{HedgehogCounters, HedgehogInput, HedgehogReader, MarvelmindSettings};
-use crate::receivers::SharedSummary;
+use crate::receiver_input::SharedSummary;
 
 /// How often the source's counters are logged while it runs.
 pub const STATUS_EVERY: std::time::Duration = std::time::Duration::from_secs(30);

@@ -7,7 +7,7 @@
 //! to a few millimetres, but in their own frame: the odometry's heading
 //! starts anywhere and drifts. So this module keeps
 //! - the odometry track (time, position and heading in the odometry frame,
-//!   integrated from the encoder ticks with the arc of seed 003), a few
+//!   integrated from the encoder ticks with the arc of the CDA paper), a few
 //!   seconds of it, and
 //! - the rotation from the odometry frame to the site frame, fitted to the
 //!   solver's own recent fixes (a least-squares rotation between the fixes

@@ -670,8 +670,8 @@ pub struct MsuArgs {
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Estimator name when there is no configuration file (`tdoa-ekf`, ours
-    /// and the most accurate; the seeds' `odometry`, `msu-raw`, `ickon-akf`,
-    /// `gyro-ckf`, `cda`, `cda-msu`).
+    /// and the most accurate; the baselines `odometry` and `msu-raw` and
+    /// the papers' `ickon-akf`, `gyro-ckf`, `cda`, `cda-msu`).
     #[arg(long, conflicts_with = "config")]
     pub estimator: Option<String>,
     /// One-sigma timing noise of one arrival, microseconds (the MSU's data

@@ -6,17 +6,19 @@
 //! distances to beacons are ranges instead of arrivals.
 
 use ickon_fusion::estimator::WheelGeometry;
+use ickon_proto::decode;
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::robot::{Imu, Odometry, UltrasoundArrivals};
-use ickon_proto::{DecodeError, decode};
+use ickon_proto::msg::robot::UltrasoundArrivals;
 use ickon_runtime::link::LinkAddress;
 use ickon_runtime::{NodeError, SimulatedClock, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Subscriber;
 
 use crate::board_receivers::BoardReceivers;
-use crate::hedgehog::{HedgehogInput, MarvelmindSettings};
+use crate::hedgehog::MarvelmindSettings;
 use crate::marvelmind_receivers::{MarvelmindReceivers, RangingSite};
+// Shared with the sources below, which must not import this module.
+pub use crate::receiver_input::{ReceiverInput, SharedSummary};
 
 /// Which receiver source the agent uses.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -62,20 +64,6 @@ impl std::fmt::Display for ReceiverKind {
     }
 }
 
-/// What a receiver source hands on.
-#[derive(Debug)]
-pub enum ReceiverInput {
-    /// One cycle's arrivals (`Err(..)` for a message that does not decode,
-    /// to count and drop).
-    Arrivals(Result<UltrasoundArrivals, DecodeError>),
-    /// A ranging kit's distances or position.
-    Ranging(HedgehogInput),
-    /// The robot's wheel ticks, from a receiver board that reports them.
-    Odometry(Odometry),
-    /// The robot's gyro, from a receiver board that reports it.
-    Imu(Imu),
-}
-
 /// An open receiver source; it hands what it receives to the sink it was
 /// opened with, in the order it comes, until it is dropped.
 pub enum ReceiverSource {
@@ -85,29 +73,6 @@ pub enum ReceiverSource {
     Board(BoardReceivers),
     /// Distances from a Marvelmind hedgehog.
     Marvelmind(MarvelmindReceivers),
-}
-
-/// A source's state in a line, written by its task and read by the
-/// agent's status.
-#[derive(Debug, Clone, Default)]
-pub struct SharedSummary(std::sync::Arc<std::sync::Mutex<String>>);
-
-impl SharedSummary {
-    /// The line last written.
-    pub fn get(&self) -> String {
-        self.0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .clone()
-    }
-
-    /// Replaces the line.
-    pub fn set(&self, line: String) {
-        *self
-            .0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = line;
-    }
 }
 
 impl ReceiverSource {

@@ -1,5 +1,5 @@
 //! The MSU's fix solver: one cycle's arrivals -> assembled signals -> a raw
-//! fix (seed 000 eq. 1-3 with refinement and reflection rejection,
+//! fix (the ICKON paper, eq. 1-3 with refinement and reflection rejection,
 //! [`tdoa::solve`]), its quality gate and the receiver-id heading (eq. 4-6).
 //! Each arrival is related to the receiver's position at its own arrival
 //! time, from the wheels' motion between arrivals ([`crate::motion`],
@@ -482,7 +482,7 @@ impl FixSolver {
     }
 
     /// The robot's heading from the first emitted signal `sol` used
-    /// (seed 000 s3.1.3, eq. 4-6); `None` when its receiver gives none.
+    /// (the ICKON paper, s3.1.3, eq. 4-6); `None` when its receiver gives none.
     fn heading_of(&self, sol: &tdoa::Fix, signals: &[Signal]) -> Option<f64> {
         sol.used_tx_ids.first().and_then(|id| {
             let s = signals.iter().find(|s| s.tx_id == *id)?;

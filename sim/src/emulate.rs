@@ -8,7 +8,6 @@
 //! left at.
 
 use std::io::{ErrorKind, Read, Write};
-use std::net::TcpListener;
 use std::time::Duration;
 
 use clap::{Args, Subcommand};
@@ -16,6 +15,7 @@ use ickon_runtime::link::pty::Pty;
 use ickon_runtime::{CommandError, system_now};
 
 use crate::board::{BoardFaults, BoardSpec, Emission, EmulatedBoard};
+use crate::emulate_listen::listen_announced;
 
 /// How long a read waits: the resolution of the emulation's loop (a burst
 /// is fired at its own time whatever the loop's; only its report waits).
@@ -136,20 +136,6 @@ fn serve_pty(board: &mut EmulatedBoard) -> Result<(), CommandError> {
         .device_end(Duration::from_nanos(LOOP_NS as u64))
         .map_err(|e| CommandError::failure(format!("pseudo-terminal: {e}")))?;
     serve(board, reader, writer).map_err(|e| CommandError::failure(format!("pseudo-terminal: {e}")))
-}
-
-/// Listens on `addr` (`--listen`) and prints the address a host connects
-/// to (`tcp:HOST:PORT`) on stdout at once, for whoever started the
-/// emulator to read.
-pub(crate) fn listen_announced(addr: &str) -> Result<TcpListener, CommandError> {
-    let listener = TcpListener::bind(addr)
-        .map_err(|e| CommandError::bad_input(format!("--listen {addr}: {e}")))?;
-    let local = listener
-        .local_addr()
-        .map_err(|e| CommandError::failure(e.to_string()))?;
-    println!("tcp:{local}");
-    let _ = std::io::stdout().flush();
-    Ok(listener)
 }
 
 fn serve_tcp(board: &mut EmulatedBoard, addr: &str) -> Result<(), CommandError> {

@@ -194,7 +194,7 @@ impl Line {
     }
 
     fn tcp(addr: &str) -> Result<Self, CommandError> {
-        let listener = crate::emulate::listen_announced(addr)?;
+        let listener = crate::emulate_listen::listen_announced(addr)?;
         let host = Arc::new(Mutex::new(None));
         let ever = Arc::new(AtomicBool::new(false));
         let (accepted, connected) = (host.clone(), ever.clone());

@@ -25,7 +25,7 @@ pub(crate) const PHYSICS_DT_S: f64 = 0.005;
 pub const ENCODER_HZ: f64 = 50.0;
 /// Obstacle sensor rate, Hz.
 pub(crate) const RANGES_HZ: f64 = 10.0;
-/// Seconds the robot stands still at the start (gyro calibration of seed 003).
+/// Seconds the robot stands still at the start (gyro calibration of the CDA paper).
 pub(crate) const REST_S: f64 = 2.0;
 /// Seconds between two samples of the plotted traces.
 const TRACE_DT_S: f64 = 0.25;
@@ -238,7 +238,7 @@ impl Queue {
 /// registry defaults, start pose, receiver height and floor for `tdoa-ekf`),
 /// then the gyro noise of the profile's data sheet for `gyro-ckf` and
 /// `tdoa-ekf` (as a user configures a filter to the sensor on the robot;
-/// small floors keep `ideal` valid), and the seed-003 curvature thresholds
+/// small floors keep `ideal` valid), and the CDA paper's curvature thresholds
 /// rescaled from their 10 Hz steps to [`ENCODER_HZ`]; last, `options`
 /// (those that do not apply to `name` are left out: check them with
 /// [`FilterOptions::check_for`]).

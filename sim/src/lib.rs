@@ -1,7 +1,7 @@
 //! # ickon-sim
 //!
 //! The simulated world that stands in for hardware, and the virtual-time
-//! engine that runs the node cores against it (DESIGN sections 7-8).
+//! engine that runs the node cores against it (docs/simulation.md; the scoring in docs/architecture.md).
 //!
 //! - [`profile`]: named noise profiles (`ideal`, `paper`, `harsh`).
 //! - [`robot`]: a differential drive following a route by pure pursuit.
@@ -14,7 +14,7 @@
 //! - [`engine`]: the discrete-event loop, one MSU core per estimator.
 //! - [`fleet`]: the first N robots of a site at once, their poses fed to the central unit.
 //! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
-//! - [`score`]: the seeds' metrics.
+//! - [`score`]: the papers' metrics.
 //! - [`realtime`]: the same world driven by the wall clock and real burst reports.
 //! - [`board`]: an emulated transmitter or receiver board of the device protocol.
 //! - [`tx_faults`]: transmitters dying, growing weak or knocked out of place.
@@ -36,6 +36,8 @@ pub mod devices;
 pub mod emulate;
 #[cfg(feature = "zenoh")]
 pub mod emulate_hedgehog;
+#[cfg(feature = "zenoh")]
+mod emulate_listen;
 pub mod engine;
 pub mod fleet;
 pub mod hedgehog;

@@ -6,7 +6,7 @@
 //!   robot's position at its own time (from the wheels), so fixes are exact
 //!   once its odometry is aligned (the world can still freeze the robot
 //!   during a cycle: [`UltrasoundNoise::motion_during_cycle`]).
-//! - `paper`: calibrated against seed 000 (see [`NoiseProfile::paper`] for the
+//! - `paper`: calibrated against the ICKON paper (see [`NoiseProfile::paper`] for the
 //!   values and how they were chosen).
 //! - `building`: `paper` in the air of a real hall ([`crate::air`]).
 //! - `harsh`: the same air, more reflections, blockage, slip and gyro drift, and a more
@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::air::Air;
 
-/// The ultrasonic channel and the MSU's receivers (DESIGN section 7).
+/// The ultrasonic channel and the MSU's receivers (docs/simulation.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct UltrasoundNoise {
@@ -48,7 +48,7 @@ pub struct UltrasoundNoise {
     pub max_range_m: f64,
     /// Standard deviation of the survey error of each transmitter coordinate,
     /// metres: the lookup table the MSU uses differs from where the
-    /// transmitters really hang (seed 000 measured them with a laser plumb).
+    /// transmitters really hang (the ICKON paper measured them with a laser plumb).
     pub survey_sigma_m: f64,
     /// Error of the temperature the MSU assumes, degrees Celsius (the true
     /// speed of sound differs from the site's by this much).
@@ -149,7 +149,7 @@ pub struct GyroNoise {
     pub rate_hz: f64,
 }
 
-/// Obstacle sensors of seed 003.
+/// Obstacle sensors of the CDA paper.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleNoise {
@@ -286,10 +286,10 @@ impl NoiseProfile {
         }
     }
 
-    /// Calibrated against seed 000 Tables 1-2 (`ickon-akf`, 10 tours of
+    /// Calibrated against the ICKON paper's Tables 1-2 (`ickon-akf`, 10 tours of
     /// `route-1` and `route-2`: mean error 78 / 63 mm, 81 / 86 % under 100 mm).
     ///
-    /// Physical values first, from data sheets and the seeds' hardware: 1 us
+    /// Physical values first, from data sheets and the papers' hardware: 1 us
     /// time stamps; a Pioneer 3-DX with a 0.5 % left/right wheel mismatch and
     /// a 1.5 % wheel-base error, 1 % slip plus 2 % per rad/s of turn rate; a
     /// low-cost MEMS gyro (0.5 deg/s bias, 0.01 deg/s/sqrt(s) walk, 0.1 deg/s
@@ -303,7 +303,7 @@ impl NoiseProfile {
     ///
     /// The free parameters were then set by running `ickon eval --profile
     /// paper --estimator ickon-akf --route route-1|route-2` for seeds 1-4
-    /// and moving them until every seed's mean rows fell inside the seed's
+    /// and moving them until every seed's mean rows fell inside the paper's
     /// range with a margin (50-110 mm, 75-95 % under 100 mm): detection
     /// jitter 70 us (between one and three 25 us carrier periods; first set
     /// to 60 us with a one-slot-per-transmitter schedule, raised when the

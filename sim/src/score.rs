@@ -1,7 +1,7 @@
-//! Scoring as in the seeds (DESIGN section 8): at each reference point, the
+//! Scoring as in the papers (docs/architecture.md): at each reference point, the
 //! Euclidean error between the estimate and the truth; per tour the mean,
-//! standard deviation and shares under 30/60/100 mm (seed 000 Tables 1-2),
-//! RMSE, and the heading error (seed 002 Table 1); raw fixes on their own.
+//! standard deviation and shares under 30/60/100 mm (the ICKON paper's Tables 1-2),
+//! RMSE, and the heading error (the iGPS paper's Table 1); raw fixes on their own.
 
 use serde::Serialize;
 
@@ -42,7 +42,7 @@ pub struct Score {
     pub route: String,
     /// Per tour.
     pub tours: Vec<Row>,
-    /// Mean row: the mean of the tour rows (as seed 000), RMSE and heading over all points.
+    /// Mean row: the mean of the tour rows (as in the ICKON paper), RMSE and heading over all points.
     pub mean: Row,
     /// Raw fixes against the truth at their own time, mm (`msu-raw` only).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -52,7 +52,7 @@ pub struct Score {
     pub fix_rmse_mm: Option<f64>,
     /// Standard deviation of the receiver-id heading of each fix against the
     /// truth at the fix's own time, degrees (`msu-raw` only): the "absolute
-    /// heading alone" of seed 002 Table 1.
+    /// heading alone" of the iGPS paper's Table 1.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fix_heading_std_deg: Option<f64>,
     /// Largest absolute receiver-id heading error of a fix, degrees (`msu-raw` only).

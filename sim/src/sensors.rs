@@ -1,5 +1,5 @@
 //! Proprioceptive and obstacle sensors: gyro, wheel encoders, and the
-//! left/right ultrasonic and infrared rangers of seed 003.
+//! left/right ultrasonic and infrared rangers of the CDA paper.
 
 use ickon_proto::site::{Site, geometry};
 use rand_chacha::ChaCha8Rng;

@@ -113,7 +113,7 @@ fn one_tour_of_route_one_scores_sixty_reference_points_per_estimator() {
             .mean
             .mean_mm
     };
-    // Seed 000's ordering already shows on one tour.
+    // The ICKON paper's ordering already shows on one tour.
     assert!(mean("ickon-akf") < mean("msu-raw"));
     assert!(mean("msu-raw") < mean("odometry"));
 }

@@ -1,36 +1,70 @@
-//! Where the real measurement data of the tests is: one setting, the
-//! environment variable `ICKON_DATA`, with `../shared/data` beside the
-//! repository as its default.
+//! Where the real measurement data of the tests is, and whether a test
+//! that needs it may skip: the data is opt-in.
+//!
+//! - `ICKON_DATA` names the folder that holds `util/`, `util-imu/` and
+//!   `plaza/`. Unset (or a data set missing under it), a test that needs
+//!   the data says so in one line and passes, so that a clean clone's
+//!   test command passes anywhere, hosted CI included.
+//! - `ICKON_REQUIRE_DATA=1` turns that skip into a failure: the project's
+//!   own CI (`.ci/run`) sets it together with `ICKON_DATA`, so that a
+//!   missing or misplaced data set cannot pass unnoticed there.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The environment variable naming the folder that holds `util/`,
 /// `util-imu/` and `plaza/`.
 pub const DATA_VARIABLE: &str = "ICKON_DATA";
 
-/// The folder of the real data: `$ICKON_DATA`, else `../shared/data`
-/// beside the repository.
-pub fn data_root() -> PathBuf {
+/// The environment variable that, set to `1`, makes absent data a failure
+/// instead of a skip.
+pub const REQUIRE_VARIABLE: &str = "ICKON_REQUIRE_DATA";
+
+/// The folder named by `$ICKON_DATA`, or `None` when it is unset or empty.
+pub fn data_root() -> Option<PathBuf> {
     std::env::var_os(DATA_VARIABLE)
+        .filter(|v| !v.is_empty())
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")))
 }
 
-/// The data set `name` (`util`, `util-imu`, `plaza`), or `None` when it is
-/// absent: the test says so in one line naming the variable and passes,
-/// except under `CI=true`, where absent data fails it.
+/// Whether `$ICKON_REQUIRE_DATA` asks for the data (`1`).
+pub fn data_required() -> bool {
+    std::env::var(REQUIRE_VARIABLE).is_ok_and(|v| v.trim() == "1")
+}
+
+/// The data set `name` (`util`, `util-imu`, `plaza`), or `None` (the
+/// caller returns: the test is skipped) when it is absent, after one line
+/// on stderr naming what is missing.
+///
+/// # Panics
+/// When the data set is absent and `ICKON_REQUIRE_DATA=1`.
 pub fn real_data(name: &str) -> Option<PathBuf> {
-    let dir = data_root().join(name);
-    if dir.is_dir() {
-        return Some(dir);
+    match locate(data_root().as_deref(), name) {
+        Ok(dir) => Some(dir),
+        Err(why) => {
+            assert!(!data_required(), "{why} ({REQUIRE_VARIABLE}=1)");
+            eprintln!("skipped: {why}");
+            None
+        }
     }
-    let message = format!(
-        "real data {} not found: set {DATA_VARIABLE} to the folder that holds util/, util-imu/ and plaza/",
-        dir.display()
-    );
-    assert!(std::env::var("CI").as_deref() != Ok("true"), "{message}");
-    eprintln!("skipped: {message}");
-    None
+}
+
+/// The data set `name` under `root`, or why it cannot be used.
+fn locate(root: Option<&Path>, name: &str) -> Result<PathBuf, String> {
+    let Some(root) = root else {
+        return Err(format!(
+            "real data `{name}` not used: {DATA_VARIABLE} is unset (set it to the folder that holds util/, util-imu/ and plaza/)"
+        ));
+    };
+    let dir = root.join(name);
+    if dir.is_dir() {
+        Ok(dir)
+    } else {
+        Err(format!(
+            "real data `{name}` not found at {} ({DATA_VARIABLE}={})",
+            dir.display(),
+            root.display()
+        ))
+    }
 }
 
 #[cfg(test)]
@@ -38,18 +72,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_absent_data_set_is_skipped_outside_ci_and_named() {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            // Under CI absent data fails: shown by the assertion above.
-            return;
-        }
-        assert_eq!(real_data("no-such-data-set"), None);
+    fn an_unset_variable_is_named_in_the_reason() {
+        let why = locate(None, "plaza").unwrap_err();
+        assert!(
+            why.contains(DATA_VARIABLE) && why.contains("plaza"),
+            "{why}"
+        );
     }
 
     #[test]
-    fn the_default_is_beside_the_repository() {
-        if std::env::var_os(DATA_VARIABLE).is_none() {
-            assert!(data_root().ends_with("shared/data"));
-        }
+    fn a_missing_data_set_is_named_with_its_path() {
+        let root = std::env::temp_dir().join(format!("ickon-no-data-{}", std::process::id()));
+        let why = locate(Some(&root), "util").unwrap_err();
+        assert!(
+            why.contains(&root.join("util").display().to_string()),
+            "{why}"
+        );
+    }
+
+    #[test]
+    fn a_present_data_set_is_found() {
+        let root = std::env::temp_dir().join(format!("ickon-data-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("util")).unwrap();
+        let found = locate(Some(&root), "util");
+        std::fs::remove_dir_all(&root).unwrap();
+        assert_eq!(found, Ok(root.join("util")));
     }
 }

@@ -2,9 +2,10 @@
 //! tests check against, run through `tests/ros2/rosbags_cdr.py`.
 //!
 //! The Python with `rosbags` installed is named by `ICKON_ROS_PYTHON`
-//! (`.ci/run` makes a virtual environment and sets it). Without it a test is
-//! skipped with a message, except under CI (`CI` set), where it fails: the
-//! check must not silently vanish there.
+//! (`.ci/run` makes a virtual environment and sets it). Unset, a test is
+//! skipped with a message, so that a clean clone's tests pass anywhere;
+//! set to a Python that is missing, it fails: the check must not silently
+//! vanish where it was asked for.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -20,21 +21,27 @@ pub struct Rosbags {
 }
 
 impl Rosbags {
-    /// The configured Python, or `None` (the caller skips) outside CI.
+    /// The configured Python, or `None` (the caller skips, said in one
+    /// line) when [`PYTHON_ENV`] is unset.
     ///
     /// # Panics
-    /// Under CI when [`PYTHON_ENV`] is not set or names nothing.
+    /// When [`PYTHON_ENV`] names nothing: a Python asked for explicitly
+    /// (as `.ci/run` does) must be there.
     pub fn find() -> Option<Self> {
         let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("ros2/rosbags_cdr.py");
-        let ci = std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false");
-        match std::env::var_os(PYTHON_ENV).map(PathBuf::from) {
+        match std::env::var_os(PYTHON_ENV)
+            .filter(|v| !v.is_empty())
+            .map(PathBuf::from)
+        {
             Some(python) if python.exists() => Some(Self { python, script }),
-            other => {
-                let why = format!(
-                    "{PYTHON_ENV} is {other:?}: set it to a Python with rosbags (see .ci/run)"
+            Some(python) => panic!(
+                "{PYTHON_ENV} names {}, which is missing (.ci/run makes it)",
+                python.display()
+            ),
+            None => {
+                eprintln!(
+                    "skipped: {PYTHON_ENV} is unset: set it to a Python with rosbags (see .ci/run)"
                 );
-                assert!(!ci, "{why}");
-                eprintln!("skipped: {why}");
                 None
             }
         }

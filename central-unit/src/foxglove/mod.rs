@@ -224,7 +224,7 @@ impl Channels {
             robots_scene: context.channel_builder(topics::ROBOTS_SCENE).build(),
             tf: context.channel_builder(topics::TF).build(),
             log: context.channel_builder(topics::LOG).build(),
-            status: plots::status_channel(context),
+            status: plots::status_channel(context, topics::SITE_STATUS),
             robots: BTreeMap::new(),
             cells: BTreeMap::new(),
         };

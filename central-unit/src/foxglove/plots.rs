@@ -10,7 +10,6 @@ use foxglove::{Context, RawChannel, Schema};
 use serde::Serialize;
 
 use super::scene::{cell_state, fired_this_cycle, robot_state};
-use super::topics::SITE_STATUS;
 use crate::http::view::{CellSnapshot, RobotSnapshot, Snapshot};
 
 /// `/robot/<id>/state`.
@@ -172,9 +171,9 @@ pub fn cell_channel(context: &Arc<Context>, topic: &str) -> Arc<RawChannel> {
     json_channel(context, topic, "ickon.CellSync", CELL_SCHEMA)
 }
 
-/// The channel of the site's status.
-pub fn status_channel(context: &Arc<Context>) -> Arc<RawChannel> {
-    json_channel(context, SITE_STATUS, "ickon.SiteStatus", STATUS_SCHEMA)
+/// The channel of the site's status, on `topic` (`topics::SITE_STATUS`).
+pub fn status_channel(context: &Arc<Context>, topic: &str) -> Arc<RawChannel> {
+    json_channel(context, topic, "ickon.SiteStatus", STATUS_SCHEMA)
 }
 
 fn log_json<T: Serialize>(channel: &RawChannel, value: &T) {

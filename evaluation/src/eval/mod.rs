@@ -1,5 +1,5 @@
 //! `ickon eval`: estimators on the simulated world in virtual time, scored
-//! as in the seeds (DESIGN section 8).
+//! as in the papers (docs/architecture.md, "Evaluation").
 //!
 //! Each route runs once per seed on its own thread; every estimator is
 //! hosted by its own MSU core on the same world, so all estimators see the

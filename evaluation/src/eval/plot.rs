@@ -1,4 +1,4 @@
-//! PNG pictures like seed 000 Figures 11-12 (truth as stars at the reference
+//! PNG pictures like the ICKON paper's Figures 11-12 (truth as stars at the reference
 //! points, the estimate as a line; the error per reference point) and a bar
 //! chart comparing the estimators, titled and with labelled axes (the font
 //! is compiled in, see [`crate::chart`]); grid lines are 1 m apart on the

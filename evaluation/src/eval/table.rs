@@ -1,4 +1,4 @@
-//! The text tables of `ickon eval` (seed 000 Tables 1-2, seed 002 Table 1).
+//! The text tables of `ickon eval` (the ICKON paper's Tables 1-2, the iGPS paper's Table 1).
 
 use std::time::Duration;
 

@@ -1,4 +1,4 @@
-//! Reading a CMU Plaza run (`../shared/data/plaza/README.md`): four small
+//! Reading a CMU Plaza run (the README of the data's `plaza/` folder): four small
 //! CSV files read whole and sorted by time. Columns are found by name in the header; every
 //! problem is reported with the file and the line (1 = the header).
 

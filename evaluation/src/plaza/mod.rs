@@ -1,6 +1,6 @@
 //! `ickon replay plaza`: the ground filter on a real wheeled robot (CMU
 //! Plaza runs: wheel odometry and radio ranges to four beacons, with
-//! truth; `../shared/data/plaza/README.md`).
+//! truth; the README of the data's `plaza/` folder).
 //!
 //! The same [`TdoaEkf`] as on the MSU, driven directly: each odometry
 //! increment is a prediction step (no gyro: the turn bias state is the

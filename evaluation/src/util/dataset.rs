@@ -1,5 +1,5 @@
-//! Reading the UTIL files (`../shared/data/util/README.md`,
-//! `../shared/data/util-imu/README.md`): the anchor file whole (it is
+//! Reading the UTIL files (described by the READMEs of the data's `util/`
+//! and `util-imu/` folders): the anchor file whole (it is
 //! small), the measurement file as a stream of rows.
 //!
 //! A measurement row carries independent streams that only share the row

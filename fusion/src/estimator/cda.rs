@@ -1,4 +1,4 @@
-//! `cda`: seed 003 sections 3-4, the curvature-based decision approach with
+//! `cda`: the CDA paper, sections 3-4, the curvature-based decision approach with
 //! obstacle-avoidance fusion (the paper's CDA-O), encoders + gyro only.
 //!
 //! Per encoder sample (distance `dist = (l + r)/2`, encoder turn
@@ -42,7 +42,7 @@
 //! - The complementary filter is applied at each range sample, with the gyro
 //!   chain's heading as `theta_g` and `a = 0.95`; eq. 12-15 restart from
 //!   the current heading when a manoeuvre begins.
-//! - Seed 003 has no absolute positioning: MSU fixes are ignored here (see
+//! - The CDA paper has no absolute positioning: MSU fixes are ignored here (see
 //!   `cda-msu`). Odometry poses may replace encoder ticks (then `alpha` is
 //!   their heading difference).
 //! - Late inputs (a gyro reading delivered after the encoder step that
@@ -113,7 +113,7 @@ pub enum HeadingSource {
     Gyro,
 }
 
-/// The seed-003 heading chain with its own dead-reckoned pose.
+/// The CDA paper's heading chain with its own dead-reckoned pose.
 #[derive(Debug, Clone)]
 pub struct CdaChain {
     params: CdaParams,

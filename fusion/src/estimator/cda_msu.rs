@@ -1,15 +1,15 @@
-//! `cda-msu`: the seed-003 heading chain ([`super::cda::CdaChain`]) feeding
-//! the seed-000 heading and position filters, so that the encoder/gyro
+//! `cda-msu`: the CDA paper's heading chain ([`super::cda::CdaChain`]) feeding
+//! the ICKON paper's heading and position filters, so that the encoder/gyro
 //! chain gains absolute positioning.
 //!
 //! Per encoder step the chain's distance and heading change (encoder or gyro
 //! by the curvature decision, plus the obstacle-avoidance complementary
-//! filter) replace `dd` and `d_gamma_b` of seed 000: heading KF prediction
+//! filter) replace `dd` and `d_gamma_b` of the ICKON paper: heading KF prediction
 //! (eq. 7), relative position correction (eq. 10-11), position AKF
 //! prediction (eq. 12-15). MSU fixes correct the heading (eq. 8) and the
 //! position (eq. 16-19) exactly as in `ickon-akf`.
 //!
-//! Choices: the seed-000 `sigma_w = 2 deg` per step is kept although the
+//! Choices: the ICKON paper's `sigma_w = 2 deg` per step is kept although the
 //! chain's heading is better than raw encoders (conservative). After each fix
 //! the chain's heading is re-based onto the fused heading so that a planned
 //! obstacle-avoidance heading (world frame) and the chain agree.
@@ -25,11 +25,11 @@ use super::{InitialPose, Input, PoseEstimate};
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CdaMsuParams {
-    /// The seed-003 heading chain (its `initial_pose` is ignored).
+    /// The CDA paper's heading chain (its `initial_pose` is ignored).
     pub cda: CdaParams,
-    /// Heading fusion unit (seed 000 eq. 7-8).
+    /// Heading fusion unit (the ICKON paper, eq. 7-8).
     pub heading: HeadingKfParams,
-    /// Position fusion unit (seed 000 eq. 12-19).
+    /// Position fusion unit (the ICKON paper, eq. 12-19).
     pub position: PositionAkfParams,
     /// Known start pose; `None` starts from the first fix.
     pub initial_pose: Option<InitialPose>,

@@ -114,7 +114,7 @@ fn cda(p: &CdaParams) -> Check {
     if p.mu_stop_deg >= p.mu_start_deg {
         return Err((
             "mu_stop_deg",
-            "must be below mu_start_deg (seed 003: mu2 << mu1)",
+            "must be below mu_start_deg (the CDA paper: mu2 << mu1)",
         ));
     }
     if !(0.0..=1.0).contains(&p.complementary_alpha) {

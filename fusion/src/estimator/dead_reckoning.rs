@@ -17,8 +17,8 @@ pub struct Increment {
     pub distance_m: f64,
     /// Heading change reported by the relative unit, in radians.
     pub dtheta_rad: f64,
-    /// Whether the increment came from encoder ticks (seed 003) rather than
-    /// from odometry poses (seed 000).
+    /// Whether the increment came from encoder ticks (the CDA paper) rather than
+    /// from odometry poses (the ICKON paper).
     pub from_encoders: bool,
 }
 
@@ -55,7 +55,7 @@ impl IncrementTracker {
     }
 }
 
-/// Seed 000 eq. 9: `dd = sqrt(dx_b^2 + dy_b^2)`. The seed's distance is
+/// The ICKON paper, eq. 9: `dd = sqrt(dx_b^2 + dy_b^2)`. The paper's distance is
 /// unsigned; we give it the sign of the projection on the mean heading so
 /// that a reversing robot is not corrected forwards.
 fn odometry_increment(prev: &OdometrySample, s: &OdometrySample) -> Increment {
@@ -74,7 +74,7 @@ fn odometry_increment(prev: &OdometrySample, s: &OdometrySample) -> Increment {
     }
 }
 
-/// Seed 003: `dist = (l + r) / 2`, and the encoder heading change
+/// The CDA paper: `dist = (l + r) / 2`, and the encoder heading change
 /// `alpha = (r - l) / W` used in eq. 1.
 fn encoder_increment(prev: &EncoderSample, s: &EncoderSample) -> Increment {
     let g = &s.geometry;
@@ -94,10 +94,10 @@ fn encoder_increment(prev: &EncoderSample, s: &EncoderSample) -> Increment {
 /// 003 case 2, eq. 4-6), where the arc formulas divide by ~0.
 const STRAIGHT_EPS_RAD: f64 = 1e-9;
 
-/// Seed 003 eq. 1-6: moves `(x, y, theta)` along the arc of length
+/// The CDA paper, eq. 1-6: moves `(x, y, theta)` along the arc of length
 /// `distance_m` that turns by `dtheta_rad`. The centre of the arc is
 /// `C = p + rho (-sin theta, cos theta)` with `rho = distance / dtheta`
-/// (the seed's `R + W/2`), and the new point `C + rho (sin theta', -cos theta')`
+/// (the paper's `R + W/2`), and the new point `C + rho (sin theta', -cos theta')`
 /// (eq. 2-3). Straight motion uses eq. 5-6. Returns the new pose, the heading
 /// left unwrapped.
 pub fn arc_step(

@@ -1,4 +1,4 @@
-//! Seed 003 section 3.2, eq. 7-8: gyro offset and noise measured at rest.
+//! The CDA paper, section 3.2, eq. 7-8: gyro offset and noise measured at rest.
 
 /// Running sum, minimum and maximum of gyro readings.
 #[derive(Debug, Clone, Copy, PartialEq)]

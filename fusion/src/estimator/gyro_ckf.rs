@@ -1,8 +1,8 @@
-//! `gyro-ckf`: seed 002 sections 7-10, heading from a rate gyro and a
+//! `gyro-ckf`: the iGPS paper, sections 7-10, heading from a rate gyro and a
 //! delayed absolute heading fused by a complementary Kalman filter that
 //! estimates the gyro bias; position as in `ickon-akf`.
 //!
-//! Heading (closed-loop error-state form of the seed's complementary KF):
+//! Heading (closed-loop error-state form of the paper's complementary KF):
 //! - The navigation heading integrates the bias-corrected gyro,
 //!   `theta += (omega - b_hat) dt`, at the gyro rate (the output rate).
 //! - Error state `e = [d_theta, d_omega]` with `d_theta = theta_true - theta`
@@ -15,22 +15,22 @@
 //!   After the update the estimated errors are fed back into `theta` and
 //!   `b_hat`, and the error state returns to zero.
 //! - `theta_abs` is the MSU heading from the receiver id, or the heading of
-//!   two MSUs on one robot ([`two_sensor_heading`], seed 002 eq. 1); it
+//!   two MSUs on one robot ([`two_sensor_heading`], the iGPS paper, eq. 1); it
 //!   arrives late and is applied at its own measurement time, against the
 //!   gyro-propagated heading of that time, and the later gyro samples are
-//!   replayed on top (see [`super::replay`]): this is how the seed's 100 ms
+//!   replayed on top (see [`super::replay`]): this is how the paper's 100 ms
 //!   iGPS latency disappears from the output.
 //!
-//! Position: the relative increments `dd` (eq. 9 of seed 000) projected on
-//! this heading (eq. 10-11 of seed 000) feed the shared
+//! Position: the relative increments `dd` (eq. 9 of the ICKON paper) projected on
+//! this heading (eq. 10-11 of the ICKON paper) feed the shared
 //! [`super::position_akf::PositionAkf`].
 //!
 //! Choices where the seed is silent (it gives no noise values):
 //! - Gyro noise 0.05 deg/sqrt(s), bias random walk 0.005 deg/s/sqrt(s),
 //!   initial bias uncertainty 1 deg/s, absolute heading noise 30 deg (the
-//!   receiver-id quantisation of seed 000; set ~1 deg for two MSUs).
+//!   receiver-id quantisation of the ICKON paper; set ~1 deg for two MSUs).
 //! - Each gyro rate is held over the interval that ends at its sample
-//!   (rectangular integration, as seed 003 eq. 9). A gap longer than
+//!   (rectangular integration, as in the CDA paper's eq. 9). A gap longer than
 //!   `max_gyro_gap_s` is not integrated (the rate over it is unknown) but the
 //!   covariance still grows over it.
 //! - Before the first absolute heading the heading starts at 0 with a
@@ -47,7 +47,7 @@ use super::position_akf::{PositionAkf, PositionAkfParams};
 use super::{InitialPose, Input, PoseEstimate};
 use crate::angle;
 
-/// Seed 002 eq. 1, kept at this path; the implementation lives with the
+/// The iGPS paper, eq. 1, kept at this path; the implementation lives with the
 /// other positioning headings in [`crate::tdoa`].
 pub use crate::tdoa::two_sensor_heading;
 
@@ -67,7 +67,7 @@ pub struct GyroCkfParams {
     pub initial_heading_sigma_deg: f64,
     /// Longest gyro interval that is integrated, seconds.
     pub max_gyro_gap_s: f64,
-    /// Position fusion unit (seed 000 eq. 12-19).
+    /// Position fusion unit (the ICKON paper, eq. 12-19).
     pub position: PositionAkfParams,
     /// Known start pose; `None` starts from the first fix.
     pub initial_pose: Option<InitialPose>,
@@ -91,7 +91,7 @@ impl Default for GyroCkfParams {
     }
 }
 
-/// The complementary heading filter alone (seed 002 eq. 11).
+/// The complementary heading filter alone (the iGPS paper, eq. 11).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GyroCkfHeading {
     params: GyroCkfParams,

@@ -1,4 +1,4 @@
-//! Seed 000 section 3.2.1, the heading fusion unit: a scalar Kalman filter
+//! The ICKON paper, section 3.2.1, the heading fusion unit: a scalar Kalman filter
 //! on the heading `gamma`.
 //!
 //! - Dynamics (eq. 7): `gamma_{k+1} = gamma_k + d_gamma + w`, where
@@ -7,13 +7,13 @@
 //! - Observation (eq. 8): `gamma_g = gamma_k + v`, `v ~ N(0, sigma_v^2)`,
 //!   `sigma_v = 30 deg` ("exaggerated to be on the safe side").
 //! - Before the correction the MSU heading is re-expressed by whole turns
-//!   towards the prediction (the seed's "angle conversion block"), with
+//!   towards the prediction (the paper's "angle conversion block"), with
 //!   [`crate::angle::unwrap_towards`]. The state itself is kept continuous
 //!   (never wrapped), so a robot turning in circles never sees a 360 deg
 //!   jump; it is wrapped only on output.
 //!
 //! Ambiguity: the seed gives `sigma_w` per step without a step length; we
-//! apply it once per relative-positioning sample (the seed's robot reported
+//! apply it once per relative-positioning sample (the paper's robot reported
 //! at ~10 Hz), and scale nothing by time.
 
 use nalgebra::{Matrix1, Vector1};
@@ -21,7 +21,7 @@ use nalgebra::{Matrix1, Vector1};
 use super::kf;
 use crate::angle;
 
-/// Parameters of the heading filter (seed 000 values by default).
+/// Parameters of the heading filter (the ICKON paper's values by default).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct HeadingKfParams {

@@ -1,4 +1,4 @@
-//! `ickon-akf`: seed 000 section 3.2, the tightly coupled heading and
+//! `ickon-akf`: the ICKON paper, section 3.2, the tightly coupled heading and
 //! position system, exactly as Figure 5 chains it.
 //!
 //! 1. Heading fusion (eq. 7-8, [`HeadingKf`]): predicted with the backward
@@ -38,7 +38,7 @@ use super::position_akf::{PositionAkf, PositionAkfParams};
 use super::start_check::{StartCheck, StartVerdict};
 use super::{InitialPose, Input, PoseEstimate};
 
-/// Parameters of `ickon-akf` (seed 000 values by default).
+/// Parameters of `ickon-akf` (the ICKON paper's values by default).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct IckonAkfParams {
@@ -63,7 +63,7 @@ impl Default for IckonAkfParams {
     }
 }
 
-/// The fused heading and position filters of seed 000 driven by relative
+/// The fused heading and position filters of the ICKON paper driven by relative
 /// increments; shared by `ickon-akf` and `cda-msu`.
 #[derive(Debug, Clone)]
 pub(crate) struct HeadingPositionFusion {

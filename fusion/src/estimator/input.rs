@@ -3,7 +3,7 @@
 use super::EstimatorError;
 use crate::tdoa::Fix;
 
-/// Pose reported by the robot's relative positioning unit (seed 000:
+/// Pose reported by the robot's relative positioning unit (the ICKON paper:
 /// `x_b, y_b, gamma_b`), in the robot's own odometry frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OdometrySample {
@@ -21,7 +21,7 @@ pub struct OdometrySample {
 /// estimator and the robot never disagree on it.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WheelGeometry {
-    /// Distance between the wheel contact points (seed 003: `W`), in metres.
+    /// Distance between the wheel contact points (the CDA paper: `W`), in metres.
     pub wheel_base_m: f64,
     /// Distance travelled by the left wheel per encoder tick, in metres.
     pub left_m_per_tick: f64,
@@ -29,7 +29,7 @@ pub struct WheelGeometry {
     pub right_m_per_tick: f64,
 }
 
-/// Cumulative wheel encoder counts (seed 003: `l, r`).
+/// Cumulative wheel encoder counts (the CDA paper: `l, r`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EncoderSample {
     /// Time of the reading, in seconds.
@@ -51,7 +51,7 @@ pub struct GyroSample {
     pub rate_rad_s: f64,
 }
 
-/// Obstacle-sensor readings (seed 003 section 3.3). A range is `None` when the
+/// Obstacle-sensor readings (the CDA paper, section 3.3). A range is `None` when the
 /// sensor sees nothing within its reach.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RangeSample {

@@ -1,4 +1,4 @@
-//! Pose estimators: the seeds' fusion pipelines behind one trait.
+//! Pose estimators: the papers' fusion pipelines behind one trait.
 //!
 //! Every estimator consumes timestamped [`Input`]s (odometry poses, encoder
 //! ticks, gyro rates, MSU fixes, obstacle ranges, range differences) and answers the current
@@ -9,10 +9,10 @@
 //! |---|---|---|
 //! | `odometry` | baseline: relative positioning alone | [`odometry`] |
 //! | `msu-raw` | baseline: the MSU fixes alone, held | [`msu_raw`] |
-//! | `ickon-akf` | seed 000 s3.2, eq. 7-19 | [`ickon_akf`] |
-//! | `gyro-ckf` | seed 002 s7-10, eq. 1, 3-11 | [`gyro_ckf`] |
-//! | `cda` | seed 003 s3-4, eq. 1-18 | [`cda`] |
-//! | `cda-msu` | seed 003 heading chain + seed 000 position AKF | [`cda_msu`] |
+//! | `ickon-akf` | the ICKON paper, s3.2, eq. 7-19 | [`ickon_akf`] |
+//! | `gyro-ckf` | the iGPS paper, s7-10, eq. 1, 3-11 | [`gyro_ckf`] |
+//! | `cda` | the CDA paper, s3-4, eq. 1-18 | [`cda`] |
+//! | `cda-msu` | the CDA paper's heading chain + the ICKON paper's position AKF | [`cda_msu`] |
 //! | `tdoa-ekf` | ours: each range difference fused on its own | [`tdoa_ekf`] |
 //!
 //! Build one by name with [`build_by_name`], or from an [`EstimatorConfig`]

@@ -2,7 +2,7 @@
 //!
 //! - The pose is the newest fix by measurement time; a fix older than the
 //!   held one (after replay, see [`super::replay`]) is superseded by it.
-//! - Heading: the fix's receiver-id heading (seed 000 eq. 4-6). A fix without
+//! - Heading: the fix's receiver-id heading (the ICKON paper, eq. 4-6). A fix without
 //!   a heading keeps the previous heading, with a 180 deg standard deviation
 //!   once none was ever received.
 //! - Covariance: the fix's own position covariance (floored to

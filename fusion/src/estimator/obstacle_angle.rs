@@ -1,4 +1,4 @@
-//! Seed 003 section 3.3: the heading planned by obstacle avoidance,
+//! The CDA paper, section 3.3: the heading planned by obstacle avoidance,
 //! `theta_oa`, from the left/right ultrasonic and infrared ranges
 //! (eq. 12-15).
 //!
@@ -13,7 +13,7 @@
 //! Choices where the seed is ambiguous:
 //! - A missing range means "nothing in reach", i.e. greater than `d_safe`.
 //! - `theta_oa(t-1)` at the start of a manoeuvre is the robot's current
-//!   heading estimate (the seed's recursion has no start value).
+//!   heading estimate (the paper's recursion has no start value).
 //! - Case 4: we turn away from the side whose infrared range is shorter and
 //!   use that shorter range in eq. 14-15 ("the closer the robot is to the
 //!   obstacle the wider it has to turn", as for eq. 12-13; the printed

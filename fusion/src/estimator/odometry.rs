@@ -5,7 +5,7 @@
 //!   the world frame: the first pose received is anchored at the start pose
 //!   and later poses keep their offset from it (rigid transform), so the
 //!   robot's own odometry frame may start anywhere.
-//! - Encoder ticks are integrated with the arc kinematics of seed 003
+//! - Encoder ticks are integrated with the arc kinematics of the CDA paper
 //!   eq. 1-6 (`dist = (l + r) / 2`, heading change `(r - l) / W`).
 //! - The first relative source seen is used; the other is then ignored.
 //! - The covariance grows by first-order propagation of

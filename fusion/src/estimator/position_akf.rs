@@ -1,4 +1,4 @@
-//! Seed 000 section 3.2.3, the position fusion unit: a 2D adaptive Kalman
+//! The ICKON paper, section 3.2.3, the position fusion unit: a 2D adaptive Kalman
 //! filter on `s = [x, y]`, shared by `ickon-akf`, `gyro-ckf` and `cda-msu`.
 //!
 //! - State model (eq. 12-14): `s_{k+1} = s_k + u_k + w`, `A = B = I`, with
@@ -19,7 +19,7 @@
 //!   `R = 0`, hence gain 1 and a zero covariance; the filter would then lock
 //!   onto that one fix and the covariance would stop being positive
 //!   definite. Each diagonal term of `R` is therefore at least
-//!   `r_floor_mm^2` (default 1 mm, well below the MSU noise, so the seed's
+//!   `r_floor_mm^2` (default 1 mm, well below the MSU noise, so the paper's
 //!   behaviour is unchanged whenever the residual exceeds ~6 mm).
 //! - Re-initialisation: the residual-based `R` makes the filter distrust
 //!   large residuals, so after a long outage the drifted estimate would
@@ -34,7 +34,7 @@ use nalgebra::{Matrix2, Vector2};
 use super::kf;
 use crate::tdoa::Fix;
 
-/// Parameters of the position AKF (seed 000 values by default).
+/// Parameters of the position AKF (the ICKON paper's values by default).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PositionAkfParams {

@@ -1,5 +1,5 @@
 //! Estimators by name, with their parameters as serde structs whose
-//! `Default` holds the seeds' values.
+//! `Default` holds the papers' values.
 //!
 //! A configuration is tagged by the estimator name, e.g. in TOML:
 //! ```toml

@@ -1,4 +1,4 @@
-//! Seed 000 s3.1 eq. 1-3: the least-squares hyperbola intersection.
+//! The ICKON paper, s3.1 eq. 1-3: the least-squares hyperbola intersection.
 //!
 //! Coordinates are taken relative to the reference transmitter, `q = p - s_1`,
 //! `a_i = s_i - s_1`, so that `r_1 = |q|`. Subtracting the reference circle

@@ -73,8 +73,8 @@ pub struct Fix {
     pub alternative_m: Option<Vector3<f64>>,
     /// Gauss-Newton iterations run (0 without refinement).
     pub iterations: u32,
-    /// Heading from the first-hit receiver id (seed 000 eq. 4-6) or from two
-    /// MSUs on one robot (seed 002 eq. 1), radians. The solver leaves it
+    /// Heading from the first-hit receiver id (the ICKON paper, eq. 4-6) or from two
+    /// MSUs on one robot (the iGPS paper, eq. 1), radians. The solver leaves it
     /// `None`: only the MSU knows which receiver heard which signal, see
     /// [`Fix::with_heading`].
     pub heading_rad: Option<f64>,

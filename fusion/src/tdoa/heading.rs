@@ -1,5 +1,5 @@
 //! Headings from positioning data: the receiver that heard the first signal
-//! (seed 000 eq. 4-6), and two MSUs on one robot (seed 002 eq. 1).
+//! (the ICKON paper, eq. 4-6), and two MSUs on one robot (the iGPS paper, eq. 1).
 //!
 //! Headings are radians counter-clockwise from +x, wrapped to `(-pi, pi]`.
 
@@ -9,7 +9,7 @@ use nalgebra::Vector2;
 
 use crate::angle;
 
-/// Seed 000 eq. 5: six receivers, receiver `i` pointing `i * 60 deg`
+/// The ICKON paper, eq. 5: six receivers, receiver `i` pointing `i * 60 deg`
 /// counter-clockwise from the robot's forward direction.
 pub const SEED_RECEIVER_ANGLES_RAD: [f64; 6] = [
     0.0,
@@ -39,7 +39,7 @@ pub enum HeadingError {
     Overhead,
 }
 
-/// Seed 000 eq. 4-6: heading of the MSU from the receiver that heard the
+/// The ICKON paper, eq. 4-6: heading of the MSU from the receiver that heard the
 /// transmitter first. `beta = atan2(x_t - x_g, y_t - y_g)` is the bearing
 /// of the transmitter clockwise from +y, `alpha` the receiver's angle, and
 /// `gamma = 90 deg - (alpha + beta)`. The receivers are `360 / n` degrees
@@ -70,7 +70,7 @@ pub fn heading_from_first_receiver(
     Ok(angle::wrap_pi(FRAC_PI_2 - (alpha + beta)))
 }
 
-/// Seed 002 eq. 1: heading of a vehicle from the positions of two sensors on
+/// The iGPS paper, eq. 1: heading of a vehicle from the positions of two sensors on
 /// it, `theta = atan2(y2 - y1, x2 - x1) + pi/2` (sensor 2 on the right of
 /// sensor 1 when looking forward), wrapped to `(-pi, pi]`.
 pub fn two_sensor_heading(x1_m: f64, y1_m: f64, x2_m: f64, y2_m: f64) -> f64 {

@@ -24,7 +24,7 @@
 //! 2. Cheap physical check (as the Crazyflie LPS TDoA code does): a range
 //!    difference cannot exceed the distance between its two transmitters.
 //!    A reflection is late, so the longer of a violating pair is dropped.
-//! 3. Closed form of seed 000 s3.1 eq. 1-3 ([`closed_form`]): subtracting
+//! 3. Closed form of the ICKON paper, s3.1 eq. 1-3 ([`closed_form`]): subtracting
 //!    the circle equations `|p - s_i|^2 = (r_1 + r_i1)^2` from the reference
 //!    one gives equations linear in `p` and `r_1`; least squares gives
 //!    `p = u + r_1 v`, and `r_1^2 = |p - s_1|^2` is a quadratic in `r_1`.
@@ -67,8 +67,8 @@
 //! full correlation. [`dop`] gives the same matrix per unit noise.
 //!
 //! # Headings
-//! [`heading_from_first_receiver`] (seed 000 eq. 4-6) and
-//! [`two_sensor_heading`] (seed 002 eq. 1). Angles follow the crate
+//! [`heading_from_first_receiver`] (the ICKON paper, eq. 4-6) and
+//! [`two_sensor_heading`] (the iGPS paper, eq. 1). Angles follow the crate
 //! convention: radians, counter-clockwise from +x, wrapped to `(-pi, pi]`.
 
 mod bound;

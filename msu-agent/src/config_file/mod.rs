@@ -28,12 +28,12 @@ use crate::config::apply_site;
 use crate::hedgehog::MarvelmindSettings;
 
 /// Distance per encoder tick of a Pioneer 3-DX, metres (its 19.5 cm wheel,
-/// 500-line encoder and 38.3:1 gear): the drive the seeds used.
+/// 500-line encoder and 38.3:1 gear): the drive the ICKON paper used.
 pub const PIONEER_M_PER_TICK: f64 = 2.0 * std::f64::consts::PI * 0.0975 / (500.0 * 38.3);
 /// Wheel base of a Pioneer 3-DX, metres.
 pub const PIONEER_WHEEL_BASE_M: f64 = 0.33;
 /// One-sigma timing noise of one arrival when the file gives none, seconds
-/// (the seeds' receivers: 50 us).
+/// (the ICKON paper's receivers: 50 us).
 pub const DEFAULT_TIMING_SIGMA_S: f64 = 50e-6;
 
 /// One problem in an MSU configuration file.
@@ -171,7 +171,7 @@ impl MsuTuning {
     }
 }
 
-/// The drive of the seeds' robot.
+/// The drive of the ICKON paper's robot (a Pioneer 3-DX).
 pub fn pioneer_wheels() -> WheelGeometry {
     WheelGeometry {
         wheel_base_m: PIONEER_WHEEL_BASE_M,

@@ -26,7 +26,7 @@ pub const MIN_POSITION_VARIANCE_M2: f64 = 1e-6;
 pub const MIN_HEADING_VARIANCE_RAD2: f64 = 1e-6;
 /// Variance of what we do not observe (z, roll, pitch; a fix without heading).
 pub const UNOBSERVED_VARIANCE: f64 = 1e6;
-/// Variance of the receiver-id heading: uniform within +-30 deg (seed 000).
+/// Variance of the receiver-id heading: uniform within +-30 deg (the ICKON paper).
 pub const RECEIVER_HEADING_VARIANCE_RAD2: f64 =
     (std::f64::consts::PI / 6.0) * (std::f64::consts::PI / 6.0) / 3.0;
 /// How much odometry history is kept to pair with late poses, seconds.

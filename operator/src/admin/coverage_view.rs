@@ -7,7 +7,7 @@ use ickon_central::admin_json::CoverageJson;
 use ickon_central::admin_json::coverage_summary;
 use ickon_proto::msg::admin::CoverageReport;
 
-use super::format::to_json;
+use super::format::{FormatError, to_json};
 
 /// The map character of one grid point: blank off the floor, `x` without a
 /// fix, else the HDOP class `1` (< 1.5) to `5` (>= 8).
@@ -27,7 +27,7 @@ fn map_char(on_floor: bool, hdop: f64) -> char {
 const MAP_WIDTH: usize = 100;
 
 /// `coverage`.
-pub fn coverage(r: &CoverageReport, json: bool) -> anyhow::Result<String> {
+pub fn coverage(r: &CoverageReport, json: bool) -> Result<String, FormatError> {
     let summary = coverage_summary(r);
     if json {
         return to_json(&CoverageJson::from(r));

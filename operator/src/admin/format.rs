@@ -16,7 +16,12 @@ fn status_json(s: &StatusReport, cells: bool, robots: bool) -> StatusJson {
     StatusJson::new(s, cells, robots)
 }
 
-pub(super) fn to_json<T: Serialize>(value: &T) -> anyhow::Result<String> {
+/// Why an answer could not be printed: it does not serialise as JSON.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write the answer as JSON: {0}")]
+pub struct FormatError(#[from] serde_json::Error);
+
+pub(super) fn to_json<T: Serialize>(value: &T) -> Result<String, FormatError> {
     Ok(serde_json::to_string_pretty(value)? + "\n")
 }
 
@@ -197,7 +202,7 @@ fn air_line(s: &StatusReport) -> String {
 }
 
 /// `transmitters`: every transmitter's health and the air.
-pub fn transmitters(r: &TransmittersReport, json: bool) -> anyhow::Result<String> {
+pub fn transmitters(r: &TransmittersReport, json: bool) -> Result<String, FormatError> {
     let doc = TransmittersJson::from(r);
     if json {
         return to_json(&doc);
@@ -264,7 +269,7 @@ pub fn transmitters(r: &TransmittersReport, json: bool) -> anyhow::Result<String
 }
 
 /// `status`: everything in one view.
-pub fn status(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn status(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, true, true));
     }
@@ -276,7 +281,7 @@ pub fn status(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `cells`.
-pub fn cells(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn cells(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, true, false));
     }
@@ -287,7 +292,7 @@ pub fn cells(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `robots`.
-pub fn robots(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn robots(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, false, true));
     }
@@ -298,7 +303,7 @@ pub fn robots(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `sync`: the cells' clock estimates and their residual error against truth.
-pub fn sync(s: &StatusReport, json: bool) -> anyhow::Result<String> {
+pub fn sync(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(&status_json(s, true, false));
     }
@@ -331,7 +336,7 @@ pub fn sync(s: &StatusReport, json: bool) -> anyhow::Result<String> {
 }
 
 /// `schedule`.
-pub fn schedule(s: &Schedule, json: bool) -> anyhow::Result<String> {
+pub fn schedule(s: &Schedule, json: bool) -> Result<String, FormatError> {
     let ms = |d: ickon_proto::time::Duration| d.as_secs_f64() * 1e3;
     let rate = ickon_central::update_rate_hz(s);
     if json {
@@ -366,7 +371,7 @@ pub fn schedule(s: &Schedule, json: bool) -> anyhow::Result<String> {
 }
 
 /// `pause`, `resume`, `reload`.
-pub fn ack(a: &AdminAck, json: bool) -> anyhow::Result<String> {
+pub fn ack(a: &AdminAck, json: bool) -> Result<String, FormatError> {
     if json {
         return to_json(a);
     }

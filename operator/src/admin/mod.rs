@@ -328,7 +328,7 @@ async fn answer(
 
 /// Prints the answer of `command`; a refusal is bad input.
 fn show(command: &AdminCommand, common: &Common, answer: Answer) -> Result<(), CommandError> {
-    let failed = |e: anyhow::Error| CommandError::failure(format!("{e:#}"));
+    let failed = |e: format::FormatError| CommandError::failure(e.to_string());
     let json = common.json;
     let text = match (command, answer) {
         (AdminCommand::Cells(_), Answer::Status(s)) => format::cells(&s, json).map_err(failed)?,

@@ -6,8 +6,8 @@
 //! the router forwards to it (egress) against the rules of the subjects the
 //! client authenticated as; with `default_permission: "deny"` a message no
 //! rule allows is dropped. So each role below is written as verbs on keys,
-//! and each verb is the messages and directions it takes (DESIGN.md
-//! section 10): a reader needs its subscription declared (ingress) and the
+//! and each verb is the messages and directions it takes (docs/architecture.md,
+//! "Zenoh facts the code relies on"): a reader needs its subscription declared (ingress) and the
 //! data forwarded to it (egress); a writer only its `put` (ingress).
 
 use ickon_proto::keys::Keys;

@@ -63,7 +63,7 @@ pub struct Imu {
     pub gyro_z_rad_s: f64,
 }
 
-/// `robot/<id>/range`: obstacle sensors of seed 003.
+/// `robot/<id>/range`: obstacle sensors of the CDA paper.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ObstacleRanges {
     /// Sample time on the robot's clock.
@@ -115,7 +115,7 @@ pub struct Fix {
     pub z_m: f64,
     /// Position covariance, 3x3 row-major, m^2.
     pub covariance: [f64; 9],
-    /// Heading from the first receiver (seed 000 eq. 4-6), radians; meaningful when `heading_valid`.
+    /// Heading from the first receiver (the ICKON paper, eq. 4-6), radians; meaningful when `heading_valid`.
     pub heading_rad: f64,
     /// Whether `heading_rad` holds a value.
     pub heading_valid: bool,

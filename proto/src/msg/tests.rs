@@ -454,7 +454,7 @@ fn ros_pose_with_covariance_has_the_ros2_layout() {
     };
     let ros = PoseWithCovarianceStamped::from_robot_pose(&pose, "map");
     let bytes = encode(&ros).unwrap();
-    // DESIGN.md section 10: with frame_id "map" the message is 364 bytes.
+    // docs/ros2.md: with frame_id "map" the message is 364 bytes.
     assert_eq!(bytes.len(), 364);
     let mut expected = vec![0x00, 0x01, 0x00, 0x00];
     expected.extend_from_slice(&3i32.to_le_bytes());

@@ -10,8 +10,8 @@
 //! - [`attachment`]: the 33-byte attachment rmw_zenoh puts on every sample.
 //!
 //! The facts are from rmw_zenoh's `docs/design.md`, `liveliness_utils.cpp`
-//! and `attachment_helpers.cpp` (see `../shared/ROS2.md`); the tests check
-//! the examples given there.
+//! and `attachment_helpers.cpp` (docs/ros2.md, "The conventions in detail"); the
+//! tests check the examples given there.
 
 pub mod attachment;
 pub mod keys;

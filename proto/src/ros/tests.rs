@@ -1,4 +1,4 @@
-//! The conventions against the examples of `../shared/ROS2.md`.
+//! The conventions against the examples of docs/ros2.md ("The conventions in detail").
 
 use super::keys::split_type_and_hash;
 use super::*;

@@ -84,7 +84,7 @@ pub struct Route {
     pub points: Vec<Point2>,
     /// Whether a tour returns to the first point.
     pub closed: bool,
-    /// Reference points where the error is measured (seed 000: 60 per route),
+    /// Reference points where the error is measured (the ICKON paper: 60 per route),
     /// evenly spaced along the route starting at its first point.
     pub reference_points: Vec<Point2>,
     /// Cruise speed, m/s.

@@ -25,7 +25,7 @@ const DEFAULT_DECODER_WINDOW_MS: f64 = 0.5;
 pub(super) const MAX_CHANNELS: i64 = 16;
 /// Ceiling when the file gives none, metres.
 const DEFAULT_CEILING_M: f64 = 3.0;
-/// Reference points per route when the file gives no count (seed 000 uses 60).
+/// Reference points per route when the file gives no count (the ICKON paper uses 60).
 const DEFAULT_REFERENCE_POINTS: i64 = 60;
 /// Route speed when the file gives none, m/s (a cautious Pioneer 3-DX pace).
 const DEFAULT_ROUTE_SPEED_M_S: f64 = 0.3;

@@ -5,7 +5,7 @@
 //!   of the heading source (gyro, or wheels without one), the distance
 //!   scale of the wheels, the pseudo-range offset of the cycle being fused,
 //!   and the bias and scale error of absolute radio ranges.
-//! - Prediction at the wheels' rate: the arc of seed 003 with the distance
+//! - Prediction at the wheels' rate: the arc of the CDA paper with the distance
 //!   scaled and the heading change integrated from the gyro at its own rate
 //!   (the wheels' when no gyro sample came within `max_gyro_gap_s`), the
 //!   bias removed; noise from the sensors' data sheets ([`GroundNoise`]).
@@ -21,7 +21,7 @@
 //!   `late_soft_sigma`: a heavy tail on one side only); one far *earlier*
 //!   than predicted cannot be a reflection, so the cycle's offset (set by
 //!   an earlier arrival, possibly itself late) is re-initialised from it.
-//! - The receiver-id heading of seed 000 (eq. 4-6), carried by the MSU
+//! - The receiver-id heading of the ICKON paper (eq. 4-6), carried by the MSU
 //!   fixes, as a heading measurement with its honest `heading_sigma_deg`
 //!   (30 deg: half a 60 deg sector plus the beams' overlap); the fixes'
 //!   positions are not fused (the filter already has their arrivals).

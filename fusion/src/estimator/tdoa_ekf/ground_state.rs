@@ -83,7 +83,7 @@ pub(super) struct Step {
     pub var_bias: f64,
 }
 
-/// Propagates `(x, p)` through one step: the arc of seed 003 with the
+/// Propagates `(x, p)` through one step: the arc of the CDA paper with the
 /// distance scaled and the bias removed, linearised at the mid heading.
 /// `None` when the result is not finite.
 pub(super) fn predict(x: &State, p: &Cov, s: &Step) -> Option<(State, Cov)> {

@@ -1,6 +1,6 @@
 //! `tdoa-ekf`: a tightly-coupled extended Kalman filter that fuses each
 //! time difference of arrival on its own, as a scalar range-difference
-//! update (the approach of the Crazyflie's LPS TDoA, DESIGN section 9), so
+//! update (the approach of the Crazyflie's LPS TDoA, docs/architecture.md), so
 //! that it needs no complete set of signals for a fix.
 //!
 //! Every measurement goes through, cheapest first:

@@ -123,7 +123,7 @@ fn gyro_ckf_steps_match_hand_computation() {
 }
 
 #[test]
-fn two_sensor_heading_matches_seed_002_eq_1() {
+fn two_sensor_heading_matches_the_igps_papers_eq_1() {
     // Sensor 2 on the right of sensor 1 when facing +x.
     assert!(two_sensor_heading(0.0, 0.2, 0.0, -0.2).abs() < 1e-12);
     let h = two_sensor_heading(0.0, 0.0, 1.0, 0.0);

@@ -25,13 +25,13 @@ pub(super) fn config(name: &str) -> EstimatorConfig {
     c
 }
 
-/// The inputs an estimator is fed: encoders for the seed-003 chains,
+/// The inputs an estimator is fed: encoders for the CDA paper's chains,
 /// odometry poses for the others.
 pub(super) fn feed_for(name: &str, inputs: &[Input]) -> Vec<Input> {
-    let seed_003 = name.starts_with("cda");
+    let encoder_driven = name.starts_with("cda");
     only(inputs, |i| match i {
-        Input::Encoders(_) => seed_003,
-        Input::Odometry(_) => !seed_003,
+        Input::Encoders(_) => encoder_driven,
+        Input::Odometry(_) => !encoder_driven,
         _ => true,
     })
 }
@@ -112,15 +112,15 @@ fn noiseless_circles_are_tracked_by_every_estimator() {
         let s = run(e.as_mut(), &circle, &feed_for(name, &inputs));
         eprintln!("noiseless {name}: {s:?}");
         assert!(s.poses > 500, "{name}: {s:?}");
-        // The receiver-id heading is quantised to +-30 deg; the seed-000
-        // heading filter smooths it but keeps a ripple of several degrees.
+        // The receiver-id heading is quantised to +-30 deg; the ICKON
+        // paper's heading filter smooths it but keeps a ripple of several degrees.
         let heading_bound = match *name {
             "msu-raw" => 31.0,
             "ickon-akf" | "gyro-ckf" | "cda-msu" => 15.0,
             _ => 1.0,
         };
         assert!(s.max_heading_err_deg < heading_bound, "{name}: {s:?}");
-        // `cda` in gyro mode moves along the end-of-step heading (seed 003
+        // `cda` in gyro mode moves along the end-of-step heading (the CDA paper's
         // eq. 10-11), a first-order step that offsets a tight circle by ~2 cm.
         let position_bound = match *name {
             "msu-raw" => 0.1,
@@ -160,7 +160,7 @@ fn ten_minutes_of_circles_never_jump_by_a_turn() {
 
 #[test]
 fn gyro_ckf_removes_the_latency_of_a_two_sensor_heading() {
-    // Seed 002: a precise absolute heading delivered 100 ms late; alone its
+    // The iGPS paper: a precise absolute heading delivered 100 ms late; alone its
     // error is the rotation during the delay (here 1 rad/s * 0.1 s = 5.7 deg).
     let circle = Circle {
         v_m_s: 0.3,
@@ -206,7 +206,7 @@ fn gyro_ckf_removes_the_latency_of_a_two_sensor_heading() {
 
 #[test]
 fn adaptive_r_shrugs_off_reflected_fixes() {
-    // Seed 000 eq. 19: a fix far from the filter gets R ~ residual^2, so a
+    // The ICKON paper, eq. 19: a fix far from the filter gets R ~ residual^2, so a
     // reflection 1 m off barely moves the estimate.
     let circle = Circle {
         v_m_s: 0.3,

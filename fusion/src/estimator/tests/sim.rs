@@ -30,7 +30,7 @@ pub(super) struct Noise {
     /// Fix delivery delay after its measurement time.
     pub fix_latency_s: f64,
     /// Fix heading noise; `None` quantises the heading to the 60 deg
-    /// receiver sectors of seed 000 instead.
+    /// receiver sectors of the ICKON paper instead.
     pub two_sensor_heading_sigma_rad: Option<f64>,
     /// Every n-th fix is shifted by this many metres along x (a reflection).
     pub reflection_every: Option<(i64, f64)>,

@@ -549,7 +549,11 @@ impl SurveyCalibration {
     /// from the same factorisation.
     pub fn corrections_estimate_and_speed(
         &self,
-    ) -> (Vec<TransmitterCorrection>, Option<DVector<f64>>, LearntSpeed) {
+    ) -> (
+        Vec<TransmitterCorrection>,
+        Option<DVector<f64>>,
+        LearntSpeed,
+    ) {
         let n_tx = self.ids.len();
         let prior_speed = self.learnt_speed(0.0, self.config.sound_prior_sigma().powi(2));
         // The prior alone is positive definite and every fix adds a
@@ -894,9 +898,10 @@ impl SurveyPublisher {
         let left_out = self.health.left_out();
         if left_out != self.left_out {
             let reports = self.health.report(now);
-            for r in reports.iter().filter(|r| {
-                left_out.contains(&r.tx_id) != self.left_out.contains(&r.tx_id)
-            }) {
+            for r in reports
+                .iter()
+                .filter(|r| left_out.contains(&r.tx_id) != self.left_out.contains(&r.tx_id))
+            {
                 if left_out.contains(&r.tx_id) {
                     tracing::warn!(
                         "transmitter {} is {}: {}; left out of the robots' fixes until it is healthy",

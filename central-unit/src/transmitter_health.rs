@@ -63,11 +63,13 @@ impl Default for HealthConfig {
     /// below half its cell's share: a healthy transmitter is heard as often
     /// as its neighbours, within the few percent its drops and blocked
     /// paths take, and 25 draws at 90 % fall under 45 % with a probability
-    /// under 1e-7. Moved when more than 30 % of its arrivals fail the
-    /// MSUs' gates (a healthy one's fail when reflected or collided: 2 to
-    /// 10 % in a hall, the `paper` and `harsh` profiles' physics) or the
-    /// mean of five or more of its residuals is beyond 5 cm (the MSUs'
-    /// gate is about 10 cm, a healthy mean millimetres).
+    /// under 1e-7. Moved when the mean of five or more of its residuals is
+    /// beyond 5 cm (the MSUs' gate is about 10 cm, a healthy mean
+    /// millimetres), when more than 60 % of its arrivals fail the MSUs'
+    /// gates, or more than 30 % with a mean residual beyond 2 cm (a
+    /// healthy one's fail when reflected or collided: 2 to 10 % in a hall,
+    /// the `paper` and `harsh` profiles' physics, more near a wall or a
+    /// failing neighbour, but with its residuals centred).
     fn default() -> Self {
         Self {
             near_m: 6.0,
@@ -271,8 +273,8 @@ impl TransmitterHealth {
         let due: Vec<usize> = (0..self.entries.len())
             .filter(|&i| {
                 let t = self.entries[i].position_m;
-                let d = ((t[0] - p[0]).powi(2) + (t[1] - p[1]).powi(2) + (t[2] - p[2]).powi(2))
-                    .sqrt();
+                let d =
+                    ((t[0] - p[0]).powi(2) + (t[1] - p[1]).powi(2) + (t[2] - p[2]).powi(2)).sqrt();
                 d <= near && line_of_sight(&self.walls, &self.columns, t, p)
             })
             .collect();
@@ -381,7 +383,14 @@ impl TransmitterHealth {
         } else {
             0.0
         };
-        if rejected > cfg.moved_rejected_share || residual_mean > cfg.moved_residual_m {
+        // Rejections alone can be a wall's reflections, made worse by a
+        // neighbour that bends the fixes: a moved transmitter also pulls
+        // its own residuals off, unless nearly all its arrivals are
+        // rejected.
+        let displaced = residual_mean > cfg.moved_residual_m
+            || rejected > 2.0 * cfg.moved_rejected_share
+            || (rejected > cfg.moved_rejected_share && residual_mean > 0.4 * cfg.moved_residual_m);
+        if displaced {
             return Condition::Moved;
         }
         Condition::Healthy
@@ -413,9 +422,8 @@ impl TransmitterHealth {
                     expected_pct: share(c.expected, c.due),
                     rejected_pct: share(c.rejected_any, c.heard_any),
                     residual_mean_m: mean,
-                    residual_std_m: mean.map(|m| {
-                        (c.residual_sq / c.residual_n - m * m).max(0.0).sqrt()
-                    }),
+                    residual_std_m: mean
+                        .map(|m| (c.residual_sq / c.residual_n - m * m).max(0.0).sqrt()),
                     last_heard_s_ago: e.last_heard.map(|t| (now - t).as_secs_f64().max(0.0)),
                     since_s: e.since.map(Time::as_secs_f64),
                 }

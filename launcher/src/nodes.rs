@@ -277,7 +277,11 @@ impl<'a> Builder<'a> {
             &args.seed.to_string(),
         ]);
         world.args(to_recorder).args(self.devices.world_flags());
-        if let Some(items) = args.faults.as_deref().and_then(crate::faults::transmitter_items) {
+        if let Some(items) = args
+            .faults
+            .as_deref()
+            .and_then(crate::faults::transmitter_items)
+        {
             world.args(["--transmitter-faults", &items]);
         }
         self.credential(&mut world, Identity::World);

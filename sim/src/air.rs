@@ -165,7 +165,9 @@ impl Air {
         }
         let fraction = |p: [f64; 2]| p.iter().all(|v| (0.0..=1.0).contains(v));
         for (i, s) in self.spots.iter().enumerate() {
-            if !fraction(s.at) || !(s.radius_m > 0.0 && s.radius_m <= 1e3) || !within(s.delta_c, 40.0)
+            if !fraction(s.at)
+                || !(s.radius_m > 0.0 && s.radius_m <= 1e3)
+                || !within(s.delta_c, 40.0)
             {
                 return bad(
                     &format!("spots[{i}]"),
@@ -340,7 +342,11 @@ impl AirField {
     pub fn path_speed_m_s(&self, from: [f64; 3], to: [f64; 3], t_s: f64) -> f64 {
         let tau = self.travel_s(from, to, t_s);
         let length = distance(from, to);
-        if tau > 0.0 { length / tau } else { self.speed_m_s(from, t_s) }
+        if tau > 0.0 {
+            length / tau
+        } else {
+            self.speed_m_s(from, t_s)
+        }
     }
 }
 
@@ -438,7 +444,10 @@ mod tests {
             ..Air::default()
         };
         let field = AirField::new(&site, &air, 0.0);
-        for (a, b) in [([0.0, 0.0, 3.0], [1.0, 0.0, 0.3]), ([0.0, 0.0, 3.0], [8.0, 3.0, 0.3])] {
+        for (a, b) in [
+            ([0.0, 0.0, 3.0], [1.0, 0.0, 0.3]),
+            ([0.0, 0.0, 3.0], [8.0, 3.0, 0.3]),
+        ] {
             let mid = [0.0, 0.0, 0.5 * (a[2] + b[2])];
             let speed = field.path_speed_m_s(a, b, 0.0);
             // The slowness is averaged, not the speed: equal to 1e-5 relative.

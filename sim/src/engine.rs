@@ -634,7 +634,12 @@ impl<'a> RouteRun<'a> {
                 });
             }
         }
-        if self.out.air.last().is_none_or(|a| t - a.t_s >= AIR_DT_S - 1e-9) {
+        if self
+            .out
+            .air
+            .last()
+            .is_none_or(|a| t - a.t_s >= AIR_DT_S - 1e-9)
+        {
             self.out.air.push(AirSample {
                 t_s: t,
                 true_m_s: self.world.path_speed_m_s(t, AIR_PATHS_M),

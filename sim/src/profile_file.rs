@@ -228,7 +228,10 @@ mod tests {
 
     #[test]
     fn the_shipped_building_file_is_building() {
-        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../deploy/profiles/building.toml");
+        let file = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../deploy/profiles/building.toml"
+        );
         assert_eq!(NoiseProfile::load(file).unwrap(), NoiseProfile::building());
     }
 

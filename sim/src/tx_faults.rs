@@ -243,9 +243,17 @@ mod tests {
     #[test]
     fn every_kind_reads_and_writes_back() {
         let site = Site::default_site();
-        for item in ["dead:tx/22@10s", "weak:tx/22@30s=0.25", "moved:tx/41@2500ms=0.3,0,-0.05"] {
+        for item in [
+            "dead:tx/22@10s",
+            "weak:tx/22@30s=0.25",
+            "moved:tx/41@2500ms=0.3,0,-0.05",
+        ] {
             let f = TransmitterFault::parse(item, &site).unwrap();
-            assert_eq!(TransmitterFault::parse(&f.to_item(), &site).unwrap(), f, "{item}");
+            assert_eq!(
+                TransmitterFault::parse(&f.to_item(), &site).unwrap(),
+                f,
+                "{item}"
+            );
         }
         let plan = "kill:cell/c1@5s, dead:tx/22@10s,moved:tx/24@2s=0.3, 0,0,weak:tx/23@1s=0.5";
         assert_eq!(split_plan(plan).len(), 4, "{:?}", split_plan(plan));
@@ -280,7 +288,9 @@ mod tests {
             ("weak:tx/abc@1s=0.5", "not a transmitter id"),
         ];
         for (item, why) in cases {
-            let err = TransmitterFault::parse(item, &site).unwrap_err().to_string();
+            let err = TransmitterFault::parse(item, &site)
+                .unwrap_err()
+                .to_string();
             assert!(err.contains(why), "{item}: {err}");
         }
     }

@@ -161,7 +161,10 @@ impl World {
         let mut slowness = 0.0;
         let mut n = 0usize;
         for tx in &self.site.transmitters {
-            let d = (0..3).map(|k| (tx.position_m[k] - p[k]).powi(2)).sum::<f64>().sqrt();
+            let d = (0..3)
+                .map(|k| (tx.position_m[k] - p[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
             if d <= range_m && d > 0.0 {
                 slowness += 1.0 / self.air.path_speed_m_s(tx.position_m, p, t_s);
                 n += 1;

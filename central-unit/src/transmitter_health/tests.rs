@@ -63,12 +63,7 @@ fn condition(h: &TransmitterHealth, id: u32) -> Condition {
 }
 
 /// Feeds `n` fixes, ten a second, from `at(k)` built by `fix(k, p)`.
-fn feed(
-    h: &mut TransmitterHealth,
-    start: Time,
-    n: u32,
-    mut fix: impl FnMut(u32) -> Fix,
-) -> Time {
+fn feed(h: &mut TransmitterHealth, start: Time, n: u32, mut fix: impl FnMut(u32) -> Fix) -> Time {
     let mut now = start;
     for k in 0..n {
         h.observe(&fix(k), now);
@@ -84,14 +79,25 @@ fn a_dead_transmitter_is_flagged_within_a_few_seconds_and_its_neighbours_are_not
     let dead = site.transmitters[5].id;
     let p = near(&site, dead);
     // Heard at first: its counts remember it, its misses in a row do not.
-    let now = feed(&mut h, Time::ZERO, 100, |_| fix_at(&site, p, &[], &[], |_| 0.002));
+    let now = feed(&mut h, Time::ZERO, 100, |_| {
+        fix_at(&site, p, &[], &[], |_| 0.002)
+    });
     assert_eq!(condition(&h, dead), Condition::Healthy);
-    feed(&mut h, now, 20, |_| fix_at(&site, p, &[dead], &[], |_| 0.002));
+    feed(&mut h, now, 20, |_| {
+        fix_at(&site, p, &[dead], &[], |_| 0.002)
+    });
     assert_eq!(condition(&h, dead), Condition::Dead);
     assert!(h.left_out().contains(&dead));
     assert_eq!(h.left_out().len(), 1, "{:?}", h.left_out());
-    let r = h.report(Time::ZERO).into_iter().find(|r| r.tx_id == dead).unwrap();
-    assert!(TransmitterHealth::evidence(&r).contains("its cell's others"), "{r:?}");
+    let r = h
+        .report(Time::ZERO)
+        .into_iter()
+        .find(|r| r.tx_id == dead)
+        .unwrap();
+    assert!(
+        TransmitterHealth::evidence(&r).contains("its cell's others"),
+        "{r:?}"
+    );
 }
 
 #[test]
@@ -109,7 +115,11 @@ fn a_weak_transmitter_heard_a_quarter_of_the_time_is_flagged_and_recovers() {
     // arrivals as rejected, once taken back they use them.
     let mut now = now;
     for _ in 0..300 {
-        let rejected: &[u32] = if h.left_out().contains(&weak) { &[weak] } else { &[] };
+        let rejected: &[u32] = if h.left_out().contains(&weak) {
+            &[weak]
+        } else {
+            &[]
+        };
         h.observe(&fix_at(&site, p, &[], rejected, |_| 0.0), now);
         now = now + Duration::from_millis(100);
     }
@@ -125,10 +135,14 @@ fn a_moved_transmitter_whose_arrivals_fail_the_gates_is_flagged_and_stays_so() {
     let p = near(&site, moved);
     let now = feed(&mut h, Time::ZERO, 100, |k| {
         let rejected: &[u32] = if k % 5 == 0 { &[] } else { &[moved] };
-        fix_at(&site, p, &[], rejected, |id| if id == moved { 0.08 } else { 0.0 })
+        fix_at(&site, p, &[], rejected, |id| {
+            if id == moved { 0.08 } else { 0.0 }
+        })
     });
     assert_eq!(condition(&h, moved), Condition::Moved);
-    feed(&mut h, now, 100, |_| fix_at(&site, p, &[], &[moved], |_| 0.0));
+    feed(&mut h, now, 100, |_| {
+        fix_at(&site, p, &[], &[moved], |_| 0.0)
+    });
     assert_eq!(condition(&h, moved), Condition::Moved);
 }
 
@@ -140,7 +154,10 @@ fn a_fleet_that_hears_everything_flags_nothing_and_garbage_fixes_change_nothing(
     let mut now = Time::ZERO;
     for k in 0..2000u32 {
         let f = f64::from(k) / 2000.0;
-        let p = [lo[0] + f * (hi[0] - lo[0]), lo[1] + (0.3 + 0.4 * f) * (hi[1] - lo[1])];
+        let p = [
+            lo[0] + f * (hi[0] - lo[0]),
+            lo[1] + (0.3 + 0.4 * f) * (hi[1] - lo[1]),
+        ];
         // One arrival in twenty lost anywhere, as the air and the gates do.
         let lost: Vec<u32> = site
             .transmitters
@@ -152,7 +169,13 @@ fn a_fleet_that_hears_everything_flags_nothing_and_garbage_fixes_change_nothing(
         now = now + Duration::from_millis(100);
     }
     assert!(h.left_out().is_empty(), "{:?}", h.left_out());
-    let mut garbage = fix_at(&site, near(&site, site.transmitters[0].id), &[], &[], |_| 0.0);
+    let mut garbage = fix_at(
+        &site,
+        near(&site, site.transmitters[0].id),
+        &[],
+        &[],
+        |_| 0.0,
+    );
     garbage.x_m = f64::NAN;
     // Time passes with every fix, garbage or not; nothing else changes.
     h.observe(&garbage, now);

@@ -123,8 +123,14 @@ fn on_a_microphone_network_the_filter_beats_the_per_epoch_fix() {
         // per-epoch fix in median and RMSE (at the default, a flying
         // tag's, it is printed above, not held).
         let ls_slow = summary(&r_slow, "ls");
-        assert!(s.median_3d_m.unwrap() < ls_slow.median_3d_m.unwrap(), "seed {seed}");
-        assert!(s.rmse_3d_m.unwrap() < ls_slow.rmse_3d_m.unwrap(), "seed {seed}");
+        assert!(
+            s.median_3d_m.unwrap() < ls_slow.median_3d_m.unwrap(),
+            "seed {seed}"
+        );
+        assert!(
+            s.rmse_3d_m.unwrap() < ls_slow.rmse_3d_m.unwrap(),
+            "seed {seed}"
+        );
     }
 }
 

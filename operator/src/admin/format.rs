@@ -6,9 +6,7 @@
 use std::fmt::Write;
 
 use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson, TransmittersJson};
-use ickon_proto::msg::admin::{
-    AdminAck, CellState, RobotHealth, StatusReport, TransmittersReport,
-};
+use ickon_proto::msg::admin::{AdminAck, CellState, RobotHealth, StatusReport, TransmittersReport};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
@@ -233,7 +231,16 @@ pub fn transmitters(r: &TransmittersReport, json: bool) -> Result<String, Format
     let _ = writeln!(
         out,
         "{:>5} {:<8} {:<9} {:>6} {:>7} {:>8} {:>7} {:>9} {:>8} {:>10}",
-        "tx", "cell", "condition", "due", "heard", "others", "reject", "resid mm", "std mm", "last heard"
+        "tx",
+        "cell",
+        "condition",
+        "due",
+        "heard",
+        "others",
+        "reject",
+        "resid mm",
+        "std mm",
+        "last heard"
     );
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0}%"));
     let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));

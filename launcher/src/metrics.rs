@@ -76,6 +76,9 @@ pub struct RobotStats {
     /// Poses its MSU published as not yet confirmed by a fix.
     pub localising_poses: u64,
     errors_m: Vec<f64>,
+    /// The NEES of each scored pose under the covariance it was published
+    /// with (`None`: not positive definite).
+    nees: Vec<Option<f64>>,
     /// Errors of the positions the robot's ranging kit reported itself.
     kit_errors_m: Vec<f64>,
     first_kit_stamp: Option<Time>,
@@ -157,6 +160,11 @@ impl RobotStats {
             self.current_error_m = Some(err);
             if confirmed && pose.stamp.since(first).as_secs_f64() >= WARM_UP_S {
                 self.errors_m.push(err);
+                let c = pose.covariance;
+                self.nees.push(ickon_sim::score::nees_2d(
+                    [pose.x_m - x, pose.y_m - y],
+                    [c[0], c[1], c[4]],
+                ));
             }
         }
     }
@@ -206,7 +214,10 @@ impl RobotStats {
         let rmse = (n > 0.0).then(|| (self.errors_m.iter().map(|e| e * e).sum::<f64>() / n).sqrt());
         let kit = &self.kit_errors_m;
         let k = kit.len() as f64;
+        let (inside_95_pct, nees) = ickon_sim::score::consistency(&self.nees);
         RobotSummary {
+            inside_95_pct,
+            nees,
             kit_positions: kit.len() as u64,
             kit_mean_mm: (k > 0.0).then(|| kit.iter().sum::<f64>() / k * 1e3),
             kit_rmse_mm: (k > 0.0)
@@ -321,6 +332,12 @@ pub struct RobotSummary {
     pub kit_mean_mm: Option<f64>,
     /// Their root-mean-square error, mm.
     pub kit_rmse_mm: Option<f64>,
+    /// Share of the scored poses whose truth lies inside the 95 % ellipse
+    /// of the covariance published with them, percent (`None`: a pose had
+    /// no usable covariance).
+    pub inside_95_pct: Option<f64>,
+    /// Their average NEES and its 95 % bounds (Bar-Shalom's test).
+    pub nees: Option<ickon_sim::score::Nees>,
     /// The 95th percentile of their error, mm.
     pub kit_p95_mm: Option<f64>,
 }

@@ -259,6 +259,20 @@ pub(crate) fn render_report(r: &SimReport) -> String {
             );
         }
     }
+    for x in &r.robots {
+        if let (Some(pct), Some(n)) = (x.inside_95_pct, x.nees) {
+            let _ = writeln!(
+                out,
+                "{}: truth inside the 95 % ellipse on {pct:.0} % of poses, NEES {:.2} (95 % bounds {:.2}-{:.2} for {} poses{})",
+                x.id,
+                n.mean,
+                n.low,
+                n.high,
+                n.samples,
+                if n.consistent() { "" } else { ": inconsistent" }
+            );
+        }
+    }
     for x in r.robots.iter().filter(|x| x.localising_poses > 0) {
         let _ = writeln!(
             out,

@@ -72,6 +72,12 @@ struct EstimatorResult {
     scored: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     score: Option<Row>,
+    /// Share of the scored poses inside their 95 % ellipse, percent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    inside_95_pct: Option<f64>,
+    /// Their average NEES and its 95 % bounds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nees: Option<ickon_sim::score::Nees>,
     /// Inputs the core refused, by kind, with the first reason (the live
     /// agent refused the same ones).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -390,6 +396,8 @@ fn replay_robot(
             poses: published.len(),
             scored: scored.as_ref().map_or(0, |s| s.points),
             score: scored.map(|s| s.row),
+            inside_95_pct: scored.and_then(|s| s.inside_95_pct),
+            nees: scored.and_then(|s| s.nees),
             refused_inputs: msu.refusal_summary(),
             published,
         });
@@ -528,8 +536,8 @@ fn print_text(
                     fix_latency_ms: None,
                     crlb_ratio: None,
                     crlb_mm: None,
-                    inside_95_pct: None,
-                    nees: None,
+                    inside_95_pct: e.inside_95_pct,
+                    nees: e.nees,
                 })
             })
         })

@@ -22,6 +22,11 @@ pub struct Scored {
     pub row: Row,
     /// Poses scored.
     pub points: usize,
+    /// Share of them whose truth lies inside the 95 % ellipse of the
+    /// covariance published with them, percent.
+    pub inside_95_pct: Option<f64>,
+    /// Their average NEES and its 95 % bounds.
+    pub nees: Option<ickon_sim::score::Nees>,
 }
 
 /// Truth position and heading at `stamp` on the robot's clock, interpolated
@@ -54,6 +59,7 @@ pub fn score(poses: &[Published], truth: &[Truth]) -> Option<Scored> {
     let first = poses.first()?.pose.stamp;
     let mut pos = Vec::new();
     let mut head = Vec::new();
+    let mut nees = Vec::new();
     for p in poses {
         if p.pose.stamp.since(first).as_secs_f64() < WARM_UP_S {
             continue;
@@ -61,11 +67,19 @@ pub fn score(poses: &[Published], truth: &[Truth]) -> Option<Scored> {
         if let Some([x, y, theta]) = truth_at(&truth, p.pose.stamp) {
             pos.push((p.pose.x_m - x).hypot(p.pose.y_m - y));
             head.push(ickon_fusion::angle::diff(p.pose.theta_rad, theta));
+            let c = p.pose.covariance;
+            nees.push(ickon_sim::score::nees_2d(
+                [p.pose.x_m - x, p.pose.y_m - y],
+                [c[0], c[1], c[4]],
+            ));
         }
     }
+    let (inside_95_pct, nees) = ickon_sim::score::consistency(&nees);
     (!pos.is_empty()).then(|| Scored {
         row: ickon_sim::score::row(None, &pos, &head),
         points: pos.len(),
+        inside_95_pct,
+        nees,
     })
 }
 

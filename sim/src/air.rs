@@ -165,10 +165,11 @@ impl Air {
         }
         let fraction = |p: [f64; 2]| p.iter().all(|v| (0.0..=1.0).contains(v));
         for (i, s) in self.spots.iter().enumerate() {
-            if !fraction(s.at)
-                || !(s.radius_m > 0.0 && s.radius_m <= 1e3)
-                || !within(s.delta_c, 40.0)
-            {
+            let good = fraction(s.at)
+                && s.radius_m > 0.0
+                && s.radius_m <= 1e3
+                && within(s.delta_c, 40.0);
+            if !good {
                 return bad(
                     &format!("spots[{i}]"),
                     "needs `at` within 0 to 1, a radius above 0 up to 1000 m, a delta within -40 to 40".into(),
@@ -176,10 +177,11 @@ impl Air {
             }
         }
         for (i, d) in self.drafts.iter().enumerate() {
-            if !fraction(d.at)
-                || !(d.radius_m > 0.0 && d.radius_m <= 1e3)
-                || !d.velocity_m_s.iter().all(|v| within(*v, 20.0))
-            {
+            let good = fraction(d.at)
+                && d.radius_m > 0.0
+                && d.radius_m <= 1e3
+                && d.velocity_m_s.iter().all(|v| within(*v, 20.0));
+            if !good {
                 return bad(
                     &format!("drafts[{i}]"),
                     "needs `at` within 0 to 1, a radius above 0 up to 1000 m, a wind within -20 to 20 m/s".into(),
@@ -187,10 +189,12 @@ impl Air {
             }
         }
         for (i, s) in self.steps.iter().enumerate() {
-            if !(within(s.at_s, 1e7) && s.at_s >= 0.0)
-                || !within(s.delta_c, 40.0)
-                || !(within(s.recover_s, 1e7) && s.recover_s >= 0.0)
-            {
+            let good = within(s.at_s, 1e7)
+                && s.at_s >= 0.0
+                && within(s.delta_c, 40.0)
+                && within(s.recover_s, 1e7)
+                && s.recover_s >= 0.0;
+            if !good {
                 return bad(
                     &format!("steps[{i}]"),
                     "needs a time within 0 to 1e7 s, a delta within -40 to 40, a recovery within 0 to 1e7 s".into(),

@@ -420,8 +420,8 @@ impl World {
                 let d = self.faults.displacement(tx.id, t_emit);
                 if d != [0.0; 3] {
                     moved = tx.clone();
-                    for k in 0..3 {
-                        moved.position_m[k] += d[k];
+                    for (p, dk) in moved.position_m.iter_mut().zip(d) {
+                        *p += dk;
                     }
                     tx = &moved;
                 }

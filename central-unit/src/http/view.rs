@@ -147,6 +147,13 @@ pub struct Snapshot {
     pub schedule_version: u32,
     /// Cycles per second of the schedule in force.
     pub update_rate_hz: f64,
+    /// The speed of sound the robots solve with, m/s (the learnt one, or
+    /// the site file's).
+    pub speed_of_sound_m_s: f64,
+    /// Whether it is learnt from the fleet's fixes.
+    pub speed_of_sound_learnt: bool,
+    /// Transmitters left out of the fixes (dead, weak or moved), drawn red.
+    pub transmitters_left_out: Vec<u32>,
     /// Every cell of the site.
     pub cells: Vec<CellSnapshot>,
     /// Every robot of the site that has been heard from.
@@ -313,6 +320,16 @@ impl LiveView {
             paused: status.paused,
             schedule_version: status.schedule_version,
             update_rate_hz: status.update_rate_hz,
+            speed_of_sound_m_s: round(
+                if status.speed_of_sound_m_s > 0.0 {
+                    status.speed_of_sound_m_s
+                } else {
+                    status.site_speed_of_sound_m_s
+                },
+                100.0,
+            ),
+            speed_of_sound_learnt: status.speed_of_sound_m_s > 0.0,
+            transmitters_left_out: status.transmitters_left_out.clone(),
             cells,
             robots,
             ignored_messages: self.ignored,

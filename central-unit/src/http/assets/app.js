@@ -176,7 +176,10 @@ function render() {
     poly.setAttribute("class", `cell ${s}${fire ? " fire" : ""}`);
     poly.setAttribute("data-state", s);
   }
-  for (const [id, c] of state.txs) c.setAttribute("class", firing.has(id) ? "tx fire" : "tx");
+  const leftOut = new Set(snap.transmitters_left_out || []);
+  for (const [id, c] of state.txs) {
+    c.setAttribute("class", leftOut.has(id) ? "tx out" : firing.has(id) ? "tx fire" : "tx");
+  }
   for (const r of snap.robots) drawRobot(r);
 
   const now = performance.now();
@@ -203,7 +206,10 @@ function surveyCell(r) {
 
 function renderPanel(snap) {
   document.getElementById("cycle").textContent =
-    `cycle ${snap.cycle}${snap.paused ? " (paused)" : ""} · ${fmt(snap.update_rate_hz, 2)} cycles/s`;
+    `cycle ${snap.cycle}${snap.paused ? " (paused)" : ""} · ${fmt(snap.update_rate_hz, 2)} cycles/s` +
+    ` · sound ${fmt(snap.speed_of_sound_m_s, 2)} m/s${snap.speed_of_sound_learnt ? " (learnt)" : ""}` +
+    ((snap.transmitters_left_out || []).length
+      ? ` · left out: ${snap.transmitters_left_out.join(", ")}` : "");
   const robots = document.querySelector("#robots tbody");
   robots.replaceChildren(...snap.robots.map(r => row([
     [r.id], [r.state, r.state === "down" ? "down" : ""], [r.estimator || "-", "txt"],

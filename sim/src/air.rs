@@ -165,10 +165,8 @@ impl Air {
         }
         let fraction = |p: [f64; 2]| p.iter().all(|v| (0.0..=1.0).contains(v));
         for (i, s) in self.spots.iter().enumerate() {
-            let good = fraction(s.at)
-                && s.radius_m > 0.0
-                && s.radius_m <= 1e3
-                && within(s.delta_c, 40.0);
+            let good =
+                fraction(s.at) && s.radius_m > 0.0 && s.radius_m <= 1e3 && within(s.delta_c, 40.0);
             if !good {
                 return bad(
                     &format!("spots[{i}]"),

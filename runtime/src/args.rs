@@ -208,9 +208,14 @@ impl NodeArgs {
         self.zenoh.zenoh_config()
     }
 
-    /// Opens the session the flags describe.
+    /// Opens the session the flags describe, and watches its link to the
+    /// router: a loss is logged at WARN, the return at INFO
+    /// ([`crate::router_watch`]).
     pub async fn open(&self) -> Result<Session, NodeError> {
-        self.zenoh.open().await
+        let session = self.zenoh.open().await?;
+        crate::router_watch::spawn(session.clone())
+            .map_err(|e| NodeError::Setup(format!("cannot start the router watch: {e}")))?;
+        Ok(session)
     }
 
     /// This node's clock: the system clock with the injected offset and drift.

@@ -409,13 +409,23 @@ fn every_key_of_the_shipped_files_is_in_the_configuration_reference() {
 
 #[test]
 fn a_command_run_with_sudo_is_checked_as_the_command() {
-    assert_eq!(without_sudo("sudo ickon site check x"), "ickon site check x");
+    assert_eq!(
+        without_sudo("sudo ickon site check x"),
+        "ickon site check x"
+    );
     assert_eq!(
         without_sudo("sudo -u ickon ickon admin status"),
         "ickon admin status"
     );
-    assert_eq!(without_sudo("sudo install -m 0755 a b"), "install -m 0755 a b");
+    assert_eq!(
+        without_sudo("sudo install -m 0755 a b"),
+        "install -m 0755 a b"
+    );
     assert_eq!(without_sudo("ickon admin"), "ickon admin");
-    let lines = command_lines("```sh\nsudo -u ickon ickon admin status \\\n    --site-name hall\n```\n");
-    assert_eq!(lines, vec![(2, "ickon admin status --site-name hall".to_string())]);
+    let lines =
+        command_lines("```sh\nsudo -u ickon ickon admin status \\\n    --site-name hall\n```\n");
+    assert_eq!(
+        lines,
+        vec![(2, "ickon admin status --site-name hall".to_string())]
+    );
 }

@@ -194,7 +194,7 @@ pub async fn run(
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
-    let keys = Keys::new(&args.node.site_name)?;
+    let keys = Keys::new(args.node.site_name())?;
     let cell = args.cell.as_str();
     let clock = args.node.clock();
     args.node.listen_for_clock_steps(clock)?;

@@ -211,6 +211,20 @@ impl CentralArgs {
     }
 }
 
+/// The central unit's site name is its site file's `name`; a `--site-name`
+/// given as well must say the same, for the other nodes take theirs from
+/// the flag and a central unit serving another name would never meet them.
+pub fn check_site_name(given: Option<&str>, in_file: &str, file: &str) -> Result<(), String> {
+    match given {
+        Some(given) if given != in_file => Err(format!(
+            "--site-name {given:?} differs from the name {in_file:?} in the site file {file}: \
+             the central unit takes the name from the file; give the same name to every node \
+             or leave --site-name out here"
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Runs the central unit as a process: loads the site, opens the session,
 /// serves until Ctrl-C/SIGTERM. Exit code 2 for a bad site file.
 pub fn main_with(args: CentralArgs) -> ExitCode {
@@ -221,6 +235,10 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if let Err(e) = check_site_name(args.node.site_name.as_deref(), &site.name, &name) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     let config = args.core_config(&site);
     let saved = match (&args.survey_file, config.survey) {
         (Some(path), Some(survey)) => match load_survey_file(path, &site, survey) {
@@ -859,3 +877,6 @@ mod reload;
 
 #[cfg(test)]
 mod survey_file_tests;
+
+#[cfg(test)]
+mod site_name_tests;

@@ -117,7 +117,7 @@ fn command_lines(text: &str) -> Vec<(usize, String)> {
         let (start, mut joined) = match pending.take() {
             Some((n, so_far)) => (n, so_far + " " + trimmed),
             None => {
-                let cmd = trimmed.strip_prefix("$ ").unwrap_or(trimmed);
+                let cmd = without_sudo(trimmed.strip_prefix("$ ").unwrap_or(trimmed));
                 if !(cmd.starts_with("ickon ")
                     || cmd.starts_with("ickon-")
                     || cmd == "ickon"
@@ -138,6 +138,22 @@ fn command_lines(text: &str) -> Vec<(usize, String)> {
         out.push((start, joined.trim().to_string()));
     }
     out
+}
+
+/// `cmd` without a leading `sudo` or `sudo -u USER`: the command it runs
+/// is checked as any other.
+fn without_sudo(cmd: &str) -> &str {
+    let Some(rest) = cmd.strip_prefix("sudo ") else {
+        return cmd;
+    };
+    let rest = rest.trim_start();
+    match rest.strip_prefix("-u ") {
+        Some(user_and_cmd) => user_and_cmd
+            .trim_start()
+            .split_once(' ')
+            .map_or("", |(_, c)| c.trim_start()),
+        None => rest,
+    }
 }
 
 /// `line` as the `ickon` binary's arguments (a node binary's as `ickon node
@@ -388,5 +404,28 @@ fn every_key_of_the_shipped_files_is_in_the_configuration_reference() {
         missing.is_empty(),
         "keys of shipped files that docs/configuration.md does not document:\n{}",
         missing.join("\n")
+    );
+}
+
+#[test]
+fn a_command_run_with_sudo_is_checked_as_the_command() {
+    assert_eq!(
+        without_sudo("sudo ickon site check x"),
+        "ickon site check x"
+    );
+    assert_eq!(
+        without_sudo("sudo -u ickon ickon admin status"),
+        "ickon admin status"
+    );
+    assert_eq!(
+        without_sudo("sudo install -m 0755 a b"),
+        "install -m 0755 a b"
+    );
+    assert_eq!(without_sudo("ickon admin"), "ickon admin");
+    let lines =
+        command_lines("```sh\nsudo -u ickon ickon admin status \\\n    --site-name hall\n```\n");
+    assert_eq!(
+        lines,
+        vec![(2, "ickon admin status --site-name hall".to_string())]
     );
 }

@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 
 use foxglove::Decode;
 use foxglove::messages::{PoseInFrame, SceneUpdate};
-use foxglove_client::FoxgloveClient;
+use foxglove_client::{FoxgloveClient, LEGACY_SUBPROTOCOL, SUBPROTOCOL};
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_testkit::{Observer, free_tcp_port, poll_until};
 use serde_json::Value;
@@ -171,7 +171,14 @@ fn xy(p: &PoseInFrame) -> (f64, f64) {
 fn abuse(addr: SocketAddr, clients: usize) -> usize {
     let mut served = 0;
     for k in 0..clients {
-        let Ok(mut c) = FoxgloveClient::connect(addr, Duration::from_secs(5)) else {
+        // Under both names of the protocol: the older one goes through the
+        // server's front door.
+        let name = if k % 4 < 2 {
+            SUBPROTOCOL
+        } else {
+            LEGACY_SUBPROTOCOL
+        };
+        let Ok(mut c) = FoxgloveClient::connect_as(addr, Duration::from_secs(5), name) else {
             continue;
         };
         served += 1;
@@ -377,6 +384,27 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
     // Still served afterwards, to a newcomer too.
     let newcomer = FoxgloveClient::connect(addr, Duration::from_secs(5)).expect("a newcomer");
     newcomer.close();
+    // And to a client asking for the protocol's older name, as Lichtblick
+    // and Foxglove Studio 1.x do: the same channels, the same messages.
+    let mut legacy = FoxgloveClient::connect_as(addr, Duration::from_secs(5), LEGACY_SUBPROTOCOL)
+        .expect("a client of the older subprotocol name");
+    assert_eq!(
+        legacy.channels["/site/scene"].schema_name,
+        "foxglove.SceneUpdate"
+    );
+    legacy.subscribe(&["/site/scene"]).expect("subscribe");
+    let scene = poll_until(
+        Duration::from_secs(5),
+        "the scene under the older name",
+        || {
+            let m = legacy.read_one().expect("read")?;
+            (m.topic == "/site/scene").then_some(m.payload)
+        },
+    )
+    .expect("scene");
+    let scene = SceneUpdate::decode(scene.as_slice()).expect("SceneUpdate");
+    assert!(scene.entities.iter().any(|e| e.id == "walls"));
+    legacy.close();
     client.close();
 
     // The run's own report: every pose shown within the error it measured.

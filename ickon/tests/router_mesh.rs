@@ -2,8 +2,8 @@
 //! floor), the central unit and the cells clients of the first, the world
 //! and two MSU agents clients of the second. Poses must flow across the
 //! link; when the second router dies and comes back on the same port, its
-//! clients reconnect on their own (nothing else restarts) and poses flow
-//! again.
+//! clients reconnect on their own (nothing else restarts), each says in its
+//! log that its router went and came back, and poses flow again.
 //!
 //! Every wait polls with a deadline; every process is killed when its guard
 //! drops, whatever happens.
@@ -46,6 +46,9 @@ fn client(role: &str, site: &str, router: &str) -> Command {
     let mut cmd = Command::new(ICKON);
     cmd.args(["node", role, "--mode", "client", "--no-multicast-scouting"])
         .args(["--connect", router, "--site-name", site]);
+    // `ickon node` logs at WARN unless told; the router watch's returns are
+    // INFO, as a deployed node (RUST_LOG=info) writes them.
+    cmd.env("RUST_LOG", "warn,ickon_runtime::router_watch=info");
     cmd
 }
 
@@ -145,6 +148,35 @@ fn two_linked_routers_carry_the_site_and_clients_reconnect_to_a_router_that_retu
     );
     let after: Vec<u32> = nodes.iter().map(ChildGuard::pid).collect();
     assert_eq!(pids, after, "no node was restarted");
+    // Each client of the lost router said so, at WARN, and said when it
+    // was back, at INFO (within a second of its return: the watch's
+    // period); the first floor's clients lost nothing.
+    let said_back = |n: &ChildGuard| n.log().contains("link to the Zenoh router back after");
+    let second_floor = |n: &ChildGuard| n.name() == "world" || n.name().starts_with("msu-");
+    let _ = poll_until(Duration::from_secs(10), "every return said", || {
+        nodes
+            .iter()
+            .filter(|n| second_floor(n))
+            .all(said_back)
+            .then_some(())
+    });
+    for n in &nodes {
+        let log = n.log();
+        let second_floor = second_floor(n);
+        let lost = log
+            .lines()
+            .any(|l| l.contains("WARN") && l.contains("lost the link to the Zenoh router"));
+        let back = log
+            .lines()
+            .any(|l| l.contains("INFO") && l.contains("link to the Zenoh router back after"));
+        assert_eq!(
+            (lost, back),
+            (second_floor, second_floor),
+            "{}:\n{}",
+            n.name(),
+            n.log_tail(30)
+        );
+    }
 }
 
 /// The children of `parent` whose command line holds `word` as an argument.

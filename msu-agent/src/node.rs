@@ -761,7 +761,7 @@ pub fn settings_with_tuning(args: &MsuArgs, tuning: MsuTuning) -> Result<MsuSett
         None
     };
     let settings = MsuSettings {
-        site_name: args.mesh.site_name.clone(),
+        site_name: args.mesh.site_name().to_string(),
         robot: args.robot.clone(),
         tuning,
         receivers: args.receivers.clone(),

@@ -152,9 +152,11 @@ pub struct NodeArgs {
     /// Zenoh connection flags.
     #[command(flatten)]
     pub zenoh: ZenohArgs,
-    /// Site name, the `<site>` of every key.
-    #[arg(long, default_value = "lab")]
-    pub site_name: String,
+    /// Site name, the `<site>` of every key [default: lab]. The central
+    /// unit takes it from its site file; given there too, it must match
+    /// the file's `name`.
+    #[arg(long, value_name = "SITE_NAME")]
+    pub site_name: Option<String>,
     /// A built-in site (`lab`, `warehouse`, `hall`) or a site file (TOML); the central
     /// unit serves it, the built-in `lab` when omitted. Other nodes take the
     /// site from the central unit.
@@ -202,15 +204,29 @@ fn clock_drift_ppm(text: &str) -> Result<f64, String> {
     bounded(text, 1_000.0, "ppm")
 }
 
+/// The site name a node uses when `--site-name` is not given: the built-in
+/// `lab` site's.
+pub const DEFAULT_SITE_NAME: &str = "lab";
+
 impl NodeArgs {
+    /// The site name: `--site-name`, or [`DEFAULT_SITE_NAME`].
+    pub fn site_name(&self) -> &str {
+        self.site_name.as_deref().unwrap_or(DEFAULT_SITE_NAME)
+    }
+
     /// The Zenoh configuration the flags describe.
     pub fn zenoh_config(&self) -> Result<zenoh::Config, NodeError> {
         self.zenoh.zenoh_config()
     }
 
-    /// Opens the session the flags describe.
+    /// Opens the session the flags describe, and watches its link to the
+    /// router: a loss is logged at WARN, the return at INFO
+    /// ([`crate::router_watch`]).
     pub async fn open(&self) -> Result<Session, NodeError> {
-        self.zenoh.open().await
+        let session = self.zenoh.open().await?;
+        crate::router_watch::spawn(session.clone())
+            .map_err(|e| NodeError::Setup(format!("cannot start the router watch: {e}")))?;
+        Ok(session)
     }
 
     /// This node's clock: the system clock with the injected offset and drift.

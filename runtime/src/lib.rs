@@ -18,6 +18,8 @@
 //! - [`link`]: serial and TCP links to devices that reconnect by
 //!   themselves, and pseudo-terminal pairs;
 //! - [`log_limit`]: logs of bad input bounded to one line per kind per window;
+//! - [`router_watch`]: the link to the Zenoh router watched, its loss and
+//!   return logged (every node, through [`NodeArgs::open`]);
 //! - [`certificate`]: the node's own TLS certificates and keys, checked at
 //!   start (malformed, expired, expiring soon);
 //! - [`cpus`]: the CPUs a process runs on, and pinning it to a set;
@@ -36,6 +38,7 @@ pub mod log_limit;
 pub mod process;
 pub mod publish;
 pub mod query;
+pub mod router_watch;
 pub mod runfile;
 pub mod shutdown;
 pub mod warnings;

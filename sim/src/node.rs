@@ -442,7 +442,7 @@ pub fn main_with(args: WorldArgs) -> ExitCode {
         }
     };
     let settings = WorldSettings {
-        site_name: args.mesh.site_name.clone(),
+        site_name: args.mesh.site_name().to_string(),
         robots: args.robots.clone(),
         profile,
         seed: args.seed,

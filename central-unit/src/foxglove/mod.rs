@@ -1,7 +1,8 @@
 //! The Foxglove live server of the central unit (`--foxglove [ADDR]`): the
 //! site, the fleet and every fix, live in the Foxglove app's standard
 //! panels, over Foxglove's WebSocket protocol (subprotocol
-//! `foxglove.sdk.v1`, served by Foxglove's own SDK) with Foxglove's own
+//! `foxglove.sdk.v1`, served by Foxglove's own SDK, or its older name
+//! `foxglove.websocket.v1` through [`front_door`]) with Foxglove's own
 //! schemas.
 //!
 //! It is fed as the web map is: its own Zenoh subscribers fill a
@@ -14,6 +15,7 @@
 //! no parameters, no services), so a client can subscribe to what is
 //! listed and do nothing else. It binds to loopback unless told otherwise.
 
+pub mod front_door;
 pub mod layout;
 pub mod plots;
 pub mod scene;
@@ -83,6 +85,7 @@ pub struct FoxgloveLive {
     addr: Option<SocketAddr>,
     status: watch::Sender<Option<StatusReport>>,
     server: Option<WebSocketServerHandle>,
+    door: Option<JoinHandle<()>>,
     ticker: JoinHandle<()>,
     _feed: Feed,
 }
@@ -98,22 +101,30 @@ impl FoxgloveLive {
         let Some(wanted) = args.foxglove else {
             return Ok(None);
         };
+        let start_error = |e: &dyn std::fmt::Display| FoxgloveError::Start {
+            addr: wanted,
+            reason: e.to_string(),
+        };
+        // The public port is the front door's; the SDK's server listens on
+        // loopback behind it.
+        let door = tokio::net::TcpListener::bind(wanted)
+            .await
+            .map_err(|e| start_error(&e))?;
+        let addr = door.local_addr().map_err(|e| start_error(&e))?;
         let context = Context::new();
         let channels = Channels::new(&context, site);
         let server = context
             .websocket_server()
             .name(format!("ickon-central {}", site.name))
-            .bind(wanted.ip().to_string(), wanted.port())
+            .bind("127.0.0.1", 0)
             .start()
             .await
-            .map_err(|e| FoxgloveError::Start {
-                addr: wanted,
-                reason: e.to_string(),
-            })?;
-        let addr = SocketAddr::new(wanted.ip(), server.port());
+            .map_err(|e| start_error(&e))?;
+        let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
         let mut live = Self::feed(session, keys, site, context, channels, true).await?;
         live.addr = Some(addr);
         live.server = Some(server);
+        live.door = Some(tokio::spawn(front_door::serve(door, inner)));
         tracing::info!("Foxglove live server at ws://{addr} (read-only)");
         Ok(Some(live))
     }
@@ -167,6 +178,7 @@ impl FoxgloveLive {
             addr: None,
             status: status_tx,
             server: None,
+            door: None,
             ticker,
             _feed: feed,
         })
@@ -195,6 +207,9 @@ impl FoxgloveLive {
 impl Drop for FoxgloveLive {
     fn drop(&mut self) {
         self.ticker.abort();
+        if let Some(door) = self.door.take() {
+            door.abort();
+        }
         if let Some(server) = self.server.take() {
             // The shutdown goes on in the server's own tasks.
             drop(server.stop());

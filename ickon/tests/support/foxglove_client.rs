@@ -16,6 +16,10 @@ use tungstenite::{Message, WebSocket};
 /// The subprotocol the client asks for.
 pub const SUBPROTOCOL: &str = "foxglove.sdk.v1";
 
+/// The same protocol's older name, which Lichtblick and Foxglove Studio
+/// 1.x ask for.
+pub const LEGACY_SUBPROTOCOL: &str = "foxglove.websocket.v1";
+
 /// One advertised channel.
 #[derive(Debug, Clone)]
 pub struct ChannelInfo {
@@ -50,6 +54,16 @@ impl FoxgloveClient {
     /// Connects to `addr`, asking for the protocol, and waits (up to
     /// `timeout`) for the server's info and its first advertisement.
     pub fn connect(addr: SocketAddr, timeout: Duration) -> Result<Self, String> {
+        Self::connect_as(addr, timeout, SUBPROTOCOL)
+    }
+
+    /// [`Self::connect`], asking for `subprotocol` alone and insisting the
+    /// server agrees to that very name.
+    pub fn connect_as(
+        addr: SocketAddr,
+        timeout: Duration,
+        subprotocol: &str,
+    ) -> Result<Self, String> {
         let stream = TcpStream::connect_timeout(&addr, timeout).map_err(|e| e.to_string())?;
         stream
             .set_read_timeout(Some(Duration::from_millis(200)))
@@ -59,14 +73,16 @@ impl FoxgloveClient {
             .map_err(|e| e.to_string())?;
         request.headers_mut().insert(
             "Sec-WebSocket-Protocol",
-            SUBPROTOCOL.parse().expect("header value"),
+            subprotocol
+                .parse()
+                .map_err(|_| "subprotocol header value")?,
         );
         let (ws, response) = tungstenite::client(request, stream).map_err(|e| e.to_string())?;
         let agreed = response
             .headers()
             .get("Sec-WebSocket-Protocol")
             .and_then(|v| v.to_str().ok());
-        if agreed != Some(SUBPROTOCOL) {
+        if agreed != Some(subprotocol) {
             return Err(format!("server agreed to subprotocol {agreed:?}"));
         }
         let mut client = Self {

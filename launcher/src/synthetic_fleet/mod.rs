@@ -72,7 +72,7 @@ pub fn main_with(args: SyntheticFleetArgs) -> ExitCode {
     ickon_runtime::run_node(2, async {
         let session = args.mesh.open().await?;
         let settings = Settings {
-            site_name: args.mesh.site_name.clone(),
+            site_name: args.mesh.site_name().to_string(),
             robots: args.robots.clone(),
             timing_sigma_s,
             max_range_m,

@@ -32,6 +32,7 @@ pub mod check;
 pub mod files;
 mod identity;
 pub mod limits;
+pub mod robot_list;
 
 pub use identity::Identity;
 
@@ -140,6 +141,12 @@ pub struct SecureArgs {
     /// every robot's arrivals.
     #[arg(long)]
     pub sim: bool,
+    /// Robots to write credentials for besides those in the site file
+    /// (repeatable): ids and ranges, comma-separated (`r1..r50`,
+    /// `amr-1,amr-2`). A real site's robots need no `[[robots]]` entry,
+    /// which only a simulation needs (for its route).
+    #[arg(long, value_name = "IDS", value_parser = robot_list::parse)]
+    pub robots: Vec<robot_list::RobotIds>,
     /// ROS domain id of the robots' rmw_zenoh keys (`ickon-msu --ros2`).
     #[arg(long, default_value_t = 0)]
     pub ros2_domain: u32,
@@ -181,6 +188,8 @@ pub struct Layout {
     /// With `sim`: the robots of each process that hosts several
     /// (`ickon sim --robots-per-process`), one fleet identity each.
     pub fleets: Vec<Vec<String>>,
+    /// Robots to give credentials besides the site file's.
+    pub robots: Vec<String>,
     /// The robots' ROS 2 keys.
     pub ros2: acl::Ros2Scope,
     /// Days each identity's certificate is valid (with TLS).
@@ -211,6 +220,19 @@ impl Layout {
             )));
         }
         Ok(tls > 0)
+    }
+
+    /// The site's identities ([`Identity::all_of`]) and one per robot of
+    /// [`Self::robots`] the site file does not list.
+    pub fn identities(&self, site: &Site) -> Vec<Identity> {
+        let mut out = Identity::all_of(site, self.sim);
+        for robot in &self.robots {
+            let identity = Identity::Robot(robot.clone());
+            if !out.contains(&identity) {
+                out.push(identity);
+            }
+        }
+        out
     }
 
     /// The hosts the routers' certificates name: those clients and other
@@ -328,7 +350,7 @@ pub fn write_dir(site: &Site, dir: &Path, layout: &Layout) -> Result<SecuredDir,
     } else {
         None
     };
-    let mut identities = Identity::all_of(site, layout.sim);
+    let mut identities = layout.identities(site);
     if layout.sim {
         identities.extend(layout.fleets.iter().cloned().map(Identity::Fleet));
     }
@@ -513,6 +535,7 @@ pub fn run(args: SecureArgs) -> Result<(), CommandError> {
         routers: usize::from(args.routers),
         sim: args.sim,
         fleets: vec![],
+        robots: args.robots.into_iter().flat_map(|r| r.0).collect(),
         ros2: acl::Ros2Scope {
             domain: args.ros2_domain,
         },
@@ -521,7 +544,7 @@ pub fn run(args: SecureArgs) -> Result<(), CommandError> {
     };
     match write_dir(&site, &args.out, &layout) {
         Ok(dir) => {
-            let n = Identity::all_of(&site, args.sim).len();
+            let n = layout.identities(&site).len();
             let routers: Vec<String> = (1..=layout.routers)
                 .map(|k| dir.router_k(k).display().to_string())
                 .collect();
@@ -567,6 +590,7 @@ mod tests {
             routers: 2,
             sim: true,
             fleets: vec![],
+            robots: vec![],
             ros2: acl::Ros2Scope { domain: 0 },
             valid_days: certs::DEFAULT_VALID_DAYS,
             ca: None,
@@ -675,6 +699,7 @@ mod tests {
             routers: 1,
             sim: false,
             fleets: vec![],
+            robots: vec![],
             ros2: acl::Ros2Scope { domain: 0 },
             valid_days: 1,
             ca: None,

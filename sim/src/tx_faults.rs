@@ -151,13 +151,19 @@ impl TransmitterFault {
 }
 
 /// The items of a comma-separated fault plan: every item starts with
-/// `ACTION:`, so a piece without a colon is the rest of the item before it
-/// (the `DY,DZ` of `moved:tx/ID@T=DX,DY,DZ`). Empty pieces are dropped.
+/// `ACTION:`, so a piece without a colon after a `moved:` item's value is
+/// the rest of it (the `DY,DZ` of `moved:tx/ID@T=DX,DY,DZ`); any other
+/// piece is an item of its own. Empty pieces are dropped.
 pub fn split_plan(plan: &str) -> Vec<String> {
     let mut items: Vec<String> = Vec::new();
     for piece in plan.split(',').map(str::trim).filter(|p| !p.is_empty()) {
         match items.last_mut() {
-            Some(last) if !piece.contains(':') => {
+            Some(last)
+                if !piece.contains(':')
+                    && last.starts_with("moved:")
+                    && last.contains('=')
+                    && last.matches(',').count() < 2 =>
+            {
                 last.push(',');
                 last.push_str(piece);
             }
@@ -257,6 +263,8 @@ mod tests {
         }
         let plan = "kill:cell/c1@5s, dead:tx/22@10s,moved:tx/24@2s=0.3, 0,0,weak:tx/23@1s=0.5";
         assert_eq!(split_plan(plan).len(), 4, "{:?}", split_plan(plan));
+        assert_eq!(split_plan("kill:central@1s,,oops").len(), 2);
+        assert_eq!(split_plan("moved:tx/1@1s=1,2,3,4").len(), 2);
         let faults = TransmitterFault::parse_plan(plan, &site).unwrap();
         assert_eq!(faults.len(), 3);
         assert_eq!(faults[1].kind, TransmitterFaultKind::Moved([0.3, 0.0, 0.0]));

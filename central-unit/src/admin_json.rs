@@ -145,6 +145,17 @@ impl From<&RobotHealth> for RobotJson {
     }
 }
 
+/// The speed of sound the robots solve with, and whether it is learnt: the
+/// published one (`published_m_s`, 0 when none is) or else the site
+/// file's.
+pub fn speed_in_use(published_m_s: f64, site_m_s: f64) -> (f64, bool) {
+    if published_m_s > 0.0 {
+        (published_m_s, true)
+    } else {
+        (site_m_s, false)
+    }
+}
+
 /// Metres as millimetres to a tenth.
 fn round_mm(m: f64) -> f64 {
     (m * 10_000.0).round() / 10.0
@@ -198,6 +209,7 @@ pub struct StatusJson {
 impl StatusJson {
     /// The document of `s`, with its cells and/or robots.
     pub fn new(s: &StatusReport, cells: bool, robots: bool) -> Self {
+        let (speed, learnt) = speed_in_use(s.speed_of_sound_m_s, s.site_speed_of_sound_m_s);
         Self {
             site: s.site.clone(),
             epoch: s.epoch,
@@ -210,14 +222,9 @@ impl StatusJson {
             survey_publications: s.survey_publications,
             survey_publish_mean_us: (s.survey_publications > 0).then_some(s.survey_publish_mean_us),
             survey_publish_max_us: (s.survey_publications > 0).then_some(s.survey_publish_max_us),
-            speed_of_sound_m_s: if s.speed_of_sound_m_s > 0.0 {
-                s.speed_of_sound_m_s
-            } else {
-                s.site_speed_of_sound_m_s
-            },
-            speed_of_sound_sigma_m_s: (s.speed_of_sound_m_s > 0.0)
-                .then_some(s.speed_of_sound_sigma_m_s),
-            speed_of_sound_learnt: s.speed_of_sound_m_s > 0.0,
+            speed_of_sound_m_s: speed,
+            speed_of_sound_sigma_m_s: learnt.then_some(s.speed_of_sound_sigma_m_s),
+            speed_of_sound_learnt: learnt,
             site_speed_of_sound_m_s: s.site_speed_of_sound_m_s,
             transmitters_left_out: s.transmitters_left_out.clone(),
             cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
@@ -432,18 +439,14 @@ pub struct TransmittersJson {
 impl From<&TransmittersReport> for TransmittersJson {
     fn from(r: &TransmittersReport) -> Self {
         let known = |v: f64| (v >= 0.0).then_some(v);
+        let (speed, learnt) = speed_in_use(r.speed_of_sound_m_s, r.site_speed_of_sound_m_s);
         Self {
             site: r.site.clone(),
             learning: r.learning,
             fixes_taken: r.fixes_taken,
-            speed_of_sound_m_s: if r.speed_of_sound_m_s > 0.0 {
-                r.speed_of_sound_m_s
-            } else {
-                r.site_speed_of_sound_m_s
-            },
-            speed_of_sound_sigma_m_s: (r.speed_of_sound_m_s > 0.0)
-                .then_some(r.speed_of_sound_sigma_m_s),
-            speed_of_sound_learnt: r.speed_of_sound_m_s > 0.0,
+            speed_of_sound_m_s: speed,
+            speed_of_sound_sigma_m_s: learnt.then_some(r.speed_of_sound_sigma_m_s),
+            speed_of_sound_learnt: learnt,
             site_speed_of_sound_m_s: r.site_speed_of_sound_m_s,
             transmitters: r
                 .transmitters

@@ -314,21 +314,18 @@ impl LiveView {
                 robot_snapshot(RobotJson::from(h), state, now)
             })
             .collect();
+        let speed = crate::admin_json::speed_in_use(
+            status.speed_of_sound_m_s,
+            status.site_speed_of_sound_m_s,
+        );
         Snapshot {
             site: status.site.clone(),
             cycle: status.cycle,
             paused: status.paused,
             schedule_version: status.schedule_version,
             update_rate_hz: status.update_rate_hz,
-            speed_of_sound_m_s: round(
-                if status.speed_of_sound_m_s > 0.0 {
-                    status.speed_of_sound_m_s
-                } else {
-                    status.site_speed_of_sound_m_s
-                },
-                100.0,
-            ),
-            speed_of_sound_learnt: status.speed_of_sound_m_s > 0.0,
+            speed_of_sound_m_s: round(speed.0, 100.0),
+            speed_of_sound_learnt: speed.1,
             transmitters_left_out: status.transmitters_left_out.clone(),
             cells,
             robots,

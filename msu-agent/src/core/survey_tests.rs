@@ -97,7 +97,21 @@ fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
         c.offsets[1].late_sigma_m = late_sigma_m;
         c
     };
+    let speed = |m_s: f64, sigma_m_s: f64| {
+        let mut c = calibration(4, 0.0);
+        c.speed_of_sound_m_s = m_s;
+        c.speed_of_sound_sigma_m_s = sigma_m_s;
+        c
+    };
+    let site_m_s = core.solver.site_speed_of_sound_m_s();
     for bad in [
+        speed(f64::NAN, 0.1),
+        speed(f64::INFINITY, 0.1),
+        speed(site_m_s * 1.06, 0.1),
+        speed(site_m_s * 0.94, 0.1),
+        speed(-343.0, 0.1),
+        speed(site_m_s, -0.1),
+        speed(site_m_s, f64::NAN),
         calibration(4, f64::NAN),
         calibration(4, 0.3),
         calibration(4, -1e300),
@@ -134,6 +148,12 @@ fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
             .z_m
     };
     assert!((z5(&core) - 2.71).abs() < 1e-12);
+    assert_eq!(core.speed_of_sound_m_s(), site_m_s);
+    // Within its bound the learnt speed is solved with from the next cycle.
+    assert_eq!(
+        core.on_survey_calibration(&speed(site_m_s * 1.01, 0.2)),
+        Ok(true)
+    );
 }
 
 #[test]

@@ -263,6 +263,9 @@ pub struct TdoaEkf {
     /// average over about ten): a start counts as lost until confirmed,
     /// but only this says its arrivals disagree with it.
     gated_share: f64,
+    /// What the arrivals' errors have of variance beyond what the filter
+    /// predicted, m^2 (see `ground/gate.rs`, `note_unexplained`).
+    unexplained_m2: f64,
     /// Whether consistent cycles have confirmed where the filter started
     /// (a start pose is the site's guess: a restarted MSU's robot is
     /// wherever it drove to).
@@ -348,6 +351,7 @@ impl TdoaEkf {
             // either confirm the start or replace it (see `try_reinitialise`).
             lost: true,
             gated_share: 0.0,
+            unexplained_m2: 0.0,
             start_confirmed: false,
             tracking_since_s: None,
             candidate: None,
@@ -492,8 +496,14 @@ impl InOrderFilter for TdoaEkf {
         // may be a wheel period older).
         let at = self.position_at(&x, self.t_s);
         let mut covariance = p.fixed_view::<3, 3>(0, 0).into_owned();
-        let survey_sigma_m = self.params.sensors.survey_sigma_m;
-        if let Some(c) = self.heard_lately.covariance(self.t_s, at, survey_sigma_m) {
+        let sensors = &self.params.sensors;
+        if let Some(c) = self.heard_lately.covariance(
+            self.t_s,
+            at,
+            sensors.survey_sigma_m,
+            self.unexplained_m2,
+            sensors.speed_of_sound_rel_sigma(),
+        ) {
             let mut xy = covariance.fixed_view_mut::<2, 2>(0, 0);
             xy += c;
         }

@@ -17,6 +17,11 @@ use crate::estimator::tdoa_ekf::observation::{self, Outcome, Rejection};
 /// one or two cycles).
 const GATED_SHARE_WEIGHT: f64 = 0.1;
 
+/// Weight of one early arrival in the unexplained variance (about a
+/// hundred: 15 to 20 s of driving at a few cycles a second, the time a
+/// robot takes to cross the air of one place).
+const UNEXPLAINED_WEIGHT: f64 = 0.01;
+
 impl TdoaEkf {
     /// Predicted pseudo-range of an arrival without the offset, and its
     /// row (position columns, and its cell's clock bias in `clock`).
@@ -109,6 +114,22 @@ impl TdoaEkf {
         self.adaptations = self.adaptations.saturating_add(1);
     }
 
+    /// Learns how much of an arrival's error the filter did not predict:
+    /// the running mean of `nu^2 - s` over the arrivals on time or early.
+    /// A reflection only ever makes an arrival late, so the early half of
+    /// the innovations is free of them, and for an error symmetric about
+    /// zero its mean square is the whole one's. What is left over is error
+    /// the filter has no model of, mostly air that the site-wide speed of
+    /// sound does not follow; it is the same cycle after cycle where the
+    /// robot is, so it widens the published covariance (`systematic.rs`),
+    /// not the arrivals' weights. `within_gate`: not an early arrival the
+    /// offset is restarted from.
+    fn note_unexplained(&mut self, nu_m: f64, s_m2: f64, within_gate: bool) {
+        if nu_m <= 0.0 && within_gate && (nu_m * nu_m - s_m2).is_finite() {
+            self.unexplained_m2 += UNEXPLAINED_WEIGHT * (nu_m * nu_m - s_m2 - self.unexplained_m2);
+        }
+    }
+
     /// Fuses one arrival of the chain (offset already initialised).
     fn arrival(&mut self, a: &Arrival, sigma_m: f64) -> Outcome {
         let clock = self.clock_column(a);
@@ -135,6 +156,7 @@ impl TdoaEkf {
         }
         let normalised = nu / s.sqrt();
         let (gate, soft) = (self.params.gate_sigma, self.params.late_soft_sigma);
+        self.note_unexplained(nu, s, normalised >= -gate);
         self.gated_late = normalised > gate;
         let gated = normalised.abs() > gate;
         self.gated_share += GATED_SHARE_WEIGHT * (f64::from(u8::from(gated)) - self.gated_share);

@@ -103,13 +103,19 @@ pub struct Nees {
 }
 
 impl Nees {
-    /// The test of the NEES values `values`; `None` when there are none.
+    /// The test of the 2D NEES values `values`; `None` when there are none.
     pub fn of(values: &[f64]) -> Option<Self> {
+        Self::of_dim(values, 2)
+    }
+
+    /// The test of NEES values of `dim`-dimensional errors (an honest
+    /// covariance averages `dim`); `None` when there are none.
+    pub fn of_dim(values: &[f64], dim: usize) -> Option<Self> {
         if values.is_empty() {
             return None;
         }
         let n = values.len();
-        let (low, high) = nees_bounds(2, n);
+        let (low, high) = nees_bounds(dim, n);
         Some(Self {
             mean: values.iter().sum::<f64>() / n as f64,
             low,

@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 use ickon_fusion::estimator::flight::CvFilter;
 use ickon_fusion::estimator::guard::FlightVolume;
 use ickon_fusion::estimator::tdoa_ekf::TdoaEkf3dParams;
+use nalgebra::Matrix3;
 
 use super::TdoaArgs;
 use super::cv_fix::CvFix;
@@ -146,21 +147,28 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
         let solve_wall = t0.elapsed();
         for slot in &mut slots {
             let t0 = Instant::now();
-            let mut push = |out: Option<(f64, [f64; 3])>| {
+            let track = &mut slot.track;
+            let mut push = |out: Option<(f64, [f64; 3])>, cov: Option<Matrix3<f64>>| {
                 if let Some((t, p)) = out {
-                    slot.track.push(t, p);
+                    track.push_with(t, p, cov);
                 }
             };
             match &mut slot.runner {
-                Runner::TdoaEkf(r) => samples.iter().for_each(|s| push(r.step(s))),
-                Runner::CvEkf(r) => samples.iter().for_each(|s| push(r.step(s))),
-                Runner::Window(r) => samples.iter().for_each(|s| push(r.step(s))),
+                Runner::TdoaEkf(r) => samples.iter().for_each(|s| {
+                    let out = r.step(s);
+                    push(out, Some(r.covariance_m2()));
+                }),
+                Runner::CvEkf(r) => samples.iter().for_each(|s| {
+                    let out = r.step(s);
+                    push(out, r.covariance_m2());
+                }),
+                Runner::Window(r) => samples.iter().for_each(|s| push(r.step(s), None)),
                 Runner::CvFix(f) => {
                     if let Some((t, p, cov)) = &fix {
-                        push(f.step(*t, *p, cov));
+                        push(f.step(*t, *p, cov), None);
                     }
                 }
-                Runner::Ls => push(fix.map(|(t, p, _)| (t, p))),
+                Runner::Ls => push(fix.map(|(t, p, _)| (t, p)), fix.map(|(_, _, c)| c)),
             }
             slot.wall += t0.elapsed();
             if matches!(slot.runner, Runner::Ls | Runner::CvFix(_)) {

@@ -26,7 +26,7 @@ use ickon_fusion::estimator::guard::{
 };
 use ickon_fusion::estimator::tdoa_ekf::{Outcome, Rejection, TdoaEkf3d, TdoaEkf3dParams};
 use ickon_fusion::tdoa::{PairMeasurement, RefineConfig, refine_pairs};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Standard deviation given to every UTIL range difference, metres: the
 /// RMS of the measurements against the truth on the TDoA2 flights is about
@@ -161,6 +161,11 @@ impl<F: GuardedFilter> GuardedRunner<F> {
         self.guard.filter()
     }
 
+    /// The covariance of the position the filter publishes, m^2.
+    pub fn covariance_m2(&self) -> Matrix3<f64> {
+        self.guard.filter().position_covariance_m2()
+    }
+
     /// The filter, to feed it the IMU.
     pub fn filter_mut(&mut self) -> &mut F {
         self.guard.filter_mut()
@@ -206,6 +211,14 @@ impl EkfRunner {
             filter: None,
             rejections: Rejections::default(),
         }
+    }
+
+    /// The covariance of the position, m^2 (`None` before the first
+    /// measurement).
+    pub fn covariance_m2(&self) -> Option<Matrix3<f64>> {
+        self.filter
+            .as_ref()
+            .map(|f| f.covariance().fixed_view::<3, 3>(0, 0).into_owned())
     }
 
     /// Times the filter widened its variance after finding itself lost.

@@ -222,6 +222,12 @@ pub(crate) fn print_table(file: &str, r: &Replayed, wall: Duration) {
             e.output_began_s.unwrap_or(0.0),
             e.published_pct,
         );
+        if let (Some(inside), Some(n)) = (s.inside_95_pct, &s.nees) {
+            println!(
+                "{:<10} covariance: truth inside its 95 % ellipsoid {:.1} %, NEES {:.2} (3 if honest; {:.2}-{:.2} for {} points)",
+                "", inside, n.mean, n.low, n.high, n.samples
+            );
+        }
         if let Some(a) = &e.attitude {
             println!(
                 "{:<10} attitude rmse {:.2} deg (tilt {:.2}, yaw {:.2}), max {:.2} deg",

@@ -16,6 +16,9 @@ use super::estimators::{
 };
 use super::imu_input;
 use super::score::{Track, Truth};
+
+/// A published estimate: time, position and its covariance if any.
+type Estimate = (f64, [f64; 3], Option<nalgebra::Matrix3<f64>>);
 use super::{EstimatorReport, UtilArgs};
 
 /// The UWB antenna in the body frame of the UTIL drone, metres (data
@@ -217,18 +220,27 @@ impl Runners {
         let mut next_imu = 0;
         for &(line, m) in &streams.tdoa {
             let sample = sample(anchors, &m, reader, line)?;
-            let mut timed = |k: usize, f: &mut dyn FnMut() -> Option<(f64, [f64; 3])>| {
+            let mut timed = |k: usize, f: &mut dyn FnMut() -> Option<Estimate>| {
                 let t0 = Instant::now();
                 let out = f();
                 walls[k] += t0.elapsed();
-                if let Some((t, p)) = out {
-                    tracks[k].push(t, p);
+                if let Some((t, p, c)) = out {
+                    tracks[k].push_with(t, p, c);
                 }
                 out.is_some()
             };
-            timed(0, &mut || self.ours.step(&sample));
-            timed(1, &mut || self.baseline.step(&sample));
-            timed(2, &mut || self.window.step(&sample));
+            let ours = &mut self.ours;
+            timed(0, &mut || {
+                let (t, p) = ours.step(&sample)?;
+                Some((t, p, Some(ours.covariance_m2())))
+            });
+            let baseline = &mut self.baseline;
+            timed(1, &mut || {
+                let (t, p) = baseline.step(&sample)?;
+                Some((t, p, baseline.covariance_m2()))
+            });
+            let window = &mut self.window;
+            timed(2, &mut || window.step(&sample).map(|(t, p)| (t, p, None)));
             if let Some(r) = &mut self.imu {
                 let published = timed(3, &mut || {
                     while let Some(s) = streams.imu.get(next_imu).filter(|s| s.t_s <= m.t_s) {
@@ -239,7 +251,8 @@ impl Runners {
                         });
                         next_imu += 1;
                     }
-                    r.step(&sample)
+                    let (t, p) = r.step(&sample)?;
+                    Some((t, p, Some(r.covariance_m2())))
                 });
                 if published {
                     attitude.push_estimate(m.t_s, r.filter().attitude_xyzw());

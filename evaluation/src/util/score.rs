@@ -4,6 +4,9 @@
 
 use std::collections::VecDeque;
 
+use ickon_sim::score::Nees;
+use nalgebra::{Matrix3, Vector3};
+
 use super::dataset::TruthRow;
 
 /// Truth gaps longer than this are not interpolated across (a dropout of
@@ -26,13 +29,18 @@ pub struct SeriesPoint {
 /// The scored errors of one estimator.
 #[derive(Debug, Clone, Default)]
 pub struct Track {
-    pending: VecDeque<(f64, [f64; 3])>,
+    /// `(time, estimate, its covariance when the estimator has one)`.
+    pending: VecDeque<(f64, [f64; 3], Option<Matrix3<f64>>)>,
     /// Time of the newest estimate queued: later ones are not older.
     newest_s: Option<f64>,
     /// Time of the first estimate.
     first_s: Option<f64>,
     /// 3D error of every scored estimate, metres (kept for the percentile).
     errors_3d_m: Vec<f64>,
+    /// NEES of every scored estimate that came with a covariance.
+    nees: Vec<f64>,
+    /// Scored estimates without a usable covariance.
+    without_covariance: u64,
     sum2_xy: f64,
     /// Estimates with no truth around them (before, after, or in a gap).
     pub unscored: u64,
@@ -58,6 +66,13 @@ pub struct Summary {
     pub p95_3d_m: Option<f64>,
     /// Largest 3D error, metres.
     pub max_3d_m: Option<f64>,
+    /// Share of the scored estimates whose truth lies inside the 95 %
+    /// ellipsoid of the covariance the estimator published, percent (95
+    /// for an honest covariance); `None` unless every one came with one.
+    pub inside_95_pct: Option<f64>,
+    /// Bar-Shalom's test of that covariance: the average 3D NEES (3 for an
+    /// honest covariance) with its 95 % bounds; `None` as above.
+    pub nees: Option<Nees>,
 }
 
 impl Track {
@@ -71,7 +86,18 @@ impl Track {
 
     /// Queues an estimate (times non-decreasing).
     pub fn push(&mut self, t_s: f64, estimate_m: [f64; 3]) {
-        self.pending.push_back((t_s, estimate_m));
+        self.push_with(t_s, estimate_m, None);
+    }
+
+    /// Queues an estimate with the covariance its estimator published
+    /// (m^2; `None`: it has none), for the consistency test.
+    pub fn push_with(
+        &mut self,
+        t_s: f64,
+        estimate_m: [f64; 3],
+        covariance_m2: Option<Matrix3<f64>>,
+    ) {
+        self.pending.push_back((t_s, estimate_m, covariance_m2));
         self.newest_s = Some(t_s);
         self.first_s.get_or_insert(t_s);
     }
@@ -94,20 +120,24 @@ impl Track {
     /// Scores what the truth now covers; with `ended`, gives up on the rest.
     fn resolve(&mut self, truth: &VecDeque<TruthRow>, ended: bool) {
         let newest = truth.back().map_or(f64::NEG_INFINITY, |r| r.t_s);
-        while let Some(&(t, est)) = self.pending.front() {
+        while let Some(&(t, est, cov)) = self.pending.front() {
             if t > newest && !ended {
                 break;
             }
             self.pending.pop_front();
             match interpolate(truth, t) {
-                Some(truth_m) => self.score(t, est, truth_m),
+                Some(truth_m) => self.score(t, est, cov, truth_m),
                 None => self.unscored += 1,
             }
         }
     }
 
-    fn score(&mut self, t_s: f64, est: [f64; 3], truth_m: [f64; 3]) {
+    fn score(&mut self, t_s: f64, est: [f64; 3], cov: Option<Matrix3<f64>>, truth_m: [f64; 3]) {
         let d: [f64; 3] = std::array::from_fn(|k| est[k] - truth_m[k]);
+        match cov.and_then(|c| nees_3d(Vector3::from(d), &c)) {
+            Some(v) => self.nees.push(v),
+            None => self.without_covariance += 1,
+        }
         let xy2 = d[0] * d[0] + d[1] * d[1];
         self.errors_3d_m.push((xy2 + d[2] * d[2]).sqrt());
         self.sum2_xy += xy2;
@@ -134,6 +164,8 @@ impl Track {
                 median_3d_m: None,
                 p95_3d_m: None,
                 max_3d_m: None,
+                inside_95_pct: None,
+                nees: None,
             };
         }
         let nf = n as f64;
@@ -153,8 +185,27 @@ impl Track {
             }),
             p95_3d_m: Some(sorted[rank]),
             max_3d_m: Some(sorted[n - 1]),
+            inside_95_pct: (self.without_covariance == 0).then(|| {
+                let inside = self.nees.iter().filter(|&&v| v <= CHI2_3D_95).count();
+                100.0 * inside as f64 / nf
+            }),
+            nees: (self.without_covariance == 0)
+                .then(|| Nees::of_dim(&self.nees, 3))
+                .flatten(),
         }
     }
+}
+
+/// The 95 % quantile of the chi-square distribution with 3 degrees of
+/// freedom: the 95 % ellipsoid of a 3D covariance.
+const CHI2_3D_95: f64 = 7.814_727_903_251_178;
+
+/// `e' C^-1 e`; `None` when `c` is not a covariance (not positive
+/// definite, or not numbers).
+fn nees_3d(e: Vector3<f64>, c: &Matrix3<f64>) -> Option<f64> {
+    let chol = nalgebra::Cholesky::new(*c)?;
+    let v = e.dot(&chol.solve(&e));
+    v.is_finite().then_some(v)
 }
 
 /// The truth stream, shared by the tracks of every estimator.
@@ -271,6 +322,40 @@ mod tests {
         assert!((s.rmse_3d_m.unwrap() - (25.0_f64 / 3.0).sqrt()).abs() < 1e-12);
         assert!((s.mean_3d_m.unwrap() - 7.0 / 3.0).abs() < 1e-12);
         assert_eq!((s.p95_3d_m, s.max_3d_m), (Some(4.0), Some(4.0)));
+    }
+
+    #[test]
+    fn the_covariance_is_tested_only_when_every_estimate_has_one() {
+        let mut truth = Truth::new([0.0; 3]);
+        let mut honest = Track::new(false);
+        let mut tight = Track::new(false);
+        let mut partial = Track::new(false);
+        // Errors of 1 m along x.
+        for k in 1..=4 {
+            let t = f64::from(k) * 0.01;
+            honest.push_with(t, [1.0, 0.0, 1.0], Some(Matrix3::identity()));
+            tight.push_with(t, [1.0, 0.0, 1.0], Some(Matrix3::identity() * 0.01));
+            let c = (k != 2).then(Matrix3::identity);
+            partial.push_with(t, [1.0, 0.0, 1.0], c);
+        }
+        for k in 0..=20 {
+            truth.push(
+                row(f64::from(k) * 0.01, 0.0),
+                &mut [&mut honest, &mut tight, &mut partial],
+            );
+        }
+        truth.finish(&mut [&mut honest, &mut tight, &mut partial]);
+        let s = honest.summary();
+        assert_eq!(s.inside_95_pct, Some(100.0));
+        assert!((s.nees.unwrap().mean - 1.0).abs() < 1e-12);
+        let s = tight.summary();
+        assert_eq!(s.inside_95_pct, Some(0.0));
+        assert!((s.nees.unwrap().mean - 100.0).abs() < 1e-9);
+        assert_eq!(s.nees.unwrap().samples, 4);
+        let s = partial.summary();
+        assert_eq!((s.scored, s.inside_95_pct, s.nees), (4, None, None));
+        // A covariance that is not one (not positive definite) counts as none.
+        assert!(nees_3d(Vector3::x(), &Matrix3::zeros()).is_none());
     }
 
     #[test]

@@ -164,6 +164,10 @@ impl GuardedFilter for CvFilter {
         crate::estimator::kf::largest_axis_sigma(&self.p, 0)
     }
 
+    fn position_covariance_m2(&self) -> nalgebra::Matrix3<f64> {
+        self.p.fixed_view::<3, 3>(0, 0).into_owned()
+    }
+
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {
         self.linearise(m).map(|l| l.predicted_m)
     }

@@ -269,6 +269,13 @@ impl GuardedFilter for ImuFilter {
         crate::estimator::kf::largest_axis_sigma(&self.cov, P)
     }
 
+    /// The body's position covariance: what the attitude's uncertainty
+    /// adds through the antenna's lever arm (millimetres for a lever of
+    /// centimetres) is left out.
+    fn position_covariance_m2(&self) -> nalgebra::Matrix3<f64> {
+        self.cov.fixed_view::<3, 3>(P, P).into_owned()
+    }
+
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {
         self.linearise(m).map(|l| l.predicted_m)
     }

@@ -33,7 +33,7 @@
 //! constant-velocity and IMU filters of [`crate::estimator::flight`] do; a planar
 //! filter can, by answering its position at its known height.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 use super::late::{LateArrivals, LateParams};
 use super::volume::FlightVolume;
@@ -49,6 +49,8 @@ pub trait GuardedFilter {
     fn position_m(&self) -> Vector3<f64>;
     /// The standard deviation of the position, largest axis, metres.
     fn position_sigma_m(&self) -> f64;
+    /// The covariance of [`Self::position_m`], m^2.
+    fn position_covariance_m2(&self) -> Matrix3<f64>;
     /// The range difference the state predicts for `m`, metres.
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64>;
     /// The gated update with `m` at the state's time.

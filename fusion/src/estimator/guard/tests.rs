@@ -304,6 +304,9 @@ impl GuardedFilter for Tracking {
     fn position_sigma_m(&self) -> f64 {
         self.0.position_sigma_m()
     }
+    fn position_covariance_m2(&self) -> nalgebra::Matrix3<f64> {
+        self.0.position_covariance_m2()
+    }
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {
         self.0.predicted_m(m)
     }

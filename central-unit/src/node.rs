@@ -305,6 +305,17 @@ impl Viewers {
         self.web.is_some() || self.foxglove.is_some()
     }
 
+    /// Hands the transmitters report `make` gives to the Foxglove server,
+    /// made only when there is one (never waits).
+    pub fn publish_transmitters(
+        &self,
+        make: impl FnOnce() -> ickon_proto::msg::admin::TransmittersReport,
+    ) {
+        if let Some(f) = &self.foxglove {
+            f.publish_transmitters(make());
+        }
+    }
+
     /// Hands `status` to each (never waits).
     pub fn publish(&self, status: ickon_proto::msg::admin::StatusReport) {
         if let Some(f) = &self.foxglove {
@@ -407,6 +418,7 @@ pub async fn run(
             }
             _ = web_ticks.tick(), if viewers.any() => {
                 viewers.publish(core.status(clock.now()));
+                viewers.publish_transmitters(|| core.transmitters(clock.now()));
                 continue;
             }
             Ok(q) = ends.site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }

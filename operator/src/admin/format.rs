@@ -268,11 +268,11 @@ pub fn transmitters(r: &TransmittersReport, json: bool) -> Result<String, Format
     for t in doc.transmitters.iter().filter(|t| t.left_out) {
         let _ = writeln!(out, "tx {} {}: {}", t.id, t.condition, t.evidence);
     }
-    air_sensor_table(&mut out, &doc);
     let _ = writeln!(
         out,
         "*: left out of the robots' fixes. due: recent fixes within 6 m of it; heard: share of them that heard it; others: share that heard its cell's other transmitters"
     );
+    air_sensor_table(&mut out, &doc);
     Ok(out)
 }
 

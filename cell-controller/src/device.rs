@@ -26,6 +26,9 @@ use crate::timer::PlannedBurst;
 
 /// Bursts awaiting their report at most (a few cycles of a cell).
 const PENDING_KEPT: usize = 512;
+/// Air temperature readings held for the node at most (it takes them at
+/// once; a reading a second).
+const AIR_KEPT: usize = 16;
 
 /// The cell's transmitter board.
 pub struct BoardTransmitters {
@@ -38,6 +41,9 @@ pub struct BoardTransmitters {
     next_tag: u64,
     next_poll: Time,
     log_limit: LogLimiter<&'static str>,
+    /// Air temperature readings of the board's sensor not yet taken:
+    /// (local time measured, degrees Celsius).
+    air: Vec<(Time, f64)>,
 }
 
 impl BoardTransmitters {
@@ -57,6 +63,7 @@ impl BoardTransmitters {
             next_tag: 0,
             next_poll: clock.now(),
             log_limit: LogLimiter::default(),
+            air: Vec::new(),
         }
     }
 
@@ -77,6 +84,13 @@ impl BoardTransmitters {
             link.describe(),
             report.summary()
         )
+    }
+
+    /// The air temperature readings of the board's sensor since the last
+    /// call: (local time measured, degrees Celsius, not a number when the
+    /// sensor had none). Judged by the central unit, not here.
+    pub fn take_air(&mut self) -> Vec<(Time, f64)> {
+        std::mem::take(&mut self.air)
     }
 
     /// Waits for the link's next event or the protocol's next due time and
@@ -179,6 +193,15 @@ impl BoardTransmitters {
             HostEvent::Refused(kind, detail) => self.log(kind, &detail),
             HostEvent::Silent => {
                 tracing::warn!("cell {cell}: transmitter board silent; greeting it again");
+            }
+            HostEvent::AirTemperature {
+                host_ns,
+                temperature_c,
+            } => {
+                if self.air.len() == AIR_KEPT {
+                    self.air.remove(0);
+                }
+                self.air.push((Time::from_nanos(host_ns), temperature_c));
             }
             HostEvent::Arrivals { .. } | HostEvent::WheelTicks { .. } | HostEvent::Imu { .. } => {
                 self.log("receiver data", "from a transmitter board");

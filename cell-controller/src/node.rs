@@ -11,7 +11,8 @@ use std::time::Duration as StdDuration;
 
 use clap::Args;
 use ickon_proto::keys::Keys;
-use ickon_proto::msg::control::{ClockReply, ClockRequest, CycleTrigger, Schedule};
+use ickon_proto::msg::control::{AirTemperature, ClockReply, ClockRequest, CycleTrigger, Schedule};
+use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{
     NodeArgs, NodeError, SimulatedClock, Stamped, put_counted, query_once, query_stamped, zerr,
@@ -134,6 +135,15 @@ impl Transmitters {
         }
     }
 
+    /// The board's air temperature readings since the last call (none for
+    /// simulated transmitters): (local time, degrees Celsius).
+    fn take_air(&mut self) -> Vec<(Time, f64)> {
+        match self {
+            Self::Sim(_) => Vec::new(),
+            Self::Board(b) => b.take_air(),
+        }
+    }
+
     /// The board's next emission reports; never, for simulated transmitters.
     async fn reports(&mut self) -> Vec<ickon_proto::msg::control::Burst> {
         match self {
@@ -225,6 +235,10 @@ pub async fn run(
         .declare_publisher(keys.cell_status(cell)?)
         .await
         .map_err(zerr)?;
+    let air_pub = session
+        .declare_publisher(keys.cell_air(cell)?)
+        .await
+        .map_err(zerr)?;
     // Replies to the core's requests come back through this channel.
     let (replies_tx, mut replies) = mpsc::unbounded_channel::<Event>();
     // The schedule in force now, before the token: the central unit
@@ -255,6 +269,7 @@ pub async fn run(
         driver,
         burst_pub,
         status_pub,
+        air_pub,
         replies_tx,
         failures: Failures::default(),
         driver_log: ickon_runtime::LogLimiter::default(),
@@ -273,6 +288,7 @@ pub async fn run(
                 for report in reports {
                     outlets.publish_burst(&report).await;
                 }
+                outlets.publish_air(&core).await;
                 continue;
             }
             Ok(s) = central_alive.recv_async() => Event::CentralAlive(s.kind() != SampleKind::Delete),
@@ -315,6 +331,7 @@ struct Outlets<'a> {
     driver: Transmitters,
     burst_pub: Publisher<'static>,
     status_pub: Publisher<'static>,
+    air_pub: Publisher<'static>,
     replies_tx: mpsc::UnboundedSender<Event>,
     failures: Failures,
     /// A driver that cannot fire (a board not ready, gone) fails every
@@ -327,6 +344,23 @@ impl Outlets<'_> {
     async fn publish_burst(&mut self, report: &ickon_proto::msg::control::Burst) {
         if !put_counted(&self.burst_pub, report).await {
             self.failures.puts += 1;
+        }
+    }
+
+    /// Publishes the board's air temperature readings, stamped on the
+    /// master time base as the cell knows it (its own clock before it is
+    /// synchronised).
+    async fn publish_air(&mut self, core: &CellCore) {
+        for (local, temperature_c) in self.driver.take_air() {
+            let stamp = core.sync().estimate().map_or(local, |e| e.to_master(local));
+            let reading = AirTemperature {
+                cell_id: self.cell.to_string(),
+                stamp,
+                temperature_c,
+            };
+            if !put_counted(&self.air_pub, &reading).await {
+                self.failures.puts += 1;
+            }
         }
     }
 

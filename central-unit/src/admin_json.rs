@@ -7,7 +7,7 @@
 //! a figure that is not known yet is `null`, never a made-up zero.
 
 use ickon_proto::msg::admin::{
-    CellHealth, CoverageReport, RobotHealth, StatusReport, TransmittersReport,
+    BoardAirStatus, CellHealth, CoverageReport, RobotHealth, StatusReport, TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
@@ -434,6 +434,68 @@ pub struct TransmittersJson {
     pub site_speed_of_sound_m_s: f64,
     /// Every transmitter, in the site's order.
     pub transmitters: Vec<TransmitterJson>,
+    /// The speed of sound the cell boards' fresh air temperatures say, m/s
+    /// (`null`: none fresh).
+    pub air_sensor_speed_m_s: Option<f64>,
+    /// Every cell board's air temperature sensor, in the site's order.
+    pub air_sensors: Vec<AirSensorJson>,
+}
+
+/// One cell board's air temperature sensor in `transmitters --json` and
+/// `/api/transmitters`.
+#[derive(Debug, Clone, Serialize)]
+pub struct AirSensorJson {
+    /// The cell.
+    pub cell: String,
+    /// `no sensor`, `used`, `not used` or `stuck`.
+    pub state: String,
+    /// The last accepted reading, degrees Celsius.
+    pub temperature_c: Option<f64>,
+    /// Seconds since it came.
+    pub accepted_s_ago: Option<f64>,
+    /// Readings accepted.
+    pub accepted: u64,
+    /// Readings refused: not a number, outside -40..85 C, stuck, jumping.
+    pub refused: AirRefusedJson,
+}
+
+/// Refused readings of one board's sensor, by reason.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct AirRefusedJson {
+    /// Not a number (no valid reading).
+    pub not_a_number: u64,
+    /// Outside -40..85 C.
+    pub out_of_range: u64,
+    /// The same value too many readings in a row.
+    pub stuck: u64,
+    /// More than 20 C in a second from the last accepted.
+    pub jump: u64,
+}
+
+impl AirSensorJson {
+    /// Whether the board refused any reading.
+    pub fn refused_any(&self) -> bool {
+        let r = self.refused;
+        r.not_a_number + r.out_of_range + r.stuck + r.jump > 0
+    }
+}
+
+impl From<&BoardAirStatus> for AirSensorJson {
+    fn from(b: &BoardAirStatus) -> Self {
+        Self {
+            cell: b.cell_id.clone(),
+            state: b.state.clone(),
+            temperature_c: b.temperature_c.is_finite().then_some(b.temperature_c),
+            accepted_s_ago: (b.accepted_s_ago >= 0.0).then_some(b.accepted_s_ago),
+            accepted: b.accepted,
+            refused: AirRefusedJson {
+                not_a_number: b.refused_not_a_number,
+                out_of_range: b.refused_out_of_range,
+                stuck: b.refused_stuck,
+                jump: b.refused_jump,
+            },
+        }
+    }
 }
 
 impl From<&TransmittersReport> for TransmittersJson {
@@ -467,6 +529,8 @@ impl From<&TransmittersReport> for TransmittersJson {
                     offset_mm: t.offset_m.map(round_mm),
                 })
                 .collect(),
+            air_sensor_speed_m_s: (r.air_sensor_speed_m_s > 0.0).then_some(r.air_sensor_speed_m_s),
+            air_sensors: r.air_sensors.iter().map(AirSensorJson::from).collect(),
         }
     }
 }

@@ -37,12 +37,13 @@ use std::collections::{BTreeMap, VecDeque};
 
 use ickon_proto::epoch::{check_schedule, epoch_of, plausible_epoch};
 use ickon_proto::msg::control::{
-    Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
+    AirTemperature, Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
 use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
+use crate::air_temperature::AirTemperatures;
 use crate::health::{CellTracker, RobotTracker};
 use crate::occupancy::FiringConfig;
 use crate::schedule::{ScheduleError, compute_schedule, compute_uniform_schedule};
@@ -121,6 +122,8 @@ pub enum Event {
     },
     /// A cell's status report.
     CellStatus(CellStatus),
+    /// A reading of a cell board's air temperature sensor.
+    AirTemperature(AirTemperature),
     /// A burst report, its `actual` emission time on the master time base.
     Burst(Burst),
     /// A robot published a pose.
@@ -224,6 +227,8 @@ pub struct CentralCore {
     /// while a standby (never counted again from 0): what each robot's
     /// share refills with.
     cycles_heard: u64,
+    /// The cell boards' air temperature sensors.
+    air: AirTemperatures,
 }
 
 impl CentralCore {
@@ -276,6 +281,7 @@ impl CentralCore {
             survey_cost: admin::SurveyCost::default(),
             survey_deferred: false,
             cycles_heard: 0,
+            air: AirTemperatures::new(all.iter().map(String::as_str)),
         })
     }
 
@@ -360,6 +366,13 @@ impl CentralCore {
                 self.on_burst(&burst, now);
                 Vec::new()
             }
+            Event::AirTemperature(reading) => {
+                // Refusals are counted and logged by the sensors' books.
+                let _ = self
+                    .air
+                    .observe(&reading.cell_id, reading.temperature_c, now);
+                Vec::new()
+            }
             Event::Pose { robot, pose } => {
                 self.on_pose(&robot, pose, now);
                 Vec::new()
@@ -431,6 +444,8 @@ mod robots;
 
 pub mod standby;
 
+#[cfg(test)]
+mod air_tests;
 #[cfg(test)]
 mod forged_tests;
 

@@ -17,6 +17,7 @@
 //! with no I/O, so the core stays sans-IO.
 
 pub mod admin_json;
+pub mod air_temperature;
 mod audibility;
 pub mod core;
 pub mod coverage;

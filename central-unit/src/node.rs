@@ -11,7 +11,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use clap::Args;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::CoverageRequest;
-use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
+use ickon_proto::msg::control::{
+    AirTemperature, Burst, CellStatus, ClockRequest, CycleTrigger, Schedule,
+};
 use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
 
 use crate::survey_calibration::SavedCalibration;
@@ -303,6 +305,17 @@ impl Viewers {
         self.web.is_some() || self.foxglove.is_some()
     }
 
+    /// Hands the transmitters report `make` gives to the Foxglove server,
+    /// made only when there is one (never waits).
+    pub fn publish_transmitters(
+        &self,
+        make: impl FnOnce() -> ickon_proto::msg::admin::TransmittersReport,
+    ) {
+        if let Some(f) = &self.foxglove {
+            f.publish_transmitters(make());
+        }
+    }
+
     /// Hands `status` to each (never waits).
     pub fn publish(&self, status: ickon_proto::msg::admin::StatusReport) {
         if let Some(f) = &self.foxglove {
@@ -405,6 +418,7 @@ pub async fn run(
             }
             _ = web_ticks.tick(), if viewers.any() => {
                 viewers.publish(core.status(clock.now()));
+                viewers.publish_transmitters(|| core.transmitters(clock.now()));
                 continue;
             }
             Ok(q) = ends.site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
@@ -445,6 +459,10 @@ pub async fn run(
             },
             Ok(s) = ends.status_sub.recv_async() => match status_event(&s, &mut undecodable) {
                 Some(e) => e,
+                None => continue,
+            },
+            Ok(s) = ends.air_sub.recv_async() => match air_event(&keys, &s, &mut undecodable) {
+                Some(ev) => ev,
                 None => continue,
             },
             Ok(s) = ends.burst_sub.recv_async() => match burst_event(&s, &clock, &mut undecodable) {
@@ -574,6 +592,7 @@ struct Endpoints {
     alive: Subscriber<Queue<Sample>>,
     status_sub: Subscriber<Queue<Sample>>,
     burst_sub: Subscriber<Queue<Sample>>,
+    air_sub: Subscriber<Queue<Sample>>,
     pose_sub: Subscriber<Queue<Sample>>,
     fix_sub: Subscriber<Queue<Sample>>,
     robot_status_sub: Subscriber<Queue<Sample>>,
@@ -640,6 +659,7 @@ impl Endpoints {
             alive,
             status_sub: subscriber(session, keys.cell_status_all()).await?,
             burst_sub: subscriber(session, keys.cell_burst_all()).await?,
+            air_sub: subscriber(session, keys.cell_air_all()).await?,
             pose_sub: subscriber(session, keys.robot_all(RobotTopic::Pose)).await?,
             fix_sub: subscriber(session, keys.robot_all(RobotTopic::Fix)).await?,
             robot_status_sub: subscriber(session, keys.robot_status_all()).await?,
@@ -703,6 +723,26 @@ fn status_event(s: &Sample, undecodable: &mut u64) -> Option<Event> {
             tracing::debug!("undecodable status on {}: {e}", s.key_expr());
             None
         }
+    }
+}
+
+/// A cell board's air temperature reading, counting one that does not
+/// decode. The cell is the key's: a payload naming another is not taken
+/// for it.
+fn air_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
+    match (
+        keys.parse(s.key_expr().as_str()),
+        decode::<AirTemperature>(&s.payload().to_bytes()),
+    ) {
+        (Ok(Key::CellAir(cell_id)), Ok(reading)) => {
+            Some(Event::AirTemperature(AirTemperature { cell_id, ..reading }))
+        }
+        (_, Err(e)) => {
+            *undecodable += 1;
+            tracing::debug!("undecodable air temperature on {}: {e}", s.key_expr());
+            None
+        }
+        _ => None,
     }
 }
 

@@ -61,6 +61,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 use consensus::{Consensus, RobotCheck};
 
+use crate::air_temperature::SpeedEvidence;
 use crate::transmitter_health::{HealthConfig, TransmitterHealth, TransmitterReport};
 
 /// What the calibration assumes of the site's sensors (data-sheet values)
@@ -717,6 +718,9 @@ pub struct SurveyPublisher {
     left_out: std::collections::BTreeSet<u32>,
     /// Whether a speed beyond the bound was reported already.
     warned_speed: bool,
+    /// What the cell boards' air temperature sensors say of the speed of
+    /// sound now (`crate::air_temperature`), fused into the published one.
+    air: Option<SpeedEvidence>,
 }
 
 /// What one published calibration made the MSUs apply.
@@ -748,6 +752,7 @@ impl SurveyPublisher {
             warned_speed: false,
             health: TransmitterHealth::new(site, HealthConfig::default()),
             left_out: std::collections::BTreeSet::new(),
+            air: None,
         }
     }
 
@@ -859,6 +864,17 @@ impl SurveyPublisher {
         self.published_speed
     }
 
+    /// What the cell boards' air temperature sensors say of the speed of
+    /// sound now (`None`: nothing fresh), for the next publication: fused
+    /// with the fleet's estimate as an independent measurement
+    /// ([`SpeedEvidence::fused`]), so that the speed published starts from
+    /// the air's before the fleet's fixes have told it. The fixes are still
+    /// read with the published speed put back: what the fleet learns stays
+    /// its own.
+    pub fn observe_air_temperature(&mut self, evidence: Option<SpeedEvidence>) {
+        self.air = evidence;
+    }
+
     /// The calibration to publish at `now` in `epoch`, if one is due.
     ///
     /// Versions grow with the master clock's seconds (and by one at least),
@@ -875,6 +891,12 @@ impl SurveyPublisher {
                 .forget_cell_sync((now - last).as_secs_f64());
         }
         let (corrections, estimate, speed) = self.calibration.corrections_estimate_and_speed();
+        let speed = match self.air {
+            Some(air) if self.calibration.config.learn_speed_of_sound => {
+                air.fused(speed, self.calibration.site_speed_m_s)
+            }
+            _ => speed,
+        };
         if let Some(estimate) = estimate {
             self.estimate = estimate;
         }

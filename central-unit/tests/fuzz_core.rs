@@ -12,7 +12,7 @@ use ickon_central::core::{CentralConfig, CentralCore, Event, Output};
 use ickon_proto::fuzz::extreme::{clock_step, float};
 use ickon_proto::fuzz::values::draw;
 use ickon_proto::fuzz::{config_for, entropy};
-use ickon_proto::msg::control::{Burst, CellStatus, CycleTrigger, Schedule};
+use ickon_proto::msg::control::{AirTemperature, Burst, CellStatus, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{Fix, FixQuality, RobotPose};
 use ickon_proto::site::{BUILTIN_SITES, Site};
 use ickon_proto::time::{Duration, Time};
@@ -134,6 +134,17 @@ fn event(core: &CentralCore, now: Time, a: &Act) -> Option<Event> {
             t.start = now;
         })),
         10 => Event::ActiveGone,
+        // Air temperatures of the cells' boards: plausible, absurd, not a
+        // number, from cells the site has and has not.
+        11 => Event::AirTemperature(near(draw::<AirTemperature>(e)?, e, |m, k| {
+            m.cell_id = id(e);
+            m.stamp = now;
+            m.temperature_c = match k % 4 {
+                0 => f64::NAN,
+                1 => float_at(e, 2) * 1e5,
+                _ => 20.0 + float_at(e, 2) * 100.0,
+            };
+        })),
         _ => return None,
     })
 }

@@ -13,7 +13,9 @@
 use std::collections::BTreeMap;
 
 use crate::clock::{BoardClock, ClockExchange};
-use crate::message::{BoardKind, Identify, Message, RefusedReason, VERSION, capability};
+use crate::message::{
+    BoardKind, Identify, Message, NO_TEMPERATURE, RefusedReason, VERSION, capability,
+};
 use crate::stream::{Decoder, Encoder};
 
 /// A `Hello` unanswered this long is sent again, nanoseconds.
@@ -29,6 +31,9 @@ pub const FAST_EXCHANGE_NS: i64 = 100_000_000;
 pub const EXCHANGE_NS: i64 = 1_000_000_000;
 /// The interval of health requests to a board that answers them, nanoseconds.
 pub const HEALTH_NS: i64 = 5_000_000_000;
+/// The interval of air temperature requests to a board with a sensor,
+/// nanoseconds: the air changes over minutes, a reading a second is plenty.
+pub const AIR_TEMPERATURE_NS: i64 = 1_000_000_000;
 /// An exchange unanswered this long is forgotten, nanoseconds.
 const EXCHANGE_TIMEOUT_NS: i64 = 1_000_000_000;
 /// Exchanges awaited at most.
@@ -138,6 +143,14 @@ pub enum HostEvent {
         /// Yaw rate, rad/s.
         gyro_z_rad_s: f64,
     },
+    /// An air temperature reading of the board's sensor, as the board sent
+    /// it: whether it is plausible is for its user to judge.
+    AirTemperature {
+        /// When it was measured, host clock, nanoseconds.
+        host_ns: i64,
+        /// Degrees Celsius; not a number when the sensor had no valid reading.
+        temperature_c: f64,
+    },
     /// Something from the board was refused: a short kind (for a
     /// rate-limited log) and the detail.
     Refused(&'static str, String),
@@ -183,6 +196,9 @@ pub struct DeviceReport {
     pub clock_bound_ns: Option<f64>,
     /// The last `Health`: supply mV, temperature 0.01 C, fault bits.
     pub health: Option<(u16, i16, u32)>,
+    /// The last air temperature reading, degrees Celsius (not a number:
+    /// the sensor had no valid reading), when the board has a sensor.
+    pub air_temperature_c: Option<f64>,
     /// Counters.
     pub counters: HostCounters,
 }
@@ -215,6 +231,9 @@ impl DeviceReport {
             if faults != 0 {
                 out.push_str(&format!(", faults {faults:#b}"));
             }
+        }
+        if let Some(t) = self.air_temperature_c {
+            out.push_str(&format!(", air {t:.1} C"));
         }
         let c = &self.counters;
         if c.refused + c.lost + c.arm_refused + c.never_fired > 0 {
@@ -266,10 +285,12 @@ pub struct BoardHost {
     clock: BoardClock,
     identity: Option<Identify>,
     health: Option<(u16, i16, u32)>,
+    air_temperature_c: Option<f64>,
     hello_at: i64,
     last_heard: i64,
     next_exchange: i64,
     next_health: i64,
+    next_air: i64,
     exchanges_sent: u32,
     exchange_id: u32,
     awaiting: BTreeMap<u32, i64>,
@@ -290,10 +311,12 @@ impl BoardHost {
             clock: BoardClock::new(),
             identity: None,
             health: None,
+            air_temperature_c: None,
             hello_at: 0,
             last_heard: 0,
             next_exchange: 0,
             next_health: 0,
+            next_air: 0,
             exchanges_sent: 0,
             exchange_id: 0,
             awaiting: BTreeMap::new(),
@@ -322,6 +345,7 @@ impl BoardHost {
         self.awaiting.clear();
         self.group = None;
         self.identity = None;
+        self.air_temperature_c = None;
         self.clock = BoardClock::new();
         self.exchanges_sent = 0;
     }
@@ -362,6 +386,7 @@ impl BoardHost {
             clock_drift: self.clock.drift(),
             clock_bound_ns: self.clock.bound_ns(),
             health: self.health,
+            air_temperature_c: self.air_temperature_c,
             counters,
         }
     }
@@ -414,11 +439,21 @@ impl BoardHost {
             out.extend(self.encoder.frame(&Message::HealthRequest));
             self.next_health = now_ns + HEALTH_NS;
         }
-        let next = if answers_health {
-            self.next_exchange.min(self.next_health)
-        } else {
-            self.next_exchange
-        };
+        let has_air_sensor = self
+            .identity
+            .as_ref()
+            .is_some_and(|i| i.capabilities & capability::AIR_TEMPERATURE != 0);
+        if has_air_sensor && now_ns >= self.next_air {
+            out.extend(self.encoder.frame(&Message::AirTemperatureRequest));
+            self.next_air = now_ns + AIR_TEMPERATURE_NS;
+        }
+        let mut next = self.next_exchange;
+        if answers_health {
+            next = next.min(self.next_health);
+        }
+        if has_air_sensor {
+            next = next.min(self.next_air);
+        }
         (out, next.min(self.last_heard + SILENCE_NS), events)
     }
 
@@ -570,10 +605,15 @@ impl BoardHost {
                     });
                 }
             }
+            Message::AirTemperature {
+                board_ns,
+                temperature_cdeg_c,
+            } => self.on_air_temperature(now_ns, board_ns, temperature_cdeg_c, events),
             Message::Hello { .. }
             | Message::ClockRequest { .. }
             | Message::Arm { .. }
-            | Message::HealthRequest => {
+            | Message::HealthRequest
+            | Message::AirTemperatureRequest => {
                 self.refuse(
                     events,
                     "host message from the board",
@@ -618,6 +658,7 @@ impl BoardHost {
             self.state = HostState::Synchronising;
             self.next_exchange = now_ns;
             self.next_health = now_ns;
+            self.next_air = now_ns;
         }
         self.identity = Some(id.clone());
         events.push(HostEvent::Identified(id));
@@ -757,6 +798,31 @@ impl BoardHost {
         } else {
             self.group = Some(g);
         }
+    }
+
+    /// An `AirTemperature` of the board: handed on with its host time
+    /// (asked of a board without a sensor or not, a reading is a reading;
+    /// one stamped at an absurd time is refused).
+    fn on_air_temperature(
+        &mut self,
+        now_ns: i64,
+        board_ns: u64,
+        temperature_cdeg_c: i16,
+        events: &mut Vec<HostEvent>,
+    ) {
+        let Some(host_ns) = self.measured(now_ns, board_ns, events) else {
+            return;
+        };
+        let temperature_c = if temperature_cdeg_c == NO_TEMPERATURE {
+            f64::NAN
+        } else {
+            f64::from(temperature_cdeg_c) / 100.0
+        };
+        self.air_temperature_c = Some(temperature_c);
+        events.push(HostEvent::AirTemperature {
+            host_ns,
+            temperature_c,
+        });
     }
 
     /// A board time of a measurement received at `now_ns`, on the host's

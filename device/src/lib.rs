@@ -27,7 +27,8 @@ pub use clock::{BoardClock, ClockExchange};
 pub use frame::{FrameError, FrameReader, encode_frame};
 pub use host::{BoardHost, DeviceReport, HostArrival, HostEvent, HostState};
 pub use message::{
-    BoardArrival, BoardKind, Identify, Message, MessageError, RefusedReason, VERSION,
+    BoardArrival, BoardKind, Identify, Message, MessageError, NO_TEMPERATURE, RefusedReason,
+    VERSION,
 };
 pub use sequence::GroupSequence;
 pub use stream::{Decoder, DecoderCounters, Encoder, ProtocolError};

@@ -1,4 +1,5 @@
-//! The messages of protocol version 1 and their bodies.
+//! The messages of protocol version 1 and their bodies (the optional
+//! ones behind a capability bit).
 //!
 //! A body is a 3-byte header, `version` (1), `type`, `seq` (the sender's
 //! frame counter, wrapping, so that the other side can count lost frames),
@@ -57,7 +58,16 @@ pub mod capability {
     pub const IMU: u16 = 1 << 3;
     /// Answers `HealthRequest`.
     pub const HEALTH: u16 = 1 << 4;
+    /// Has an air temperature sensor: answers `AirTemperatureRequest`.
+    /// Optional: a board without a sensor leaves the bit clear and is never
+    /// asked, a host that does not know the bit never asks.
+    pub const AIR_TEMPERATURE: u16 = 1 << 5;
 }
+
+/// [`Message::AirTemperature::temperature_cdeg_c`] of a sensor that has no
+/// valid reading (failed, not yet settled): the host takes it as not a
+/// number.
+pub const NO_TEMPERATURE: i16 = i16::MIN;
 
 /// A board's answer to `Hello`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -163,6 +173,9 @@ pub enum Message {
     },
     /// Host -> board 0x04: asks for `Health`.
     HealthRequest,
+    /// Host -> board 0x05: asks for `AirTemperature` (only of a board with
+    /// [`capability::AIR_TEMPERATURE`]).
+    AirTemperatureRequest,
     /// Board -> host 0x81: who the board is.
     Identify(Identify),
     /// Board -> host 0x82: the board's side of a clock exchange.
@@ -226,6 +239,15 @@ pub enum Message {
         /// Rate about the vertical axis, micro-radians per second, counter-clockwise positive.
         gyro_z_urad_s: i32,
     },
+    /// Board -> host 0x89: the air temperature at the board, measured when
+    /// asked.
+    AirTemperature {
+        /// When it was measured, board clock, nanoseconds.
+        board_ns: u64,
+        /// The air's temperature, 0.01 degree Celsius; [`NO_TEMPERATURE`]
+        /// when the sensor has no valid reading.
+        temperature_cdeg_c: i16,
+    },
 }
 
 /// Why a frame's body is not a message.
@@ -268,6 +290,7 @@ impl Message {
             Message::ClockRequest { .. } => 0x02,
             Message::Arm { .. } => 0x03,
             Message::HealthRequest => 0x04,
+            Message::AirTemperatureRequest => 0x05,
             Message::Identify(_) => 0x81,
             Message::ClockReply { .. } => 0x82,
             Message::Fired { .. } => 0x83,
@@ -276,6 +299,7 @@ impl Message {
             Message::Arrivals { .. } => 0x86,
             Message::WheelTicks { .. } => 0x87,
             Message::ImuSample { .. } => 0x88,
+            Message::AirTemperature { .. } => 0x89,
         }
     }
 
@@ -299,7 +323,7 @@ impl Message {
                 b.extend(tx_id.to_le_bytes());
                 b.extend(fire_at_board_ns.to_le_bytes());
             }
-            Message::HealthRequest => {}
+            Message::HealthRequest | Message::AirTemperatureRequest => {}
             Message::Identify(id) => encode_identify(&mut b, id),
             Message::ClockReply {
                 exchange,
@@ -365,6 +389,13 @@ impl Message {
                 b.extend(board_ns.to_le_bytes());
                 b.extend(gyro_z_urad_s.to_le_bytes());
             }
+            Message::AirTemperature {
+                board_ns,
+                temperature_cdeg_c,
+            } => {
+                b.extend(board_ns.to_le_bytes());
+                b.extend(temperature_cdeg_c.to_le_bytes());
+            }
         }
         b
     }
@@ -411,6 +442,10 @@ impl Message {
             0x04 => {
                 fixed(0)?;
                 Message::HealthRequest
+            }
+            0x05 => {
+                fixed(0)?;
+                Message::AirTemperatureRequest
             }
             0x81 => Message::Identify(decode_identify(payload)?),
             0x82 => {
@@ -459,6 +494,13 @@ impl Message {
                 Message::ImuSample {
                     board_ns: f.u64(),
                     gyro_z_urad_s: f.u32() as i32,
+                }
+            }
+            0x89 => {
+                let mut f = fixed(10)?;
+                Message::AirTemperature {
+                    board_ns: f.u64(),
+                    temperature_cdeg_c: f.u16() as i16,
                 }
             }
             other => return Err(MessageError::UnknownType(other)),

@@ -67,6 +67,13 @@ fn message() -> impl Strategy<Value = Message> {
             }
         }),
         Just(Message::HealthRequest),
+        Just(Message::AirTemperatureRequest),
+        (any::<u64>(), any::<i16>()).prop_map(|(board_ns, temperature_cdeg_c)| {
+            Message::AirTemperature {
+                board_ns,
+                temperature_cdeg_c,
+            }
+        }),
         identify,
         (any::<u32>(), any::<u64>(), any::<u64>()).prop_map(
             |(exchange, t2_board_ns, t3_board_ns)| Message::ClockReply {

@@ -137,6 +137,23 @@ fn vectors() -> Vec<(u8, Message, &'static str)> {
             },
             "09 01 88 07 20 5d a8 65 01 01 01 07 d0 a8 fa ff 66 c3 00",
         ),
+        (8, Message::AirTemperatureRequest, "06 01 05 08 51 85 00"),
+        (
+            9,
+            Message::AirTemperature {
+                board_ns: 7_000_000_000,
+                temperature_cdeg_c: 2137,
+            },
+            "04 01 89 09 05 86 3b a1 01 01 01 05 59 08 7c dd 00",
+        ),
+        (
+            10,
+            Message::AirTemperature {
+                board_ns: 7_000_000_000,
+                temperature_cdeg_c: ickon_device::NO_TEMPERATURE,
+            },
+            "04 01 89 0a 05 86 3b a1 01 01 01 01 04 80 21 01 00",
+        ),
     ]
 }
 

@@ -231,6 +231,9 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
         ("/tf", "foxglove.FrameTransforms"),
         ("/log", "foxglove.Log"),
         ("/site/status", "ickon.SiteStatus"),
+        ("/site/speed_of_sound", "ickon.SpeedOfSound"),
+        ("/transmitters/scene", "foxglove.SceneUpdate"),
+        ("/transmitters/status", "ickon.TransmitterHealth"),
     ]
     .into_iter()
     .map(|(t, s)| (t.to_string(), s))
@@ -260,7 +263,13 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
 
     // The scene and every robot's pose and truth, until each robot has
     // been tracked for a while.
-    let mut topics = vec!["/site/scene".to_string(), "/site/cells".to_string()];
+    let mut topics = vec![
+        "/site/scene".to_string(),
+        "/site/cells".to_string(),
+        "/site/speed_of_sound".to_string(),
+        "/transmitters/scene".to_string(),
+        "/transmitters/status".to_string(),
+    ];
     for r in ROBOTS {
         for what in ["pose", "truth", "state"] {
             topics.push(format!("/robot/{r}/{what}"));
@@ -270,6 +279,11 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
     client.subscribe(&topic_refs).expect("subscribe");
     let mut cells_seen = BTreeSet::new();
     let mut walls_seen = 0;
+    // The speed of sound in use, and each transmitter's health as drawn
+    // and as listed.
+    let mut speeds_m_s = Vec::new();
+    let mut health_drawn = BTreeSet::new();
+    let mut health_listed = 0;
     // Per robot: its latest state, its pose and truth by message stamp, and
     // the distances between the two of one stamp while tracking.
     let mut state: BTreeMap<String, String> = BTreeMap::new();
@@ -279,7 +293,10 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
     /// Tracked pose-truth pairs per robot: 5 s of ticks.
     const PAIRS: usize = 50;
     let deadline = Instant::now() + START_TIMEOUT;
-    while errors_mm.len() < ROBOTS.len() || errors_mm.values().any(|v| v.len() < PAIRS) {
+    while errors_mm.len() < ROBOTS.len()
+        || errors_mm.values().any(|v| v.len() < PAIRS)
+        || health_listed == 0
+    {
         assert!(
             Instant::now() < deadline,
             "not enough tracked poses: {errors_mm:?} {state:?}"
@@ -305,6 +322,30 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
                     .find(|e| e.id == "walls")
                     .expect("walls");
                 walls_seen = walls.cubes.len();
+            }
+            ["", "site", "speed_of_sound"] => {
+                let v: Value = serde_json::from_slice(&m.payload).expect("speed JSON");
+                let speed = v["speed_m_s"].as_f64().expect("speed_m_s");
+                assert_eq!(
+                    v["sigma_m_s"].is_number(),
+                    v["learnt"] == true,
+                    "a sigma exactly when learnt: {v}"
+                );
+                speeds_m_s.push(speed);
+            }
+            ["", "transmitters", "scene"] => {
+                let scene = SceneUpdate::decode(m.payload.as_slice()).expect("SceneUpdate");
+                for e in scene.entities {
+                    assert_eq!(e.frame_id, "map");
+                    assert_eq!(e.spheres.len(), 1, "{}", e.id);
+                    health_drawn.insert(e.id);
+                }
+            }
+            ["", "transmitters", "status"] => {
+                let v: Value = serde_json::from_slice(&m.payload).expect("health JSON");
+                let list = v["transmitters"].as_array().expect("transmitters");
+                assert!(list.iter().all(|t| t["condition"].is_string()), "{v}");
+                health_listed = list.len();
             }
             ["", "robot", r, "state"] => {
                 let v: Value = serde_json::from_slice(&m.payload).expect("state JSON");
@@ -338,6 +379,22 @@ fn a_foxglove_client_sees_the_run_and_hostile_clients_leave_it_unaffected() {
         .collect();
     assert_eq!(cells_seen, every_cell);
     assert_eq!(walls_seen, site.walls.len());
+    // The robots solve with a speed of the air (within 5 % of the site's).
+    assert!(!speeds_m_s.is_empty(), "no speed of sound");
+    let site_m_s = site.speed_of_sound_m_s;
+    assert!(
+        speeds_m_s
+            .iter()
+            .all(|v| (v / site_m_s - 1.0).abs() <= 0.05),
+        "{speeds_m_s:?}"
+    );
+    let every_tx: BTreeSet<String> = site
+        .transmitters
+        .iter()
+        .map(|t| format!("tx/{}", t.id))
+        .collect();
+    assert_eq!(health_drawn, every_tx);
+    assert_eq!(health_listed, site.transmitters.len());
 
     // The central unit, measured quiet and then under abuse.
     let run = ickon_runtime::RunDir::from_env(

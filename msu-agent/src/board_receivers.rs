@@ -240,6 +240,9 @@ impl Board {
             HostEvent::Fired { .. } | HostEvent::ArmRefused { .. } => {
                 self.log("transmitter data", "from a receiver board");
             }
+            // A robot's air is not the hall's: the MSU solves with the
+            // central unit's speed of sound.
+            HostEvent::AirTemperature { .. } => {}
             HostEvent::WheelTicks {
                 host_ns,
                 left,

@@ -148,7 +148,9 @@ impl Session {
                     }
                 }
                 HostEvent::Silent => self.seen.refused.push("the board went silent".into()),
-                HostEvent::WheelTicks { .. } | HostEvent::Imu { .. } => {}
+                HostEvent::WheelTicks { .. }
+                | HostEvent::Imu { .. }
+                | HostEvent::AirTemperature { .. } => {}
             }
         }
     }

@@ -12,6 +12,7 @@
 //! | `ickon/<site>/alive/central`, `.../alive/cell/<id>`, `.../alive/robot/<id>`, `.../alive/world` | liveliness tokens, no payload (`world`: the simulated world, simulation only) |
 //! | `ickon/<site>/cell/<id>/burst` | [`msg::control::Burst`](crate::msg::control::Burst) |
 //! | `ickon/<site>/cell/<id>/status` | [`msg::control::CellStatus`](crate::msg::control::CellStatus) |
+//! | `ickon/<site>/cell/<id>/air` | [`msg::control::AirTemperature`](crate::msg::control::AirTemperature) |
 //! | `ickon/<site>/robot/<id>/ultrasound` | [`msg::robot::UltrasoundArrivals`](crate::msg::robot::UltrasoundArrivals) |
 //! | `ickon/<site>/robot/<id>/odom` | [`msg::robot::Odometry`](crate::msg::robot::Odometry) |
 //! | `ickon/<site>/robot/<id>/imu` | [`msg::robot::Imu`](crate::msg::robot::Imu) |
@@ -125,6 +126,8 @@ pub enum Key {
     CellBurst(String),
     /// `cell/<id>/status`
     CellStatus(String),
+    /// `cell/<id>/air`
+    CellAir(String),
     /// `robot/<id>/<topic>`
     Robot(String, RobotTopic),
     /// `robot/<id>/status`
@@ -248,6 +251,18 @@ impl Keys {
         format!("{}/cell/*/status", self.prefix)
     }
 
+    /// `ickon/<site>/cell/<id>/air`: [`AirTemperature`](crate::msg::control::AirTemperature)
+    /// readings of the cell board's sensor.
+    pub fn cell_air(&self, cell: &str) -> Result<String, KeyError> {
+        validate_id(cell)?;
+        Ok(format!("{}/cell/{cell}/air", self.prefix))
+    }
+
+    /// `ickon/<site>/cell/*/air`: air temperatures of every cell.
+    pub fn cell_air_all(&self) -> String {
+        format!("{}/cell/*/air", self.prefix)
+    }
+
     /// `ickon/<site>/robot/<id>/<topic>`: see [`RobotTopic`] for the payloads.
     pub fn robot(&self, robot: &str, topic: RobotTopic) -> Result<String, KeyError> {
         validate_id(robot)?;
@@ -328,6 +343,7 @@ impl Keys {
             ["alive", "robot", r] => Ok(Key::AliveRobot(id(r)?)),
             ["cell", c, "burst"] => Ok(Key::CellBurst(id(c)?)),
             ["cell", c, "status"] => Ok(Key::CellStatus(id(c)?)),
+            ["cell", c, "air"] => Ok(Key::CellAir(id(c)?)),
             ["robot", r, "status"] => Ok(Key::RobotStatus(id(r)?)),
             ["robot", r, topic] => {
                 let topic = RobotTopic::ALL
@@ -367,6 +383,7 @@ mod tests {
             (k.alive_robot("r1").unwrap(), Key::AliveRobot("r1".into())),
             (k.cell_burst("c2").unwrap(), Key::CellBurst("c2".into())),
             (k.cell_status("c2").unwrap(), Key::CellStatus("c2".into())),
+            (k.cell_air("c2").unwrap(), Key::CellAir("c2".into())),
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
             (k.sim_kit("r9").unwrap(), Key::SimKit("r9".into())),
             (k.robot_status("r9").unwrap(), Key::RobotStatus("r9".into())),

@@ -7,8 +7,8 @@
 use std::collections::BTreeSet;
 
 use ickon_proto::msg::control::{
-    Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo, SurveyCalibration,
-    TransmitterOffset,
+    AirTemperature, Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo,
+    SurveyCalibration, TransmitterOffset,
 };
 use ickon_proto::msg::robot::{
     Arrival, Fix, FixQuality, Imu, MsuStatus, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
@@ -364,6 +364,15 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             faults: vec!["central unit silent".into()],
             inputs_refused: 4,
             device: String::new(),
+        },
+        &mut checked,
+    );
+    check(
+        "AirTemperature",
+        &AirTemperature {
+            cell_id: "c2x".into(),
+            stamp: t,
+            temperature_c: 21.37,
         },
         &mut checked,
     );

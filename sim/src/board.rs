@@ -13,10 +13,13 @@
 
 use ickon_device::message::{MAX_ARRIVALS_PER_FRAME, capability};
 use ickon_device::{
-    BoardArrival, BoardKind, Decoder, Encoder, Identify, Message, RefusedReason, VERSION,
+    BoardArrival, BoardKind, Decoder, Encoder, Identify, Message, NO_TEMPERATURE, RefusedReason,
+    VERSION,
 };
 use rand_chacha::ChaCha8Rng;
 
+use crate::air::AirField;
+use crate::air_sensor::AirSensor;
 use crate::rng::{chance, normal, stream};
 
 /// An `Arm` closer than this to its time is refused as too late, nanoseconds
@@ -52,6 +55,34 @@ pub struct BoardSpec {
     pub faults: BoardFaults,
     /// Seed of its random draws.
     pub seed: u64,
+    /// Its air temperature sensor, if it has one.
+    pub air: Option<BoardAir>,
+}
+
+/// The air temperature sensor of an emulated board and the air it reads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardAir {
+    /// The sensor.
+    pub sensor: AirSensor,
+    /// The air.
+    pub field: AirField,
+    /// The reference time at which the air's run starts, nanoseconds.
+    pub start_ns: i64,
+}
+
+impl BoardAir {
+    /// A reading at reference time `t_ns`, in the protocol's 0.01 degree
+    /// ([`NO_TEMPERATURE`] when the sensor has none).
+    fn read_cdeg_c(&mut self, t_ns: i64) -> i16 {
+        let t_s = (t_ns - self.start_ns) as f64 * 1e-9;
+        let c = self.sensor.read(&self.field, t_s);
+        if c.is_nan() {
+            NO_TEMPERATURE
+        } else {
+            // Beyond the field's width the sensor saturates.
+            (c * 100.0).round().clamp(-32_767.0, 32_767.0) as i16
+        }
+    }
 }
 
 impl BoardSpec {
@@ -80,6 +111,13 @@ impl BoardSpec {
         )
     }
 
+    /// The same board with an air temperature sensor.
+    pub fn with_air_sensor(mut self, air: BoardAir) -> Self {
+        self.identity.capabilities |= capability::AIR_TEMPERATURE;
+        self.air = Some(air);
+        self
+    }
+
     /// The same board reporting the robot's wheel ticks and gyro too.
     pub fn with_motion(mut self) -> Self {
         self.identity.capabilities |= capability::WHEEL_TICKS | capability::IMU;
@@ -101,6 +139,7 @@ impl BoardSpec {
             jitter_ns: 0.0,
             faults: BoardFaults::default(),
             seed,
+            air: None,
         }
     }
 }
@@ -271,6 +310,17 @@ impl EmulatedBoard {
                     faults: 0,
                 };
                 self.send(&health, out);
+            }
+            Message::AirTemperatureRequest => {
+                let board_ns = self.board_ns(t_ns);
+                let reply = match self.spec.air.as_mut() {
+                    Some(air) => Message::AirTemperature {
+                        board_ns,
+                        temperature_cdeg_c: air.read_cdeg_c(t_ns),
+                    },
+                    None => refuse(0x05, RefusedReason::UnknownType),
+                };
+                self.send(&reply, out);
             }
             other => {
                 // A board message sent to a board.

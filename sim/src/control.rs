@@ -587,6 +587,21 @@ impl ControlPlane {
         self.push(d, Pending::ToCentral(event));
     }
 
+    /// Air temperature readings of the cells' boards, (cell, true seconds
+    /// measured, degrees Celsius): each forwarded by its cell to the
+    /// central unit, arriving after the network's delay.
+    pub fn send_air_temperatures(&mut self, readings: Vec<(String, f64, f64)>) {
+        for (cell_id, at_s, temperature_c) in readings {
+            self.send_to_central(CentralEvent::AirTemperature(
+                ickon_proto::msg::control::AirTemperature {
+                    cell_id,
+                    stamp: Time::from_secs_f64(at_s),
+                    temperature_c,
+                },
+            ));
+        }
+    }
+
     /// The schedule the central unit has in force for `cycle`.
     pub fn schedule_for(&self, cycle: u64) -> &Schedule {
         self.central.schedule_for(cycle)

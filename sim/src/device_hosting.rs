@@ -27,9 +27,12 @@ use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 
-use crate::board::{BoardSpec, Emission, EmulatedBoard};
+use crate::air::AirField;
+use crate::air_sensor::{AirSensor, board_position};
+use crate::board::{BoardAir, BoardSpec, Emission, EmulatedBoard};
 use crate::devices::{DeviceEndpoint, DeviceKind, DeviceOwner, EmissionLedger};
 use crate::hedgehog::{EmulatedHedgehog, HedgehogSpec};
+use crate::profile::NoiseProfile;
 use crate::realtime::WorldOutput;
 use crate::rng::{normal, stream, uniform};
 
@@ -133,13 +136,22 @@ pub struct WorldDevices {
 
 impl WorldDevices {
     /// Starts serving the `bound` devices of `site`'s cells and of the
-    /// robots `robot_ids`, with clocks drawn from `seed`.
+    /// robots `robot_ids`, with clocks drawn from `seed`; a transmitter
+    /// board has an air temperature sensor when `profile` gives the boards
+    /// one (reading the profile's air from now on).
     pub fn start(
         bound: BoundDevices,
         site: &Site,
+        profile: &NoiseProfile,
         robot_ids: &[String],
         seed: u64,
     ) -> Result<Self, NodeError> {
+        let air = AirField::new(
+            site,
+            &profile.ultrasound.air,
+            profile.ultrasound.temperature_error_c,
+        );
+        let air_start_ns = system_now().as_nanos();
         let (emitted, emissions) = mpsc::unbounded_channel();
         let (kit_tx, kit_positions) = mpsc::unbounded_channel();
         let mut robots: Vec<Option<RobotDevice>> = robot_ids.iter().map(|_| None).collect();
@@ -166,6 +178,14 @@ impl WorldDevices {
                     }
                     let mut spec = BoardSpec::transmitter(&tx_ids, seed ^ label_seed(&label));
                     board_clock(&mut spec, &mut clock, TRANSMITTER_JITTER_NS);
+                    let sensors = &profile.air_sensors;
+                    if let Some(at) = board_position(site, cell).filter(|_| sensors.rate_hz > 0.0) {
+                        spec = spec.with_air_sensor(BoardAir {
+                            sensor: AirSensor::new(cell, at, sensors, seed),
+                            field: air.clone(),
+                            start_ns: air_start_ns,
+                        });
+                    }
                     let board = EmulatedBoard::new(spec, now_ns);
                     // A transmitter board is fed nothing; its sender is
                     // kept, as a closed inbox ends a board's task.
@@ -545,7 +565,7 @@ mod tests {
             endpoint("robot/r2=marvelmind@127.0.0.1:0"),
         ])
         .unwrap();
-        let mut d = WorldDevices::start(bound, &site, &robots, 1).unwrap();
+        let mut d = WorldDevices::start(bound, &site, &NoiseProfile::paper(), &robots, 1).unwrap();
         assert!(d.robot_on_device(0) && d.robot_on_device(1) && !d.robot_on_device(2));
         let epoch = Time::from_nanos(1_000_000_000_000);
         // The board's robot: arrivals go to the board and are shown numbered
@@ -602,7 +622,7 @@ mod tests {
         let site = Site::load_or_default(None).unwrap().0;
         let bound =
             BoundDevices::bind(&[endpoint("cell/c1=transmitter-board@127.0.0.1:0")]).unwrap();
-        let mut d = WorldDevices::start(bound, &site, &[], 1).unwrap();
+        let mut d = WorldDevices::start(bound, &site, &NoiseProfile::paper(), &[], 1).unwrap();
         let burst = Burst {
             cell_id: "c1".into(),
             tx_id: 11,
@@ -629,10 +649,11 @@ mod tests {
             "robot/r7=receiver-board@127.0.0.1:0",
         ] {
             let bound = BoundDevices::bind(&[endpoint(e)]).unwrap();
-            let err = WorldDevices::start(bound, &site, &["r1".to_string()], 1)
-                .err()
-                .unwrap()
-                .to_string();
+            let err =
+                WorldDevices::start(bound, &site, &NoiseProfile::paper(), &["r1".to_string()], 1)
+                    .err()
+                    .unwrap()
+                    .to_string();
             assert!(err.contains(e.split('@').next().unwrap()), "{err}");
         }
     }

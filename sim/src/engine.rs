@@ -15,6 +15,7 @@ use ickon_proto::msg::control::Schedule;
 use ickon_proto::msg::robot::Fix;
 use ickon_proto::site::Site;
 
+use crate::air_sensor::CellAirSensors;
 use crate::control::{CellSyncReport, ControlPlane};
 use crate::profile::NoiseProfile;
 use crate::world::{TruthSample, World};
@@ -375,6 +376,9 @@ struct RouteRun<'a> {
     config: &'a RunConfig,
     control: ControlPlane,
     world: World,
+    /// The cells' boards' air temperature sensors, when the profile gives
+    /// them one.
+    air_sensors: Option<CellAirSensors>,
     msu_driver: MsuDriver,
     out: RunOutput,
     /// The true emission times of each cycle's bursts, until it is delivered.
@@ -470,10 +474,13 @@ impl<'a> RouteRun<'a> {
         q.push(1.0 / ENCODER_HZ, Event::Encoders);
         q.push(1.0 / RANGES_HZ, Event::Ranges);
         q.push(0.0, Event::Trace);
+        let air_sensors =
+            CellAirSensors::new(world.true_site(), &config.profile.air_sensors, config.seed);
         Ok(Self {
             site,
             config,
             control,
+            air_sensors,
             world,
             msu_driver,
             out,
@@ -495,6 +502,9 @@ impl<'a> RouteRun<'a> {
     fn forward_control_plane(&mut self, t: f64) {
         let control = &mut self.control;
         control.advance_to(ickon_proto::time::Time::from_secs_f64(t));
+        if let Some(sensors) = self.air_sensors.as_mut() {
+            control.send_air_temperatures(sensors.due(self.world.air(), t));
+        }
         for status in control.take_statuses() {
             self.msu_driver.feed(MsuEvent::CellStatus(status));
         }

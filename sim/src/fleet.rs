@@ -244,6 +244,9 @@ struct Fleet<'a> {
     left_out: std::collections::BTreeSet<u32>,
     transmitter_events: Vec<TransmitterEvent>,
     air: Vec<crate::engine::AirSample>,
+    /// The cells' boards' air temperature sensors, when the profile gives
+    /// them one.
+    air_sensors: Option<crate::air_sensor::CellAirSensors>,
 }
 
 impl<'a> Fleet<'a> {
@@ -264,7 +267,15 @@ impl<'a> Fleet<'a> {
         let encoder_every = ((1.0 / ENCODER_HZ) / PHYSICS_DT_S).round().max(1.0) as u64;
         let pose_every = (POSE_DT_S / PHYSICS_DT_S).round().max(1.0) as u64;
         let gyro_dt = gyro_every as f64 * PHYSICS_DT_S;
+        let air_sensors = members.first().and_then(|m| {
+            crate::air_sensor::CellAirSensors::new(
+                m.world.true_site(),
+                &config.profile.air_sensors,
+                config.seed,
+            )
+        });
         Self {
+            air_sensors,
             config,
             control,
             members,
@@ -360,6 +371,9 @@ impl<'a> Fleet<'a> {
     fn forward_control_plane(&mut self, t: f64) {
         let control = &mut self.control;
         control.advance_to(Time::from_secs_f64(t));
+        if let (Some(sensors), Some(m)) = (self.air_sensors.as_mut(), self.members.first()) {
+            control.send_air_temperatures(sensors.due(m.world.air(), t));
+        }
         for status in control.take_statuses() {
             for m in &mut self.members {
                 m.msu.feed(MsuEvent::CellStatus(status.clone()));

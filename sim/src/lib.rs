@@ -25,6 +25,7 @@
 
 pub mod acoustic;
 pub mod air;
+pub mod air_sensor;
 pub mod board;
 pub mod clock;
 pub mod collision;

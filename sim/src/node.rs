@@ -105,7 +105,13 @@ pub async fn run(
     let mut devices = if bound.is_empty() {
         None
     } else {
-        let d = WorldDevices::start(bound, &site, world.robot_ids(), settings.seed)?;
+        let d = WorldDevices::start(
+            bound,
+            &site,
+            &settings.profile,
+            world.robot_ids(),
+            settings.seed,
+        )?;
         for i in 0..world.robot_ids().len() {
             if d.robot_on_device(i) {
                 world.use_true_clock(i);

@@ -18,6 +18,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::air::Air;
+use crate::air_sensor::AirSensors;
 
 /// The ultrasonic channel and the MSU's receivers (docs/simulation.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -201,6 +202,9 @@ pub struct NoiseProfile {
     pub obstacles: ObstacleNoise,
     /// Clocks.
     pub clocks: ClockNoise,
+    /// The air temperature sensors on the cells' boards (absent: none).
+    #[serde(default, skip_serializing_if = "AirSensors::is_absent")]
+    pub air_sensors: AirSensors,
 }
 
 /// A profile name that is not one of [`NoiseProfile::names`].
@@ -283,6 +287,7 @@ impl NoiseProfile {
                 msu_offset_sigma_ms: 0.0,
                 msu_drift_sigma_ppm: 0.0,
             },
+            air_sensors: AirSensors::default(),
         }
     }
 
@@ -363,6 +368,7 @@ impl NoiseProfile {
                 msu_offset_sigma_ms: 50.0,
                 msu_drift_sigma_ppm: 20.0,
             },
+            air_sensors: AirSensors::default(),
         }
     }
 

@@ -194,6 +194,7 @@ impl NoiseProfile {
             }
         }
         u.air.check()?;
+        self.air_sensors.check()?;
         let [lo, hi] = u.reflection_extra_m;
         if !(hi.is_finite() && hi >= lo) {
             return Err((
@@ -233,6 +234,20 @@ mod tests {
             "/../deploy/profiles/building.toml"
         );
         assert_eq!(NoiseProfile::load(file).unwrap(), NoiseProfile::building());
+    }
+
+    #[test]
+    fn the_shipped_building_sensors_file_is_building_with_typical_sensors() {
+        let file = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../deploy/profiles/building-sensors.toml"
+        );
+        let mut want = NoiseProfile::building();
+        want.name = "building-sensors".into();
+        want.air_sensors = crate::air_sensor::AirSensors::typical();
+        assert_eq!(NoiseProfile::load(file).unwrap(), want);
+        // A profile without the table has no sensors (older files load).
+        assert!(NoiseProfile::building().air_sensors.is_absent());
     }
 
     #[test]

@@ -352,6 +352,9 @@ pub fn consistency(nees: &[Option<f64>]) -> (Option<f64>, Option<Nees>) {
 pub struct AirScore {
     /// Mean absolute error of the speed used, percent.
     pub used_mean_pct: f64,
+    /// Mean absolute error of the speed used over the first minute (while
+    /// the calibration starts), percent.
+    pub first_minute_mean_pct: f64,
     /// Largest absolute error of the speed used after the first minute
     /// (the calibration's start), percent.
     pub used_max_pct: f64,
@@ -377,6 +380,14 @@ impl AirScore {
         let pct = |v: f64, t: f64| 100.0 * (v / t - 1.0).abs();
         Some(Self {
             used_mean_pct: known.iter().map(|&(_, t, u)| pct(u, t)).sum::<f64>() / n,
+            first_minute_mean_pct: {
+                let first: Vec<f64> = known
+                    .iter()
+                    .filter(|(s, _, _)| *s < 60.0)
+                    .map(|&(_, t, u)| pct(u, t))
+                    .collect();
+                first.iter().sum::<f64>() / first.len().max(1) as f64
+            },
             used_max_pct: known
                 .iter()
                 .filter(|(s, _, _)| *s >= 60.0)

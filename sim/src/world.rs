@@ -146,6 +146,12 @@ impl World {
         self.faults = TransmitterFaults::new(faults.to_vec());
     }
 
+    /// The site as the world has it: the transmitters where they really
+    /// hang (the MSU's table keeps the surveyed positions).
+    pub fn true_site(&self) -> &Site {
+        &self.site
+    }
+
     /// The air the bursts fly through.
     pub fn air(&self) -> &AirField {
         &self.air

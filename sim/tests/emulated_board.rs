@@ -290,3 +290,80 @@ fn a_board_that_stops_answering_is_found_silent_and_greeted_again() {
     assert_eq!(b.host.state(), HostState::AwaitingIdentity);
     assert!(b.host.report(b.t).counters.handshakes >= 2);
 }
+
+/// A transmitter board of the lab's cell c1 with the typical air sensor
+/// (`fault` from 0 s on), reading the `building` air from the bench's
+/// board start.
+fn board_with_air(fault: Option<ickon_sim::air_sensor::SensorFaultKind>) -> BoardSpec {
+    use ickon_sim::air_sensor::{AirSensor, AirSensors, SensorFault, board_position};
+    let site = ickon_proto::site::Site::default_site();
+    let mut sensors = AirSensors::typical();
+    sensors.faults = fault
+        .into_iter()
+        .map(|kind| SensorFault {
+            cell: "c1".into(),
+            at_s: 0.0,
+            kind,
+        })
+        .collect();
+    let at = board_position(&site, "c1").unwrap();
+    BoardSpec::transmitter(&[11, 12, 13, 14], 3).with_air_sensor(ickon_sim::board::BoardAir {
+        sensor: AirSensor::new("c1", at, &sensors, 3),
+        field: ickon_sim::air::AirField::new(&site, &ickon_sim::air::Air::building(), 1.0),
+        start_ns: 5_000 * MS,
+    })
+}
+
+fn air_readings(events: &[HostEvent]) -> Vec<(i64, f64)> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            HostEvent::AirTemperature {
+                host_ns,
+                temperature_c,
+            } => Some((*host_ns, *temperature_c)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_board_with_an_air_sensor_is_asked_once_a_second_and_its_readings_come_back() {
+    let mut b = Bench::new(BoardKind::Transmitter, board_with_air(None));
+    b.run(10_500);
+    let r = air_readings(&b.events);
+    assert!((10..=11).contains(&r.len()), "{} readings", r.len());
+    // The air under the ceiling of a hall at its coldest: a few degrees
+    // under the site's 20, with the sensor's bias, on the host's clock
+    // within the line's delay of when it was asked.
+    assert!(r.iter().all(|&(_, c)| (5.0..25.0).contains(&c)), "{r:?}");
+    assert!(
+        r.windows(2)
+            .all(|w| (w[1].0 - w[0].0 - 1_000 * MS).abs() < 10 * MS)
+    );
+    assert_eq!(b.host.report(b.t).counters.refused, 0);
+    assert!(b.host.report(b.t).air_temperature_c.is_some());
+    assert!(
+        b.host.report(b.t).summary().contains(" C"),
+        "shown to the operator"
+    );
+}
+
+#[test]
+fn a_board_without_a_sensor_is_never_asked_and_a_failed_one_reads_not_a_number() {
+    let mut b = Bench::new(BoardKind::Transmitter, drifting_transmitter(5));
+    b.run(5_000);
+    assert!(air_readings(&b.events).is_empty());
+    assert_eq!(
+        b.host.report(b.t).counters.refused,
+        0,
+        "nothing refused either way"
+    );
+    let mut b = Bench::new(
+        BoardKind::Transmitter,
+        board_with_air(Some(ickon_sim::air_sensor::SensorFaultKind::NotANumber)),
+    );
+    b.run(3_000);
+    let r = air_readings(&b.events);
+    assert!(!r.is_empty() && r.iter().all(|(_, c)| c.is_nan()));
+}

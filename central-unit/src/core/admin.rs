@@ -75,6 +75,11 @@ impl CentralCore {
         }
     }
 
+    /// The site's cells, in its order.
+    fn cell_ids(&self) -> Vec<String> {
+        self.site.cells.iter().map(|c| c.id.clone()).collect()
+    }
+
     /// The speed of sound published to the MSUs and its sigma, m/s
     /// (`(0, 0)`: none, the site's).
     fn published_speed(&self) -> (f64, f64) {
@@ -127,6 +132,11 @@ impl CentralCore {
             speed_of_sound_sigma_m_s: sigma,
             site_speed_of_sound_m_s: self.site.speed_of_sound_m_s,
             transmitters,
+            air_sensors: self.air.report(now, &self.cell_ids()),
+            air_sensor_speed_m_s: self
+                .air
+                .evidence(now, self.site.speed_of_sound_m_s)
+                .map_or(0.0, |e| self.site.speed_of_sound_m_s * (1.0 + e.scale)),
         }
     }
 
@@ -236,6 +246,8 @@ impl CentralCore {
             self.cells.entry(c.id.clone()).or_default();
         }
         self.cells.retain(|id, _| site.cell(id).is_some());
+        self.air
+            .follow_cells(site.cells.iter().map(|c| c.id.as_str()));
         self.robots
             .retain(|id, _| site.robots.iter().any(|r| &r.id == id));
         if let Some(c) = self.config.survey {

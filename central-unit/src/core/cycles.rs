@@ -98,6 +98,10 @@ impl CentralCore {
             self.survey_deferred = true;
         } else {
             self.survey_deferred = false;
+            let air = self.air.evidence(now, self.site.speed_of_sound_m_s);
+            if let Some(p) = self.survey.as_mut() {
+                p.observe_air_temperature(air);
+            }
             if let Some(survey) = self.survey.as_mut().and_then(|p| p.due(now, self.epoch)) {
                 out.push(Output::Survey(survey));
             }

@@ -1,7 +1,8 @@
 //! The Foxglove layout of a site (`deploy/foxglove/<site>.json`): a 3D panel
 //! on the site's scene and fleet, a plot of every robot's error and
-//! position sigma, a plot of every cell's sync error and firing, and the
-//! log. `Import layout` in the app with the file shows the site at once.
+//! position sigma, a plot of every cell's sync error and firing, a plot
+//! of the speed of sound (in use, the site file's, the cell boards' air's)
+//! and the log. The 3D panel shows each transmitter's health too. `Import layout` in the app with the file shows the site at once.
 //!
 //! The shipped files are made by this function and checked against it
 //! (`ICKON_WRITE_FOXGLOVE_LAYOUTS=1 cargo test -p ickon-central layout`
@@ -51,6 +52,7 @@ pub fn layout(site: &Site) -> Value {
         topics::SITE_SCENE,
         topics::CELLS_SCENE,
         topics::ROBOTS_SCENE,
+        topics::TRANSMITTERS_SCENE,
     ]
     .into_iter()
     .map(visible)
@@ -87,6 +89,12 @@ pub fn layout(site: &Site) -> Value {
                 "showLegend": true,
                 "xAxisVal": "timestamp",
             },
+            "Plot!ickon-air": {
+                "title": "Speed of sound (m/s)",
+                "paths": speed_series(),
+                "showLegend": true,
+                "xAxisVal": "timestamp",
+            },
             "RosOut!ickon-log": {
                 "topicToRender": topics::LOG,
                 "searchTerms": [],
@@ -102,9 +110,14 @@ pub fn layout(site: &Site) -> Value {
                 "first": "Plot!ickon-robots",
                 "second": {
                     "first": "Plot!ickon-cells",
-                    "second": "RosOut!ickon-log",
+                    "second": {
+                        "first": "Plot!ickon-air",
+                        "second": "RosOut!ickon-log",
+                        "direction": "column",
+                        "splitPercentage": 50,
+                    },
                     "direction": "column",
-                    "splitPercentage": 50,
+                    "splitPercentage": 40,
                 },
                 "direction": "column",
                 "splitPercentage": 40,
@@ -113,6 +126,23 @@ pub fn layout(site: &Site) -> Value {
             "splitPercentage": 60,
         },
     })
+}
+
+/// The speed of sound's lines: in use, the site file's, the boards' air's.
+fn speed_series() -> Vec<Value> {
+    [
+        ("speed_m_s", "in use"),
+        ("site_m_s", "site file"),
+        ("air_sensors_m_s", "cell boards' air"),
+    ]
+    .into_iter()
+    .map(|(field, label)| {
+        series(
+            format!("{}.{field}", topics::SPEED_OF_SOUND),
+            label.to_string(),
+        )
+    })
+    .collect()
 }
 
 /// The middle of the site's cells, metres, where the camera looks.
@@ -173,7 +203,16 @@ mod tests {
             .expect("paths");
         assert_eq!(cells.len(), 2 * site.cells.len());
         assert_eq!(l["configById"]["RosOut!ickon-log"]["topicToRender"], "/log");
-        for t in ["/site/scene", "/site/cells", "/robots/scene"] {
+        let air = l["configById"]["Plot!ickon-air"]["paths"]
+            .as_array()
+            .expect("paths");
+        assert_eq!(air[0]["value"], "/site/speed_of_sound.speed_m_s");
+        for t in [
+            "/site/scene",
+            "/site/cells",
+            "/robots/scene",
+            "/transmitters/scene",
+        ] {
             assert_eq!(
                 l["configById"]["3D!ickon-site"]["topics"][t]["visible"],
                 true

@@ -15,6 +15,7 @@
 //! no parameters, no services), so a client can subscribe to what is
 //! listed and do nothing else. It binds to loopback unless told otherwise.
 
+pub mod air_health;
 pub mod front_door;
 pub mod layout;
 pub mod plots;
@@ -31,7 +32,7 @@ use clap::Args;
 use foxglove::messages::{FrameTransform, FrameTransforms, Timestamp, Vector3};
 use foxglove::{Channel, Context, RawChannel, WebSocketServerHandle};
 use ickon_proto::keys::Keys;
-use ickon_proto::msg::admin::StatusReport;
+use ickon_proto::msg::admin::{StatusReport, TransmittersReport};
 use ickon_proto::site::Site;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
@@ -84,6 +85,7 @@ pub enum FoxgloveError {
 pub struct FoxgloveLive {
     addr: Option<SocketAddr>,
     status: watch::Sender<Option<StatusReport>>,
+    transmitters: watch::Sender<Option<TransmittersReport>>,
     server: Option<WebSocketServerHandle>,
     door: Option<JoinHandle<()>>,
     ticker: JoinHandle<()>,
@@ -162,6 +164,7 @@ impl FoxgloveLive {
             .await
             .map_err(|e| FoxgloveError::Zenoh(e.to_string()))?;
         let (status_tx, status_rx) = watch::channel(None);
+        let (transmitters_tx, transmitters_rx) = watch::channel(None);
         let ticker = tokio::spawn(tick(
             Ticker {
                 context,
@@ -171,12 +174,16 @@ impl FoxgloveLive {
                 own_warnings,
             },
             view,
-            status_rx,
+            Reports {
+                status: status_rx,
+                transmitters: transmitters_rx,
+            },
             clock,
         ));
         Ok(Self {
             addr: None,
             status: status_tx,
+            transmitters: transmitters_tx,
             server: None,
             door: None,
             ticker,
@@ -192,6 +199,12 @@ impl FoxgloveLive {
     /// Hands the central unit's latest status to the server (never waits).
     pub fn publish(&self, status: StatusReport) {
         self.status.send_replace(Some(status));
+    }
+
+    /// Hands the central unit's latest transmitters report (each
+    /// transmitter's health, the boards' air) to the server (never waits).
+    pub fn publish_transmitters(&self, report: TransmittersReport) {
+        self.transmitters.send_replace(Some(report));
     }
 
     /// A handle that hands statuses to the view from another task, as
@@ -225,6 +238,9 @@ struct Channels {
     tf: Channel<FrameTransforms>,
     log: Channel<foxglove::messages::Log>,
     status: Arc<RawChannel>,
+    speed: Arc<RawChannel>,
+    transmitters_scene: Channel<foxglove::messages::SceneUpdate>,
+    transmitters_status: Arc<RawChannel>,
     robots: BTreeMap<String, RobotChannels>,
     cells: BTreeMap<String, CellChannels>,
 }
@@ -240,6 +256,9 @@ impl Channels {
             tf: context.channel_builder(topics::TF).build(),
             log: context.channel_builder(topics::LOG).build(),
             status: plots::status_channel(context, topics::SITE_STATUS),
+            speed: air_health::speed_channel(context, topics::SPEED_OF_SOUND),
+            transmitters_scene: context.channel_builder(topics::TRANSMITTERS_SCENE).build(),
+            transmitters_status: air_health::health_channel(context, topics::TRANSMITTERS_STATUS),
             robots: BTreeMap::new(),
             cells: BTreeMap::new(),
         };
@@ -276,6 +295,23 @@ struct Ticker {
 }
 
 impl Ticker {
+    /// Sends the speed of sound of `status` and, when a transmitters
+    /// report has come, each transmitter's health.
+    fn send_air_and_health(
+        &self,
+        status: &StatusReport,
+        transmitters: Option<&TransmittersReport>,
+        stamp: Timestamp,
+    ) {
+        air_health::log_speed(&self.channels.speed, status, transmitters);
+        if let Some(report) = transmitters {
+            self.channels
+                .transmitters_scene
+                .log(&air_health::transmitters_scene(&self.site, report, stamp));
+            air_health::log_health(&self.channels.transmitters_status, report);
+        }
+    }
+
     /// Sends everything one snapshot shows.
     fn send(&mut self, snapshot: &Snapshot, tick: u64) {
         let stamp = Timestamp::now();
@@ -334,14 +370,16 @@ impl Ticker {
     }
 }
 
+/// The central unit's reports as they are handed to the server.
+struct Reports {
+    status: watch::Receiver<Option<StatusReport>>,
+    transmitters: watch::Receiver<Option<TransmittersReport>>,
+}
+
 /// Makes and sends a snapshot every [`TICK_PERIOD`] until the status
 /// channel closes.
-async fn tick(
-    mut ticker: Ticker,
-    view: SharedView,
-    mut status: watch::Receiver<Option<StatusReport>>,
-    clock: Stopwatch,
-) {
+async fn tick(mut ticker: Ticker, view: SharedView, mut reports: Reports, clock: Stopwatch) {
+    let status = &mut reports.status;
     let mut ticks = tokio::time::interval(TICK_PERIOD);
     ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut count = 0u64;
@@ -355,6 +393,8 @@ async fn tick(
         };
         let snapshot = view.lock().snapshot(&report, clock.now(), 0, 0);
         ticker.send(&snapshot, count);
+        let transmitters = reports.transmitters.borrow_and_update().clone();
+        ticker.send_air_and_health(&report, transmitters.as_ref(), Timestamp::now());
         count = count.wrapping_add(1);
     }
 }

@@ -149,7 +149,12 @@ const STATUS_SCHEMA: &str = r#"{"type":"object","title":"ickon.SiteStatus","prop
 "ignored_messages":{"type":"integer"}}}"#;
 
 /// A JSON channel with the JSON schema `schema` called `name`.
-fn json_channel(context: &Arc<Context>, topic: &str, name: &str, schema: &str) -> Arc<RawChannel> {
+pub(super) fn json_channel(
+    context: &Arc<Context>,
+    topic: &str,
+    name: &str,
+    schema: &str,
+) -> Arc<RawChannel> {
     let schema = Schema::new(name, "jsonschema", schema.as_bytes().to_vec());
     context
         .channel_builder(topic)
@@ -176,7 +181,8 @@ pub fn status_channel(context: &Arc<Context>, topic: &str) -> Arc<RawChannel> {
     json_channel(context, topic, "ickon.SiteStatus", STATUS_SCHEMA)
 }
 
-fn log_json<T: Serialize>(channel: &RawChannel, value: &T) {
+/// Sends `value` as JSON on `channel`, when anyone listens.
+pub(super) fn log_json<T: Serialize>(channel: &RawChannel, value: &T) {
     if !channel.has_sinks() {
         return;
     }

@@ -278,7 +278,8 @@ fn centroid(polygon: &[[f64; 2]]) -> (f64, f64) {
     (sx / n, sy / n)
 }
 
-fn text(x: f64, y: f64, z: f64, label: &str, color: Color) -> TextPrimitive {
+/// A label at (x, y, z) facing the viewer.
+pub(super) fn text(x: f64, y: f64, z: f64, label: &str, color: Color) -> TextPrimitive {
     TextPrimitive {
         pose: Some(yaw_pose(x, y, z, 0.0)),
         billboard: true,

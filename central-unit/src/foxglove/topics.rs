@@ -14,6 +14,9 @@
 //! | `/robot/<id>/truth` | `foxglove.PoseInFrame` | true pose at the fused pose's time (simulation only) |
 //! | `/robot/<id>/state` | JSON `ickon.RobotState` | state, sigmas, error, fix rate |
 //! | `/cell/<id>/sync` | JSON `ickon.CellSync` | sync error, offset, drift, firing |
+//! | `/site/speed_of_sound` | JSON `ickon.SpeedOfSound` | the speed of sound in use, its sigma, the site file's, the boards' air's |
+//! | `/transmitters/scene` | `foxglove.SceneUpdate` | a sphere per transmitter coloured by its health |
+//! | `/transmitters/status` | JSON `ickon.TransmitterHealth` | each transmitter's health, heard share, residuals, last heard |
 
 use std::sync::Arc;
 
@@ -36,6 +39,12 @@ pub const ROBOTS_SCENE: &str = "/robots/scene";
 pub const TF: &str = "/tf";
 /// The site's log.
 pub const LOG: &str = "/log";
+/// The speed of sound in use.
+pub const SPEED_OF_SOUND: &str = "/site/speed_of_sound";
+/// The transmitters by health, as a scene.
+pub const TRANSMITTERS_SCENE: &str = "/transmitters/scene";
+/// The transmitters' health, to read and plot.
+pub const TRANSMITTERS_STATUS: &str = "/transmitters/status";
 
 /// `/robot/<id>/<what>`.
 pub fn robot_topic(id: &str, what: &str) -> String {

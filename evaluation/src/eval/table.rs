@@ -160,10 +160,11 @@ pub fn print_air(outputs: &[ickon_sim::RunOutput], site_m_s: f64) {
     for o in outputs {
         match ickon_sim::score::AirScore::of(&o.air, site_m_s) {
             Some(a) => println!(
-                "{:>11}: used {:.3} % off on average, {:.3} % at worst after the first minute \
-                 (the site file's {:.3} % off); the air {:.1}-{:.1} m/s",
+                "{:>11}: used {:.3} % off on average ({:.3} % in the first minute), {:.3} % at \
+                 worst after it (the site file's {:.3} % off); the air {:.1}-{:.1} m/s",
                 o.config.route,
                 a.used_mean_pct,
+                a.first_minute_mean_pct,
                 a.used_max_pct,
                 a.site_mean_pct,
                 a.true_range_m_s[0],

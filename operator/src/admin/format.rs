@@ -272,7 +272,52 @@ pub fn transmitters(r: &TransmittersReport, json: bool) -> Result<String, Format
         out,
         "*: left out of the robots' fixes. due: recent fixes within 6 m of it; heard: share of them that heard it; others: share that heard its cell's other transmitters"
     );
+    air_sensor_table(&mut out, &doc);
     Ok(out)
+}
+
+/// The cell boards' air temperature sensors under the transmitters (only
+/// when a board has reported).
+fn air_sensor_table(out: &mut String, doc: &TransmittersJson) {
+    if doc.air_sensors.iter().all(|b| b.state == "no sensor") {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "air at the cells' boards{}:",
+        doc.air_sensor_speed_m_s.map_or(String::new(), |v| format!(
+            " (speed of sound {v:.2} m/s by their median)"
+        ))
+    );
+    let _ = writeln!(
+        out,
+        "{:<8} {:<9} {:>8} {:>10} {:>8} {:>5} {:>6} {:>6} {:>5}",
+        "cell", "sensor", "temp C", "reading", "accepted", "nan", "range", "stuck", "jump"
+    );
+    for b in &doc.air_sensors {
+        let r = b.refused;
+        let _ = writeln!(
+            out,
+            "{:<8} {:<9} {:>8} {:>10} {:>8} {:>5} {:>6} {:>6} {:>5}",
+            b.cell,
+            b.state,
+            b.temperature_c
+                .map_or("-".to_string(), |t| format!("{t:.2}")),
+            b.accepted_s_ago
+                .map_or("never".to_string(), |s| format!("{s:.1} s ago")),
+            b.accepted,
+            r.not_a_number,
+            r.out_of_range,
+            r.stuck,
+            r.jump
+        );
+    }
+    if doc.air_sensors.iter().any(|b| b.refused_any()) {
+        let _ = writeln!(
+            out,
+            "refused readings: not a number, outside -40..85 C, stuck at one value, jumping more than 20 C in a second; never used"
+        );
+    }
 }
 
 /// `status`: everything in one view.
@@ -548,5 +593,67 @@ mod tests {
             "unchecked: no other robot to compare"
         );
         assert!(v["robots"][1]["survey_misfit_mm"].is_null());
+    }
+
+    #[test]
+    fn the_transmitters_view_shows_each_boards_air_and_its_refusals() {
+        use ickon_proto::msg::admin::BoardAirStatus;
+        let board = |cell: &str, state: &str, t: f64, stuck: u64| BoardAirStatus {
+            cell_id: cell.into(),
+            state: state.into(),
+            temperature_c: t,
+            accepted_s_ago: if t.is_nan() { -1.0 } else { 0.5 },
+            accepted: 12,
+            refused_not_a_number: 1,
+            refused_out_of_range: 0,
+            refused_stuck: stuck,
+            refused_jump: 2,
+        };
+        let r = TransmittersReport {
+            site: "lab".into(),
+            stamp: Time(0),
+            learning: true,
+            fixes_taken: 5,
+            speed_of_sound_m_s: 345.1,
+            speed_of_sound_sigma_m_s: 0.3,
+            site_speed_of_sound_m_s: 343.2,
+            transmitters: Vec::new(),
+            air_sensors: vec![
+                board("c1", "used", 24.31, 0),
+                board("c2", "stuck", 22.0, 7),
+                board("c3", "no sensor", f64::NAN, 0),
+            ],
+            air_sensor_speed_m_s: 345.6,
+        };
+        let text = transmitters(&r, false).unwrap();
+        assert!(
+            text.contains("speed of sound 345.60 m/s by their median"),
+            "{text}"
+        );
+        let c2 = text.lines().find(|l| l.starts_with("c2 ")).unwrap();
+        assert_eq!(
+            c2.split_whitespace().collect::<Vec<_>>(),
+            [
+                "c2", "stuck", "22.00", "0.5", "s", "ago", "12", "1", "0", "7", "2"
+            ]
+        );
+        assert!(text.contains("refused readings"));
+        let json: serde_json::Value =
+            serde_json::from_str(&transmitters(&r, true).unwrap()).unwrap();
+        assert_eq!(json["air_sensors"][1]["refused"]["stuck"], 7);
+        assert_eq!(
+            json["air_sensors"][2]["temperature_c"],
+            serde_json::Value::Null
+        );
+        // Boards without a sensor: no table at all.
+        let none = TransmittersReport {
+            air_sensors: vec![board("c3", "no sensor", f64::NAN, 0)],
+            ..r
+        };
+        assert!(
+            !transmitters(&none, false)
+                .unwrap()
+                .contains("air at the cells' boards")
+        );
     }
 }

@@ -77,6 +77,7 @@ targets! {
     fuzz_decode_clock_reply: control::ClockReply,
     fuzz_decode_burst: control::Burst,
     fuzz_decode_cell_status: control::CellStatus,
+    fuzz_decode_air_temperature: control::AirTemperature,
     fuzz_decode_survey_calibration: control::SurveyCalibration,
     fuzz_decode_ultrasound_arrivals: robot::UltrasoundArrivals,
     fuzz_decode_odometry: robot::Odometry,
@@ -193,7 +194,7 @@ proptest! {
             use crate::keys::Key;
             match parsed {
                 Key::AliveCell(id) | Key::AliveRobot(id) | Key::CellBurst(id)
-                | Key::CellStatus(id) | Key::Robot(id, _) | Key::SimTruth(id) | Key::SimKit(id) | Key::RobotStatus(id) => {
+                | Key::CellStatus(id) | Key::CellAir(id) | Key::Robot(id, _) | Key::SimTruth(id) | Key::SimKit(id) | Key::RobotStatus(id) => {
                     prop_assert!(crate::keys::validate_id(&id).is_ok(), "{key} gave {id:?}");
                 }
                 _ => {}

@@ -238,6 +238,39 @@ pub struct TransmittersReport {
     pub site_speed_of_sound_m_s: f64,
     /// Every transmitter, in the site's order.
     pub transmitters: Vec<TransmitterStatus>,
+    /// The air temperature sensor of every cell's board, in the site's
+    /// order of cells.
+    pub air_sensors: Vec<BoardAirStatus>,
+    /// The speed of sound the boards' fresh readings say (their median's),
+    /// m/s (0: none fresh).
+    pub air_sensor_speed_m_s: f64,
+}
+
+/// A cell board's air temperature sensor, as the central unit judged its
+/// readings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BoardAirStatus {
+    /// The cell.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// `no sensor` (nothing heard), `used` (a fresh accepted reading),
+    /// `not used` (none fresh) or `stuck`.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub state: String,
+    /// The last accepted reading, degrees Celsius (not a number: none).
+    pub temperature_c: f64,
+    /// Seconds since it came (-1: never).
+    pub accepted_s_ago: f64,
+    /// Readings accepted.
+    pub accepted: u64,
+    /// Readings refused as not a number.
+    pub refused_not_a_number: u64,
+    /// Readings refused as outside -40..85 C.
+    pub refused_out_of_range: u64,
+    /// Readings refused as a stuck sensor's.
+    pub refused_stuck: u64,
+    /// Readings refused as a jump of more than 20 C in a second.
+    pub refused_jump: u64,
 }
 
 /// Optional query payload of `coverage`.

@@ -286,6 +286,21 @@ pub struct Burst {
     pub epoch: u64,
 }
 
+/// `cell/<id>/air`: a reading of the air temperature sensor on a cell's
+/// transmitter board, forwarded by the cell controller as the board sent
+/// it (the central unit judges it: a failed sensor's reading is not a
+/// number).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AirTemperature {
+    /// The cell whose board measured it.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub cell_id: String,
+    /// When it was measured, on the master time base as the cell estimates it.
+    pub stamp: Time,
+    /// Degrees Celsius (not a number: the sensor had no valid reading).
+    pub temperature_c: f64,
+}
+
 /// `cell/<id>/status`: a cell controller's health and sync estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CellStatus {

@@ -39,6 +39,10 @@ pub const MSG_FILES: &[(&str, &str)] = &[
     ("CycleTrigger", include_str!("../../msg/CycleTrigger.msg")),
     ("Burst", include_str!("../../msg/Burst.msg")),
     ("CellStatus", include_str!("../../msg/CellStatus.msg")),
+    (
+        "AirTemperature",
+        include_str!("../../msg/AirTemperature.msg"),
+    ),
     ("MsuStatus", include_str!("../../msg/MsuStatus.msg")),
     (
         "TransmitterOffset",
@@ -118,6 +122,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CentralSurvey => own("SurveyCalibration"),
         Key::CellBurst(_) => own("Burst"),
         Key::CellStatus(_) => own("CellStatus"),
+        Key::CellAir(_) => own("AirTemperature"),
         Key::RobotStatus(_) => own("MsuStatus"),
         Key::SimTruth(_) | Key::SimKit(_) => own("Truth"),
         Key::Robot(_, topic) => match topic {

@@ -86,6 +86,11 @@ fn control_messages_round_trip() {
         actual: Time(1_004),
         epoch: 42,
     });
+    round_trip(AirTemperature {
+        cell_id: "c4".into(),
+        stamp: Time(98),
+        temperature_c: -3.25,
+    });
     round_trip(CellStatus {
         cell_id: "c4".into(),
         stamp: Time(99),
@@ -275,6 +280,18 @@ fn admin_messages_round_trip() {
             last_heard_s_ago: -1.0,
             offset_m: [0.0, 0.001, -0.002],
         }],
+        air_sensors: vec![BoardAirStatus {
+            cell_id: "c1".into(),
+            state: "used".into(),
+            temperature_c: 21.5,
+            accepted_s_ago: 0.4,
+            accepted: 30,
+            refused_not_a_number: 1,
+            refused_out_of_range: 2,
+            refused_stuck: 3,
+            refused_jump: 4,
+        }],
+        air_sensor_speed_m_s: 344.1,
     });
     round_trip(sample_coverage());
     round_trip(CoverageRequest { resolution_m: 0.5 });

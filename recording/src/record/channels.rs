@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::control::{
-    Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
+    AirTemperature, Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
 use ickon_proto::msg::robot::{
     Fix, Imu, MsuStatus, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
@@ -112,6 +112,7 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
         },
         Key::CellBurst(_) => own(Some(decode::<Burst>(payload)?.actual)),
         Key::CellStatus(_) => own(Some(decode::<CellStatus>(payload)?.stamp)),
+        Key::CellAir(_) => own(Some(decode::<AirTemperature>(payload)?.stamp)),
         Key::RobotStatus(_) => own(Some(decode::<MsuStatus>(payload)?.stamp)),
         Key::SimTruth(_) | Key::SimKit(_) => own(Some(decode::<Truth>(payload)?.stamp)),
         Key::Robot(_, topic) => match topic {

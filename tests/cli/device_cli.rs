@@ -7,9 +7,10 @@ use std::process::Command;
 use std::time::Duration;
 
 use ickon_testkit::{ChildGuard, poll_until};
+use support::ICKON;
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 /// Starts `ickon emulate ARGS` and returns it with the address it printed.

@@ -6,12 +6,13 @@ use std::process::Command;
 use std::time::Duration;
 
 use ickon_testkit::{ChildGuard, poll_until};
+use support::ICKON;
 
 /// Runs `ickon args`, killed if it has not ended within 30 s; (exit code,
 /// what it wrote).
 fn ickon(args: &[&str]) -> (Option<i32>, String) {
     let logs = tempfile::tempdir().expect("log directory");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ickon"));
+    let mut cmd = Command::new(ICKON);
     cmd.args(args);
     let mut child = ChildGuard::spawn("ickon", cmd, logs.path()).expect("ickon starts");
     let status = poll_until(Duration::from_secs(30), "ickon to exit", || {

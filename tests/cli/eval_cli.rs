@@ -1,9 +1,10 @@
 //! `ickon eval` end to end: one tour of one route, JSON on stdout.
 
 use std::process::Command;
+use support::ICKON;
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 #[test]

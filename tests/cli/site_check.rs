@@ -1,9 +1,10 @@
 //! `ickon site check` as a user runs it: exit codes and messages.
 
 use std::process::Command;
+use support::ICKON;
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 fn lab_toml() -> String {

@@ -6,8 +6,7 @@
 use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 use std::process::{Command, Output};
-
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
+use support::ICKON;
 
 fn ickon(args: &[&str], dir: &Path) -> Output {
     Command::new(ICKON)

@@ -12,6 +12,7 @@
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
+use support::ICKON;
 
 /// Whether the UTIL flights are there (absent: said in one line, and a
 /// failure when `ICKON_REQUIRE_DATA=1`).
@@ -33,7 +34,7 @@ fn imu_data(name: &str) -> PathBuf {
 }
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 fn replay(flight: &str, constellation: &str, extra: &[&str]) -> Output {

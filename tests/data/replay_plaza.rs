@@ -7,6 +7,7 @@
 
 use std::path::PathBuf;
 use std::process::Command;
+use support::ICKON;
 
 /// The Plaza folder; called only after `real_data("plaza")` found it.
 fn data() -> PathBuf {
@@ -16,7 +17,7 @@ fn data() -> PathBuf {
 }
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 #[test]

@@ -6,9 +6,10 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use support::ICKON;
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 fn example(name: &str) -> PathBuf {

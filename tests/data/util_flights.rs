@@ -25,6 +25,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use support::ICKON;
 
 /// Standard deviation of a range difference in the reference, metres.
 const REF_SIGMA_M: f64 = 0.08;
@@ -330,7 +331,7 @@ type Scores = HashMap<String, (f64, f64)>;
 /// options).
 fn replay(root: &Path, f: &Flight, extra: &[&str]) -> Scores {
     let dir = root.join(f.dir);
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ickon"));
+    let mut cmd = Command::new(ICKON);
     cmd.args(["replay", "util", "--json"])
         .args(extra)
         .arg("--data")

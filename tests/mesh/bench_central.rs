@@ -10,8 +10,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
+use support::ICKON;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// A bench or sim run of a few seconds, its start-up included.
 const RUN_TIMEOUT: Duration = Duration::from_secs(120);
 

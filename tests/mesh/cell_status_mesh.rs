@@ -12,9 +12,9 @@ use ickon_proto::keys::Keys;
 use ickon_proto::msg::control::CellStatus;
 use ickon_proto::time::Time;
 use ickon_testkit::{ChildGuard, Observer, poll_until};
+use support::ICKON;
 use zenoh::Wait;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 const WAIT: Duration = Duration::from_secs(60);
 
 fn status(cell: &str) -> Vec<u8> {

@@ -26,10 +26,10 @@ use ickon_proto::time::Time;
 use ickon_testkit::{ChildGuard, poll_until};
 use nalgebra::{DMatrix, DVector, Vector3};
 use serde_json::Value;
+use support::ICKON;
 use zenoh::Wait;
 use zenoh::handlers::FifoChannel;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// From `ickon sim` to its run file (the nodes built, started and live).
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 /// Each run, once every node is live, seconds: time for the robots to

@@ -11,9 +11,6 @@
 //! the robots' fixes, against the same measure just before: the server
 //! must refuse or serve them with the central unit unaffected.
 
-#[path = "support/foxglove_client.rs"]
-mod foxglove_client;
-
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs::File;
 use std::net::SocketAddr;
@@ -24,14 +21,14 @@ use std::time::{Duration, Instant};
 
 use foxglove::Decode;
 use foxglove::messages::{PoseInFrame, SceneUpdate};
-use foxglove_client::{FoxgloveClient, LEGACY_SUBPROTOCOL, SUBPROTOCOL};
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_testkit::{Observer, free_tcp_port, poll_until};
 use serde_json::Value;
+use support::ICKON;
+use support::foxglove_client::{FoxgloveClient, LEGACY_SUBPROTOCOL, SUBPROTOCOL};
 use tungstenite::Message;
 use zenoh::Wait;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Generous but bounded: a loaded two-core machine starts nine processes slowly.
 const START_TIMEOUT: Duration = Duration::from_secs(120);
 /// Robots of the run (the lab site's first three).

@@ -18,9 +18,9 @@ use ickon_proto::msg::robot::{Odometry, RobotPose};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_testkit::{ChildGuard, Observer, poll_until};
+use support::ICKON;
 use zenoh::Wait;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 const SITE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../deploy/sites/marvelmind-lab.toml"

@@ -24,12 +24,12 @@ use ickon_proto::keys::Keys;
 use ickon_proto::msg::control::{Burst, CycleTrigger, Schedule};
 use ickon_testkit::{ChildGuard, Observer, poll_until};
 use serde_json::Value;
+use support::ICKON;
 use zenoh::Wait;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler};
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::{Sample, SampleKind};
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Injected clock errors of the four cells: the extremes and two in between.
 const CELLS: [(&str, f64, f64); 4] = [
     ("c1", 50_000.0, 100.0),

@@ -17,10 +17,10 @@ use std::time::Duration;
 use ickon_operator::secure::limits::NODE_MESSAGE_BYTES;
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_testkit::{ChildGuard, poll_until};
+use support::ICKON;
 use zenoh::Wait;
 use zenoh::handlers::FifoChannel;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Generous but bounded: a loaded two-core machine starts a process slowly.
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 

@@ -14,10 +14,10 @@ use std::time::Duration;
 
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_testkit::{ChildGuard, Observer, poll_until};
+use support::ICKON;
 use zenoh::Wait;
 use zenoh::handlers::FifoChannel;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Generous but bounded: a loaded two-core machine starts a process slowly.
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 const ROBOTS: [&str; 2] = ["r1", "r2"];

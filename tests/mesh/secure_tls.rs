@@ -19,10 +19,10 @@ use std::time::{Duration, Instant};
 use ickon_operator::secure::certs::{Role, SiteCa, Validity};
 use ickon_proto::keys::{Keys, RobotTopic};
 use ickon_testkit::{ChildGuard, poll_until};
+use support::ICKON;
 use zenoh::Wait;
 use zenoh::handlers::FifoChannel;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Generous but bounded: a loaded two-core machine starts a process slowly.
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 

@@ -12,9 +12,8 @@ use std::time::Duration;
 use ickon_testkit::poll_until;
 use serde_json::Value;
 
-#[path = "support/sim_run.rs"]
-mod sim_run;
-use sim_run::{admin_status, finish, start_sim};
+use support::ICKON;
+use support::sim_run::{admin_status, finish, start_sim};
 
 /// Length of each run once every node is live, seconds.
 const RUN_S: u64 = 16;
@@ -163,7 +162,7 @@ fn a_site_whose_transmitters_cannot_be_marvelmind_beacons_is_refused_before_any_
         .expect("built-in lab")
         .1;
     std::fs::write(&site, lab.replacen("id = 11", "id = 311", 1)).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
+    let out = Command::new(ICKON)
         .args([
             "sim",
             "--receivers",

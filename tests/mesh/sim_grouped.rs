@@ -11,12 +11,8 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-#[path = "support/sim_run.rs"]
-#[allow(dead_code)]
-mod sim_run;
-use sim_run::{finish, start_sim};
-
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
+use support::ICKON;
+use support::sim_run::{finish, start_sim};
 
 /// The CPU list of a `/proc/<pid>/status` (`Cpus_allowed_list`).
 fn cpus_of(pid: &str) -> Option<String> {

@@ -13,9 +13,7 @@ use ickon_testkit::Observer;
 use serde_json::Value;
 use zenoh::Wait;
 
-#[path = "support/sim_run.rs"]
-mod sim_run;
-use sim_run::{admin_status, finish, start_sim};
+use support::sim_run::{admin_status, finish, start_sim};
 
 /// Long enough for several looks after the start-up (14 s), short
 /// enough for the test command.

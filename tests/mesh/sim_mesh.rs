@@ -8,6 +8,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use ickon_testkit::{ChildGuard, poll_until};
+use support::ICKON;
 
 /// Mesh duration once every node is live, seconds.
 const DURATION_S: f64 = 15.0;
@@ -34,7 +35,7 @@ fn processes_mentioning(needle: &str) -> Vec<u32> {
 /// `ickon sim --robots 2 --seed 2 --json` with `extra` flags for
 /// `duration_s`: its JSON report, after checking that it succeeded.
 fn sim_json(extra: &[&str], duration_s: f64) -> serde_json::Value {
-    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
+    let out = Command::new(ICKON)
         .args(["sim", "--robots", "2", "--json", "--seed", "2"])
         .args(extra)
         .args(["--duration", &duration_s.to_string()])
@@ -175,7 +176,7 @@ fn a_sigterm_stops_the_sim_cleanly_and_leaves_no_file_behind() {
     for dir in [&temp_dir, &runtime_dir, &logs] {
         std::fs::create_dir(dir).expect("directory");
     }
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ickon"));
+    let mut cmd = Command::new(ICKON);
     cmd.args(["sim", "--robots", "1", "--duration", "120"])
         .env("TMPDIR", &temp_dir)
         .env("XDG_RUNTIME_DIR", &runtime_dir);

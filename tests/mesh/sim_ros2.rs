@@ -4,6 +4,7 @@
 //! arrived and was used) and be as accurate as the mesh test without it.
 
 use std::process::Command;
+use support::ICKON;
 
 const DURATION_S: f64 = 12.0;
 /// The simulated world's odometry rate.
@@ -11,7 +12,7 @@ const ODOMETRY_HZ: f64 = 50.0;
 
 #[test]
 fn robots_on_the_ros2_path_are_accurate_and_posed_at_the_odometry_rate() {
-    let out = Command::new(env!("CARGO_BIN_EXE_ickon"))
+    let out = Command::new(ICKON)
         .args(["sim", "--robots", "2", "--json", "--seed", "2", "--ros2"])
         .args(["--duration", &DURATION_S.to_string()])
         .output()

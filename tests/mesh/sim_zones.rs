@@ -12,8 +12,8 @@ use std::time::Duration;
 
 use ickon_testkit::{ChildGuard, poll_until};
 use serde_json::Value;
+use support::ICKON;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Watched seconds: enough cycles for the fix shares to mean something
 /// (about 6 cycles a second on `lab`).
 const DURATION_S: u64 = 12;

@@ -9,7 +9,7 @@ use std::time::Duration;
 use ickon_testkit::{ChildGuard, poll_until};
 use serde_json::Value;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
+use crate::ICKON;
 /// From `ickon sim` to its run file (the nodes built, started and live).
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 

@@ -13,12 +13,13 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant, SystemTime};
+use support::ICKON;
 
 /// Mesh duration once every node is live, seconds.
 const DURATION_S: &str = "15";
 
 fn ickon() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ickon"))
+    Command::new(ICKON)
 }
 
 fn json(out: &Output) -> serde_json::Value {
@@ -56,7 +57,7 @@ fn python() -> Option<PathBuf> {
 /// What `tests/py/decode_mcap.py` makes of `file` (it fails the test when
 /// a message does not decode).
 fn decoded_in_python(py: &Path, file: &Path) -> serde_json::Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/decode_mcap.py");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/py/decode_mcap.py");
     let out = Command::new(py)
         .arg(script)
         .arg(file)

@@ -15,9 +15,9 @@ use ickon_proto::msg::ros::PoseWithCovarianceStamped;
 use ickon_proto::ros::SampleStamper;
 use ickon_testkit::{ChildGuard, Observer, Rosbags, poll_until};
 use serde_json::json;
+use support::ICKON;
 use zenoh::Wait;
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 const WAIT: Duration = Duration::from_secs(30);
 const ODOM_KEY: &str = "0/r1/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0";

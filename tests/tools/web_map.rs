@@ -8,18 +8,15 @@
 //! Every wait polls with a deadline; the simulation and the browser are
 //! killed when their guards drop, whatever happens.
 
-#[path = "support/browser.rs"]
-mod browser;
-
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use browser::{Browser, chromium_or_skip, http};
 use ickon_testkit::{ChildGuard, free_tcp_port, poll_until};
 use serde_json::Value;
+use support::ICKON;
+use support::browser::{Browser, chromium_or_skip, http};
 
-const ICKON: &str = env!("CARGO_BIN_EXE_ickon");
 /// Generous but bounded: a loaded two-core machine starts nine processes slowly.
 const START_TIMEOUT: Duration = Duration::from_secs(120);
 /// The computed fill of a down cell (`.cell.down` in style.css).
@@ -414,7 +411,7 @@ fn measured_run(chromium: &Path, clients: usize, watchers: Watchers) -> (f64, Va
 }
 
 #[test]
-#[ignore = "a measurement (three 30 s runs): cargo nextest run -p ickon --test web_map --run-ignored only"]
+#[ignore = "a measurement (three 30 s runs): cargo nextest run -p ickon-tests --run-ignored only web_map::"]
 fn ten_browser_clients_cost_the_central_unit_under_five_percent_of_a_core() {
     let Some(chromium) = chromium_or_skip() else {
         return;

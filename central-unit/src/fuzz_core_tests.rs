@@ -8,7 +8,7 @@
 
 use std::sync::LazyLock;
 
-use ickon_central::core::{CentralConfig, CentralCore, Event, Output};
+use crate::core::{CentralConfig, CentralCore, Event, Output};
 use ickon_proto::fuzz::extreme::{clock_step, float};
 use ickon_proto::fuzz::values::draw;
 use ickon_proto::fuzz::{config_for, entropy};
@@ -161,11 +161,11 @@ fn admin(core: &mut CentralCore, now: Time, a: &Act) -> Result<(), TestCaseError
             // wish, the grid built for a few.
             let (lo, hi) = core.site().bounds();
             let r =
-                ickon_central::coverage::effective_resolution_m(a.x, hi[0] - lo[0], hi[1] - lo[1]);
+                crate::coverage::effective_resolution_m(a.x, hi[0] - lo[0], hi[1] - lo[1]);
             prop_assert!(r.is_finite() && r > 0.0, "resolution {r} for {}", a.x);
             if a.e.first() == Some(&0) && core.site().transmitters.len() < 40 {
                 let report = core.coverage(a.x);
-                prop_assert!(report.visible.len() <= ickon_central::coverage::MAX_GRID_POINTS);
+                prop_assert!(report.visible.len() <= crate::coverage::MAX_GRID_POINTS);
             }
         }
         _ => {

@@ -6,9 +6,9 @@
 //! core publishes is finite.
 
 use ickon_fusion::estimator::{WheelGeometry, build_by_name, names};
-use ickon_msu::beacons::{BeaconDistance, BeaconDistances, KitPosition};
-use ickon_msu::ros2::inputs::{InputDecoder, InputTopic};
-use ickon_msu::{Event, MsuConfig, MsuCore, MsuTuning, Output};
+use crate::beacons::{BeaconDistance, BeaconDistances, KitPosition};
+use crate::ros2::inputs::{InputDecoder, InputTopic};
+use crate::{Event, MsuConfig, MsuCore, MsuTuning, Output};
 use ickon_proto::fuzz::extreme::offset_ns;
 use ickon_proto::fuzz::mutate::{apply, apply_text, mutations, text_mutations};
 use ickon_proto::fuzz::values::draw;
@@ -276,10 +276,10 @@ proptest! {
             let attachment = (how & 2 == 0).then_some(attachment.as_slice());
             if let Ok(input) = decoder.decode(topic, &key, &payload, attachment) {
                 match input {
-                    ickon_msu::ros2::inputs::Ros2Input::Odometry(o) => {
+                    crate::ros2::inputs::Ros2Input::Odometry(o) => {
                         prop_assert!(o.x_m.is_finite() && o.y_m.is_finite() && o.theta_rad.is_finite(), "{o:?}");
                     }
-                    ickon_msu::ros2::inputs::Ros2Input::Imu(i) => {
+                    crate::ros2::inputs::Ros2Input::Imu(i) => {
                         prop_assert!(i.gyro_z_rad_s.is_finite(), "{i:?}");
                     }
                 }

@@ -3,7 +3,7 @@
 //! decode to. The frames are built here byte by byte, not by the crate's
 //! encoder, so an encoder and decoder that agree on a wrong layout fail.
 
-use ickon_marvelmind::{
+use crate::{
     BeaconDistance, BeaconPosition, Deframer, FrameError, FusedImu, HedgeTime, Packet, PacketError,
     Position, Quality, RawDistances, RawImu, Telemetry, crc16_modbus,
 };

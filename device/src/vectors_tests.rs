@@ -3,7 +3,7 @@
 //! checked against Python's `binascii.crc_hqx(body, 0xFFFF)`, an
 //! independent implementation of CRC-16/IBM-3740.
 
-use ickon_device::{
+use crate::{
     BoardArrival, BoardKind, Decoder, Identify, Message, RefusedReason, encode_frame,
 };
 

@@ -5,7 +5,7 @@
 //! survived, a silent board found again.
 
 use ickon_device::{BoardHost, BoardKind, HostEvent, HostState};
-use ickon_sim::board::{BoardFaults, BoardSpec, EmulatedBoard};
+use crate::board::{BoardFaults, BoardSpec, EmulatedBoard};
 
 /// One millisecond, nanoseconds.
 const MS: i64 = 1_000_000;
@@ -22,7 +22,7 @@ struct Bench {
     to_board: Vec<(i64, Vec<u8>)>,
     to_host: Vec<(i64, Vec<u8>)>,
     events: Vec<HostEvent>,
-    emissions: Vec<ickon_sim::board::Emission>,
+    emissions: Vec<crate::board::Emission>,
 }
 
 impl Bench {

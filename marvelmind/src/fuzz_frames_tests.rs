@@ -4,8 +4,8 @@
 //! panics, the deframer holds at most one frame's bytes, every frame it
 //! delivers checks, and valid frames hidden in the garbage are all found.
 
-use ickon_marvelmind::packet::length_fits;
-use ickon_marvelmind::{Deframer, HEADER_LEN, MAX_FRAME_LEN, Packet, crc16_modbus, encode_frame};
+use crate::packet::length_fits;
+use crate::{Deframer, HEADER_LEN, MAX_FRAME_LEN, Packet, crc16_modbus, encode_frame};
 use proptest::prelude::*;
 
 /// A stream: random bytes, valid frames of random codes and payloads, and

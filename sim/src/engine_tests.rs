@@ -1,7 +1,7 @@
 //! End-to-end behaviour of the world and the virtual-time engine.
 
 use ickon_proto::site::Site;
-use ickon_sim::{NoiseProfile, RunConfig, run, score};
+use crate::{NoiseProfile, RunConfig, run, score};
 
 fn config(route: &str, profile: &str, seed: u64, estimators: &[&str]) -> RunConfig {
     RunConfig {
@@ -70,7 +70,7 @@ fn same_seed_gives_bit_identical_results_and_another_seed_does_not() {
     let b = run(&site, &config("rectangle", "paper", 5, &est), &mut |_| {}).unwrap();
     let c = run(&site, &config("rectangle", "paper", 6, &est), &mut |_| {}).unwrap();
     assert_eq!(a, b);
-    let bits = |o: &ickon_sim::RunOutput| -> Vec<u64> {
+    let bits = |o: &crate::RunOutput| -> Vec<u64> {
         o.fixes.iter().map(|f| f.fix.x_m.to_bits()).collect()
     };
     assert_eq!(bits(&a), bits(&b));

@@ -3,8 +3,8 @@
 //! types and versions, and a flood of noise; every refusal is counted and
 //! the next good frame decodes.
 
-use ickon_device::frame::DELIMITER;
-use ickon_device::{Decoder, Encoder, Message, MessageError, ProtocolError, encode_frame};
+use crate::frame::DELIMITER;
+use crate::{Decoder, Encoder, Message, MessageError, ProtocolError, encode_frame};
 
 fn clock_reply(exchange: u32) -> Message {
     Message::ClockReply {

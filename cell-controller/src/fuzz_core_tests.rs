@@ -6,8 +6,8 @@
 //! burst twice, plans at most what a schedule holds, and its next wake-up
 //! is never in the past.
 
-use ickon_cell::sync::ClockSample;
-use ickon_cell::{CellConfig, CellCore, Event, Output};
+use crate::sync::ClockSample;
+use crate::{CellConfig, CellCore, Event, Output};
 use ickon_proto::fuzz::extreme::{clock_step, offset_ns};
 use ickon_proto::fuzz::values::draw;
 use ickon_proto::fuzz::{config_for, entropy};

@@ -1,20 +1,20 @@
 //! Every `ickon_msgs` `.msg` file describes exactly the bytes `proto` writes:
-//! each message type is encoded with `ickon_proto::encode`, then decoded by
+//! each message type is encoded with `crate::encode`, then decoded by
 //! a small CDR reader that knows nothing but the `.msg` file, and the result
 //! must use every byte and equal the value field by field. This is what a
 //! ROS 2 tool (Foxglove, `ros2 bag`) does with a recording's schema.
 
 use std::collections::BTreeSet;
 
-use ickon_proto::msg::control::{
+use crate::msg::control::{
     Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo, SurveyCalibration,
     TransmitterOffset,
 };
-use ickon_proto::msg::robot::{
+use crate::msg::robot::{
     Arrival, Fix, FixQuality, Imu, MsuStatus, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
 };
-use ickon_proto::msg::ros_msgs::{MSG_FILES, PACKAGE, msg_file, own_schema};
-use ickon_proto::{Duration, Time, encode};
+use crate::msg::ros_msgs::{MSG_FILES, PACKAGE, msg_file, own_schema};
+use crate::{Duration, Time, encode};
 use serde_json::{Map, Value, json};
 
 /// One field of a `.msg` file.

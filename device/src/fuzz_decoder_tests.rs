@@ -4,9 +4,9 @@
 //! mutated. Decoding never panics, never holds more than a frame, and
 //! every message it accepts encodes back to the body it came from.
 
-use ickon_device::frame::{MAX_ENCODED, cobs_decode, encode_frame};
-use ickon_device::message::MAX_ARRIVALS_PER_FRAME;
-use ickon_device::{BoardArrival, BoardKind, Decoder, Identify, Message, RefusedReason};
+use crate::frame::{MAX_ENCODED, cobs_decode, encode_frame};
+use crate::message::MAX_ARRIVALS_PER_FRAME;
+use crate::{BoardArrival, BoardKind, Decoder, Identify, Message, RefusedReason};
 use ickon_proto::fuzz::config;
 use ickon_proto::fuzz::mutate::{apply, mutations};
 use proptest::prelude::*;
@@ -184,7 +184,7 @@ proptest! {
         // Encodings of one input differ only in a final 0xFF run's
         // optional code byte; whatever decodes survives encoding again.
         if let Ok(raw) = cobs_decode(&bytes) {
-            let again = ickon_device::frame::cobs_encode(&raw);
+            let again = crate::frame::cobs_encode(&raw);
             prop_assert!(!again.contains(&0));
             prop_assert_eq!(cobs_decode(&again), Ok(raw));
         }

@@ -8,8 +8,8 @@ use std::net::TcpListener;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use ickon_runtime::link::pty::Pty;
-use ickon_runtime::link::{Backoff, Link, LinkAddress, LinkEvent, LinkState};
+use crate::link::pty::Pty;
+use crate::link::{Backoff, Link, LinkAddress, LinkEvent, LinkState};
 
 /// Every wait of these tests is bounded by this.
 const WAIT: Duration = Duration::from_secs(10);

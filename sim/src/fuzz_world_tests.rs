@@ -12,8 +12,8 @@ use ickon_proto::fuzz::{config_for, entropy};
 use ickon_proto::msg::control::{Burst, Schedule};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
-use ickon_sim::NoiseProfile;
-use ickon_sim::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
+use crate::NoiseProfile;
+use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
 use proptest::prelude::*;
 
 const EPOCH: u64 = 1_000;

@@ -160,8 +160,7 @@ fn admin(core: &mut CentralCore, now: Time, a: &Act) -> Result<(), TestCaseError
             // A full grid takes milliseconds: the bound is checked on every
             // wish, the grid built for a few.
             let (lo, hi) = core.site().bounds();
-            let r =
-                crate::coverage::effective_resolution_m(a.x, hi[0] - lo[0], hi[1] - lo[1]);
+            let r = crate::coverage::effective_resolution_m(a.x, hi[0] - lo[0], hi[1] - lo[1]);
             prop_assert!(r.is_finite() && r > 0.0, "resolution {r} for {}", a.x);
             if a.e.first() == Some(&0) && core.site().transmitters.len() < 40 {
                 let report = core.coverage(a.x);

@@ -3,9 +3,7 @@
 //! checked against Python's `binascii.crc_hqx(body, 0xFFFF)`, an
 //! independent implementation of CRC-16/IBM-3740.
 
-use crate::{
-    BoardArrival, BoardKind, Decoder, Identify, Message, RefusedReason, encode_frame,
-};
+use crate::{BoardArrival, BoardKind, Decoder, Identify, Message, RefusedReason, encode_frame};
 
 fn bytes(hex: &str) -> Vec<u8> {
     hex.split_whitespace()

@@ -5,10 +5,10 @@
 //! and the ROS 2 decoders of `--ros2` mode. Nothing panics, and what the
 //! core publishes is finite.
 
-use ickon_fusion::estimator::{WheelGeometry, build_by_name, names};
 use crate::beacons::{BeaconDistance, BeaconDistances, KitPosition};
 use crate::ros2::inputs::{InputDecoder, InputTopic};
 use crate::{Event, MsuConfig, MsuCore, MsuTuning, Output};
+use ickon_fusion::estimator::{WheelGeometry, build_by_name, names};
 use ickon_proto::fuzz::extreme::offset_ns;
 use ickon_proto::fuzz::mutate::{apply, apply_text, mutations, text_mutations};
 use ickon_proto::fuzz::values::draw;

@@ -4,8 +4,8 @@
 //! back on the host's clock, a wrong board refused, garbage and drops
 //! survived, a silent board found again.
 
-use ickon_device::{BoardHost, BoardKind, HostEvent, HostState};
 use crate::board::{BoardFaults, BoardSpec, EmulatedBoard};
+use ickon_device::{BoardHost, BoardKind, HostEvent, HostState};
 
 /// One millisecond, nanoseconds.
 const MS: i64 = 1_000_000;

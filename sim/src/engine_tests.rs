@@ -1,7 +1,7 @@
 //! End-to-end behaviour of the world and the virtual-time engine.
 
-use ickon_proto::site::Site;
 use crate::{NoiseProfile, RunConfig, run, score};
+use ickon_proto::site::Site;
 
 fn config(route: &str, profile: &str, seed: u64, estimators: &[&str]) -> RunConfig {
     RunConfig {

@@ -22,3 +22,6 @@ pub mod trigger_gate;
 
 pub use crate::core::{CellConfig, CellCore, CellCounters, Event, Output};
 pub use driver::{DriverError, SimulatedDriver, TransmitterDriver};
+
+#[cfg(test)]
+mod fuzz_core_tests;

@@ -37,3 +37,6 @@ pub mod survey_calibration;
 pub mod transmitter_health;
 
 pub use schedule::{ScheduleError, compute_schedule, update_rate_hz};
+
+#[cfg(test)]
+mod fuzz_core_tests;

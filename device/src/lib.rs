@@ -32,3 +32,10 @@ pub use message::{
 };
 pub use sequence::GroupSequence;
 pub use stream::{Decoder, DecoderCounters, Encoder, ProtocolError};
+
+#[cfg(test)]
+mod fuzz_decoder_tests;
+#[cfg(test)]
+mod resync_tests;
+#[cfg(test)]
+mod vectors_tests;

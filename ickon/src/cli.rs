@@ -201,16 +201,3 @@ fn exit_code(outcome: Result<(), CommandError>) -> ExitCode {
         }
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use clap::CommandFactory;
-
-    /// clap checks a command line's definition only when it is parsed: a
-    /// flag defined twice (a node's own `--config` beside the Zenoh one)
-    /// would panic in the first process that starts that node.
-    #[test]
-    fn every_subcommand_is_well_formed() {
-        super::Cli::command().debug_assert();
-    }
-}

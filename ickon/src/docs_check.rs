@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{CommandFactory, Parser};
 
-use crate::cli::Cli;
+use ickon::cli::Cli;
 
 /// The repository's root (the binary crate sits one level below it).
 fn root() -> PathBuf {

@@ -1,49 +1,27 @@
-//! `ickon`: the launcher of ICKON-rs.
-//!
-//! Thin by design: parse the command line, set up logging, hand over to the
-//! library crate of the subcommand, and turn its result into an exit code.
+//! `ickon`: the command line of ICKON-rs (the program is the library's
+//! `main`). The checks of the command line against its documentation and
+//! of every crate's imports run as this binary's unit tests.
 
-mod cli;
 #[cfg(test)]
 mod docs_check;
 #[cfg(test)]
 mod import_check;
-mod node;
 
 use std::process::ExitCode;
 
-use clap::Parser;
-
 fn main() -> ExitCode {
-    // Before any thread starts, so that every thread inherits the set.
-    if let Err(e) = ickon_runtime::cpus::pin_from_env() {
-        eprintln!("error: {}: {e}", ickon_runtime::cpus::CPUS_ENV);
-        return ExitCode::from(2);
-    }
-    let cli = cli::Cli::parse();
-    init_tracing();
-    cli::run(cli)
+    ickon::main()
 }
 
-/// Logs go to stderr so that `--json` output on stdout stays clean;
-/// `RUST_LOG` overrides the default level. Zenoh's own warnings (scouting
-/// delays at start-up, late data at shutdown) are routine in a mesh that
-/// starts and ends at once, so only its errors are shown by default, except
-/// its TLS link's warnings: a router's say why it refused a handshake (no
-/// client certificate, another CA's, an expired one), at most ten a second
-/// (Zenoh pauses its accept loop after each). The
-/// Foxglove SDK's lines (every client's coming and going, every bad message
-/// a client sends) are unbounded, so they are off unless asked for. Colour
-/// codes only on a terminal.
-fn init_tracing() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
-        tracing_subscriber::EnvFilter::new(
-            "warn,zenoh=error,zenoh_transport=error,zenoh_link_tls=warn,foxglove=off",
-        )
-    });
-    tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(ickon_runtime::stderr_is_terminal())
-        .init();
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    /// clap checks a command line's definition only when it is parsed: a
+    /// flag defined twice (a node's own `--config` beside the Zenoh one)
+    /// would panic in the first process that starts that node.
+    #[test]
+    fn every_subcommand_is_well_formed() {
+        ickon::cli::Cli::command().debug_assert();
+    }
 }

@@ -28,3 +28,8 @@ pub use packet::{
     BeaconDistance, BeaconPosition, FusedImu, HedgeTime, Packet, PacketError, Position, Quality,
     RawDistances, RawImu, Telemetry,
 };
+
+#[cfg(test)]
+mod fuzz_frames_tests;
+#[cfg(test)]
+mod vectors_tests;

@@ -47,3 +47,7 @@ pub use driver::{Fed, MsuDriver};
 pub use events::{Event, InputKind, Output};
 pub use host::FusionHost;
 pub use solver::{FixSolver, SolvedCycle};
+
+// The ROS 2 decoders it fuzzes live in the Zenoh adapter.
+#[cfg(all(test, feature = "zenoh"))]
+mod fuzz_core_tests;

@@ -32,3 +32,6 @@ pub use codec::{DecodeError, EncodeError, decode, encode};
 pub use time::{Duration, Time};
 #[cfg(any(test, feature = "fuzz"))]
 pub mod fuzz;
+
+#[cfg(test)]
+mod msg_files_tests;

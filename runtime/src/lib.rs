@@ -53,3 +53,6 @@ pub use publish::put_counted;
 pub use query::{Stamped, fetch, query_once, query_stamped, token_present, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;
+
+#[cfg(test)]
+mod device_link_tests;

@@ -60,3 +60,10 @@ pub mod world;
 pub use engine::{RunConfig, RunError, RunOutput, run};
 pub use profile::{NoiseProfile, UnknownProfile};
 pub use score::{Row, Score, score};
+
+#[cfg(test)]
+mod emulated_board_tests;
+#[cfg(test)]
+mod engine_tests;
+#[cfg(test)]
+mod fuzz_world_tests;

@@ -16,8 +16,8 @@
 //! - [`site`]: [`lab_site_file`], the built-in site under a test's own name;
 //! - [`data`]: [`real_data`], the real measurement data (`ICKON_DATA`).
 //!
-//! The test binaries themselves live with the crates they test (e.g.
-//! `ickon/tests/mesh_control.rs` for the `ickon` binary).
+//! The end-to-end tests that use it are the `ickon-tests` crate at the
+//! top of the repository (e.g. `tests/mesh/mesh_control.rs`).
 
 pub mod child;
 pub mod data;

@@ -280,7 +280,7 @@ mod tests {
                 cn
             );
             // The signature itself is checked by the TLS handshakes of
-            // ickon/tests/secure_tls.rs; here, who signed.
+            // tests/mesh/secure_tls.rs; here, who signed.
             assert_eq!(cert.issuer(), ca_cert.subject());
             assert!(!cert.is_ca());
             let eku = cert.extended_key_usage().unwrap().unwrap().value;

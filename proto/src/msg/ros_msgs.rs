@@ -3,7 +3,7 @@
 //!
 //! Our own messages are the package `ickon_msgs`, one `.msg` file each in
 //! `proto/msg/`, whose CDR layout is exactly what [`crate::encode`] writes
-//! (`proto/tests/msg_files.rs` decodes every type by its `.msg` file alone and
+//! (`proto/src/msg_files_tests.rs` decodes every type by its `.msg` file alone and
 //! compares): a recording stores the wire bytes as they are. Where a standard
 //! ROS type fits, it is used instead: the fused pose is recorded as
 //! `geometry_msgs/msg/PoseWithCovarianceStamped`

@@ -1,0 +1,170 @@
+//! `ickon eval` end to end: one tour of one route, JSON on stdout.
+
+use std::process::Command;
+use support::ICKON;
+
+fn ickon() -> Command {
+    Command::new(ICKON)
+}
+
+#[test]
+fn one_tour_json_has_the_the_ickon_papers_table_for_every_estimator() {
+    let out = ickon()
+        .args([
+            "eval",
+            "--route",
+            "rectangle",
+            "--tours",
+            "1",
+            "--json",
+            "--seed",
+            "3",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(doc["profile"], "paper");
+    assert_eq!(doc["seed"], 3);
+    let results = doc["results"].as_array().unwrap();
+    let names: Vec<&str> = results
+        .iter()
+        .map(|r| r["estimator"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "odometry",
+            "msu-raw",
+            "ickon-akf",
+            "gyro-ckf",
+            "cda",
+            "cda-msu",
+            "tdoa-ekf"
+        ]
+    );
+    for r in results {
+        assert_eq!(r["route"], "rectangle");
+        let tours = r["tours"].as_array().unwrap();
+        assert_eq!(tours.len(), 1);
+        assert_eq!(tours[0]["tour"], 1);
+        for key in [
+            "mean_mm",
+            "std_mm",
+            "under_30",
+            "under_60",
+            "under_100",
+            "rmse_mm",
+            "heading_std_deg",
+        ] {
+            assert!(r["mean"][key].as_f64().unwrap().is_finite(), "{key}");
+        }
+    }
+    let raw = results
+        .iter()
+        .find(|r| r["estimator"] == "msu-raw")
+        .unwrap();
+    assert!(raw["fix_mean_mm"].as_f64().unwrap() > 0.0);
+    let akf = results
+        .iter()
+        .find(|r| r["estimator"] == "ickon-akf")
+        .unwrap();
+    assert!(akf["mean"]["mean_mm"].as_f64() < raw["mean"]["mean_mm"].as_f64());
+}
+
+#[test]
+fn unknown_names_exit_with_code_two_and_list_the_valid_ones() {
+    for (flag, value, listed) in [
+        ("--estimator", "kalman", "ickon-akf"),
+        ("--route", "nowhere", "route-2"),
+        ("--profile", "rough", "harsh"),
+    ] {
+        let out = ickon().args(["eval", flag, value]).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{flag}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(value) && err.contains(listed), "{err}");
+        assert!(out.stdout.is_empty());
+    }
+}
+
+/// A flag that does not apply to the kind of run asked for is refused, not
+/// silently ignored (`--plot` with `--robots` used to draw nothing and say
+/// nothing).
+#[test]
+fn flags_of_the_other_kind_of_run_are_refused() {
+    let cases: [&[&str]; 6] = [
+        &["--robots", "2", "--plot", "/tmp/never-written"],
+        &["--robots", "2", "--tours", "3"],
+        &["--robots", "2", "--route", "route-1"],
+        &["--duration", "5"],
+        &["--firing", "all"],
+        &["--fire-range-m", "9"],
+    ];
+    for args in cases {
+        let out = ickon().arg("eval").args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--robots"), "{args:?}: {err}");
+        assert!(out.stdout.is_empty());
+    }
+    assert!(!std::path::Path::new("/tmp/never-written").exists());
+}
+
+/// `--learn-cell-sync` is an option of `tdoa-ekf`: with another estimator
+/// it is refused by name (exit 2), not silently dropped.
+#[test]
+fn learning_the_cells_sync_is_refused_for_an_estimator_without_it() {
+    for args in [
+        &["eval", "--estimator", "ickon-akf", "--learn-cell-sync"][..],
+        &[
+            "eval",
+            "--estimator",
+            "gyro-ckf",
+            "--robots",
+            "2",
+            "--learn-cell-sync",
+        ],
+        &["sim", "--estimator", "msu-raw", "--learn-cell-sync"],
+    ] {
+        let out = ickon().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--learn-cell-sync") && err.contains("tdoa-ekf"),
+            "{args:?}: {err}"
+        );
+        assert!(out.stdout.is_empty());
+    }
+}
+
+#[test]
+fn plot_directory_gets_one_picture_per_estimator_route_and_tour_plus_the_comparison() {
+    let dir = std::env::temp_dir().join(format!("ickon-eval-plot-{}", std::process::id()));
+    let out = ickon()
+        .args([
+            "eval",
+            "--route",
+            "eight",
+            "--tours",
+            "1",
+            "--estimator",
+            "ickon-akf",
+            "--json",
+            "--plot",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.join("ickon-akf_eight_tour01.png").is_file());
+    assert!(dir.join("comparison.png").is_file());
+    std::fs::remove_dir_all(&dir).ok();
+}

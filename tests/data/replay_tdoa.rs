@@ -1,0 +1,189 @@
+//! `ickon replay tdoa` and `ickon convert util --to tdoa` through the
+//! binary: the example set, exit code 2 with file, line and column on bad
+//! input (a gigabyte of garbage included, generated and streamed), and the
+//! UTIL round trip on the real flights (skipped in one line without them).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use support::ICKON;
+
+fn ickon() -> Command {
+    Command::new(ICKON)
+}
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../deploy/examples/mic-network")
+        .join(name)
+}
+
+fn replay(anchors: &Path, measurements: &Path, truth: Option<&Path>, extra: &[&str]) -> Output {
+    let mut cmd = ickon();
+    cmd.args(["replay", "tdoa", "--anchors"])
+        .arg(anchors)
+        .arg("--measurements")
+        .arg(measurements);
+    if let Some(t) = truth {
+        cmd.arg("--truth").arg(t);
+    }
+    cmd.args(extra).output().unwrap()
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn estimator<'a>(doc: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    doc["estimators"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == name)
+        .unwrap_or_else(|| panic!("no {name} in {doc}"))
+}
+
+#[test]
+fn the_example_set_replays_with_its_truth_clock_found() {
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        Some(&example("truth.csv")),
+        &["--dim", "2", "--json"],
+    );
+    let doc = json(&out);
+    assert_eq!(doc["dim"], 2);
+    let offset = doc["truth_offset"]["offset_s"].as_f64().unwrap();
+    assert!((offset - 0.35).abs() < 0.005, "{offset}");
+    for name in ["cv-fix", "ls"] {
+        assert!(
+            estimator(&doc, name)["scored"].as_u64().unwrap() > 50,
+            "{doc}"
+        );
+    }
+    // The table names the baseline and the unsolved epochs.
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        Some(&example("truth.csv")),
+        &[],
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("least squares fixed") && text.contains("\nls "),
+        "{text}"
+    );
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        None,
+        &["--dim", "3"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("2D and 3D do not mix"));
+}
+
+#[test]
+fn an_unknown_anchor_is_named_with_its_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = dir.path().join("m.csv");
+    std::fs::write(
+        &m,
+        "# format: ickon-tdoa-log/1\nepoch,time_s,anchor,reference,kind,value\n0,1.0,mic9,,range_m,3.0\n",
+    )
+    .unwrap();
+    let out = replay(&example("anchors.csv"), &m, None, &[]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("m.csv:3:3: column `anchor`: anchor `mic9` is not in the anchors file"),
+        "{err}"
+    );
+}
+
+/// A valid header, then a gigabyte of pseudo-random bytes, written in
+/// blocks (never held whole): refused in words at its first bad line.
+#[test]
+fn a_gigabyte_of_garbage_is_refused_in_words() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = dir.path().join("garbage.csv");
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&m).unwrap());
+    f.write_all(b"# format: ickon-tdoa-log/1\nepoch,time_s,anchor,reference,kind,value\n")
+        .unwrap();
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut block = vec![0_u8; 1 << 20];
+    for _ in 0..1024 {
+        for chunk in block.chunks_mut(8) {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            chunk.copy_from_slice(&state.to_le_bytes());
+        }
+        f.write_all(&block).unwrap();
+    }
+    f.flush().unwrap();
+    drop(f);
+    let out = replay(&example("anchors.csv"), &m, None, &[]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("garbage.csv:3:"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+/// The real flights: a UTIL flight converted replays to the numbers of
+/// `ickon replay util` within 1 %.
+#[test]
+fn a_converted_util_flight_replays_to_the_same_numbers() {
+    let Some(util) = ickon_testkit::real_data("util") else {
+        return;
+    };
+    let flight = util.join("const1-trial1-tdoa3.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let conv = dir.path().join("log");
+    let out = ickon()
+        .args(["convert", "util", "--data"])
+        .arg(&flight)
+        .arg("--anchors")
+        .arg(util.join("anchors.csv"))
+        .args(["--constellation", "1", "--to", "tdoa"])
+        .arg(&conv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let native = json(
+        &ickon()
+            .args(["replay", "util", "--data"])
+            .arg(&flight)
+            .arg("--anchors")
+            .arg(util.join("anchors.csv"))
+            .args(["--constellation", "1", "--json"])
+            .output()
+            .unwrap(),
+    );
+    let converted = json(&replay(
+        &conv.join("anchors.csv"),
+        &conv.join("measurements.csv"),
+        Some(&conv.join("truth.csv")),
+        &["--dim", "3", "--shadow-m", "0.0908", "--json"],
+    ));
+    for name in ["tdoa-ekf", "cv-ekf", "window-gn"] {
+        for field in ["rmse_3d_m", "mean_3d_m", "p95_3d_m"] {
+            let a = estimator(&native, name)[field].as_f64().unwrap();
+            let b = estimator(&converted, name)[field].as_f64().unwrap();
+            eprintln!("{name} {field}: util {a:.5}, tdoa {b:.5}");
+            assert!(
+                (a - b).abs() <= 0.01 * a,
+                "{name} {field}: util {a}, tdoa {b}"
+            );
+        }
+    }
+}

@@ -40,6 +40,7 @@ pub const MSG_FILES: &[(&str, &str)] = &[
     ("Burst", include_str!("../../msg/Burst.msg")),
     ("CellStatus", include_str!("../../msg/CellStatus.msg")),
     ("MsuStatus", include_str!("../../msg/MsuStatus.msg")),
+    ("RobotSummary", include_str!("../../msg/RobotSummary.msg")),
     (
         "TransmitterOffset",
         include_str!("../../msg/TransmitterOffset.msg"),
@@ -119,6 +120,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CellBurst(_) => own("Burst"),
         Key::CellStatus(_) => own("CellStatus"),
         Key::RobotStatus(_) => own("MsuStatus"),
+        Key::RobotSummary(_) => own("RobotSummary"),
         Key::SimTruth(_) | Key::SimKit(_) => own("Truth"),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => own("UltrasoundArrivals"),

@@ -28,7 +28,8 @@ pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod occupancy;
-pub mod pose_track;
+pub mod summary_gate;
+pub mod velocity;
 pub mod schedule;
 pub mod selection;
 pub mod spacing;

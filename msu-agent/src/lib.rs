@@ -28,6 +28,7 @@ pub mod host;
 #[cfg(feature = "zenoh")]
 pub mod marvelmind_receivers;
 pub mod motion;
+pub mod pose_track;
 #[cfg(feature = "zenoh")]
 pub mod node;
 #[cfg(feature = "zenoh")]
@@ -37,6 +38,7 @@ pub mod receivers;
 #[cfg(feature = "zenoh")]
 pub mod ros2;
 pub mod solver;
+pub mod summary;
 pub mod time_gate;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};

@@ -309,6 +309,7 @@ impl RobotTracker {
             survey_misfit_m: -1.0,
             survey_bound_m: -1.0,
             receivers: self.receivers.clone(),
+            summaries_dropped: self.summaries_dropped,
         }
     }
 }

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use clap::Args;
 use ickon_proto::keys::{Key, Keys};
-use ickon_proto::msg::admin::CoverageRequest;
+use ickon_proto::msg::admin::{CoverageRequest, RobotCounts, RobotPage, RobotsRequest};
 use ickon_proto::msg::control::{Burst, CellStatus, ClockRequest, CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{MsuStatus, RobotSummary, Truth};
 
@@ -912,6 +912,22 @@ async fn answer_admin(
         return;
     };
     match command.as_str() {
+        // With a request, a page of the robots; without, the whole status
+        // (the web map's and older admins' question).
+        "robots" if q.payload().is_some() => {
+            let page = match q.payload().map(|p| decode::<RobotsRequest>(&p.to_bytes())) {
+                Some(Ok(request)) => core.robots_page(now, &request),
+                _ => RobotPage {
+                    error: "the payload is not a robots request".into(),
+                    page: 0,
+                    pages: 1,
+                    matching: 0,
+                    counts: RobotCounts::default(),
+                    robots: Vec::new(),
+                },
+            };
+            reply(q, &page).await;
+        }
         "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
         "schedule" => reply(q, &core.current_firing()).await,
         "transmitters" => reply(q, &core.transmitters(now)).await,

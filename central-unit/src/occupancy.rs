@@ -31,9 +31,9 @@ use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::time::{Duration, Time};
 
 use crate::audibility::GRID_M;
-use crate::velocity::Velocity;
 use crate::selection::{FiringHistory, Need, NeedsConfig, choose};
 use crate::spacing::{NeedMatrix, Packing, Reverb, SpacingTable};
+use crate::velocity::Velocity;
 
 /// How the central unit picks the transmitters of a cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]

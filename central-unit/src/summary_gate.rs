@@ -24,6 +24,11 @@ pub const MIN_GAP: Duration = Duration::from_millis(100);
 /// How far a summary's stamp may run ahead of the time between the
 /// arrivals (the network's delays differ from one message to the next).
 pub const FUTURE_SLACK: Duration = Duration::from_millis(1_000);
+/// How long a stamp anchor serves: the stamps are compared with the
+/// arrivals since the anchor, which moves to the newest summary taken
+/// after this long (a robot's clock that runs 100 ppm fast gains 6 ms
+/// in a minute, well inside [`FUTURE_SLACK`]).
+pub const ANCHOR_SPAN: Duration = Duration::from_millis(60_000);
 /// A robot with no summary taken for this long is taken from its next one.
 pub const REANCHOR_AFTER: Duration = Duration::from_millis(3_000);
 /// Fastest a robot's position may move between two summaries, m/s: twice
@@ -42,13 +47,15 @@ pub const MAX_SIGMA_M: f64 = 2.0;
 /// Why a summary was dropped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Dropped {
-    /// Within [`MIN_GAP`] of the last one taken: a robot that floods.
+    /// Arrived and stamped within [`MIN_GAP`] of the last one taken: a
+    /// robot that floods.
     Flood,
     /// Stamped at or before the last one taken: a repeat, a reordered or
     /// replayed message.
     Old,
-    /// Stamped further ahead of the last one taken than the time between
-    /// their arrivals allows.
+    /// Stamped further ahead than the time between the arrivals allows
+    /// (since the robot's stamp anchor, so that a sender cannot run ahead
+    /// a little at a time).
     Future,
     /// A position the robot cannot have reached since the last one taken:
     /// another sender under this robot's id.
@@ -84,6 +91,9 @@ impl Dropped {
 struct Taken {
     stamp: Time,
     at: Time,
+    /// A summary taken earlier (its stamp and arrival) that the stamps
+    /// are held to.
+    anchor: (Time, Time),
     xy: Option<[f64; 2]>,
     sigma_m: f64,
 }
@@ -106,14 +116,19 @@ impl SummaryGate {
         let sigma_m = position_sigma_m(&summary.covariance);
         if let Some(last) = self.last.filter(|l| now.since(l.at) < REANCHOR_AFTER) {
             let arrived_after = now.since(last.at);
-            if arrived_after < MIN_GAP {
-                return Err(Dropped::Flood);
-            }
             if summary.stamp <= last.stamp {
                 return Err(Dropped::Old);
             }
             let stamped_after = summary.stamp.since(last.stamp);
-            if stamped_after > arrived_after + FUTURE_SLACK {
+            // Both close: a robot's own summaries are stamped half a second
+            // apart, however close a stalled loop or the network brings
+            // their arrivals (stamps far apart that arrive close are judged
+            // from the future below).
+            if arrived_after < MIN_GAP && stamped_after < MIN_GAP {
+                return Err(Dropped::Flood);
+            }
+            let (anchor_stamp, anchor_at) = last.anchor;
+            if summary.stamp.since(anchor_stamp) > now.since(anchor_at) + FUTURE_SLACK {
                 return Err(Dropped::Future);
             }
             if let (Some(a), Some(b)) = (last.xy, xy) {
@@ -126,9 +141,16 @@ impl SummaryGate {
                 }
             }
         }
+        let anchor = match self.last {
+            Some(l) if now.since(l.at) < REANCHOR_AFTER && now.since(l.anchor.1) < ANCHOR_SPAN => {
+                l.anchor
+            }
+            _ => (summary.stamp, now),
+        };
         self.last = Some(Taken {
             stamp: summary.stamp,
             at: now,
+            anchor,
             xy,
             sigma_m,
         });

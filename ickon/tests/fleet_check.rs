@@ -307,10 +307,7 @@ fn a_robot_forging_the_survey_is_quarantined_and_the_fleet_keeps_its_accuracy() 
         .unwrap();
     let forger = open_as(&secure, "robot-r3", &endpoint);
     let summary_key = keys.robot_summary("r3").unwrap();
-    let fixes: Vec<Fix> = PLACES
-        .iter()
-        .map(|&at| forged_fix(&site, at))
-        .collect();
+    let fixes: Vec<Fix> = PLACES.iter().map(|&at| forged_fix(&site, at)).collect();
 
     // Forge until quarantined (and a few seconds on), looking once a second.
     let started = Instant::now();

@@ -28,9 +28,9 @@ pub mod host;
 #[cfg(feature = "zenoh")]
 pub mod marvelmind_receivers;
 pub mod motion;
-pub mod pose_track;
 #[cfg(feature = "zenoh")]
 pub mod node;
+pub mod pose_track;
 #[cfg(feature = "zenoh")]
 pub mod receiver_input;
 #[cfg(feature = "zenoh")]

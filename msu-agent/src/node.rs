@@ -24,11 +24,11 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Sample;
 
-use crate::summary::SummaryMaker;
 use crate::hedgehog::HedgehogInput;
 use crate::marvelmind_receivers::RangingSite;
 use crate::receivers::{ReceiverInput, ReceiverKind, ReceiverSource, SourceContext};
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
+use crate::summary::SummaryMaker;
 use crate::{Event, InputKind, MsuCore, MsuTuning, Output};
 
 /// How often the site and schedule are asked for until the central unit answers.

@@ -385,7 +385,10 @@ mod tests {
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
             (k.sim_kit("r9").unwrap(), Key::SimKit("r9".into())),
             (k.robot_status("r9").unwrap(), Key::RobotStatus("r9".into())),
-            (k.robot_summary("r9").unwrap(), Key::RobotSummary("r9".into())),
+            (
+                k.robot_summary("r9").unwrap(),
+                Key::RobotSummary("r9".into()),
+            ),
             (k.sim_probe(), Key::SimProbe),
         ];
         for (key, expected) in cases {

@@ -111,7 +111,9 @@ impl CentralCore {
     /// calibration, as its fixes always did.
     pub(super) fn on_summary(&mut self, id: &str, summary: &RobotSummary, now: Time) {
         let taken = match self.robot_mut(id) {
-            Some(r) => r.on_summary(summary, now).map_err(|d| (d, r.summaries_dropped)),
+            Some(r) => r
+                .on_summary(summary, now)
+                .map_err(|d| (d, r.summaries_dropped)),
             None => Ok(()),
         };
         match taken {

@@ -784,3 +784,87 @@ fn the_cells_due_are_those_a_trigger_names_or_all_when_it_names_none() {
     let due: Vec<String> = c.cells_due(&t).into_iter().collect();
     assert_eq!(due, vec!["c1".to_string()]);
 }
+
+#[test]
+fn robots_come_a_page_at_a_time_by_state_or_nearest_first_and_bad_pages_are_refused() {
+    use ickon_proto::msg::admin::RobotsRequest;
+    let mut c = core();
+    let ids: Vec<String> = c.site().robots.iter().map(|r| r.id.clone()).collect();
+    assert!(ids.len() >= 3, "{ids:?}");
+    for (k, id) in ids.iter().enumerate() {
+        c.robot_alive(id, true);
+        c.on_summary(
+            id,
+            &summary_of(RobotPose {
+                stamp: Time(0),
+                x_m: k as f64,
+                y_m: 0.0,
+                theta_rad: 0.0,
+                covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-3],
+                estimator: "tdoa-ekf".into(),
+                fix_seq: 1,
+                status: ickon_proto::msg::robot::PoseStatus::Tracking,
+            }),
+            Time(0),
+        );
+    }
+    c.robot_alive(&ids[0], false);
+    let ask = |request: RobotsRequest| c.robots_page(Time(0), &request);
+    let all = ask(RobotsRequest {
+        page_size: 1,
+        ..RobotsRequest::default()
+    });
+    assert_eq!(all.error, "");
+    assert_eq!(
+        (all.pages, all.matching),
+        (ids.len() as u64, ids.len() as u64)
+    );
+    assert_eq!(all.counts.down, 1);
+    assert_eq!(all.counts.up, ids.len() as u64 - 1);
+    assert_eq!(all.robots.len(), 1);
+    let down = ask(RobotsRequest {
+        state: "down".into(),
+        ..RobotsRequest::default()
+    });
+    assert_eq!(
+        down.robots
+            .iter()
+            .map(|r| r.id.as_str())
+            .collect::<Vec<_>>(),
+        [ids[0].as_str()]
+    );
+    // Nearest first to the last robot's place.
+    let last = ids.len() - 1;
+    let near = ask(RobotsRequest {
+        near: true,
+        near_x_m: last as f64,
+        ..RobotsRequest::default()
+    });
+    assert_eq!(near.robots[0].id, ids[last]);
+    assert_eq!(near.robots[1].id, ids[last - 1]);
+    // Beyond the last page, negative, or an unknown state: a clear refusal.
+    let beyond = ask(RobotsRequest {
+        page: 1_000_000_000,
+        ..RobotsRequest::default()
+    });
+    assert!(
+        beyond.error.contains("beyond the last, 0"),
+        "{}",
+        beyond.error
+    );
+    assert!(beyond.robots.is_empty());
+    let negative = ask(RobotsRequest {
+        page: -1,
+        ..RobotsRequest::default()
+    });
+    assert!(negative.error.contains("negative"), "{}", negative.error);
+    let unknown = ask(RobotsRequest {
+        state: "lost".into(),
+        ..RobotsRequest::default()
+    });
+    assert!(
+        unknown.error.contains("none of up, stale, down"),
+        "{}",
+        unknown.error
+    );
+}

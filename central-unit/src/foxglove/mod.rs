@@ -97,10 +97,7 @@ pub struct FoxgloveLive {
 
 impl FoxgloveLive {
     /// Starts serving `site` as `args` say (`None` when `--foxglove` is absent).
-    pub async fn start(
-        site: &Site,
-        args: &FoxgloveArgs,
-    ) -> Result<Option<Self>, FoxgloveError> {
+    pub async fn start(site: &Site, args: &FoxgloveArgs) -> Result<Option<Self>, FoxgloveError> {
         let Some(wanted) = args.foxglove else {
             return Ok(None);
         };

@@ -46,6 +46,16 @@ fn floods_repeats_the_future_and_impostors_are_dropped_and_the_robot_goes_on() {
         gate.check(&summary(1_010, 1.0), at(10)),
         Err(Dropped::Flood)
     );
+    // Stamps far ahead that arrive close: from the future.
+    for k in 1..=3 {
+        assert_eq!(
+            gate.check(&summary(1_000 + k * 500, 1.0), at(10 * k)),
+            if k < 3 { Ok(()) } else { Err(Dropped::Future) },
+            "{k}"
+        );
+    }
+    let mut gate = SummaryGate::default();
+    assert_eq!(gate.check(&summary(1_000, 1.0), at(0)), Ok(()));
     // A repeat, and one older.
     assert_eq!(gate.check(&summary(1_000, 1.0), at(300)), Err(Dropped::Old));
     assert_eq!(gate.check(&summary(900, 1.0), at(300)), Err(Dropped::Old));
@@ -94,9 +104,29 @@ fn a_robot_silent_for_long_or_reset_is_taken_from_its_next_summary() {
     assert_eq!(gate.check(&summary(50_000, 1.0), at(0)), Ok(()));
     // Its MSU restarted with a clock stepped back, somewhere else: dropped
     // at first, taken once nothing was taken for REANCHOR_AFTER.
-    assert_eq!(gate.check(&summary(1_000, 30.0), at(500)), Err(Dropped::Old));
+    assert_eq!(
+        gate.check(&summary(1_000, 30.0), at(500)),
+        Err(Dropped::Old)
+    );
     assert_eq!(gate.check(&summary(4_000, 30.0), at(3_000)), Ok(()));
     // Its token went and came back: a new start.
     gate.reset();
     assert_eq!(gate.check(&summary(10, -5.0), at(3_200)), Ok(()));
+}
+
+#[test]
+fn a_summary_carries_no_more_fixes_than_the_survey_calibration_takes_at_once() {
+    // More would be refused as over the robot's share every time.
+    assert!(MAX_SUMMARY_FIXES as f64 <= crate::survey_calibration::fix_rate::BURST_FIXES);
+}
+
+#[test]
+fn summaries_queued_behind_a_stalled_loop_are_all_taken() {
+    let mut gate = SummaryGate::default();
+    assert_eq!(gate.check(&summary(1_000, 1.0), at(0)), Ok(()));
+    // Three summaries half a second apart handled 1 ms apart after a stall.
+    for k in 1..=3i64 {
+        let s = summary(1_000 + k * 500, 1.0 + k as f64 * 0.5);
+        assert_eq!(gate.check(&s, at(1_500 + k)), Ok(()), "{k}");
+    }
 }

@@ -187,7 +187,10 @@ impl SyntheticFleet {
         let span_s = VELOCITY_SPAN_S.min(t_s.max(0.0));
         let before = self.position(i, t_s - span_s);
         let (vx_m_s, vy_m_s) = if span_s > 0.0 {
-            ((pose.x_m - before[0]) / span_s, (pose.y_m - before[1]) / span_s)
+            (
+                (pose.x_m - before[0]) / span_s,
+                (pose.y_m - before[1]) / span_s,
+            )
         } else {
             (0.0, 0.0)
         };

@@ -186,9 +186,10 @@ pub struct RobotPose {
 pub const SUMMARY_PERIOD: crate::time::Duration = crate::time::Duration::from_millis(500);
 
 /// Most fixes one [`RobotSummary`] carries: the newest of those solved
-/// since the previous summary. Five: every fix of a robot on a 10 Hz
-/// cycle at [`SUMMARY_PERIOD`]; a faster site's robots send their newest.
-pub const MAX_SUMMARY_FIXES: usize = 5;
+/// since the previous summary. Three: as many as the central unit's survey
+/// calibration takes of a robot at once (its share's burst); a site
+/// cycling faster than six times a second sends the newest.
+pub const MAX_SUMMARY_FIXES: usize = 3;
 
 /// `robot/<id>/summary`: what the central unit needs of a robot, at a
 /// bounded rate ([`SUMMARY_PERIOD`]) independent of the cycle and pose

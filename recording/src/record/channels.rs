@@ -9,7 +9,8 @@ use ickon_proto::msg::control::{
     Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
 use ickon_proto::msg::robot::{
-    Fix, Imu, MsuStatus, ObstacleRanges, Odometry, RobotPose, RobotSummary, Truth, UltrasoundArrivals,
+    Fix, Imu, MsuStatus, ObstacleRanges, Odometry, RobotPose, RobotSummary, Truth,
+    UltrasoundArrivals,
 };
 use ickon_proto::msg::ros::PoseWithCovarianceStamped;
 use ickon_proto::msg::ros_msgs::{POSE_WITH_COVARIANCE_STAMPED_HASH, Recorded, recorded_as};

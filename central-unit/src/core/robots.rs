@@ -89,7 +89,6 @@ impl CentralCore {
     /// The tracker of robot `id` if the site has it. Robots the site does
     /// not know are counted, not tracked: the table stays as large as the
     /// site, whatever anyone publishes.
-
     fn robot_mut(&mut self, id: &str) -> Option<&mut RobotTracker> {
         if self.on_site(id) {
             Some(self.robots.entry(id.to_string()).or_default())

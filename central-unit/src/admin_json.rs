@@ -7,7 +7,8 @@
 //! a figure that is not known yet is `null`, never a made-up zero.
 
 use ickon_proto::msg::admin::{
-    BoardAirStatus, CellHealth, CoverageReport, RobotHealth, StatusReport, TransmittersReport,
+    BoardAirStatus, CellHealth, CoverageReport, RobotHealth, RobotPage, StatusReport,
+    TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
@@ -116,17 +117,58 @@ pub struct RobotJson {
     /// Its receivers (a receiver board, a ranging kit) in plain words, as
     /// its agent reported them; absent for the simulated world's.
     pub receivers: Option<String>,
+    /// Its summaries the central unit dropped (floods, repeats, stamps
+    /// from the future, another sender under its id).
+    pub summaries_dropped: u64,
+}
+
+/// `robots --json`, a page of them.
+#[derive(Debug, Clone, Serialize)]
+pub struct RobotPageJson {
+    /// The page, from 0.
+    pub page: i64,
+    /// Pages the matching robots fill.
+    pub pages: u64,
+    /// Robots matching the request, on every page.
+    pub matching: u64,
+    /// The whole fleet by state.
+    pub counts: RobotCountsJson,
+    /// The robots of the page.
+    pub robots: Vec<RobotJson>,
+}
+
+/// The fleet by state.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct RobotCountsJson {
+    /// Up.
+    pub up: u64,
+    /// Stale.
+    pub stale: u64,
+    /// Down.
+    pub down: u64,
+}
+
+impl From<&RobotPage> for RobotPageJson {
+    fn from(p: &RobotPage) -> Self {
+        Self {
+            page: p.page,
+            pages: p.pages,
+            matching: p.matching,
+            counts: RobotCountsJson {
+                up: p.counts.up,
+                stale: p.counts.stale,
+                down: p.counts.down,
+            },
+            robots: p.robots.iter().map(RobotJson::from).collect(),
+        }
+    }
 }
 
 impl From<&RobotHealth> for RobotJson {
     fn from(r: &RobotHealth) -> Self {
         Self {
             id: r.id.clone(),
-            state: match (r.up, r.stale.is_empty()) {
-                (false, _) => "down",
-                (true, true) => "up",
-                (true, false) => "stale",
-            },
+            state: r.state(),
             stale: (!r.stale.is_empty()).then(|| r.stale.clone()),
             fixes_per_s: r.fixes_per_s,
             fixes_over_rate: r.fixes_over_rate,
@@ -141,6 +183,7 @@ impl From<&RobotHealth> for RobotJson {
                 theta_rad: r.theta_rad,
             }),
             receivers: (!r.receivers.is_empty()).then(|| r.receivers.clone()),
+            summaries_dropped: r.summaries_dropped,
         }
     }
 }

@@ -39,7 +39,7 @@ use ickon_proto::epoch::{check_schedule, epoch_of, plausible_epoch};
 use ickon_proto::msg::control::{
     AirTemperature, Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
-use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
+use ickon_proto::msg::robot::{Fix, MsuStatus, RobotSummary};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
 
@@ -126,14 +126,16 @@ pub enum Event {
     AirTemperature(AirTemperature),
     /// A burst report, its `actual` emission time on the master time base.
     Burst(Burst),
-    /// A robot published a pose.
-    Pose {
+    /// A robot's summary ([`RobotSummary`]): its pose, velocity and
+    /// newest fixes, checked by the robot's [`crate::summary_gate`].
+    Summary {
         /// The robot.
         robot: String,
-        /// Its pose.
-        pose: RobotPose,
+        /// Its summary (boxed: the other events are small).
+        summary: Box<RobotSummary>,
     },
-    /// A robot published a fix.
+    /// A fix of a robot handed over on its own (the virtual-time engine's
+    /// single-robot runs; on the mesh fixes come in summaries).
     Fix {
         /// The robot.
         robot: String,
@@ -192,6 +194,8 @@ pub struct CentralCore {
     cells: BTreeMap<String, CellTracker>,
     robots: BTreeMap<String, RobotTracker>,
     unknown_robot_messages: u64,
+    /// Summaries dropped by the robots' gates, by reason.
+    summaries_dropped: BTreeMap<&'static str, u64>,
     any_cell_seen: bool,
     epoch: u64,
     foreign_control: u64,
@@ -262,6 +266,7 @@ impl CentralCore {
             cells,
             robots: BTreeMap::new(),
             unknown_robot_messages: 0,
+            summaries_dropped: BTreeMap::new(),
             any_cell_seen: false,
             epoch,
             foreign_control: 0,
@@ -373,8 +378,8 @@ impl CentralCore {
                     .observe(&reading.cell_id, reading.temperature_c, now);
                 Vec::new()
             }
-            Event::Pose { robot, pose } => {
-                self.on_pose(&robot, pose, now);
+            Event::Summary { robot, summary } => {
+                self.on_summary(&robot, &summary, now);
                 Vec::new()
             }
             Event::RobotStatus { robot, status } => {

@@ -13,7 +13,7 @@ use ickon_proto::fuzz::extreme::{clock_step, float};
 use ickon_proto::fuzz::values::draw;
 use ickon_proto::fuzz::{config_for, entropy};
 use ickon_proto::msg::control::{AirTemperature, Burst, CellStatus, CycleTrigger, Schedule};
-use ickon_proto::msg::robot::{Fix, FixQuality, RobotPose};
+use ickon_proto::msg::robot::{Fix, FixQuality, RobotSummary};
 use ickon_proto::site::{BUILTIN_SITES, Site};
 use ickon_proto::time::{Duration, Time};
 use proptest::prelude::*;
@@ -91,9 +91,9 @@ fn event(core: &CentralCore, now: Time, a: &Act) -> Option<Event> {
             b.cycle = cycle.saturating_add(u64::from(k % 4)).saturating_sub(2);
             b.actual = now;
         })),
-        6 => Event::Pose {
+        6 => Event::Summary {
             robot: id(e),
-            pose: near(draw::<RobotPose>(e)?, e, |p, _| p.stamp = now),
+            summary: Box::new(near(draw::<RobotSummary>(e)?, e, |p, _| p.stamp = now)),
         },
         7 => Event::Fix {
             robot: id(e),

@@ -13,10 +13,11 @@ use std::collections::{BTreeSet, VecDeque};
 
 use ickon_proto::msg::admin::{CellHealth, CellState, RobotHealth};
 use ickon_proto::msg::control::{Burst, CellStatus};
-use ickon_proto::msg::robot::{MsuStatus, PoseStatus, RobotPose};
+use ickon_proto::msg::robot::{MsuStatus, PoseStatus, RobotPose, RobotSummary};
 use ickon_proto::time::{Duration, Time};
 
-use crate::pose_track::{PoseTrack, Velocity};
+use crate::summary_gate::{Dropped, SummaryGate};
+use crate::velocity::Velocity;
 
 /// Fired cycles remembered per cell, to count missed ones.
 const FIRED_MEMORY: usize = 64;
@@ -34,10 +35,12 @@ pub const REPORTS_SILENT_FOR_DOWN: Duration = Duration::from_millis(3_000);
 pub const RESIDUAL_WINDOW: usize = 64;
 /// Fixes per second are counted over this window.
 pub const FIX_RATE_WINDOW: Duration = Duration::from_millis(2_000);
-/// A robot whose last pose came longer ago than this is stale: its MSU
-/// publishes at the odometry rate (tens of hertz), so one second of silence
-/// is a stopped or hung MSU (or a broken link), not a slow one.
-pub const POSE_STALE_AFTER: Duration = Duration::from_millis(1_000);
+/// A robot whose last pose came longer ago than this is stale: its agent
+/// sends its summary every half second
+/// ([`SUMMARY_PERIOD`](ickon_proto::msg::robot::SUMMARY_PERIOD)), so three
+/// missing in a row are a stopped or hung MSU (or a broken link), not a
+/// lost message.
+pub const POSE_STALE_AFTER: Duration = Duration::from_millis(1_600);
 
 /// One cell.
 #[derive(Debug, Default, Clone)]
@@ -186,18 +189,39 @@ pub struct RobotTracker {
     pose: Option<RobotPose>,
     /// When the last pose arrived (central unit's clock).
     pose_at: Option<Time>,
-    fix_times: VecDeque<Time>,
-    track: PoseTrack,
+    /// The velocity its last summary reported.
+    velocity: Option<Velocity>,
+    /// When fixes were reported, and how many.
+    fix_times: VecDeque<(Time, u32)>,
+    /// Which of its summaries to believe.
+    gate: SummaryGate,
+    /// Its summaries dropped by the gate, since the central unit started.
+    pub summaries_dropped: u64,
     /// Its receivers' state, as its agent last reported it.
     receivers: String,
 }
 
 impl RobotTracker {
-    /// A pose it published, received at `now`.
-    pub fn on_pose(&mut self, pose: RobotPose, now: Time) {
-        self.track.push(&pose);
-        self.pose = Some(pose);
+    /// Its summary, received at `now`: its pose, velocity and the fixes
+    /// its agent solved are taken when the gate lets it through
+    /// ([`crate::summary_gate`]); a dropped one is counted.
+    pub fn on_summary(&mut self, summary: &RobotSummary, now: Time) -> Result<(), Dropped> {
+        if let Err(dropped) = self.gate.check(summary, now) {
+            self.summaries_dropped += 1;
+            return Err(dropped);
+        }
+        self.pose = Some(summary.pose());
         self.pose_at = Some(now);
+        self.velocity = Velocity::of_summary(summary);
+        self.note_fixes(summary.fixes_solved, now);
+        Ok(())
+    }
+
+    /// Its liveliness token appeared or went: either way its next summary
+    /// is a new start for the gate.
+    pub fn set_alive(&mut self, up: bool) {
+        self.alive = up;
+        self.gate.reset();
     }
 
     /// Its agent's report of its state.
@@ -235,18 +259,25 @@ impl RobotTracker {
         Some((self.pose.as_ref()?, self.pose_at?))
     }
 
-    /// Its mean velocity over its last poses, when they span enough time.
+    /// Its mean velocity over its last poses, as its last summary said.
     pub fn velocity(&self) -> Option<Velocity> {
-        self.track.velocity()
+        self.velocity
     }
 
-    /// A fix it published, received at `now`.
+    /// A fix of it, received at `now`.
     pub fn on_fix(&mut self, now: Time) {
-        self.fix_times.push_back(now);
+        self.note_fixes(1, now);
+    }
+
+    /// `n` fixes of it reported at `now`.
+    fn note_fixes(&mut self, n: u32, now: Time) {
+        if n > 0 {
+            self.fix_times.push_back((now, n));
+        }
         while self
             .fix_times
             .front()
-            .is_some_and(|t| now.since(*t) > FIX_RATE_WINDOW)
+            .is_some_and(|(t, _)| now.since(*t) > FIX_RATE_WINDOW)
         {
             self.fix_times.pop_front();
         }
@@ -254,11 +285,12 @@ impl RobotTracker {
 
     /// The admin view of this robot at `now`.
     pub fn health(&self, id: &str, now: Time) -> RobotHealth {
-        let recent = self
+        let recent: u64 = self
             .fix_times
             .iter()
-            .filter(|t| now.since(**t) <= FIX_RATE_WINDOW)
-            .count();
+            .filter(|(t, _)| now.since(*t) <= FIX_RATE_WINDOW)
+            .map(|(_, n)| u64::from(*n))
+            .sum();
         let pose = self.pose.as_ref();
         RobotHealth {
             id: id.to_string(),
@@ -277,6 +309,7 @@ impl RobotTracker {
             survey_misfit_m: -1.0,
             survey_bound_m: -1.0,
             receivers: self.receivers.clone(),
+            summaries_dropped: self.summaries_dropped,
         }
     }
 }

@@ -29,12 +29,14 @@ pub mod http;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod occupancy;
-pub mod pose_track;
+pub mod robot_pages;
 pub mod schedule;
 pub mod selection;
 pub mod spacing;
+pub mod summary_gate;
 pub mod survey_calibration;
 pub mod transmitter_health;
+pub mod velocity;
 
 pub use schedule::{ScheduleError, compute_schedule, update_rate_hz};
 

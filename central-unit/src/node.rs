@@ -1,6 +1,6 @@
 //! The central unit as a Zenoh node: serves the site, the schedule and the
 //! master clock, publishes cycle triggers, watches liveliness, bursts, cell
-//! status and robot output, and answers the admin queryables. All decisions
+//! status and the robots' summaries, and answers the admin queryables. All decisions
 //! are the [`CentralCore`]'s; this loop only moves bytes.
 
 use std::future::Future;
@@ -9,12 +9,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use clap::Args;
-use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::admin::CoverageRequest;
+use ickon_proto::keys::{Key, Keys};
+use ickon_proto::msg::admin::{CoverageRequest, RobotCounts, RobotPage, RobotsRequest};
 use ickon_proto::msg::control::{
     AirTemperature, Burst, CellStatus, ClockRequest, CycleTrigger, Schedule,
 };
-use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
+use ickon_proto::msg::robot::{MsuStatus, RobotSummary, Truth};
 
 use crate::survey_calibration::SavedCalibration;
 use ickon_proto::site::Site;
@@ -263,7 +263,7 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
         let web = crate::http::WebMap::start(&session, &keys, &site, &args.http)
             .await
             .map_err(|e| NodeError::Setup(e.to_string()))?;
-        let foxglove = crate::foxglove::FoxgloveLive::start(&session, &keys, &site, &args.foxglove)
+        let foxglove = crate::foxglove::FoxgloveLive::start(&site, &args.foxglove)
             .await
             .map_err(|e| NodeError::Setup(e.to_string()))?;
         let viewers = Viewers { web, foxglove };
@@ -325,6 +325,29 @@ impl Viewers {
             w.publish(status);
         }
     }
+
+    /// Where each draws from: what the central unit's loop hands them is
+    /// all they see of the robots.
+    fn sinks(&self) -> impl Iterator<Item = &crate::http::feed::ViewSink> {
+        let web = self.web.as_ref().map(|w| w.sink());
+        web.into_iter()
+            .chain(self.foxglove.as_ref().map(|f| f.sink()))
+    }
+
+    /// A robot's summary the central unit took.
+    fn summary(&self, robot: &str, summary: &RobotSummary) {
+        self.sinks().for_each(|v| v.summary(robot, summary));
+    }
+
+    /// A burst report.
+    fn burst(&self, burst: &Burst) {
+        self.sinks().for_each(|v| v.burst(burst));
+    }
+
+    /// A robot's truth (simulation only).
+    fn truth(&self, robot: &str, truth: Truth) {
+        self.sinks().for_each(|v| v.truth(robot, truth));
+    }
 }
 
 /// Answers a query. A requester that went away is its own problem: the
@@ -383,7 +406,7 @@ pub async fn run(
     } else {
         0
     }));
-    let ends = Endpoints::declare(session, &keys, clock, epoch.clone()).await?;
+    let ends = Endpoints::declare(session, &keys, clock, epoch.clone(), viewers.any()).await?;
     // Declared last: whoever sees the token can query every queryable
     // above. A standby declares it when it takes over.
     let mut token = if core.is_active() {
@@ -466,18 +489,25 @@ pub async fn run(
                 None => continue,
             },
             Ok(s) = ends.burst_sub.recv_async() => match burst_event(&s, &clock, &mut undecodable) {
+                Some(e) => {
+                    if let Event::Burst(b) = &e {
+                        viewers.burst(b);
+                    }
+                    e
+                }
+                None => continue,
+            },
+            Ok(s) = ends.summary_sub.recv_async() => match summary_event(&keys, &s, &mut undecodable) {
                 Some(e) => e,
                 None => continue,
             },
-            Ok(s) = ends.pose_sub.recv_async() => match pose_event(&keys, &s) {
-                Some(e) => e,
-                None => continue,
-            },
+            Some(s) = next_sample(&ends.truth_sub) => {
+                if let Some((robot, truth)) = truth_of(&keys, &s) {
+                    viewers.truth(&robot, truth);
+                }
+                continue;
+            }
             Ok(s) = ends.robot_status_sub.recv_async() => match robot_status_event(&keys, &s, &mut undecodable) {
-                Some(e) => e,
-                None => continue,
-            },
-            Ok(s) = ends.fix_sub.recv_async() => match fix_event(&keys, &s, &mut undecodable) {
                 Some(e) => e,
                 None => continue,
             },
@@ -490,8 +520,21 @@ pub async fn run(
                 None => continue,
             },
         };
+        // The viewers draw a summary once the core took it (a flood or a
+        // forgery the gate dropped is not drawn either).
+        let shown = match &event {
+            Event::Summary { robot, summary } if viewers.any() => {
+                Some((robot.clone(), summary.clone()))
+            }
+            _ => None,
+        };
         let handling = std::time::Instant::now();
         let outputs = core.handle(clock.now(), event);
+        if let Some((robot, summary)) = shown
+            && core.last_pose_stamp(&robot) == Some(summary.stamp)
+        {
+            viewers.summary(&robot, &summary);
+        }
         if outputs.iter().any(|o| matches!(o, Output::Survey(_))) {
             core.note_survey_cost(handling.elapsed());
         }
@@ -593,9 +636,14 @@ struct Endpoints {
     status_sub: Subscriber<Queue<Sample>>,
     burst_sub: Subscriber<Queue<Sample>>,
     air_sub: Subscriber<Queue<Sample>>,
-    pose_sub: Subscriber<Queue<Sample>>,
-    fix_sub: Subscriber<Queue<Sample>>,
+    /// The robots' summaries: all the central unit hears of a robot but
+    /// its token and status (never its poses and fixes, which come at the
+    /// odometry and cycle rates).
+    summary_sub: Subscriber<Queue<Sample>>,
     robot_status_sub: Subscriber<Queue<Sample>>,
+    /// The simulation's truth, for the viewers only (declared when there
+    /// are viewers).
+    truth_sub: Option<Subscriber<Queue<Sample>>>,
     /// Its own keys, to notice what it did not send (its own puts come
     /// back too).
     cycle_sub: Subscriber<Queue<Sample>>,
@@ -604,12 +652,14 @@ struct Endpoints {
 
 impl Endpoints {
     /// Declares everything but the liveliness token. Clock requests are
-    /// answered with `clock` and the epoch in `epoch` (0: not at all).
+    /// answered with `clock` and the epoch in `epoch` (0: not at all); the
+    /// truth is subscribed to only `for_viewers`.
     async fn declare(
         session: &Session,
         keys: &Keys,
         clock: SimulatedClock,
         epoch: Arc<AtomicU64>,
+        for_viewers: bool,
     ) -> Result<Self, NodeError> {
         let site_q = session
             .declare_queryable(keys.central_site())
@@ -660,9 +710,13 @@ impl Endpoints {
             status_sub: subscriber(session, keys.cell_status_all()).await?,
             burst_sub: subscriber(session, keys.cell_burst_all()).await?,
             air_sub: subscriber(session, keys.cell_air_all()).await?,
-            pose_sub: subscriber(session, keys.robot_all(RobotTopic::Pose)).await?,
-            fix_sub: subscriber(session, keys.robot_all(RobotTopic::Fix)).await?,
+            summary_sub: subscriber(session, keys.robot_summary_all()).await?,
             robot_status_sub: subscriber(session, keys.robot_status_all()).await?,
+            truth_sub: if for_viewers {
+                Some(subscriber(session, keys.sim_truth_all()).await?)
+            } else {
+                None
+            },
             cycle_sub: subscriber(session, keys.central_cycle()).await?,
             schedule_sub: subscriber(session, keys.central_schedule()).await?,
         })
@@ -763,14 +817,40 @@ fn burst_event(s: &Sample, clock: &SimulatedClock, undecodable: &mut u64) -> Opt
     }
 }
 
-/// A robot's pose (`None` when its key or payload does not parse).
-fn pose_event(keys: &Keys, s: &Sample) -> Option<Event> {
+/// A robot's summary, counting one whose payload does not decode.
+fn summary_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
     match (
         keys.parse(s.key_expr().as_str()),
-        decode::<RobotPose>(&s.payload().to_bytes()),
+        decode::<RobotSummary>(&s.payload().to_bytes()),
     ) {
-        (Ok(Key::Robot(robot, _)), Ok(pose)) => Some(Event::Pose { robot, pose }),
+        (Ok(Key::RobotSummary(robot)), Ok(summary)) => Some(Event::Summary {
+            robot,
+            summary: Box::new(summary),
+        }),
+        (_, Err(_)) => {
+            *undecodable += 1;
+            None
+        }
         _ => None,
+    }
+}
+
+/// A robot's truth (`None` when its key or payload does not parse).
+fn truth_of(keys: &Keys, s: &Sample) -> Option<(String, Truth)> {
+    match (
+        keys.parse(s.key_expr().as_str()),
+        decode::<Truth>(&s.payload().to_bytes()),
+    ) {
+        (Ok(Key::SimTruth(robot)), Ok(truth)) => Some((robot, truth)),
+        _ => None,
+    }
+}
+
+/// The next sample of `sub`; never, without one.
+async fn next_sample(sub: &Option<Subscriber<Queue<Sample>>>) -> Option<Sample> {
+    match sub {
+        Some(sub) => sub.recv_async().await.ok(),
+        None => std::future::pending().await,
     }
 }
 
@@ -781,24 +861,6 @@ fn robot_status_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<
         decode::<MsuStatus>(&s.payload().to_bytes()),
     ) {
         (Ok(Key::RobotStatus(robot)), Ok(status)) => Some(Event::RobotStatus { robot, status }),
-        (_, Err(_)) => {
-            *undecodable += 1;
-            None
-        }
-        _ => None,
-    }
-}
-
-/// A robot's fix, counting one whose payload does not decode.
-fn fix_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
-    match (
-        keys.parse(s.key_expr().as_str()),
-        decode::<Fix>(&s.payload().to_bytes()),
-    ) {
-        (Ok(Key::Robot(robot, _)), Ok(fix)) => Some(Event::Fix {
-            robot,
-            fix: Box::new(fix),
-        }),
         (_, Err(_)) => {
             *undecodable += 1;
             None
@@ -890,6 +952,22 @@ async fn answer_admin(
         return;
     };
     match command.as_str() {
+        // With a request, a page of the robots; without, the whole status
+        // (the web map's and older admins' question).
+        "robots" if q.payload().is_some() => {
+            let page = match q.payload().map(|p| decode::<RobotsRequest>(&p.to_bytes())) {
+                Some(Ok(request)) => core.robots_page(now, &request),
+                _ => RobotPage {
+                    error: "the payload is not a robots request".into(),
+                    page: 0,
+                    pages: 1,
+                    matching: 0,
+                    counts: RobotCounts::default(),
+                    robots: Vec::new(),
+                },
+            };
+            reply(q, &page).await;
+        }
         "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
         "schedule" => reply(q, &core.current_firing()).await,
         "transmitters" => reply(q, &core.transmitters(now)).await,

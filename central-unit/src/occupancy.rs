@@ -7,7 +7,7 @@
 //! cycle. Without a velocity the centre is its last pose and the allowance
 //! is its top speed (`max_speed_m_s`) times the pose's age and one more
 //! cycle. With the mean velocity of its last poses
-//! ([`crate::pose_track`]) the centre is where that velocity takes it by
+//! ([`crate::velocity`]) the centre is where that velocity takes it by
 //! the middle of the next cycle, and the allowance is what a robot whose
 //! acceleration (turns included) stays under `max_accel_m_s2` can stray
 //! from it, plus the velocity's own uncertainty; the smaller of the two
@@ -31,9 +31,9 @@ use ickon_proto::msg::robot::RobotPose;
 use ickon_proto::time::{Duration, Time};
 
 use crate::audibility::GRID_M;
-use crate::pose_track::Velocity;
 use crate::selection::{FiringHistory, Need, NeedsConfig, choose};
 use crate::spacing::{NeedMatrix, Packing, Reverb, SpacingTable};
+use crate::velocity::Velocity;
 
 /// How the central unit picks the transmitters of a cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,7 +88,9 @@ impl Default for FiringConfig {
             // at its top 1.2 rad/s: 1.44 m/s^2 sideways; it brakes and
             // speeds up at 0.5 m/s^2.
             max_accel_m_s2: 1.5,
-            stale_after: Duration::from_millis(1_000),
+            // Three summaries missing in a row (one every 500 ms), as
+            // `crate::health::POSE_STALE_AFTER`.
+            stale_after: Duration::from_millis(1_600),
             lost_sigma_m: 1.0,
             sweep_radius_m: 15.0,
             needs: None,

@@ -28,7 +28,7 @@ pub struct SimArgs {
     #[arg(long)]
     pub site: Option<PathBuf>,
     /// Number of robots: the first N robots of the site, each on its own
-    /// route; above the robots the site defines (up to 4096), the site's
+    /// route; above the robots the site defines (up to 10000), the site's
     /// robots and more added on its routes, spread along them by the seed.
     #[arg(long, default_value_t = 3)]
     pub robots: usize,

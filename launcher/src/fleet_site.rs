@@ -14,13 +14,13 @@ use ickon_proto::site::{Route, Site};
 use ickon_runtime::CommandError;
 use rand::{Rng, SeedableRng};
 
-/// The largest fleet a site is extended to. 4096 robots add about 280 kB
-/// to the site's text, well inside the 4 MiB every node reads
+/// The largest fleet a site is extended to. 10,000 robots add about
+/// 700 kB to the site's text, well inside the 4 MiB every node reads
 /// ([`ickon_proto::site::MAX_SITE_FILE_BYTES`]) and the central unit
-/// serves in one message; that is 32 times `warehouse`'s 128 robots and
-/// four times the largest fleet `ickon bench central` measures by default.
-/// Beyond it the number is a typing error more likely than a fleet.
-pub const MAX_ROBOTS: usize = 4096;
+/// serves in one message; that is the largest fleet `ickon bench central`
+/// is sized for. Beyond it the number is a typing error more likely than
+/// a fleet.
+pub const MAX_ROBOTS: usize = 10_000;
 
 /// The random stream the added robots' places are drawn from (mixed with
 /// the run's seed, apart from the other draws of a run).

@@ -159,7 +159,7 @@ fn a_fleet_the_site_holds_is_the_site_itself() {
 fn too_many_robots_or_no_route_is_refused() {
     let (site, text) = warehouse();
     let e = extend(&site, text, MAX_ROBOTS + 1, 1).expect_err("too many");
-    assert!(e.to_string().contains("4096"), "{e}");
+    assert!(e.to_string().contains("10000"), "{e}");
     let mut bare = site.clone();
     bare.routes.clear();
     let e = added_robots(&bare, 3, 1).expect_err("nowhere to put them");

@@ -30,6 +30,7 @@ pub mod marvelmind_receivers;
 pub mod motion;
 #[cfg(feature = "zenoh")]
 pub mod node;
+pub mod pose_track;
 #[cfg(feature = "zenoh")]
 pub mod receiver_input;
 #[cfg(feature = "zenoh")]
@@ -37,6 +38,7 @@ pub mod receivers;
 #[cfg(feature = "zenoh")]
 pub mod ros2;
 pub mod solver;
+pub mod summary;
 pub mod time_gate;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};

@@ -28,6 +28,7 @@ use crate::hedgehog::HedgehogInput;
 use crate::marvelmind_receivers::RangingSite;
 use crate::receivers::{ReceiverInput, ReceiverKind, ReceiverSource, SourceContext};
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
+use crate::summary::SummaryMaker;
 use crate::{Event, InputKind, MsuCore, MsuTuning, Output};
 
 /// How often the site and schedule are asked for until the central unit answers.
@@ -225,6 +226,7 @@ pub async fn run(
         keys: &keys,
         core,
         publishers,
+        summary: SummaryMaker::default(),
         ros,
         n: MsuCounters::default(),
         log_limit: LogLimiter::default(),
@@ -414,14 +416,15 @@ impl RobotInputs {
     }
 }
 
-/// Where the agent publishes its robot's fixes and poses.
+/// Where the agent publishes its robot's fixes, poses and summaries.
 struct Publishers {
     fix: Publisher<'static>,
     pose: Publisher<'static>,
+    summary: Publisher<'static>,
 }
 
 impl Publishers {
-    /// Declares the fix and pose publishers of `robot`.
+    /// Declares the fix, pose and summary publishers of `robot`.
     async fn declare(session: &Session, keys: &Keys, robot: &str) -> Result<Self, NodeError> {
         // Not express: batched with other samples only when the link is busy
         // (Zenoh's adaptive batching), which is when one write per pose costs
@@ -437,7 +440,15 @@ impl Publishers {
             .congestion_control(CongestionControl::Drop)
             .await
             .map_err(zerr)?;
-        Ok(Self { fix, pose })
+        // The central unit's view of the robot: a lost one is replaced by
+        // the next half a second later.
+        let summary = session
+            .declare_publisher(keys.robot_summary(robot)?)
+            .priority(Priority::InteractiveHigh)
+            .congestion_control(CongestionControl::Drop)
+            .await
+            .map_err(zerr)?;
+        Ok(Self { fix, pose, summary })
     }
 }
 
@@ -448,6 +459,8 @@ struct Agent<'a> {
     keys: &'a Keys,
     core: MsuCore,
     publishers: Publishers,
+    /// The summaries for the central unit, from the poses and fixes published.
+    summary: SummaryMaker,
     ros: Option<Ros2Link>,
     n: MsuCounters,
     /// Bad input is logged once per kind per window, with the count held back.
@@ -625,6 +638,7 @@ impl Agent<'_> {
                         self.n.failed_puts += 1;
                     }
                     self.n.fixes += 1;
+                    self.summary.on_fix(&fix);
                     // Its ROS 2 copy waits until the pose that absorbed it is out.
                     ros_fix = Some(fix);
                 }
@@ -633,6 +647,11 @@ impl Agent<'_> {
                         self.n.failed_puts += 1;
                     }
                     self.n.poses += 1;
+                    if let Some(summary) = self.summary.on_pose(&pose)
+                        && !put_counted(&self.publishers.summary, &summary).await
+                    {
+                        self.n.failed_puts += 1;
+                    }
                     // The ROS 2 copy after ours: it adds nothing ahead of it.
                     // A pose after a fix in one batch absorbed it.
                     if let Some(r) = self.ros.as_mut() {

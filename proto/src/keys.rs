@@ -132,6 +132,8 @@ pub enum Key {
     Robot(String, RobotTopic),
     /// `robot/<id>/status`
     RobotStatus(String),
+    /// `robot/<id>/summary`
+    RobotSummary(String),
     /// `sim/truth/<id>`
     SimTruth(String),
     /// `sim/kit/<id>`
@@ -281,6 +283,18 @@ impl Keys {
         format!("{}/robot/*/status", self.prefix)
     }
 
+    /// `ickon/<site>/robot/<id>/summary`: the robot's
+    /// [`RobotSummary`](crate::msg::robot::RobotSummary) for the central unit.
+    pub fn robot_summary(&self, robot: &str) -> Result<String, KeyError> {
+        validate_id(robot)?;
+        Ok(format!("{}/robot/{robot}/summary", self.prefix))
+    }
+
+    /// `ickon/<site>/robot/*/summary`: every robot's summary.
+    pub fn robot_summary_all(&self) -> String {
+        format!("{}/robot/*/summary", self.prefix)
+    }
+
     /// `ickon/<site>/robot/*/<topic>`: one topic of every robot.
     pub fn robot_all(&self, topic: RobotTopic) -> String {
         format!("{}/robot/*/{}", self.prefix, topic.chunk())
@@ -345,6 +359,7 @@ impl Keys {
             ["cell", c, "status"] => Ok(Key::CellStatus(id(c)?)),
             ["cell", c, "air"] => Ok(Key::CellAir(id(c)?)),
             ["robot", r, "status"] => Ok(Key::RobotStatus(id(r)?)),
+            ["robot", r, "summary"] => Ok(Key::RobotSummary(id(r)?)),
             ["robot", r, topic] => {
                 let topic = RobotTopic::ALL
                     .into_iter()
@@ -387,6 +402,10 @@ mod tests {
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
             (k.sim_kit("r9").unwrap(), Key::SimKit("r9".into())),
             (k.robot_status("r9").unwrap(), Key::RobotStatus("r9".into())),
+            (
+                k.robot_summary("r9").unwrap(),
+                Key::RobotSummary("r9".into()),
+            ),
             (k.sim_probe(), Key::SimProbe),
         ];
         for (key, expected) in cases {

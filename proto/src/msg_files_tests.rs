@@ -11,7 +11,8 @@ use crate::msg::control::{
     SurveyCalibration, TransmitterOffset,
 };
 use crate::msg::robot::{
-    Arrival, Fix, FixQuality, Imu, MsuStatus, ObstacleRanges, Odometry, Truth, UltrasoundArrivals,
+    Arrival, Fix, FixQuality, Imu, MsuStatus, ObstacleRanges, Odometry, PoseStatus, RobotSummary,
+    Truth, UltrasoundArrivals,
 };
 use crate::msg::ros_msgs::{MSG_FILES, PACKAGE, msg_file, own_schema};
 use crate::{Duration, Time, encode};
@@ -245,6 +246,43 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
         },
         &mut checked,
     );
+    let fix = |quality, heading_valid| Fix {
+        stamp: t,
+        arrivals_seq: 42,
+        x_m: 2.5,
+        y_m: 1.75,
+        z_m: 0.5,
+        covariance: [1e-4, 2e-6, 0.0, 2e-6, 3e-4, 0.0, 0.0, 0.0, 1e-6],
+        heading_rad: 0.3,
+        heading_valid,
+        used: vec![11, 12, 13],
+        rejected: vec![14],
+        residuals_m: vec![0.001, -0.002, 0.0005],
+        quality,
+        survey_version: 1_764_000_000,
+    };
+    for status in [PoseStatus::NoOdometry, PoseStatus::Localising] {
+        check(
+            "RobotSummary",
+            &RobotSummary {
+                seq: 7,
+                stamp: t,
+                x_m: 1.5,
+                y_m: -2.25,
+                theta_rad: 0.7,
+                covariance: [1e-4, 0.0, 0.0, 0.0, 2e-4, 0.0, 0.0, 0.0, 1e-3],
+                estimator: "tdoa-ekf".into(),
+                fix_seq: 41,
+                status,
+                vx_m_s: 0.5,
+                vy_m_s: -0.125,
+                velocity_span_s: 0.48,
+                fixes_solved: 3,
+                fixes: vec![fix(FixQuality::Good, true), fix(FixQuality::Minimal, false)],
+            },
+            &mut checked,
+        );
+    }
     for (quality, heading_valid) in [(FixQuality::Suspect, true), (FixQuality::Ambiguous, false)] {
         check(
             "Fix",

@@ -11,6 +11,7 @@ use std::collections::BTreeMap;
 use ickon_central::core::{CentralConfig, Event as CentralEvent};
 use ickon_central::selection::PlanStats;
 use ickon_fusion::estimator;
+use ickon_msu::summary::SummaryMaker;
 use ickon_msu::{Event as MsuEvent, MsuCore, MsuDriver};
 use ickon_proto::msg::control::CycleTrigger;
 use ickon_proto::site::Site;
@@ -133,6 +134,8 @@ struct Member {
     route: String,
     world: World,
     msu: MsuDriver,
+    /// Its summaries for the central unit, as its agent on the mesh makes them.
+    summary: SummaryMaker,
     fixes: u64,
     /// Signals those fixes used, added up.
     signals_used: u64,
@@ -201,6 +204,7 @@ fn build_members(
             route: spec.route.clone(),
             world,
             msu,
+            summary: SummaryMaker::default(),
             fixes: 0,
             signals_used: 0,
             calibrated_fixes: 0,
@@ -419,7 +423,8 @@ impl<'a> Fleet<'a> {
     }
 
     /// Delivers every cycle due by `t` to every member; their fixes go to
-    /// the central unit and, when `scoring`, are counted.
+    /// the central unit with their next summaries and, when `scoring`, are
+    /// counted.
     fn deliver_due(&mut self, t: f64, scoring: bool) {
         let now_ns = (t * 1e9) as i64;
         let ready: Vec<i64> = self.due.range(..=now_ns).map(|(k, _)| *k).collect();
@@ -446,10 +451,8 @@ impl<'a> Fleet<'a> {
             if let Some(fix) = m.msu.feed(MsuEvent::Arrivals(msg)).fix {
                 let calibrated = fix.survey_version != 0;
                 let used = fix.used.len() as u64;
-                self.control.send_to_central(CentralEvent::Fix {
-                    robot: m.id.clone(),
-                    fix: Box::new(fix),
-                });
+                // To the central unit with the robot's next summary.
+                m.summary.on_fix(&fix);
                 if scoring {
                     m.fixes += 1;
                     m.signals_used += used;
@@ -476,8 +479,8 @@ impl<'a> Fleet<'a> {
         }
     }
 
-    /// Sends each member's pose to the central unit and, when `scoring`,
-    /// records its error against the truth at `t`.
+    /// Sends each member's summary to the central unit when one is due and,
+    /// when `scoring`, records its error against the truth at `t`.
     fn sample_poses(&mut self, t: f64, scoring: bool) {
         for m in &mut self.members {
             let Some(pose) = m.msu.core().pose() else {
@@ -488,10 +491,12 @@ impl<'a> Fleet<'a> {
                 let err = (pose.x_m - truth.x_m).hypot(pose.y_m - truth.y_m);
                 m.errors_mm.push(err * 1e3);
             }
-            self.control.send_to_central(CentralEvent::Pose {
-                robot: m.id.clone(),
-                pose,
-            });
+            if let Some(summary) = m.summary.on_pose(&pose) {
+                self.control.send_to_central(CentralEvent::Summary {
+                    robot: m.id.clone(),
+                    summary: Box::new(summary),
+                });
+            }
         }
     }
 

@@ -161,11 +161,11 @@ fn absurd_fleet_sizes_are_refused_before_anything_starts() {
                 "bench",
                 "central",
                 "--robots",
-                "100,5000",
+                "100,10001",
                 "--duration",
                 "1",
             ],
-            "5000 robots is more than the 4096",
+            "10001 robots is more than the 10000",
         ),
         (
             &["bench", "central", "--robots", "-3", "--duration", "1"],
@@ -176,13 +176,13 @@ fn absurd_fleet_sizes_are_refused_before_anything_starts() {
             "--duration",
         ),
         (
-            &["sim", "--robots", "4097", "--duration", "1"],
-            "4097 robots is more than the 4096",
+            &["sim", "--robots", "10001", "--duration", "1"],
+            "10001 robots is more than the 10000",
         ),
         (&["sim", "--robots", "0", "--duration", "1"], "--robots 0"),
         (
             &["bench", "scale", "--robots", "16,99999", "--duration", "1"],
-            "99999 robots is more than the 4096",
+            "99999 robots is more than the 10000",
         ),
     ] {
         let (code, _, err) = ickon(args);

@@ -2,7 +2,9 @@
 //! `lab` with robots r1 and r2, and a forger holding robot r3's credential
 //! that publishes fixes placing every transmitter it uses 20 cm off its
 //! place (heights up and down in turn), as an MSU publishes them: good
-//! quality, residuals orthogonal to the fix's own unknowns. The central
+//! quality, residuals orthogonal to the fix's own unknowns, in summaries
+//! twice a second that the central unit's gate takes (a robot standing
+//! still, stamps that follow the time). The central
 //! unit must quarantine r3 within a minute of its first fix, keep every
 //! forged fix out of the survey calibration (all counted, but for one
 //! window held for judging), keep r1 and r2 agreeing, and publish a
@@ -18,9 +20,9 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use ickon_proto::codec::encode;
-use ickon_proto::keys::{Keys, RobotTopic};
+use ickon_proto::keys::Keys;
 use ickon_proto::msg::control::SurveyCalibration;
-use ickon_proto::msg::robot::{Fix, FixQuality};
+use ickon_proto::msg::robot::{Fix, FixQuality, PoseStatus, RobotSummary, SUMMARY_PERIOD};
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_testkit::{ChildGuard, poll_until};
@@ -35,10 +37,10 @@ const START_TIMEOUT: Duration = Duration::from_secs(90);
 /// Each run, once every node is live, seconds: time for the robots to
 /// settle and the forger to be judged, short for the test command.
 const RUN_S: u64 = 20;
-/// How often the forger publishes, per second: an MSU's rate on `lab`
-/// (about 7 fixes a second), within the central unit's share of 1.25 a
-/// cycle.
-const FORGED_PER_S: f64 = 5.0;
+/// How many fixes each of the forger's summaries carries: six a second
+/// at an agent's two summaries a second, an MSU's rate on `lab` (about 7
+/// fixes a second), within the central unit's share of 1.25 a cycle.
+const FIXES_PER_SUMMARY: usize = 3;
 /// The fixes the central unit holds of a robot for its check.
 const WINDOW_FIXES: u64 = 20;
 /// Where the forger claims to be: the corridor, where the honest robots
@@ -205,6 +207,27 @@ fn mean_errors(report: &Value) -> Vec<(String, f64)> {
 /// every transmitter in sight within 8 m, the residuals what such
 /// displacements leave once the fix's position and offset absorbed what
 /// they can.
+/// The forger's summary number `seq`, `since` its start: a robot
+/// standing still at the first place, carrying `fixes`.
+fn forged_summary(seq: u64, since: Duration, fixes: Vec<Fix>) -> RobotSummary {
+    RobotSummary {
+        seq,
+        stamp: Time(since.as_nanos() as i64),
+        x_m: PLACES[0][0],
+        y_m: PLACES[0][1],
+        theta_rad: 0.0,
+        covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-3],
+        estimator: "tdoa-ekf".into(),
+        fix_seq: seq,
+        status: PoseStatus::Tracking,
+        vx_m_s: 0.0,
+        vy_m_s: 0.0,
+        velocity_span_s: 0.0,
+        fixes_solved: fixes.len() as u32,
+        fixes,
+    }
+}
+
 fn forged_fix(site: &Site, at: [f64; 2]) -> Fix {
     let receiver = Vector3::new(at[0], at[1], site.msu.height_m);
     let mut used = Vec::new();
@@ -283,11 +306,8 @@ fn a_robot_forging_the_survey_is_quarantined_and_the_fleet_keeps_its_accuracy() 
         .wait()
         .unwrap();
     let forger = open_as(&secure, "robot-r3", &endpoint);
-    let fix_key = keys.robot("r3", RobotTopic::Fix).unwrap();
-    let fixes: Vec<Vec<u8>> = PLACES
-        .iter()
-        .map(|&at| encode(&forged_fix(&site, at)).unwrap())
-        .collect();
+    let summary_key = keys.robot_summary("r3").unwrap();
+    let fixes: Vec<Fix> = PLACES.iter().map(|&at| forged_fix(&site, at)).collect();
 
     // Forge until quarantined (and a few seconds on), looking once a second.
     let started = Instant::now();
@@ -299,12 +319,17 @@ fn a_robot_forging_the_survey_is_quarantined_and_the_fleet_keeps_its_accuracy() 
         if let Some(status) = sim.exit_status() {
             panic!("ickon sim {status} while forging:\n{}", sim.log());
         }
+        let carried: Vec<Fix> = (0..FIXES_PER_SUMMARY)
+            .map(|k| fixes[(sent + k) % fixes.len()].clone())
+            .collect();
+        let seq = (sent / FIXES_PER_SUMMARY) as u64 + 1;
+        let summary = forged_summary(seq, started.elapsed(), carried);
         forger
-            .put(&fix_key, fixes[sent % fixes.len()].clone())
+            .put(&summary_key, encode(&summary).unwrap())
             .wait()
             .unwrap();
-        sent += 1;
-        std::thread::sleep(Duration::from_secs_f64(1.0 / FORGED_PER_S));
+        sent += FIXES_PER_SUMMARY;
+        std::thread::sleep(SUMMARY_PERIOD.to_std());
         if last_look.elapsed() >= Duration::from_secs(1) {
             last_look = Instant::now();
             looked = admin_robots(&runtime_dir, &secure, &endpoint);

@@ -2,7 +2,8 @@
 //! site.
 
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, RobotHealth, StatusReport, TransmitterStatus, TransmittersReport,
+    AdminAck, CoverageReport, RobotHealth, RobotPage, RobotsRequest, StatusReport,
+    TransmitterStatus, TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
 use ickon_proto::site::Site;
@@ -32,6 +33,33 @@ impl SurveyCost {
 }
 
 impl CentralCore {
+    /// The answer to `robots` with a request: a page of the robots in the
+    /// state asked, by id or nearest first to a place, and the whole
+    /// fleet's counts by state. A page beyond the last, a negative one or
+    /// an unknown state is refused with the reason. Every robot's health
+    /// is made once per request (the fleet's size, never its square).
+    pub fn robots_page(&self, now: Time, request: &RobotsRequest) -> RobotPage {
+        crate::robot_pages::page(
+            self.robots
+                .iter()
+                .map(|(id, r)| self.robot_health(id, r, now)),
+            request,
+        )
+    }
+
+    /// One robot's health as the admin sees it.
+    fn robot_health(&self, id: &str, r: &crate::health::RobotTracker, now: Time) -> RobotHealth {
+        let check = self.survey.as_ref().map(|p| p.robot_check(id));
+        RobotHealth {
+            fixes_over_rate: self.survey_fix_rate.refused(id),
+            survey_check: check.map_or("", |c| c.check.label()).to_string(),
+            fixes_quarantined: check.map_or(0, |c| c.fixes_quarantined),
+            survey_misfit_m: check.and_then(|c| c.misfit_m).unwrap_or(-1.0),
+            survey_bound_m: check.and_then(|c| c.bound_m).unwrap_or(-1.0),
+            ..r.health(id, now)
+        }
+    }
+
     /// The answer to `status`, `cells`, `robots` and `sync`.
     pub fn status(&self, now: Time) -> StatusReport {
         let schedule = self.schedule_for(self.last_cycle());
@@ -46,17 +74,7 @@ impl CentralCore {
             robots: self
                 .robots
                 .iter()
-                .map(|(id, r)| {
-                    let check = self.survey.as_ref().map(|p| p.robot_check(id));
-                    RobotHealth {
-                        fixes_over_rate: self.survey_fix_rate.refused(id),
-                        survey_check: check.map_or("", |c| c.check.label()).to_string(),
-                        fixes_quarantined: check.map_or(0, |c| c.fixes_quarantined),
-                        survey_misfit_m: check.and_then(|c| c.misfit_m).unwrap_or(-1.0),
-                        survey_bound_m: check.and_then(|c| c.bound_m).unwrap_or(-1.0),
-                        ..r.health(id, now)
-                    }
-                })
+                .map(|(id, r)| self.robot_health(id, r, now))
                 .collect(),
             epoch: self.epoch,
             foreign_control: self.foreign_control,

@@ -1,10 +1,10 @@
-//! The robots: liveliness, poses and fixes, their share of the survey
+//! The robots: liveliness, summaries and fixes, their share of the survey
 //! calibration, and the clock replies they ask for.
 
 use std::collections::BTreeMap;
 
 use ickon_proto::msg::control::ClockReply;
-use ickon_proto::msg::robot::{Fix, MsuStatus, RobotPose};
+use ickon_proto::msg::robot::{Fix, MsuStatus, RobotSummary};
 use ickon_proto::time::Time;
 
 use crate::health::RobotTracker;
@@ -76,18 +76,19 @@ impl CentralCore {
     /// A robot's liveliness token appeared or disappeared.
     pub(super) fn robot_alive(&mut self, id: &str, up: bool) {
         if let Some(r) = self.robot_mut(id) {
-            r.alive = up;
+            r.set_alive(up);
         }
+    }
+
+    /// Whether `id` is one of the site's robots (a robot tracked already
+    /// is: the table holds only the site's, and a reload keeps only those).
+    fn on_site(&self, id: &str) -> bool {
+        self.robots.contains_key(id) || self.site.robots.iter().any(|r| r.id == id)
     }
 
     /// The tracker of robot `id` if the site has it. Robots the site does
     /// not know are counted, not tracked: the table stays as large as the
     /// site, whatever anyone publishes.
-    /// Whether `id` is one of the site's robots.
-    fn on_site(&self, id: &str) -> bool {
-        self.site.robots.iter().any(|r| r.id == id)
-    }
-
     fn robot_mut(&mut self, id: &str) -> Option<&mut RobotTracker> {
         if self.on_site(id) {
             Some(self.robots.entry(id.to_string()).or_default())
@@ -102,11 +103,46 @@ impl CentralCore {
         self.unknown_robot_messages
     }
 
-    /// A robot published a pose, received at `now`.
-    pub(super) fn on_pose(&mut self, id: &str, pose: RobotPose, now: Time) {
-        if let Some(r) = self.robot_mut(id) {
-            r.on_pose(pose, now);
+    /// A robot's summary, received at `now`: taken when its gate lets it
+    /// through, its fixes then offered to the survey calibration; dropped
+    /// and counted otherwise (logged at a bounded rate per robot). The
+    /// fixes of a robot the site does not list share one share of the
+    /// calibration, as its fixes always did.
+    pub(super) fn on_summary(&mut self, id: &str, summary: &RobotSummary, now: Time) {
+        let taken = match self.robot_mut(id) {
+            Some(r) => r
+                .on_summary(summary, now)
+                .map_err(|d| (d, r.summaries_dropped)),
+            None => Ok(()),
+        };
+        match taken {
+            Ok(()) => {
+                for fix in &summary.fixes {
+                    self.survey_fix(id, fix, now);
+                }
+            }
+            Err((dropped, of_robot)) => {
+                *self.summaries_dropped.entry(dropped.label()).or_default() += 1;
+                if of_robot.is_power_of_two() {
+                    tracing::warn!(
+                        "robot {id}: summary dropped ({}): {of_robot} of its summaries dropped so far \
+                         (a robot that floods or stamps from the future, or another sender under its id)",
+                        dropped.label()
+                    );
+                }
+            }
         }
+    }
+
+    /// The stamp of the last pose taken of robot `id` (from its summary).
+    pub fn last_pose_stamp(&self, id: &str) -> Option<Time> {
+        self.robots.get(id)?.last_pose().map(|(p, _)| p.stamp)
+    }
+
+    /// Summaries the robots' gates dropped, by reason
+    /// ([`crate::summary_gate::Dropped::label`]).
+    pub fn summaries_dropped(&self) -> &BTreeMap<&'static str, u64> {
+        &self.summaries_dropped
     }
 
     /// A robot's agent reported its state.

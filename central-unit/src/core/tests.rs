@@ -1,6 +1,26 @@
 use super::*;
 use ickon_proto::msg::admin::{CellState, CoverageReport};
-use ickon_proto::msg::robot::FixQuality;
+use ickon_proto::msg::robot::{FixQuality, RobotPose};
+
+/// The summary of a robot whose newest pose is `pose` (no velocity, no fixes).
+pub(super) fn summary_of(pose: RobotPose) -> Box<RobotSummary> {
+    Box::new(RobotSummary {
+        seq: 1,
+        stamp: pose.stamp,
+        x_m: pose.x_m,
+        y_m: pose.y_m,
+        theta_rad: pose.theta_rad,
+        covariance: pose.covariance,
+        estimator: pose.estimator,
+        fix_seq: pose.fix_seq,
+        status: pose.status,
+        vx_m_s: 0.0,
+        vy_m_s: 0.0,
+        velocity_span_s: 0.0,
+        fixes_solved: 0,
+        fixes: Vec::new(),
+    })
+}
 
 fn core() -> CentralCore {
     let site = Site::default_site();
@@ -262,9 +282,9 @@ fn coverage_follows_the_schedule_in_force() {
 fn robots_are_reported_with_their_last_pose() {
     let mut c = core();
     c.robot_alive("r1", true);
-    c.on_pose(
+    c.on_summary(
         "r1",
-        RobotPose {
+        &summary_of(RobotPose {
             stamp: Time(0),
             x_m: 1.5,
             y_m: 2.0,
@@ -273,7 +293,7 @@ fn robots_are_reported_with_their_last_pose() {
             estimator: "ickon-akf".into(),
             fix_seq: 3,
             status: ickon_proto::msg::robot::PoseStatus::Tracking,
-        },
+        }),
         Time(0),
     );
     c.on_fix("r1", Time(0));
@@ -289,8 +309,8 @@ fn a_live_robot_whose_poses_stop_is_stale_and_its_msus_word_is_shown() {
     let mut c = core();
     c.robot_alive("r1", true);
     assert_eq!(c.status(Time(0)).robots[0].stale, "no pose yet");
-    let pose = |status| RobotPose {
-        stamp: Time(0),
+    let pose = |status, stamp_ms: i64| RobotPose {
+        stamp: Time(stamp_ms * 1_000_000),
         x_m: 1.5,
         y_m: 2.0,
         theta_rad: 0.1,
@@ -299,22 +319,23 @@ fn a_live_robot_whose_poses_stop_is_stale_and_its_msus_word_is_shown() {
         fix_seq: 3,
         status,
     };
-    c.on_pose(
+    c.on_summary(
         "r1",
-        pose(ickon_proto::msg::robot::PoseStatus::Tracking),
+        &summary_of(pose(ickon_proto::msg::robot::PoseStatus::Tracking, 0)),
         Time(0),
     );
     let later = Time(0) + crate::health::POSE_STALE_AFTER + Duration::from_millis(500);
-    assert_eq!(c.status(later).robots[0].stale, "no pose for 1.5 s");
-    c.on_pose(
+    assert_eq!(c.status(later).robots[0].stale, "no pose for 2.1 s");
+    c.on_summary(
         "r1",
-        pose(ickon_proto::msg::robot::PoseStatus::NoFixes),
+        &summary_of(pose(ickon_proto::msg::robot::PoseStatus::NoFixes, 2_100)),
         later,
     );
     assert_eq!(c.status(later).robots[0].stale, "MSU: no fixes");
-    c.on_pose(
+    let later = later + Duration::from_millis(500);
+    c.on_summary(
         "r1",
-        pose(ickon_proto::msg::robot::PoseStatus::Localising),
+        &summary_of(pose(ickon_proto::msg::robot::PoseStatus::Localising, 2_600)),
         later,
     );
     assert!(
@@ -461,16 +482,25 @@ fn with_occupancy_the_triggers_name_only_what_a_tracked_robot_hears() {
     };
     c.handle(
         Time::from_secs_f64(1.0),
-        Event::Pose {
+        Event::Summary {
             robot: robot.clone(),
-            pose: unconfirmed,
+            summary: summary_of(unconfirmed),
         },
     );
     let guessing = triggers(&c.handle(Time::from_secs_f64(1.5), Event::Tick));
     assert!(!guessing.is_empty());
     assert!(guessing.iter().all(|t| t.firing.len() == all));
     let now = Time::from_secs_f64(1.5);
-    c.handle(now, Event::Pose { robot, pose });
+    c.handle(
+        now,
+        Event::Summary {
+            robot,
+            summary: summary_of(RobotPose {
+                stamp: Time(500_000_000),
+                ..pose
+            }),
+        },
+    );
     let later = triggers(&c.handle(Time::from_secs_f64(2.5), Event::Tick));
     let last = later.last().unwrap();
     assert!(
@@ -753,4 +783,88 @@ fn the_cells_due_are_those_a_trigger_names_or_all_when_it_names_none() {
     }];
     let due: Vec<String> = c.cells_due(&t).into_iter().collect();
     assert_eq!(due, vec!["c1".to_string()]);
+}
+
+#[test]
+fn robots_come_a_page_at_a_time_by_state_or_nearest_first_and_bad_pages_are_refused() {
+    use ickon_proto::msg::admin::RobotsRequest;
+    let mut c = core();
+    let ids: Vec<String> = c.site().robots.iter().map(|r| r.id.clone()).collect();
+    assert!(ids.len() >= 3, "{ids:?}");
+    for (k, id) in ids.iter().enumerate() {
+        c.robot_alive(id, true);
+        c.on_summary(
+            id,
+            &summary_of(RobotPose {
+                stamp: Time(0),
+                x_m: k as f64,
+                y_m: 0.0,
+                theta_rad: 0.0,
+                covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 1e-3],
+                estimator: "tdoa-ekf".into(),
+                fix_seq: 1,
+                status: ickon_proto::msg::robot::PoseStatus::Tracking,
+            }),
+            Time(0),
+        );
+    }
+    c.robot_alive(&ids[0], false);
+    let ask = |request: RobotsRequest| c.robots_page(Time(0), &request);
+    let all = ask(RobotsRequest {
+        page_size: 1,
+        ..RobotsRequest::default()
+    });
+    assert_eq!(all.error, "");
+    assert_eq!(
+        (all.pages, all.matching),
+        (ids.len() as u64, ids.len() as u64)
+    );
+    assert_eq!(all.counts.down, 1);
+    assert_eq!(all.counts.up, ids.len() as u64 - 1);
+    assert_eq!(all.robots.len(), 1);
+    let down = ask(RobotsRequest {
+        state: "down".into(),
+        ..RobotsRequest::default()
+    });
+    assert_eq!(
+        down.robots
+            .iter()
+            .map(|r| r.id.as_str())
+            .collect::<Vec<_>>(),
+        [ids[0].as_str()]
+    );
+    // Nearest first to the last robot's place.
+    let last = ids.len() - 1;
+    let near = ask(RobotsRequest {
+        near: true,
+        near_x_m: last as f64,
+        ..RobotsRequest::default()
+    });
+    assert_eq!(near.robots[0].id, ids[last]);
+    assert_eq!(near.robots[1].id, ids[last - 1]);
+    // Beyond the last page, negative, or an unknown state: a clear refusal.
+    let beyond = ask(RobotsRequest {
+        page: 1_000_000_000,
+        ..RobotsRequest::default()
+    });
+    assert!(
+        beyond.error.contains("beyond the last, 0"),
+        "{}",
+        beyond.error
+    );
+    assert!(beyond.robots.is_empty());
+    let negative = ask(RobotsRequest {
+        page: -1,
+        ..RobotsRequest::default()
+    });
+    assert!(negative.error.contains("negative"), "{}", negative.error);
+    let unknown = ask(RobotsRequest {
+        state: "lost".into(),
+        ..RobotsRequest::default()
+    });
+    assert!(
+        unknown.error.contains("none of up, stale, down"),
+        "{}",
+        unknown.error
+    );
 }

@@ -5,10 +5,13 @@
 //! `foxglove.websocket.v1` through [`front_door`]) with Foxglove's own
 //! schemas.
 //!
-//! It is fed as the web map is: its own Zenoh subscribers fill a
-//! [`LiveView`] ([`crate::http::feed::Feed`]) and the central unit's loop
-//! hands it the status ([`FoxgloveLive::publish`], a non-blocking
-//! replace); a ticker turns both into messages [`TICK_PERIOD`] apart. The
+//! It is fed as the web map is: the central unit's loop hands its
+//! [`LiveView`] the robots' summaries, the bursts and the truth
+//! ([`FoxgloveLive::sink`]) and the status ([`FoxgloveLive::publish`], a
+//! non-blocking replace); a ticker turns both into messages
+//! [`TICK_PERIOD`] apart. A recorder drawing the same channels
+//! ([`FoxgloveLive::into_sink`]) fills the view from subscribers of its
+//! own ([`crate::http::feed::Feed`]). The
 //! topics are listed in [`topics`] and in `docs/foxglove.md`.
 //!
 //! Read-only: the server advertises no capability (no client publishing,
@@ -38,7 +41,7 @@ use tokio::sync::watch;
 use tokio::task::JoinHandle;
 use zenoh::Session;
 
-use crate::http::feed::{Feed, SharedView, Stopwatch};
+use crate::http::feed::{Feed, SharedView, Stopwatch, ViewSink};
 use crate::http::view::{LiveView, Snapshot};
 use topics::{CellChannels, RobotChannels};
 
@@ -89,17 +92,14 @@ pub struct FoxgloveLive {
     server: Option<WebSocketServerHandle>,
     door: Option<JoinHandle<()>>,
     ticker: JoinHandle<()>,
-    _feed: Feed,
+    view: ViewSink,
+    /// A recorder's own subscribers (`None` in the central unit).
+    _feed: Option<Feed>,
 }
 
 impl FoxgloveLive {
     /// Starts serving `site` as `args` say (`None` when `--foxglove` is absent).
-    pub async fn start(
-        session: &Session,
-        keys: &Keys,
-        site: &Site,
-        args: &FoxgloveArgs,
-    ) -> Result<Option<Self>, FoxgloveError> {
+    pub async fn start(site: &Site, args: &FoxgloveArgs) -> Result<Option<Self>, FoxgloveError> {
         let Some(wanted) = args.foxglove else {
             return Ok(None);
         };
@@ -123,7 +123,7 @@ impl FoxgloveLive {
             .await
             .map_err(|e| start_error(&e))?;
         let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
-        let mut live = Self::feed(session, keys, site, context, channels, true).await?;
+        let mut live = Self::feed(None, site, context, channels, true).await?;
         live.addr = Some(addr);
         live.server = Some(server);
         live.door = Some(tokio::spawn(front_door::serve(door, inner)));
@@ -144,15 +144,16 @@ impl FoxgloveLive {
         let context = Context::new();
         let channels = Channels::new(&context, site);
         context.add_sink(sink);
-        Self::feed(session, keys, site, context, channels, false).await
+        Self::feed(Some((session, keys)), site, context, channels, false).await
     }
 
-    /// Subscribes the view to the site and starts the ticker on `context`;
-    /// with `own_warnings`, the process's warnings and errors go to the log
-    /// channel too (the central unit's; a recorder's are not the site's).
+    /// Makes the view and starts the ticker on `context`; with a session,
+    /// subscribes the view to the site (a recorder; the central unit's
+    /// loop feeds it through [`Self::sink`]); with `own_warnings`, the
+    /// process's warnings and errors go to the log channel too (the central
+    /// unit's; a recorder's are not the site's).
     async fn feed(
-        session: &Session,
-        keys: &Keys,
+        subscribe: Option<(&Session, &Keys)>,
         site: &Site,
         context: Arc<Context>,
         channels: Channels,
@@ -160,9 +161,15 @@ impl FoxgloveLive {
     ) -> Result<Self, FoxgloveError> {
         let clock = Stopwatch::start();
         let view = SharedView::new(LiveView::new(site));
-        let feed = Feed::start(session, keys, &view, clock)
-            .await
-            .map_err(|e| FoxgloveError::Zenoh(e.to_string()))?;
+        let feed = match subscribe {
+            Some((session, keys)) => Some(
+                Feed::start(session, keys, &view, clock)
+                    .await
+                    .map_err(|e| FoxgloveError::Zenoh(e.to_string()))?,
+            ),
+            None => None,
+        };
+        let sink = ViewSink::new(view.clone(), clock);
         let (status_tx, status_rx) = watch::channel(None);
         let (transmitters_tx, transmitters_rx) = watch::channel(None);
         let ticker = tokio::spawn(tick(
@@ -187,6 +194,7 @@ impl FoxgloveLive {
             server: None,
             door: None,
             ticker,
+            view: sink,
             _feed: feed,
         })
     }
@@ -194,6 +202,11 @@ impl FoxgloveLive {
     /// The address being served (`None` when the channels go to a sink).
     pub fn addr(&self) -> Option<SocketAddr> {
         self.addr
+    }
+
+    /// Where the central unit's loop hands the view what it draws.
+    pub fn sink(&self) -> &ViewSink {
+        &self.view
     }
 
     /// Hands the central unit's latest status to the server (never waits).

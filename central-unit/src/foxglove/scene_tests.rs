@@ -69,6 +69,7 @@ fn report(site: &Site, down: &str) -> StatusReport {
                 survey_misfit_m: -1.0,
                 survey_bound_m: -1.0,
                 receivers: String::new(),
+                summaries_dropped: 0,
             })
             .collect(),
         epoch: 1,

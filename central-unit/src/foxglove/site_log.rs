@@ -176,6 +176,7 @@ mod tests {
                 receivers: None,
                 estimator: None,
                 pose: None,
+                summaries_dropped: 0,
             },
             fused: Some(PoseView {
                 x_m: 1.0,

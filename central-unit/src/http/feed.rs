@@ -1,8 +1,11 @@
-//! What feeds the web map: Zenoh subscribers of its own on the central
-//! unit's session (poses, fixes, truth, bursts: keys that exist for every
-//! observer) fill the [`LiveView`], and a ticker turns it and the latest
-//! status the node published into one JSON snapshot per tick for every
-//! client. None of it runs in, or waits for, the central unit's loop.
+//! What feeds the web map and the Foxglove server: the central unit's loop
+//! hands each a [`ViewSink`] what it received (the robots' summaries, the
+//! bursts, in a simulation the truth), so that the viewers draw from what
+//! the central unit takes and never subscribe to a robot's poses on their
+//! own; a ticker turns the [`LiveView`] and the latest status the node
+//! published into one JSON snapshot per tick for every client. A process
+//! that is not the central unit (a recorder drawing the Foxglove view)
+//! fills the view from subscribers of its own ([`Feed`]).
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
@@ -10,7 +13,7 @@ use std::time::Instant;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
 use ickon_proto::msg::admin::StatusReport;
 use ickon_proto::msg::control::Burst;
-use ickon_proto::msg::robot::{Fix, RobotPose, Truth};
+use ickon_proto::msg::robot::{Fix, RobotPose, RobotSummary, Truth};
 use ickon_proto::time::Time;
 use ickon_proto::{DecodeError, decode};
 use serde::de::DeserializeOwned;
@@ -58,7 +61,44 @@ impl SharedView {
     }
 }
 
-/// The subscribers feeding the view; dropping this undeclares them.
+/// Where the central unit's loop hands a viewer what it draws: its view
+/// and its clock. Each call locks the view briefly and never waits on
+/// anything else.
+#[derive(Debug, Clone)]
+pub struct ViewSink {
+    view: SharedView,
+    clock: Stopwatch,
+}
+
+impl ViewSink {
+    /// Feeds `view`, timed by `clock`.
+    pub fn new(view: SharedView, clock: Stopwatch) -> Self {
+        Self { view, clock }
+    }
+
+    /// A robot's summary the central unit took: its pose and its newest fix.
+    pub fn summary(&self, robot: &str, summary: &RobotSummary) {
+        let now = self.clock.now();
+        let mut view = self.view.lock();
+        view.on_pose(robot, summary.pose(), now);
+        if let Some(fix) = summary.fixes.last() {
+            view.on_fix(robot, fix.clone(), now);
+        }
+    }
+
+    /// A burst report.
+    pub fn burst(&self, burst: &Burst) {
+        self.view.lock().on_burst(burst, self.clock.now());
+    }
+
+    /// A robot's truth (simulation only).
+    pub fn truth(&self, robot: &str, truth: Truth) {
+        self.view.lock().on_truth(robot, truth);
+    }
+}
+
+/// The subscribers feeding the view of a process other than the central
+/// unit; dropping this undeclares them.
 pub struct Feed {
     _subscribers: Vec<Subscriber<()>>,
 }

@@ -8,10 +8,11 @@
 //! updated at 20 Hz over server-sent events, which browsers reconnect by
 //! themselves when the central unit restarts.
 //!
-//! The central unit's loop only publishes its status into a watch channel
-//! ([`WebMap::publish`], a non-blocking replace); everything else here
-//! runs beside it: its own subscribers ([`feed`]) fill a sans-IO
-//! [`view::LiveView`], a ticker serialises one snapshot per tick and offers
+//! The central unit's loop publishes its status into a watch channel
+//! ([`WebMap::publish`], a non-blocking replace) and hands the robots'
+//! summaries, the bursts and the truth it received to a sans-IO
+//! [`view::LiveView`] ([`WebMap::sink`]); everything else here runs beside
+//! it: a ticker serialises one snapshot per tick and offers
 //! it to every client's bounded queue ([`fanout`]), and the schedule,
 //! coverage, site and control requests go to the central unit's admin
 //! queryables like `ickon admin`'s ([`routes`]). Control (pause, resume,
@@ -37,7 +38,7 @@ use tokio::task::JoinHandle;
 use zenoh::Session;
 
 use fanout::Hub;
-use feed::{Feed, SharedView, Stopwatch};
+use feed::{SharedView, Stopwatch, ViewSink};
 use routes::AppState;
 use view::LiveView;
 
@@ -72,9 +73,6 @@ pub enum HttpError {
         /// What is wrong with it.
         reason: String,
     },
-    /// Zenoh refused a subscriber.
-    #[error("zenoh: {0}")]
-    Zenoh(String),
 }
 
 /// Reads the control token: the file's text without surrounding white space.
@@ -109,7 +107,7 @@ pub struct WebMap {
     addr: SocketAddr,
     status: watch::Sender<Option<StatusReport>>,
     tasks: Vec<JoinHandle<()>>,
-    _feed: Feed,
+    sink: ViewSink,
 }
 
 impl WebMap {
@@ -136,9 +134,7 @@ impl WebMap {
             .map_err(|source| HttpError::Bind { addr, source })?;
         let clock = Stopwatch::start();
         let view = SharedView::new(LiveView::new(site));
-        let feed = Feed::start(session, keys, &view, clock)
-            .await
-            .map_err(|e| HttpError::Zenoh(e.to_string()))?;
+        let sink = ViewSink::new(view.clone(), clock);
         let hub = Hub::default();
         let (status_tx, status_rx) = watch::channel(None);
         let (latest_tx, latest_rx) = watch::channel(None);
@@ -170,7 +166,7 @@ impl WebMap {
             addr,
             status: status_tx,
             tasks: vec![server, ticker],
-            _feed: feed,
+            sink,
         }))
     }
 
@@ -182,6 +178,11 @@ impl WebMap {
     /// Hands the central unit's latest status to the map (never waits).
     pub fn publish(&self, status: StatusReport) {
         self.status.send_replace(Some(status));
+    }
+
+    /// Where the central unit's loop hands the map what it draws.
+    pub fn sink(&self) -> &ViewSink {
+        &self.sink
     }
 }
 

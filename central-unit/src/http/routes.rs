@@ -19,7 +19,8 @@ use axum::routing::{get, post};
 use futures_util::Stream;
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, StatusReport, TransmittersReport,
+    AdminAck, CoverageReport, CoverageRequest, DEFAULT_PAGE_SIZE, ReloadRequest, RobotsRequest,
+    StatusReport, TransmittersReport,
 };
 use ickon_proto::msg::control::{Schedule, SiteInfo};
 use ickon_proto::site::Site;
@@ -32,7 +33,7 @@ use zenoh::Session;
 use super::fanout::Hub;
 use super::feed::SharedView;
 use super::site_view::SiteView;
-use crate::admin_json::{CoverageJson, ScheduleJson, StatusJson, TransmittersJson};
+use crate::admin_json::{CoverageJson, RobotPageJson, ScheduleJson, StatusJson, TransmittersJson};
 
 /// How long the central unit gets to answer an admin query from a page.
 const ADMIN_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(3);
@@ -214,12 +215,52 @@ async fn cells(State(st): State<AppState>) -> Result<axum::Json<StatusJson>, Api
     )))
 }
 
-async fn robots(State(st): State<AppState>) -> Result<axum::Json<StatusJson>, ApiError> {
-    Ok(axum::Json(StatusJson::new(
-        &latest_status(&st)?,
-        false,
-        true,
-    )))
+/// The query of `/api/robots`: with any of it, a page of the robots.
+#[derive(Debug, Deserialize)]
+struct RobotsQuery {
+    page: Option<i64>,
+    page_size: Option<u32>,
+    state: Option<String>,
+    /// `X,Y` in metres.
+    near: Option<String>,
+}
+
+/// `/api/robots`: every robot of the latest status, or with a query a
+/// page of them (as `ickon admin robots --json`); a bad page is a 400.
+async fn robots(
+    State(st): State<AppState>,
+    query: Result<Query<RobotsQuery>, axum::extract::rejection::QueryRejection>,
+) -> Result<Response, ApiError> {
+    let Query(q) = query.map_err(|e| ApiError::BadRequest(e.body_text()))?;
+    let status = latest_status(&st)?;
+    if q.page.is_none() && q.page_size.is_none() && q.state.is_none() && q.near.is_none() {
+        return Ok(axum::Json(StatusJson::new(&status, false, true)).into_response());
+    }
+    let near = match q.near.as_deref() {
+        Some(text) => Some(
+            text.split_once(',')
+                .and_then(|(x, y)| {
+                    Some((x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?))
+                })
+                .ok_or_else(|| {
+                    ApiError::BadRequest(format!("near {text:?} is not X,Y in metres"))
+                })?,
+        ),
+        None => None,
+    };
+    let request = RobotsRequest {
+        page: q.page.unwrap_or(0),
+        page_size: q.page_size.unwrap_or(DEFAULT_PAGE_SIZE),
+        state: q.state.unwrap_or_default(),
+        near: near.is_some(),
+        near_x_m: near.map_or(0.0, |n| n.0),
+        near_y_m: near.map_or(0.0, |n| n.1),
+    };
+    let page = crate::robot_pages::page(status.robots, &request);
+    if !page.error.is_empty() {
+        return Err(ApiError::BadRequest(page.error));
+    }
+    Ok(axum::Json(RobotPageJson::from(&page)).into_response())
 }
 
 /// Asks the central unit `key` (with `payload`) and decodes its first answer.

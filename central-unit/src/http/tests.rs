@@ -79,6 +79,7 @@ fn report(site: &Site) -> StatusReport {
             survey_misfit_m: -1.0,
             survey_bound_m: -1.0,
             receivers: String::new(),
+            summaries_dropped: 0,
         }],
         epoch: 1,
         foreign_control: 0,
@@ -185,6 +186,15 @@ async fn status_mirrors_the_admin_json_and_is_503_before_the_first() {
     let robots: serde_json::Value =
         serde_json::from_str(&call(&app, get("/api/robots")).await.1).expect("json");
     assert!(robots.get("cells").is_none() && robots["robots"].is_array());
+    let (code, body) = call(&app, get("/api/robots?page=0&page_size=1&near=1,1")).await;
+    assert_eq!(code, StatusCode::OK, "{body}");
+    let page: serde_json::Value = serde_json::from_str(&body).expect("json");
+    assert_eq!(page["page"], 0);
+    assert_eq!(page["robots"].as_array().map(Vec::len), Some(1));
+    for q in ["page=1000000000", "page=-1", "state=lost", "near=x"] {
+        let (code, body) = call(&app, get(&format!("/api/robots?{q}"))).await;
+        assert_eq!(code, StatusCode::BAD_REQUEST, "{q}: {body}");
+    }
 }
 
 #[tokio::test(flavor = "multi_thread")]

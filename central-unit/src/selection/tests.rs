@@ -101,12 +101,15 @@ fn every_transmitter_a_robot_can_hear_fires_within_the_rotation() {
     let p = pose(10.0, 10.0, 0.02);
     let config = needs_on();
     let rotation = config.needs.unwrap().rotation;
-    let views = [RobotView::Seen(&p, NOW, None)];
     let mut history = FiringHistory::default();
     let mut fired_at: Vec<Vec<Time>> = vec![Vec::new(); t.tx_ids.len()];
     let mut now = NOW;
     let end = NOW + Duration::from_secs_f64(5.0);
     while now < end {
+        // The robot's summary comes every half second.
+        let period_ns = ickon_proto::msg::robot::SUMMARY_PERIOD.as_nanos();
+        let received = Time(NOW.0 + (now.0 - NOW.0) / period_ns * period_ns);
+        let views = [RobotView::Seen(&p, received, None)];
         let planned = plan(&t, &views, &config, now, CYCLE, &history).unwrap();
         history.note(planned.packing.offsets.iter().map(|o| o.0), now);
         for &(k, _) in &planned.packing.offsets {

@@ -53,7 +53,7 @@ pub struct CentralArgs {
     /// extended with robots on its routes when a size exceeds its own.
     #[arg(long, default_value = "warehouse")]
     pub site: PathBuf,
-    /// Fleet sizes, comma-separated (each up to 4096).
+    /// Fleet sizes, comma-separated (each up to 10000).
     #[arg(long, value_delimiter = ',', default_value = "100,300,1000")]
     pub robots: Vec<usize>,
     /// Seconds each size runs once every process is live.

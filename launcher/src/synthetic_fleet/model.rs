@@ -8,7 +8,7 @@
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 
-use ickon_proto::msg::robot::{Fix, FixQuality, PoseStatus, RobotPose};
+use ickon_proto::msg::robot::{Fix, FixQuality, PoseStatus, RobotPose, RobotSummary};
 use ickon_proto::site::geometry;
 use ickon_proto::site::{Route, Site};
 use ickon_proto::time::Time;
@@ -28,6 +28,10 @@ const REPORTED_SIGMA_M: f64 = 0.02;
 
 /// The estimator name the made-up poses carry.
 pub const ESTIMATOR: &str = "synthetic";
+
+/// The span of a summary's velocity, seconds: an agent's is the mean over
+/// its last half second of poses.
+const VELOCITY_SPAN_S: f64 = 0.5;
 
 /// One made-up robot.
 #[derive(Debug, Clone)]
@@ -164,6 +168,47 @@ impl SyntheticFleet {
             estimator: ESTIMATOR.to_string(),
             fix_seq: self.robots[i].fix_seq,
             status: PoseStatus::Tracking,
+        }
+    }
+
+    /// Robot `i`'s summary at `t_s`, stamped `stamp`: its pose, its
+    /// velocity over the last half second of its route, and `fixes` of
+    /// the `fixes_solved` it solved since its previous summary.
+    pub fn summary(
+        &self,
+        i: usize,
+        t_s: f64,
+        stamp: Time,
+        seq: u64,
+        fixes_solved: u32,
+        fixes: Vec<Fix>,
+    ) -> RobotSummary {
+        let pose = self.pose(i, t_s, stamp);
+        let span_s = VELOCITY_SPAN_S.min(t_s.max(0.0));
+        let before = self.position(i, t_s - span_s);
+        let (vx_m_s, vy_m_s) = if span_s > 0.0 {
+            (
+                (pose.x_m - before[0]) / span_s,
+                (pose.y_m - before[1]) / span_s,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        RobotSummary {
+            seq,
+            stamp,
+            x_m: pose.x_m,
+            y_m: pose.y_m,
+            theta_rad: pose.theta_rad,
+            covariance: pose.covariance,
+            estimator: pose.estimator,
+            fix_seq: pose.fix_seq,
+            status: pose.status,
+            vx_m_s,
+            vy_m_s,
+            velocity_span_s: span_s,
+            fixes_solved,
+            fixes,
         }
     }
 

@@ -5,8 +5,12 @@
 
 use std::fmt::Write;
 
-use ickon_central::admin_json::{CellJson, ScheduleJson, StatusJson, TransmittersJson};
-use ickon_proto::msg::admin::{AdminAck, CellState, RobotHealth, StatusReport, TransmittersReport};
+use ickon_central::admin_json::{
+    CellJson, RobotPageJson, ScheduleJson, StatusJson, TransmittersJson,
+};
+use ickon_proto::msg::admin::{
+    AdminAck, CellState, RobotHealth, RobotPage, StatusReport, TransmittersReport,
+};
 use ickon_proto::msg::control::Schedule;
 use serde::Serialize;
 
@@ -83,8 +87,8 @@ fn cell_table(out: &mut String, s: &StatusReport) {
     }
 }
 
-fn robot_table(out: &mut String, s: &StatusReport) {
-    if s.robots.is_empty() {
+fn robot_table(out: &mut String, robots: &[RobotHealth]) {
+    if robots.is_empty() {
         let _ = writeln!(out, "no robot seen");
         return;
     }
@@ -93,7 +97,7 @@ fn robot_table(out: &mut String, s: &StatusReport) {
         "{:<8} {:<5} {:>7} {:>9} {:<11} {:<12} {:>8} {:>8} {:>9}",
         "robot", "state", "fix/s", "over rate", "survey", "estimator", "x m", "y m", "theta deg"
     );
-    for r in &s.robots {
+    for r in robots {
         let (x, y, th) = if r.pose_valid {
             (
                 format!("{:.3}", r.x_m),
@@ -107,11 +111,7 @@ fn robot_table(out: &mut String, s: &StatusReport) {
             out,
             "{:<8} {:<5} {:>7.1} {:>9} {:<11} {:<12} {:>8} {:>8} {:>9}",
             r.id,
-            match (r.up, r.stale.is_empty()) {
-                (false, _) => "down",
-                (true, true) => "up",
-                (true, false) => "stale",
-            },
+            r.state(),
             r.fixes_per_s,
             r.fixes_over_rate,
             survey_word(&r.survey_check),
@@ -132,6 +132,13 @@ fn robot_table(out: &mut String, s: &StatusReport) {
         }
         if !r.receivers.is_empty() {
             let _ = writeln!(out, "         receivers: {}", r.receivers);
+        }
+        if r.summaries_dropped > 0 {
+            let _ = writeln!(
+                out,
+                "         summaries dropped: {} (floods, repeats, stamps from the future, another sender under its id)",
+                r.summaries_dropped
+            );
         }
     }
 }
@@ -328,8 +335,45 @@ pub fn status(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     let mut out = String::new();
     header(&mut out, s);
     cell_table(&mut out, s);
-    robot_table(&mut out, s);
+    fleet_summary(&mut out, &s.robots);
     Ok(out)
+}
+
+/// Robots `status` lists: the worst of the fleet (down, then stale, then
+/// the fewest fixes a second).
+pub const WORST_ROBOTS: usize = 10;
+
+/// The fleet in a few lines: its counts by state and its worst robots.
+fn fleet_summary(out: &mut String, robots: &[RobotHealth]) {
+    let count = |state: &str| robots.iter().filter(|r| r.state() == state).count();
+    let _ = writeln!(
+        out,
+        "robots: {} up, {} stale, {} down",
+        count("up"),
+        count("stale"),
+        count("down")
+    );
+    let rank = |r: &RobotHealth| match r.state() {
+        "down" => 0,
+        "stale" => 1,
+        _ => 2,
+    };
+    let mut worst: Vec<&RobotHealth> = robots.iter().collect();
+    worst.sort_by(|a, b| {
+        rank(a)
+            .cmp(&rank(b))
+            .then(a.fixes_per_s.total_cmp(&b.fixes_per_s))
+            .then_with(|| a.id.cmp(&b.id))
+    });
+    let shown: Vec<RobotHealth> = worst.into_iter().take(WORST_ROBOTS).cloned().collect();
+    robot_table(out, &shown);
+    if robots.len() > shown.len() {
+        let _ = writeln!(
+            out,
+            "{} more: `ickon admin robots --page N` (or --state, --near X,Y)",
+            robots.len() - shown.len()
+        );
+    }
 }
 
 /// `cells`.
@@ -343,14 +387,18 @@ pub fn cells(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     Ok(out)
 }
 
-/// `robots`.
-pub fn robots(s: &StatusReport, json: bool) -> Result<String, FormatError> {
+/// `robots`: one page.
+pub fn robot_page(p: &RobotPage, json: bool) -> Result<String, FormatError> {
     if json {
-        return to_json(&status_json(s, false, true));
+        return to_json(&RobotPageJson::from(p));
     }
     let mut out = String::new();
-    header(&mut out, s);
-    robot_table(&mut out, s);
+    let _ = writeln!(
+        out,
+        "robots: {} up, {} stale, {} down; page {} of {} ({} matching)",
+        p.counts.up, p.counts.stale, p.counts.down, p.page, p.pages, p.matching
+    );
+    robot_table(&mut out, &p.robots);
     Ok(out)
 }
 
@@ -482,6 +530,7 @@ mod tests {
                 survey_misfit_m: -1.0,
                 survey_bound_m: -1.0,
                 receivers: String::new(),
+                summaries_dropped: 0,
             }],
             epoch: 1,
             foreign_control: 0,
@@ -531,9 +580,30 @@ mod tests {
         let cells: serde_json::Value =
             serde_json::from_str(&cells(&report(), true).unwrap()).unwrap();
         assert!(cells.get("robots").is_none() && cells["cells"].is_array());
+        let page = RobotPage {
+            error: String::new(),
+            page: 0,
+            pages: 1,
+            matching: 1,
+            counts: ickon_proto::msg::admin::RobotCounts {
+                up: 1,
+                stale: 0,
+                down: 0,
+            },
+            robots: report().robots,
+        };
         let robots: serde_json::Value =
-            serde_json::from_str(&robots(&report(), true).unwrap()).unwrap();
+            serde_json::from_str(&robot_page(&page, true).unwrap()).unwrap();
         assert!(robots.get("cells").is_none() && robots["robots"].is_array());
+        assert_eq!(
+            (robots["pages"].as_u64(), robots["counts"]["up"].as_u64()),
+            (Some(1), Some(1))
+        );
+        let text = robot_page(&page, false).unwrap();
+        assert!(
+            text.starts_with("robots: 1 up, 0 stale, 0 down; page 0 of 1"),
+            "{text}"
+        );
         let table = status(&report(), false).unwrap();
         assert!(table.contains("c2       down"), "{table}");
         assert!(table.contains("c3       idle"), "{table}");
@@ -544,6 +614,39 @@ mod tests {
             "{table}"
         );
         assert!(sync(&report(), false).unwrap().contains("-50000.0"));
+    }
+
+    #[test]
+    fn status_summarises_a_large_fleet_by_state_and_its_worst_robots() {
+        let mut report = report();
+        let honest = report.robots[0].clone();
+        report.robots = (0..500)
+            .map(|k| RobotHealth {
+                id: format!("r{k}"),
+                up: k != 77,
+                stale: if k == 300 {
+                    "no pose for 2.0 s".into()
+                } else {
+                    String::new()
+                },
+                fixes_per_s: if k == 5 { 0.5 } else { 3.0 },
+                ..honest.clone()
+            })
+            .collect();
+        let table = status(&report, false).unwrap();
+        assert!(table.contains("robots: 498 up, 1 stale, 1 down"), "{table}");
+        // The worst first: down, stale, then the fewest fixes.
+        let listed: Vec<&str> = table
+            .lines()
+            .filter(|l| l.starts_with('r') && !l.starts_with("robot"))
+            .map(|l| l.split_whitespace().next().unwrap())
+            .collect();
+        assert_eq!(listed.len(), WORST_ROBOTS, "{table}");
+        assert_eq!(&listed[..3], ["r77", "r300", "r5"], "{table}");
+        assert!(
+            table.contains("490 more: `ickon admin robots --page N`"),
+            "{table}"
+        );
     }
 
     #[test]

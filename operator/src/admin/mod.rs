@@ -22,7 +22,8 @@ use std::time::Duration;
 use clap::{Args, Subcommand};
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, StatusReport, TransmittersReport,
+    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, RobotPage, RobotsRequest,
+    StatusReport, TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
 use ickon_runtime::{RunDir, ZenohArgs, query_once, wait_for_token};
@@ -56,8 +57,26 @@ pub enum AdminCommand {
     Status(Common),
     /// Cells: state, what they fired, sync.
     Cells(Common),
-    /// Robots: state, fixes per second, last pose, estimator.
-    Robots(Common),
+    /// Robots a page at a time: state, fixes per second, last pose,
+    /// estimator; by id, or nearest first to a place, of one state or all,
+    /// with the fleet's counts by state.
+    Robots {
+        /// Connection and output flags.
+        #[command(flatten)]
+        common: Common,
+        /// The page, from 0; one beyond the last is refused with the last.
+        #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+        page: i64,
+        /// Robots a page (1 to 1000).
+        #[arg(long, default_value_t = ickon_proto::msg::admin::DEFAULT_PAGE_SIZE)]
+        page_size: u32,
+        /// Only the robots in this state: up, stale or down.
+        #[arg(long)]
+        state: Option<String>,
+        /// Nearest first to this place, metres in the site frame.
+        #[arg(long, value_name = "X,Y", value_parser = place)]
+        near: Option<(f64, f64)>,
+    },
     /// The schedule in force: cycle period, update rate, every emission.
     Schedule(Common),
     /// Clock synchronisation of every cell: estimate, uncertainty, and the
@@ -93,6 +112,15 @@ pub enum AdminCommand {
         #[command(flatten)]
         common: Common,
     },
+}
+
+/// `--near X,Y`: two numbers in metres.
+fn place(text: &str) -> Result<(f64, f64), String> {
+    let parsed = text
+        .split_once(',')
+        .and_then(|(x, y)| Some((x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?)))
+        .filter(|(x, y)| x.is_finite() && y.is_finite());
+    parsed.ok_or_else(|| format!("{text:?} is not X,Y in metres (two numbers and a comma)"))
 }
 
 /// The user name of the admin identity that `ickon site secure` writes.
@@ -133,7 +161,27 @@ fn prepare(command: &AdminCommand) -> Result<(&Common, Request), String> {
     let (common, request) = match command {
         AdminCommand::Status(c) => (c, Request::new("status", None, true)),
         AdminCommand::Cells(c) => (c, Request::new("cells", None, true)),
-        AdminCommand::Robots(c) => (c, Request::new("robots", None, true)),
+        AdminCommand::Robots {
+            common,
+            page,
+            page_size,
+            state,
+            near,
+        } => {
+            let request = RobotsRequest {
+                page: *page,
+                page_size: *page_size,
+                state: state.clone().unwrap_or_default(),
+                near: near.is_some(),
+                near_x_m: near.map_or(0.0, |n| n.0),
+                near_y_m: near.map_or(0.0, |n| n.1),
+            };
+            if let Some(problem) = request.problem() {
+                return Err(problem);
+            }
+            let payload = ickon_proto::encode(&request).map_err(|e| e.to_string())?;
+            (common, Request::new("robots", Some(payload), true))
+        }
         AdminCommand::Schedule(c) => (c, Request::new("schedule", None, true)),
         AdminCommand::Sync(c) => (c, Request::new("sync", None, true)),
         AdminCommand::Transmitters(c) => (c, Request::new("transmitters", None, true)),
@@ -303,6 +351,7 @@ enum Answer {
     Schedule(Schedule),
     Coverage(CoverageReport),
     Transmitters(TransmittersReport),
+    Robots(RobotPage),
     Ack(AdminAck),
 }
 
@@ -313,10 +362,10 @@ async fn answer(
     request: Request,
 ) -> Result<Answer, String> {
     Ok(match command {
-        AdminCommand::Status(_)
-        | AdminCommand::Cells(_)
-        | AdminCommand::Robots(_)
-        | AdminCommand::Sync(_) => Answer::Status(ask(common, request).await?),
+        AdminCommand::Status(_) | AdminCommand::Cells(_) | AdminCommand::Sync(_) => {
+            Answer::Status(ask(common, request).await?)
+        }
+        AdminCommand::Robots { .. } => Answer::Robots(ask(common, request).await?),
         AdminCommand::Schedule(_) => Answer::Schedule(ask(common, request).await?),
         AdminCommand::Coverage { .. } => Answer::Coverage(ask(common, request).await?),
         AdminCommand::Transmitters(_) => Answer::Transmitters(ask(common, request).await?),
@@ -332,11 +381,16 @@ fn show(command: &AdminCommand, common: &Common, answer: Answer) -> Result<(), C
     let json = common.json;
     let text = match (command, answer) {
         (AdminCommand::Cells(_), Answer::Status(s)) => format::cells(&s, json).map_err(failed)?,
-        (AdminCommand::Robots(_), Answer::Status(s)) => format::robots(&s, json).map_err(failed)?,
         (AdminCommand::Sync(_), Answer::Status(s)) => format::sync(&s, json).map_err(failed)?,
         (_, Answer::Status(s)) => format::status(&s, json).map_err(failed)?,
         (_, Answer::Schedule(s)) => format::schedule(&s, json).map_err(failed)?,
         (_, Answer::Transmitters(t)) => format::transmitters(&t, json).map_err(failed)?,
+        (_, Answer::Robots(page)) => {
+            if !page.error.is_empty() {
+                return Err(CommandError::bad_input(format!("refused: {}", page.error)));
+            }
+            format::robot_page(&page, json).map_err(failed)?
+        }
         (AdminCommand::Coverage { png: file, .. }, Answer::Coverage(report)) => {
             if let Some(file) = file {
                 png::heat_map(file, &report).map_err(|e| {

@@ -194,7 +194,7 @@ proptest! {
             use crate::keys::Key;
             match parsed {
                 Key::AliveCell(id) | Key::AliveRobot(id) | Key::CellBurst(id)
-                | Key::CellStatus(id) | Key::CellAir(id) | Key::Robot(id, _) | Key::SimTruth(id) | Key::SimKit(id) | Key::RobotStatus(id) => {
+                | Key::CellStatus(id) | Key::CellAir(id) | Key::Robot(id, _) | Key::SimTruth(id) | Key::SimKit(id) | Key::RobotStatus(id) | Key::RobotSummary(id) => {
                     prop_assert!(crate::keys::validate_id(&id).is_ok(), "{key} gave {id:?}");
                 }
                 _ => {}

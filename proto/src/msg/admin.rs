@@ -132,6 +132,121 @@ pub struct RobotHealth {
     /// its agent last reported them; empty for the simulated world's.
     #[serde(deserialize_with = "crate::wire_string::deserialize")]
     pub receivers: String,
+    /// Its summaries the central unit dropped (floods, repeats, stamps
+    /// from the future, another sender under its id), since it started.
+    pub summaries_dropped: u64,
+}
+
+impl RobotHealth {
+    /// Its state in one word: `down` (token gone), `stale` (see
+    /// [`RobotHealth::stale`]) or `up`.
+    pub fn state(&self) -> &'static str {
+        match (self.up, self.stale.is_empty()) {
+            (false, _) => "down",
+            (true, true) => "up",
+            (true, false) => "stale",
+        }
+    }
+}
+
+/// Robots a page of `robots` holds when the request does not say.
+pub const DEFAULT_PAGE_SIZE: u32 = 50;
+/// Most robots a page of `robots` holds.
+pub const MAX_PAGE_SIZE: u32 = 1_000;
+/// The states a `robots` request may ask for.
+pub const ROBOT_STATES: [&str; 3] = ["up", "stale", "down"];
+
+/// The payload of `robots`: which page of which robots, in which order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotsRequest {
+    /// The page, from 0 (signed, so that a negative one reaches the
+    /// central unit as a clear refusal rather than a wrapped number).
+    pub page: i64,
+    /// Robots a page, 1 to [`MAX_PAGE_SIZE`].
+    pub page_size: u32,
+    /// Only the robots in this state (one of [`ROBOT_STATES`]); empty: all.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub state: String,
+    /// Nearest first to (`near_x_m`, `near_y_m`) instead of by id (robots
+    /// without a pose last).
+    pub near: bool,
+    /// See `near`, metres.
+    pub near_x_m: f64,
+    /// See `near`, metres.
+    pub near_y_m: f64,
+}
+
+impl Default for RobotsRequest {
+    fn default() -> Self {
+        Self {
+            page: 0,
+            page_size: DEFAULT_PAGE_SIZE,
+            state: String::new(),
+            near: false,
+            near_x_m: 0.0,
+            near_y_m: 0.0,
+        }
+    }
+}
+
+impl RobotsRequest {
+    /// Why the request cannot be answered, if it cannot (the page beyond
+    /// the last is told apart by the answer, which knows the fleet).
+    pub fn problem(&self) -> Option<String> {
+        if self.page < 0 {
+            return Some(format!(
+                "page {} is negative: pages count from 0",
+                self.page
+            ));
+        }
+        if !(1..=MAX_PAGE_SIZE).contains(&self.page_size) {
+            return Some(format!(
+                "page size {} is not in 1 to {MAX_PAGE_SIZE}",
+                self.page_size
+            ));
+        }
+        if !self.state.is_empty() && !ROBOT_STATES.contains(&self.state.as_str()) {
+            return Some(format!(
+                "state {:?} is none of {}",
+                self.state,
+                ROBOT_STATES.join(", ")
+            ));
+        }
+        if self.near && !(self.near_x_m.is_finite() && self.near_y_m.is_finite()) {
+            return Some("the place to sort near is not a number".into());
+        }
+        None
+    }
+}
+
+/// The fleet's robots by state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct RobotCounts {
+    /// Up: token present, tracked.
+    pub up: u64,
+    /// Stale: token present, its poses stopped or its MSU says an input stalled.
+    pub stale: u64,
+    /// Down: token gone.
+    pub down: u64,
+}
+
+/// The answer to `robots` with a [`RobotsRequest`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotPage {
+    /// Why the request was refused (a negative page, one beyond the last,
+    /// an unknown state); empty when it was answered.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub error: String,
+    /// The page answered.
+    pub page: i64,
+    /// Pages the matching robots fill (at least 1).
+    pub pages: u64,
+    /// Robots matching the request, on every page.
+    pub matching: u64,
+    /// The whole fleet by state.
+    pub counts: RobotCounts,
+    /// The robots of the page.
+    pub robots: Vec<RobotHealth>,
 }
 
 /// Answer to `status`, `cells`, `robots` and `sync`.

@@ -44,6 +44,7 @@ pub const MSG_FILES: &[(&str, &str)] = &[
         include_str!("../../msg/AirTemperature.msg"),
     ),
     ("MsuStatus", include_str!("../../msg/MsuStatus.msg")),
+    ("RobotSummary", include_str!("../../msg/RobotSummary.msg")),
     (
         "TransmitterOffset",
         include_str!("../../msg/TransmitterOffset.msg"),
@@ -124,6 +125,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CellStatus(_) => own("CellStatus"),
         Key::CellAir(_) => own("AirTemperature"),
         Key::RobotStatus(_) => own("MsuStatus"),
+        Key::RobotSummary(_) => own("RobotSummary"),
         Key::SimTruth(_) | Key::SimKit(_) => own("Truth"),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => own("UltrasoundArrivals"),

@@ -244,6 +244,7 @@ fn admin_messages_round_trip() {
             survey_misfit_m: -1.0,
             survey_bound_m: -1.0,
             receivers: String::new(),
+            summaries_dropped: 0,
         }],
         epoch: 42,
         foreign_control: 1,

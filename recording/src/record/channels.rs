@@ -9,7 +9,8 @@ use ickon_proto::msg::control::{
     AirTemperature, Burst, CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration,
 };
 use ickon_proto::msg::robot::{
-    Fix, Imu, MsuStatus, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
+    Fix, Imu, MsuStatus, ObstacleRanges, Odometry, RobotPose, RobotSummary, Truth,
+    UltrasoundArrivals,
 };
 use ickon_proto::msg::ros::PoseWithCovarianceStamped;
 use ickon_proto::msg::ros_msgs::{POSE_WITH_COVARIANCE_STAMPED_HASH, Recorded, recorded_as};
@@ -114,6 +115,7 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
         Key::CellStatus(_) => own(Some(decode::<CellStatus>(payload)?.stamp)),
         Key::CellAir(_) => own(Some(decode::<AirTemperature>(payload)?.stamp)),
         Key::RobotStatus(_) => own(Some(decode::<MsuStatus>(payload)?.stamp)),
+        Key::RobotSummary(_) => own(Some(decode::<RobotSummary>(payload)?.stamp)),
         Key::SimTruth(_) | Key::SimKit(_) => own(Some(decode::<Truth>(payload)?.stamp)),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => {

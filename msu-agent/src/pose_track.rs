@@ -1,6 +1,6 @@
-//! A robot's velocity, from the poses it publishes (the central
-//! unit predicts where a robot will be during the next cycle instead of
-//! allowing for its top speed in every direction).
+//! A robot's velocity, from the poses its agent makes, for its summary
+//! (the central unit predicts where a robot will be during the next cycle
+//! instead of allowing for its top speed in every direction).
 //!
 //! The poses of `tdoa-ekf` come at the odometry rate (tens of hertz) and
 //! are smooth over a fraction of a second, so the mean velocity over the

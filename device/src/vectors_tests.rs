@@ -148,7 +148,7 @@ fn vectors() -> Vec<(u8, Message, &'static str)> {
             10,
             Message::AirTemperature {
                 board_ns: 7_000_000_000,
-                temperature_cdeg_c: ickon_device::NO_TEMPERATURE,
+                temperature_cdeg_c: crate::NO_TEMPERATURE,
             },
             "04 01 89 0a 05 86 3b a1 01 01 01 01 04 80 21 01 00",
         ),

@@ -30,7 +30,7 @@ use std::collections::BTreeMap;
 use ickon_proto::msg::admin::BoardAirStatus;
 use ickon_proto::time::{Duration, Time};
 
-use crate::survey_calibration::LearntSpeed;
+use crate::learnt_speed::LearntSpeed;
 
 /// The coldest reading accepted, degrees Celsius (the industrial range of
 /// the sensors a board carries).

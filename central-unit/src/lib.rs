@@ -26,6 +26,7 @@ pub mod foxglove;
 pub mod health;
 #[cfg(feature = "zenoh")]
 pub mod http;
+pub mod learnt_speed;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod occupancy;

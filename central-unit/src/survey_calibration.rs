@@ -62,6 +62,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use consensus::{Consensus, RobotCheck};
 
 use crate::air_temperature::SpeedEvidence;
+pub use crate::learnt_speed::LearntSpeed;
 use crate::transmitter_health::{HealthConfig, TransmitterHealth, TransmitterReport};
 
 /// What the calibration assumes of the site's sensors (data-sheet values)
@@ -320,16 +321,6 @@ pub struct SurveyCalibration {
     site_speed_m_s: f64,
 }
 
-/// The speed of sound learnt from the fleet's fixes.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LearntSpeed {
-    /// The speed of sound, m/s.
-    pub speed_m_s: f64,
-    /// Its one-sigma uncertainty, m/s.
-    pub sigma_m_s: f64,
-    /// Its relative change from the site's speed.
-    pub scale: f64,
-}
 
 impl SurveyCalibration {
     /// A calibration of `site`'s transmitters with nothing learnt yet.

@@ -321,7 +321,6 @@ pub struct SurveyCalibration {
     site_speed_m_s: f64,
 }
 
-
 impl SurveyCalibration {
     /// A calibration of `site`'s transmitters with nothing learnt yet.
     pub fn new(site: &Site, config: CalibrationConfig) -> Self {

@@ -15,7 +15,8 @@ use ickon_proto::msg::control::{AirTemperature, ClockReply, ClockRequest, CycleT
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::{
-    NodeArgs, NodeError, SimulatedClock, Stamped, put_counted, query_once, query_stamped, zerr,
+    NodeArgs, NodeError, SimulatedClock, SiteJoin, Stamped, put_counted, query_once, query_stamped,
+    zerr,
 };
 use tokio::sync::mpsc;
 use zenoh::Session;
@@ -210,20 +211,10 @@ pub async fn run(
     args.node.listen_for_clock_steps(clock)?;
     let driver = Transmitters::open(&args.driver, cell, clock);
     let mut core = CellCore::new(cell, CellConfig::default(), clock.now());
-    let triggers = session
-        .declare_subscriber(keys.central_cycle())
-        .await
-        .map_err(zerr)?;
-    let schedules = session
-        .declare_subscriber(keys.central_schedule())
-        .await
-        .map_err(zerr)?;
-    let central_alive = session
-        .liveliness()
-        .declare_subscriber(keys.alive_central())
-        .history(true)
-        .await
-        .map_err(zerr)?;
+    let join = SiteJoin::new(session, &keys);
+    let triggers = join.subscribe(keys.central_cycle()).await?;
+    let schedules = join.subscribe(keys.central_schedule()).await?;
+    let central_alive = join.watch_tokens(keys.alive_central()).await?;
     let burst_pub = session
         .declare_publisher(keys.cell_burst(cell)?)
         .express(true)
@@ -244,16 +235,10 @@ pub async fn run(
     // The schedule in force now, before the token: the central unit
     // schedules this cell when it sees the token, and by then the cell
     // hears schedules and triggers.
-    if let Ok(Some(s)) =
-        query_once::<Schedule>(session, &keys.central_schedule(), None, SCHEDULE_TIMEOUT).await
-    {
+    if let Ok(Some(s)) = join.schedule_once(SCHEDULE_TIMEOUT).await {
         let _ = replies_tx.send(Event::Schedule(s));
     }
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_cell(cell)?)
-        .await
-        .map_err(zerr)?;
+    let _token = join.announce(keys.alive_cell(cell)?).await?;
     tracing::info!(
         "cell {cell}: up, driver {}, clock offset {} us, drift {} ppm",
         args.driver,

@@ -8,17 +8,15 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Duration;
 
 use clap::Args;
 
 use ickon_fusion::estimator;
 use ickon_proto::keys::{Key, Keys, RobotTopic};
-use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SiteInfo, SurveyCalibration};
+use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{Imu, MsuStatus, ObstacleRanges, Odometry, UltrasoundArrivals};
-use ickon_proto::site::Site;
 use ickon_proto::{DecodeError, decode};
-use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, put_counted, zerr};
+use ickon_runtime::{JoinedSite, LogLimiter, NodeArgs, NodeError, SiteJoin, put_counted, zerr};
 use zenoh::Session;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::qos::{CongestionControl, Priority};
@@ -30,9 +28,6 @@ use crate::receivers::{ReceiverInput, ReceiverKind, ReceiverSource, SourceContex
 use crate::ros2::{Ros2Input, Ros2Link, Ros2Options, Ros2Plan};
 use crate::summary::SummaryMaker;
 use crate::{Event, InputKind, MsuCore, MsuTuning, Output};
-
-/// How often the site and schedule are asked for until the central unit answers.
-const FETCH_RETRY: Duration = Duration::from_millis(500);
 
 /// What an MSU agent needs besides its session.
 #[derive(Debug, Clone)]
@@ -133,24 +128,11 @@ pub async fn run(
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&settings.site_name)?;
     let robot = settings.robot.as_str();
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_robot(robot)?)
-        .await
-        .map_err(zerr)?;
-
-    let Some(info) = fetch::<SiteInfo>(
-        session,
-        &keys.central_site(),
-        None,
-        FETCH_RETRY,
-        &mut shutdown,
-    )
-    .await?
-    else {
+    let join = SiteJoin::new(session, &keys);
+    let _token = join.announce(keys.alive_robot(robot)?).await?;
+    let Some(JoinedSite { info, site }) = join.site(&mut shutdown).await? else {
         return Ok(MsuCounters::default());
     };
-    let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
     let spec = site.robots.iter().find(|r| r.id == robot).ok_or_else(|| {
         NodeError::Setup(format!("robot {robot:?} is not in site {:?}", site.name))
     })?;
@@ -175,16 +157,8 @@ pub async fn run(
         tx,
         full: queue_full.clone(),
     };
-    let _control_inputs = ControlInputs::declare(session, &keys, &queue).await?;
-    let Some(schedule) = fetch::<Schedule>(
-        session,
-        &keys.central_schedule(),
-        None,
-        FETCH_RETRY,
-        &mut shutdown,
-    )
-    .await?
-    else {
+    let _control_inputs = ControlInputs::declare(join, &queue).await?;
+    let Some(schedule) = join.schedule(&mut shutdown).await? else {
         return Ok(MsuCounters::default());
     };
     tracing::info!(
@@ -206,7 +180,7 @@ pub async fn run(
         wheels: settings.tuning.wheels,
     };
     let robot_inputs =
-        RobotInputs::declare(session, &keys, (settings.receivers.clone(), source), &queue).await?;
+        RobotInputs::declare(join, (settings.receivers.clone(), source), &queue).await?;
     let _status = StatusTask::start(
         session,
         keys.robot_status(robot)?,
@@ -313,42 +287,41 @@ struct ControlInputs {
 impl ControlInputs {
     /// Subscribes to the schedule, the cycle triggers, the cells' statuses
     /// and the survey calibration, each into `queue`.
-    async fn declare(
-        session: &Session,
-        keys: &Keys,
-        queue: &InputQueue,
-    ) -> Result<Self, NodeError> {
-        let schedule = session
-            .declare_subscriber(keys.central_schedule())
-            .callback(queue.sink(|s| Arrived::Schedule(decode(&s.payload().to_bytes()))))
-            .await
-            .map_err(zerr)?;
+    async fn declare(join: SiteJoin<'_>, queue: &InputQueue) -> Result<Self, NodeError> {
+        let keys = join.keys();
+        let schedule = join
+            .subscribe_with(
+                keys.central_schedule(),
+                queue.sink(|s| Arrived::Schedule(decode(&s.payload().to_bytes()))),
+            )
+            .await?;
         // The triggers name the transmitters of each cycle when the central unit
         // fires only where robots are; the core matches arrivals to them.
-        let trigger = session
-            .declare_subscriber(keys.central_cycle())
-            .callback(queue.sink(|s| Arrived::Trigger(decode(&s.payload().to_bytes()))))
-            .await
-            .map_err(zerr)?;
+        let trigger = join
+            .subscribe_with(
+                keys.central_cycle(),
+                queue.sink(|s| Arrived::Trigger(decode(&s.payload().to_bytes()))),
+            )
+            .await?;
         // Each cell's sync sigma: the prior of its clock bias in `tdoa-ekf`.
-        let status = session
-            .declare_subscriber(keys.cell_status_all())
-            .callback(queue.sink(|s| {
-                Arrived::CellStatus(
-                    s.key_expr().as_str().to_string(),
-                    decode(&s.payload().to_bytes()),
-                )
-            }))
-            .await
-            .map_err(zerr)?;
+        let status = join
+            .subscribe_with(
+                keys.cell_status_all(),
+                queue.sink(|s| {
+                    Arrived::CellStatus(
+                        s.key_expr().as_str().to_string(),
+                        decode(&s.payload().to_bytes()),
+                    )
+                }),
+            )
+            .await?;
         // The fleet's survey calibration: the transmitters' corrected positions.
-        let survey = session
-            .declare_subscriber(keys.central_survey())
-            .callback(
+        let survey = join
+            .subscribe_with(
+                keys.central_survey(),
                 queue.sink(|s| Arrived::Survey(SurveyCalibration::decode(&s.payload().to_bytes()))),
             )
-            .await
-            .map_err(zerr)?;
+            .await?;
         Ok(Self {
             _schedule: schedule,
             _trigger: trigger,
@@ -370,11 +343,11 @@ impl RobotInputs {
     /// Opens the robot's receivers and subscribes to its odometry, gyro and
     /// obstacle ranges, each into `queue`.
     async fn declare(
-        session: &Session,
-        keys: &Keys,
+        join: SiteJoin<'_>,
         (receivers, source): (ReceiverKind, SourceContext<'_>),
         queue: &InputQueue,
     ) -> Result<Self, NodeError> {
+        let (session, keys) = (join.session(), join.keys());
         let robot = source.robot;
         let sub = |topic| keys.robot(robot, topic);
         let receivers = {
@@ -392,21 +365,24 @@ impl RobotInputs {
             })
             .await?
         };
-        let odom = session
-            .declare_subscriber(sub(RobotTopic::Odom)?)
-            .callback(queue.sink(|s| Arrived::Odometry(decode(&s.payload().to_bytes()))))
-            .await
-            .map_err(zerr)?;
-        let imu = session
-            .declare_subscriber(sub(RobotTopic::Imu)?)
-            .callback(queue.sink(|s| Arrived::Imu(decode(&s.payload().to_bytes()))))
-            .await
-            .map_err(zerr)?;
-        let range = session
-            .declare_subscriber(sub(RobotTopic::Range)?)
-            .callback(queue.sink(|s| Arrived::Range(decode(&s.payload().to_bytes()))))
-            .await
-            .map_err(zerr)?;
+        let odom = join
+            .subscribe_with(
+                sub(RobotTopic::Odom)?,
+                queue.sink(|s| Arrived::Odometry(decode(&s.payload().to_bytes()))),
+            )
+            .await?;
+        let imu = join
+            .subscribe_with(
+                sub(RobotTopic::Imu)?,
+                queue.sink(|s| Arrived::Imu(decode(&s.payload().to_bytes()))),
+            )
+            .await?;
+        let range = join
+            .subscribe_with(
+                sub(RobotTopic::Range)?,
+                queue.sink(|s| Arrived::Range(decode(&s.payload().to_bytes()))),
+            )
+            .await?;
         Ok(Self {
             receivers,
             _odom: odom,

@@ -14,6 +14,8 @@
 //!   and drift, and [`clock_steps`]: its steps at run time in a simulation;
 //! - [`query`]: a query with a timeout, one that retries until the central
 //!   unit answers, and a wait for a liveliness token;
+//! - [`site_join`]: what every node does to join a site ([`SiteJoin`]): its
+//!   liveliness token, the site fetched and parsed, its subscribers;
 //! - [`publish`]: a put whose failure is counted, never fatal;
 //! - [`link`]: serial and TCP links to devices that reconnect by
 //!   themselves, and pseudo-terminal pairs;
@@ -41,6 +43,7 @@ pub mod query;
 pub mod router_watch;
 pub mod runfile;
 pub mod shutdown;
+pub mod site_join;
 pub mod warnings;
 
 pub use args::{LEAN_ZENOH_RUNTIME, NodeArgs, ZENOH_RUNTIME_ENV, ZenohArgs};
@@ -53,6 +56,7 @@ pub use publish::put_counted;
 pub use query::{Stamped, fetch, query_once, query_stamped, token_present, wait_for_token};
 pub use runfile::{RunDir, RunFile, RunFileError};
 pub use shutdown::shutdown_signal;
+pub use site_join::{JoinedSite, SiteJoin};
 
 #[cfg(test)]
 mod device_link_tests;

@@ -11,16 +11,14 @@ use std::time::Duration;
 use clap::Args;
 
 use ickon_proto::keys::{Keys, RobotTopic};
-use ickon_proto::msg::control::{Burst, Schedule, SiteInfo};
+use ickon_proto::msg::control::Burst;
 use ickon_proto::msg::robot::Truth;
-use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
-use ickon_runtime::{LogLimiter, NodeArgs, NodeError, fetch, system_now, zerr};
+use ickon_runtime::site_join::QueuedSubscriber;
+use ickon_runtime::{JoinedSite, LogLimiter, NodeArgs, NodeError, SiteJoin, system_now, zerr};
 use zenoh::Session;
-use zenoh::handlers::FifoChannelHandler;
-use zenoh::pubsub::{Publisher, Subscriber};
-use zenoh::sample::Sample;
+use zenoh::pubsub::Publisher;
 
 use crate::device_hosting::{BoundDevices, DeviceEvent, WorldDevices};
 use crate::devices::{DeviceEndpoint, DeviceKind, DeviceOwner};
@@ -30,8 +28,6 @@ use crate::ros2_sensors::RosSensorPublishers;
 
 /// Physics and sensors advance this often.
 const TICK: Duration = Duration::from_millis(5);
-/// How often the site and schedule are asked for until the central unit answers.
-const FETCH_RETRY: Duration = Duration::from_millis(500);
 
 /// What the world process needs besides its session.
 #[derive(Debug, Clone)]
@@ -78,23 +74,11 @@ pub async fn run(
     // Listening at once: cells and agents started with the world connect
     // as soon as they try, and are served once the site is known.
     let bound = BoundDevices::bind(&settings.devices)?;
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive_world())
-        .await
-        .map_err(zerr)?;
-    let Some(info) = fetch::<SiteInfo>(
-        session,
-        &keys.central_site(),
-        None,
-        FETCH_RETRY,
-        &mut shutdown,
-    )
-    .await?
-    else {
+    let join = SiteJoin::new(session, &keys);
+    let _token = join.announce(keys.alive_world()).await?;
+    let Some(JoinedSite { site, .. }) = join.site(&mut shutdown).await? else {
         return Ok(0);
     };
-    let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
     let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)
         .map_err(|e| NodeError::Setup(e.to_string()))?;
     if let Some(plan) = &settings.transmitter_faults {
@@ -120,29 +104,12 @@ pub async fn run(
         Some(d)
     };
     let inputs = WorldInputs {
-        schedule: session
-            .declare_subscriber(keys.central_schedule())
-            .await
-            .map_err(zerr)?,
-        bursts: session
-            .declare_subscriber(keys.cell_burst_all())
-            .await
-            .map_err(zerr)?,
-        triggers: session
-            .declare_subscriber(keys.central_cycle())
-            .await
-            .map_err(zerr)?,
+        schedule: join.subscribe(keys.central_schedule()).await?,
+        bursts: join.subscribe(keys.cell_burst_all()).await?,
+        triggers: join.subscribe(keys.central_cycle()).await?,
     };
     // `None`: stopped while waiting (the shutdown future is then spent).
-    let Some(schedule) = fetch::<Schedule>(
-        session,
-        &keys.central_schedule(),
-        None,
-        FETCH_RETRY,
-        &mut shutdown,
-    )
-    .await?
-    else {
+    let Some(schedule) = join.schedule(&mut shutdown).await? else {
         return Ok(0);
     };
     let _ = world.handle(system_now(), WorldEvent::Schedule(schedule));
@@ -230,11 +197,11 @@ async fn robot_publishers(
 /// What the world hears.
 struct WorldInputs {
     /// The central unit's schedules.
-    schedule: Subscriber<FifoChannelHandler<Sample>>,
+    schedule: QueuedSubscriber,
     /// Every cell's burst reports.
-    bursts: Subscriber<FifoChannelHandler<Sample>>,
+    bursts: QueuedSubscriber,
     /// Which transmitters fire each cycle: a cycle is over when they have.
-    triggers: Subscriber<FifoChannelHandler<Sample>>,
+    triggers: QueuedSubscriber,
 }
 
 /// The event loop: feeds the world each input and each tick and publishes

@@ -28,10 +28,9 @@ use zenoh::pubsub::Publisher;
 
 use ickon_proto::decode;
 use ickon_proto::keys::Keys;
-use ickon_proto::msg::control::{CycleTrigger, Schedule, SiteInfo, SurveyCalibration};
+use ickon_proto::msg::control::{CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{MsuStatus, SUMMARY_PERIOD};
-use ickon_proto::site::Site;
-use ickon_runtime::{NodeArgs, NodeError, SimulatedClock, fetch, put_counted, zerr};
+use ickon_runtime::{JoinedSite, NodeArgs, NodeError, SimulatedClock, SiteJoin, put_counted, zerr};
 
 use model::SyntheticFleet;
 
@@ -41,8 +40,6 @@ use model::SyntheticFleet;
 const TICK: Duration = Duration::from_millis(1);
 /// How often each agent publishes its status.
 const STATUS_PERIOD: Duration = Duration::from_secs(1);
-/// How long to wait between asking the central unit again at start-up.
-const FETCH_RETRY: Duration = Duration::from_millis(500);
 
 /// Arguments of `ickon node synthetic-fleet`.
 #[derive(Debug, Clone, Args)]
@@ -118,18 +115,10 @@ async fn run(
 ) -> Result<(), NodeError> {
     let mut shutdown = Box::pin(shutdown);
     let keys = Keys::new(&settings.site_name)?;
-    let Some(info) = fetch::<SiteInfo>(
-        session,
-        &keys.central_site(),
-        None,
-        FETCH_RETRY,
-        &mut shutdown,
-    )
-    .await?
-    else {
+    let join = SiteJoin::new(session, &keys);
+    let Some(JoinedSite { site, .. }) = join.site(&mut shutdown).await? else {
         return Ok(());
     };
-    let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
     let mut fleet = SyntheticFleet::new(
         &site,
         &settings.robots,
@@ -138,27 +127,10 @@ async fn run(
         settings.seed,
     )
     .map_err(|e| NodeError::Setup(e.to_string()))?;
-    let triggers = session
-        .declare_subscriber(keys.central_cycle())
-        .await
-        .map_err(zerr)?;
-    let schedules = session
-        .declare_subscriber(keys.central_schedule())
-        .await
-        .map_err(zerr)?;
-    let surveys = session
-        .declare_subscriber(keys.central_survey())
-        .await
-        .map_err(zerr)?;
-    let Some(mut schedule) = fetch::<Schedule>(
-        session,
-        &keys.central_schedule(),
-        None,
-        FETCH_RETRY,
-        &mut shutdown,
-    )
-    .await?
-    else {
+    let triggers = join.subscribe(keys.central_cycle()).await?;
+    let schedules = join.subscribe(keys.central_schedule()).await?;
+    let surveys = join.subscribe(keys.central_survey()).await?;
+    let Some(mut schedule) = join.schedule(&mut shutdown).await? else {
         return Ok(());
     };
     let mut publishers = Vec::with_capacity(fleet.len());
@@ -177,13 +149,7 @@ async fn run(
             seq: 0,
             cycles_at_last: 0,
         });
-        tokens.push(
-            session
-                .liveliness()
-                .declare_token(keys.alive_robot(&id)?)
-                .await
-                .map_err(zerr)?,
-        );
+        tokens.push(join.announce(keys.alive_robot(&id)?).await?);
     }
     tracing::info!(
         "synthetic fleet of {} robots on site {:?}",

@@ -10,7 +10,7 @@ use ickon_launcher::{BenchCommand, SimArgs};
 use ickon_operator::{AdminCommand, DeviceCheckArgs, RouterArgs, SecureArgs};
 use ickon_recording::{McapArgs, RecordArgs};
 use ickon_runtime::CommandError;
-use ickon_sim::emulate::EmulateCommand;
+use ickon_world::emulate::EmulateCommand;
 
 use crate::node;
 
@@ -184,7 +184,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Device {
             action: DeviceAction::Check(args),
         } => ickon_operator::check_device(&args),
-        Command::Emulate { board } => ickon_sim::emulate::run_emulate(board),
+        Command::Emulate { board } => ickon_world::emulate::run_emulate(board),
         Command::Bench { command } => ickon_launcher::run_bench(command),
         Command::Admin { command } => ickon_operator::run_admin(command),
     };

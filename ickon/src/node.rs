@@ -17,7 +17,7 @@ pub enum Role {
     /// One cell controller.
     Cell(ickon_cell::node::CellArgs),
     /// The simulated world.
-    World(ickon_sim::node::WorldArgs),
+    World(ickon_world::node::WorldArgs),
     /// One robot's MSU agent.
     Msu(ickon_msu::node::MsuArgs),
     /// Several robots' MSU agents in one process, each as a lone agent,
@@ -26,7 +26,7 @@ pub enum Role {
     /// A benchmark tool, not a node of a site: stands in for the MSU
     /// agents of many robots in one process, publishing what they publish
     /// (`ickon bench central`).
-    SyntheticFleet(ickon_launcher::synthetic_fleet::SyntheticFleetArgs),
+    SyntheticFleet(ickon_world::synthetic_fleet::SyntheticFleetArgs),
 }
 
 /// Runs one node and returns the exit code.
@@ -34,9 +34,9 @@ pub fn run(role: Role) -> ExitCode {
     match role {
         Role::Central(args) => ickon_central::node::main_with(args),
         Role::Cell(args) => ickon_cell::node::main_with(args),
-        Role::World(args) => ickon_sim::node::main_with(args),
+        Role::World(args) => ickon_world::node::main_with(args),
         Role::Msu(args) => ickon_msu::node::main_with(args),
         Role::Fleet(args) => ickon_msu::fleet::main_with(args),
-        Role::SyntheticFleet(args) => ickon_launcher::synthetic_fleet::main_with(args),
+        Role::SyntheticFleet(args) => ickon_world::synthetic_fleet::main_with(args),
     }
 }

@@ -17,7 +17,8 @@
 //!
 //! `ickon bench scale` runs the same mesh at several fleet sizes
 //! ([`BenchCommand`]); `ickon bench central` runs the site's servers
-//! against a [`synthetic_fleet`] standing in for many robots' agents.
+//! against a synthetic fleet standing in for many robots' agents
+//! (`ickon node synthetic-fleet`, of the `ickon-world` crate).
 
 mod args;
 mod bench;
@@ -40,8 +41,6 @@ mod secure;
 mod supervisor;
 mod usage;
 mod zones;
-
-pub mod synthetic_fleet;
 
 pub use args::Mesh;
 pub use args::SimArgs;

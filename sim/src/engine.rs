@@ -21,13 +21,13 @@ use crate::profile::NoiseProfile;
 use crate::world::{TruthSample, World};
 
 /// Physics step, seconds.
-pub(crate) const PHYSICS_DT_S: f64 = 0.005;
+pub const PHYSICS_DT_S: f64 = 0.005;
 /// Wheel encoder / odometry rate, Hz.
 pub const ENCODER_HZ: f64 = 50.0;
 /// Obstacle sensor rate, Hz.
-pub(crate) const RANGES_HZ: f64 = 10.0;
+pub const RANGES_HZ: f64 = 10.0;
 /// Seconds the robot stands still at the start (gyro calibration of the CDA paper).
-pub(crate) const REST_S: f64 = 2.0;
+pub const REST_S: f64 = 2.0;
 /// Seconds between two samples of the plotted traces.
 const TRACE_DT_S: f64 = 0.25;
 

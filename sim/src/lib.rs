@@ -15,10 +15,10 @@
 //! - [`fleet`]: the first N robots of a site at once, their poses fed to the central unit.
 //! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
 //! - [`score`]: the papers' metrics.
-//! - [`realtime`]: the same world driven by the wall clock and real burst reports.
-//! - [`board`]: an emulated transmitter or receiver board of the device protocol.
 //! - [`tx_faults`]: transmitters dying, growing weak or knocked out of place.
-//! - [`hedgehog`]: an emulated Marvelmind hedgehog streaming raw distances on a route.
+//!
+//! The same world as a node of a live mesh, driven by the system clock,
+//! is the `ickon-world` crate (`world-node/`).
 //!
 //! Every random draw comes from a `ChaCha8Rng` stream derived from the run
 //! seed and a label ([`rng::stream`]): the same seed gives the same numbers.
@@ -26,31 +26,15 @@
 pub mod acoustic;
 pub mod air;
 pub mod air_sensor;
-pub mod board;
 pub mod clock;
 pub mod collision;
 pub mod control;
-#[cfg(feature = "zenoh")]
-pub mod device_hosting;
-pub mod devices;
-#[cfg(feature = "zenoh")]
-pub mod emulate;
-#[cfg(feature = "zenoh")]
-pub mod emulate_hedgehog;
-#[cfg(feature = "zenoh")]
-mod emulate_listen;
 pub mod engine;
 pub mod fleet;
-pub mod hedgehog;
-#[cfg(feature = "zenoh")]
-pub mod node;
 pub mod profile;
 pub mod profile_file;
-pub mod realtime;
 pub mod rng;
 pub mod robot;
-#[cfg(feature = "zenoh")]
-pub mod ros2_sensors;
 pub mod schedule_audit;
 pub mod score;
 pub mod sensors;
@@ -62,8 +46,4 @@ pub use profile::{NoiseProfile, UnknownProfile};
 pub use score::{Row, Score, score};
 
 #[cfg(test)]
-mod emulated_board_tests;
-#[cfg(test)]
 mod engine_tests;
-#[cfg(test)]
-mod fuzz_world_tests;

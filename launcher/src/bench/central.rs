@@ -1,7 +1,7 @@
 //! `ickon bench central`: how many robots one central unit serves. The
 //! site's servers run as `ickon sim` starts them (the router, the central
 //! unit, one cell controller per cell, the same command lines) against a
-//! synthetic fleet ([`crate::synthetic_fleet`]): one process publishing
+//! synthetic fleet (`ickon node synthetic-fleet`): one process publishing
 //! what N robots' MSU agents publish. The central unit is pinned to CPU 0
 //! and everything else to the other CPUs, so that its figures are one
 //! core's. Per size it reports the central unit's CPU and memory, how

@@ -19,7 +19,7 @@ use ickon_runtime::link::pty::Pty;
 use ickon_runtime::{CommandError, system_now};
 
 use crate::hedgehog::{EmulatedHedgehog, HedgehogSpec, Update};
-use crate::robot::DriveSpec;
+use ickon_sim::robot::DriveSpec;
 
 /// Updates waiting for a pseudo-terminal's host (two seconds at the default rate).
 const PTY_QUEUE: usize = 16;

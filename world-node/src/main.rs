@@ -6,10 +6,10 @@ use clap::Parser;
 #[command(name = "ickon-world", version, about)]
 struct Cli {
     #[command(flatten)]
-    args: ickon_sim::node::WorldArgs,
+    args: ickon_world::node::WorldArgs,
 }
 
 fn main() -> std::process::ExitCode {
     ickon_runtime::init_tracing("info");
-    ickon_sim::node::main_with(Cli::parse().args)
+    ickon_world::node::main_with(Cli::parse().args)
 }

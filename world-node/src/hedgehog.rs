@@ -15,9 +15,9 @@ use ickon_proto::site::Site;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::profile::EncoderNoise;
-use crate::rng::{chance, normal, stream};
-use crate::robot::{DriveSpec, Robot, RobotState};
+use ickon_sim::profile::EncoderNoise;
+use ickon_sim::rng::{chance, normal, stream};
+use ickon_sim::robot::{DriveSpec, Robot, RobotState};
 
 /// A hedgehog reports at most four distances per update.
 pub const MAX_BEACONS: usize = 4;

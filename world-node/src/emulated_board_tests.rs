@@ -294,8 +294,8 @@ fn a_board_that_stops_answering_is_found_silent_and_greeted_again() {
 /// A transmitter board of the lab's cell c1 with the typical air sensor
 /// (`fault` from 0 s on), reading the `building` air from the bench's
 /// board start.
-fn board_with_air(fault: Option<crate::air_sensor::SensorFaultKind>) -> BoardSpec {
-    use crate::air_sensor::{AirSensor, AirSensors, SensorFault, board_position};
+fn board_with_air(fault: Option<ickon_sim::air_sensor::SensorFaultKind>) -> BoardSpec {
+    use ickon_sim::air_sensor::{AirSensor, AirSensors, SensorFault, board_position};
     let site = ickon_proto::site::Site::default_site();
     let mut sensors = AirSensors::typical();
     sensors.faults = fault
@@ -309,7 +309,7 @@ fn board_with_air(fault: Option<crate::air_sensor::SensorFaultKind>) -> BoardSpe
     let at = board_position(&site, "c1").unwrap();
     BoardSpec::transmitter(&[11, 12, 13, 14], 3).with_air_sensor(crate::board::BoardAir {
         sensor: AirSensor::new("c1", at, &sensors, 3),
-        field: crate::air::AirField::new(&site, &crate::air::Air::building(), 1.0),
+        field: ickon_sim::air::AirField::new(&site, &ickon_sim::air::Air::building(), 1.0),
         start_ns: 5_000 * MS,
     })
 }
@@ -361,7 +361,7 @@ fn a_board_without_a_sensor_is_never_asked_and_a_failed_one_reads_not_a_number()
     );
     let mut b = Bench::new(
         BoardKind::Transmitter,
-        board_with_air(Some(crate::air_sensor::SensorFaultKind::NotANumber)),
+        board_with_air(Some(ickon_sim::air_sensor::SensorFaultKind::NotANumber)),
     );
     b.run(3_000);
     let r = air_readings(&b.events);

@@ -18,9 +18,9 @@ use ickon_device::{
 };
 use rand_chacha::ChaCha8Rng;
 
-use crate::air::AirField;
-use crate::air_sensor::AirSensor;
-use crate::rng::{chance, normal, stream};
+use ickon_sim::air::AirField;
+use ickon_sim::air_sensor::AirSensor;
+use ickon_sim::rng::{chance, normal, stream};
 
 /// An `Arm` closer than this to its time is refused as too late, nanoseconds
 /// (a board needs a moment to load its timer).

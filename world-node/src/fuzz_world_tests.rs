@@ -6,7 +6,6 @@
 
 use std::sync::LazyLock;
 
-use crate::NoiseProfile;
 use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
 use ickon_proto::fuzz::extreme::offset_ns;
 use ickon_proto::fuzz::values::draw;
@@ -14,6 +13,7 @@ use ickon_proto::fuzz::{config_for, entropy};
 use ickon_proto::msg::control::{Burst, Schedule};
 use ickon_proto::site::Site;
 use ickon_proto::time::{Duration, Time};
+use ickon_sim::NoiseProfile;
 use proptest::prelude::*;
 
 const EPOCH: u64 = 1_000;

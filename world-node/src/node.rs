@@ -22,9 +22,9 @@ use zenoh::pubsub::Publisher;
 
 use crate::device_hosting::{BoundDevices, DeviceEvent, WorldDevices};
 use crate::devices::{DeviceEndpoint, DeviceKind, DeviceOwner};
-use crate::profile::NoiseProfile;
 use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
 use crate::ros2_sensors::RosSensorPublishers;
+use ickon_sim::profile::NoiseProfile;
 
 /// Physics and sensors advance this often.
 const TICK: Duration = Duration::from_millis(5);
@@ -46,7 +46,7 @@ pub struct WorldSettings {
     /// The devices to emulate, fed by this world.
     pub devices: Vec<DeviceEndpoint>,
     /// Transmitters that fail during the run, as `--faults` items
-    /// ([`crate::tx_faults`]), read against the site once it is known.
+    /// ([`ickon_sim::tx_faults`]), read against the site once it is known.
     pub transmitter_faults: Option<String>,
 }
 
@@ -82,7 +82,7 @@ pub async fn run(
     let mut world = RealtimeWorld::new(&site, &settings.robots, &settings.profile, settings.seed)
         .map_err(|e| NodeError::Setup(e.to_string()))?;
     if let Some(plan) = &settings.transmitter_faults {
-        let faults = crate::tx_faults::TransmitterFault::parse_plan(plan, &site)
+        let faults = ickon_sim::tx_faults::TransmitterFault::parse_plan(plan, &site)
             .map_err(|e| NodeError::Setup(e.to_string()))?;
         world.set_transmitter_faults(&faults);
     }

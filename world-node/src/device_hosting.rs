@@ -27,14 +27,14 @@ use tokio::net::TcpListener;
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
 
-use crate::air::AirField;
-use crate::air_sensor::{AirSensor, board_position};
 use crate::board::{BoardAir, BoardSpec, Emission, EmulatedBoard};
 use crate::devices::{DeviceEndpoint, DeviceKind, DeviceOwner, EmissionLedger};
 use crate::hedgehog::{EmulatedHedgehog, HedgehogSpec};
-use crate::profile::NoiseProfile;
 use crate::realtime::WorldOutput;
-use crate::rng::{normal, stream, uniform};
+use ickon_sim::air::AirField;
+use ickon_sim::air_sensor::{AirSensor, board_position};
+use ickon_sim::profile::NoiseProfile;
+use ickon_sim::rng::{normal, stream, uniform};
 
 /// One-sigma drift of an emulated board's crystal, ppm (a common ±20 ppm
 /// part's tolerance, taken as one sigma).

@@ -33,9 +33,9 @@ use ickon_proto::msg::robot::{Imu, ObstacleRanges, Odometry, Truth, UltrasoundAr
 use ickon_proto::site::Site;
 use ickon_proto::time::Time;
 
-use crate::engine::{ENCODER_HZ, PHYSICS_DT_S, RANGES_HZ, REST_S};
-use crate::profile::NoiseProfile;
-use crate::world::World;
+use ickon_sim::engine::{ENCODER_HZ, PHYSICS_DT_S, RANGES_HZ, REST_S};
+use ickon_sim::profile::NoiseProfile;
+use ickon_sim::world::World;
 
 /// Truth samples per second published for observers.
 pub const TRUTH_HZ: f64 = 50.0;
@@ -140,7 +140,7 @@ fn robot_seed(seed: u64, index: usize) -> u64 {
 
 impl RealtimeWorld {
     /// Makes transmitters fail as `faults` say, in every robot's world.
-    pub fn set_transmitter_faults(&mut self, faults: &[crate::tx_faults::TransmitterFault]) {
+    pub fn set_transmitter_faults(&mut self, faults: &[ickon_sim::tx_faults::TransmitterFault]) {
         for w in &mut self.worlds {
             w.set_transmitter_faults(faults);
         }
@@ -251,7 +251,7 @@ impl RealtimeWorld {
     /// emulated device: its host learns the device's clock instead).
     pub fn use_true_clock(&mut self, index: usize) {
         if let Some(w) = self.worlds.get_mut(index) {
-            w.msu_clock = crate::clock::DeviceClock::PERFECT;
+            w.msu_clock = ickon_sim::clock::DeviceClock::PERFECT;
         }
     }
 

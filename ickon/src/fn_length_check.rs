@@ -15,7 +15,40 @@ const MAX_LINES: usize = 100;
 /// The functions still over [`MAX_LINES`]: file (from the repository's
 /// root), function name, and its length in lines today, which it may not
 /// pass.
-const LONG: &[(&str, &str, usize)] = &[];
+const LONG: &[(&str, &str, usize)] = &[
+    ("cell-controller/src/node.rs", "run", 105),
+    ("cell-controller/src/sync.rs", "estimate", 106),
+    ("central-unit/src/foxglove/layout.rs", "layout", 102),
+    ("central-unit/src/node.rs", "run", 170),
+    ("central-unit/src/occupancy.rs", "plan", 119),
+    ("central-unit/src/selection.rs", "choose", 101),
+    ("device/src/message.rs", "decode", 106),
+    ("evaluation/src/eval/fleet.rs", "print_report", 109),
+    ("evaluation/src/tdoa_log/replay.rs", "replay", 175),
+    (
+        "fusion/src/estimator/tdoa_ekf/ground_noise.rs",
+        "check",
+        118,
+    ),
+    ("fusion/src/tdoa/closed_form.rs", "closed_form_subset", 114),
+    ("launcher/src/report.rs", "render_report", 130),
+    ("launcher/src/run.rs", "measure", 134),
+    (
+        "msu-agent/src/config_file/validate.rs",
+        "apply_to_estimator",
+        107,
+    ),
+    ("msu-agent/src/solver.rs", "solve", 111),
+    ("operator/src/secure/acl.rs", "permissions", 129),
+    ("operator/src/secure/mod.rs", "write_dir", 133),
+    ("recording/src/record/mod.rs", "run", 108),
+    ("recording/src/replay/mod.rs", "print_text", 103),
+    ("recording/src/replay/mod.rs", "run", 111),
+    ("sim/src/profile_file.rs", "check", 121),
+    ("sim/src/score.rs", "score", 105),
+    ("world-node/src/device_hosting.rs", "start", 127),
+    ("world-node/src/synthetic_fleet/mod.rs", "run", 139),
+];
 
 /// Crates whose code is tests or test support, not product.
 const NOT_PRODUCT: &[&str] = &["tests", "testkit", "vendor", "target"];
@@ -143,7 +176,13 @@ fn raw_string_end(b: &[char], i: usize) -> Option<usize> {
     }
     k += 1;
     while k < b.len() {
-        if b[k] == '"' && b[k + 1..].iter().take(hashes).filter(|&&c| c == '#').count() == hashes
+        if b[k] == '"'
+            && b[k + 1..]
+                .iter()
+                .take(hashes)
+                .filter(|&&c| c == '#')
+                .count()
+                == hashes
         {
             return Some(k + 1 + hashes);
         }
@@ -170,6 +209,21 @@ fn closing(code: &[u8], open: usize) -> usize {
     code.len()
 }
 
+/// The first `{` or `;` after `at` outside parentheses and brackets (a
+/// signature's `[u8; 4]` holds a `;` that does not end it).
+fn body_or_end(code: &[u8], at: usize) -> Option<usize> {
+    let mut depth = 0i32;
+    for (k, &c) in code.iter().enumerate().skip(at) {
+        match c {
+            b'(' | b'[' => depth += 1,
+            b')' | b']' => depth -= 1,
+            b'{' | b';' if depth <= 0 => return Some(k),
+            _ => {}
+        }
+    }
+    None
+}
+
 /// Each function of `text` outside `#[cfg(test)]` items: its name and its
 /// length in lines.
 fn functions(text: &str) -> Vec<(String, usize)> {
@@ -187,7 +241,8 @@ fn functions(text: &str) -> Vec<(String, usize)> {
     }
     let mut out = Vec::new();
     for (at, _) in code.match_indices("fn ") {
-        let word_start = at == 0 || !(bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_');
+        let word_start =
+            at == 0 || !(bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_');
         if !word_start || skip.iter().any(|&(a, b)| a <= at && at <= b) {
             continue;
         }
@@ -196,7 +251,7 @@ fn functions(text: &str) -> Vec<(String, usize)> {
             .take_while(|c| c.is_alphanumeric() || *c == '_')
             .collect();
         // A declaration without a body (a trait's) ends at `;` first.
-        let Some(open) = code[at..].find(['{', ';']).map(|k| at + k) else {
+        let Some(open) = body_or_end(bytes, at) else {
             continue;
         };
         if name.is_empty() || bytes[open] != b'{' {
@@ -268,7 +323,7 @@ fn short() {
     // } fn commented() {
 }
 
-pub async fn long<'a>(x: &'a str) -> impl Fn() + 'a {
+pub async fn long<'a>(x: &'a str, _: [u8; 4]) -> impl Fn() + 'a {
     move || {
         let _ = x;
     }

@@ -1,9 +1,12 @@
 //! `ickon`: the command line of ICKON-rs (the program is the library's
-//! `main`). The checks of the command line against its documentation and
-//! of every crate's imports run as this binary's unit tests.
+//! `main`). The checks of the command line against its documentation, of
+//! every crate's imports and of its functions' lengths run as this binary's
+//! unit tests.
 
 #[cfg(test)]
 mod docs_check;
+#[cfg(test)]
+mod fn_length_check;
 #[cfg(test)]
 mod import_check;
 

@@ -20,7 +20,7 @@
 use std::collections::HashMap;
 
 use ickon_fusion::estimator::RangeDifferenceSample;
-use ickon_fusion::estimator::flight::{CvFilter, CvParams, ImuFilter, ImuParams};
+use ickon_fusion::estimator::flight::{CvFilter, CvParams, ExcessParams, ImuFilter, ImuParams};
 use ickon_fusion::estimator::guard::{
     FlightVolume, GuardCounts, GuardParams, Guarded, GuardedFilter,
 };
@@ -72,6 +72,22 @@ pub struct Overrides {
     pub shadow_m: Option<f64>,
     /// Prior standard deviation of an online shadow estimate, metres.
     pub shadow_prior_sigma_m: Option<f64>,
+    /// Standard deviation of each anchor's excess path, metres.
+    pub excess_sigma_m: Option<f64>,
+}
+
+/// The anchors' excess paths in the UTIL arena, sized from its geometry
+/// before any flight was scored: a signal reflected off the floor or off
+/// the wooden shelf beside the flight area, or crossing it, travels about
+/// a decimetre further than the straight line at the heights flown (a
+/// standard deviation of 0.1 m); it lasts about as long as the vehicle
+/// takes to cross the reflecting patch at its speed of about 1 m/s (a
+/// correlation time of 1 s).
+pub fn util_excess_params(o: Overrides) -> ExcessParams {
+    ExcessParams {
+        sigma_m: o.excess_sigma_m.unwrap_or(0.1),
+        correlation_s: 1.0,
+    }
 }
 
 /// `tdoa-ekf`'s filter on UTIL flights: the library defaults
@@ -85,6 +101,7 @@ pub fn util_cv_params(o: Overrides) -> CvParams {
         accel_psd_m2_s3: o.accel_psd_m2_s3.unwrap_or(d.accel_psd_m2_s3),
         shadow_m: o.shadow_m.unwrap_or(UTIL_SHADOW_M),
         shadow_prior_sigma_m: o.shadow_prior_sigma_m.unwrap_or(0.0),
+        excess: util_excess_params(o),
         ..d
     }
 }
@@ -103,6 +120,7 @@ pub fn util_imu_params(antenna_body_m: [f64; 3], initial_yaw_rad: f64, o: Overri
         shadow_m: o.shadow_m.unwrap_or(UTIL_SHADOW_M),
         shadow_prior_sigma_m: o.shadow_prior_sigma_m.unwrap_or(0.0),
         thrust_axis_only: true,
+        excess: util_excess_params(o),
         ..d
     }
 }

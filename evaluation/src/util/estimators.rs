@@ -91,10 +91,11 @@ pub fn util_excess_params(o: Overrides) -> ExcessParams {
 }
 
 /// `tdoa-ekf`'s filter on UTIL flights: the library defaults
-/// ([`CvParams::default`]: 1 m^2/s^3 as for the baseline, 3 sigma) and the
+/// ([`CvParams::default`]: 1 m^2/s^3 as for the baseline, 3 sigma), the
 /// drone's body shadow [`UTIL_SHADOW_M`], held (not estimated: online, it
 /// is nearly the signature of a height error and wandered, see the
-/// README's leave-one-out).
+/// README's leave-one-out), and the arena's excess paths
+/// ([`util_excess_params`]).
 pub fn util_cv_params(o: Overrides) -> CvParams {
     let d = CvParams::default();
     CvParams {
@@ -108,8 +109,8 @@ pub fn util_cv_params(o: Overrides) -> CvParams {
 
 /// `imu-eskf`'s filter: the library defaults ([`ImuParams::default`], all
 /// chosen from the IMU's class, none fitted to this data), the UTIL
-/// antenna lever arm, the start yaw, the same body shadow as `tdoa-ekf`,
-/// and the multirotor's thrust-axis model (`thrust_axis_only`: the UTIL
+/// antenna lever arm, the start yaw, the same body shadow and excess paths
+/// as `tdoa-ekf`, and the multirotor's thrust-axis model (`thrust_axis_only`: the UTIL
 /// vehicle is a quadrotor; in flight its accelerometer's horizontal
 /// channels read a tenth to a quarter of a g while it hovers level).
 pub fn util_imu_params(antenna_body_m: [f64; 3], initial_yaw_rad: f64, o: Overrides) -> ImuParams {

@@ -12,6 +12,8 @@
 
 mod cv;
 mod excess;
+#[cfg(test)]
+mod excess_tests;
 mod imu;
 mod imu_params;
 #[cfg(test)]

@@ -55,6 +55,11 @@ const AIRBORNE_ABOVE_START_M: f64 = 0.5;
 /// The worst moment allowed anywhere, metres.
 const MAX_ERROR_M: f64 = 1.0;
 
+/// Started on the floor among the ground phase's bad ranges, an estimator
+/// must be tracking (`tracking_after_take_off_s` of the replay: within
+/// 0.5 m of the truth for 1 s) this soon after take-off, seconds.
+const TRACKING_AFTER_TAKE_OFF_S: f64 = 1.0;
+
 /// Flights and estimators known not to meet the targets against the plain
 /// reference (docs/decisions/0100): printed, not asserted, so that every
 /// other flight still guards against regressions.
@@ -321,8 +326,9 @@ fn score(track: &[(f64, [f64; 3])], truth: &[(f64, [f64; 3])], from_s: f64) -> (
     ((sum2 / f64::from(n.max(1))).sqrt(), max)
 }
 
-/// RMSE and largest 3D error (metres) by estimator name.
-type Scores = HashMap<String, (f64, f64)>;
+/// RMSE and largest 3D error (metres) and seconds from take-off to
+/// tracking, by estimator name.
+type Scores = HashMap<String, (f64, f64, f64)>;
 
 /// The scores of each estimator of `ickon replay util` (`extra`: more
 /// options).
@@ -359,15 +365,19 @@ fn replay(root: &Path, f: &Flight, extra: &[&str]) -> Scores {
             let v = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
             (
                 e["name"].as_str().unwrap().to_owned(),
-                (v("rmse_3d_m"), v("max_3d_m")),
+                (
+                    v("rmse_3d_m"),
+                    v("max_3d_m"),
+                    v("tracking_after_take_off_s"),
+                ),
             )
         })
         .collect()
 }
 
-/// One flight: `(file, reference, estimator name, ours)`, each `(rmse,
-/// max)`.
-type Row = (&'static str, (f64, f64), &'static str, (f64, f64));
+/// One flight: `(file, reference, estimator name, ours)`: the reference's
+/// `(rmse, max)`, ours `(rmse, max, tracking after take-off)`.
+type Row = (&'static str, (f64, f64), &'static str, (f64, f64, f64));
 
 fn flight_rows(root: &Path, f: &Flight) -> Vec<Row> {
     let dir = root.join(f.dir);
@@ -400,7 +410,7 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
         jobs.into_iter().flat_map(|j| j.join().unwrap()).collect()
     });
     let mut failures = Vec::new();
-    for (file, (ref_rmse, ref_max), name, (rmse, max)) in &rows {
+    for (file, (ref_rmse, ref_max), name, (rmse, max, _)) in &rows {
         eprintln!("{file:<32} plain {ref_rmse:.3} / {ref_max:.2}  {name} {rmse:.3} / {max:.2}");
         let allowed_max = (1.2 * ref_max).clamp(0.5, MAX_ERROR_M);
         let mut missed = Vec::new();
@@ -423,8 +433,22 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
             (false, false) => failures.push(format!("{file} {name}: {}", missed.join(", "))),
         }
     }
+    failures.extend(rows.iter().filter_map(late_after_take_off));
     failures.extend(imu_against_tdoa(&rows));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The failure of a row whose estimator was not tracking within
+/// [`TRACKING_AFTER_TAKE_OFF_S`] of take-off (NaN: never, or nothing
+/// published).
+fn late_after_take_off(row: &Row) -> Option<String> {
+    let (file, _, name, (_, _, tracking_s)) = row;
+    eprintln!("{file:<32} {name} tracking {tracking_s:.3} s after take-off");
+    (tracking_s.is_nan() || *tracking_s > TRACKING_AFTER_TAKE_OFF_S).then(|| {
+        format!(
+            "{file} {name}: tracking {tracking_s:.3} s after take-off (at most {TRACKING_AFTER_TAKE_OFF_S} s)"
+        )
+    })
 }
 
 /// On each IMU flight `imu-eskf` against `tdoa-ekf`: its worst moment not
@@ -480,9 +504,10 @@ fn imu_against_tdoa(rows: &[Row]) -> Vec<String> {
 /// one run's score fall differently. On each, `imu-eskf` must be no worse
 /// than `tdoa-ekf` in RMSE nor in its worst moment.
 ///
-/// Not asserted, because not met: on the whole flight at its full rate
-/// `imu-eskf` 15 % below `tdoa-ekf` in RMSE (0.321 m against 0.320 m; its
-/// worst moment is below, 0.69 m against 0.88 m).
+/// On the whole flight at its full rate the two are level in RMSE
+/// (0.321 m against 0.320 m, a known miss above; the worst moment is
+/// below, 0.69 m against 0.88 m); on each third `imu-eskf` is below in
+/// both (docs/decisions/0100).
 #[test]
 fn imu_filter_is_no_worse_than_tdoa_only_on_every_third_of_the_imu_flight() {
     let Some(root) = data_root() else {

@@ -1,7 +1,9 @@
 //! Every real flight in `util/` and `util-imu/` of the shared data against
 //! a plain reference filter written here: `tdoa-ekf` (and `imu-eskf` where
 //! the flight has the IMU) must not be worse than the plain filter in RMSE
-//! nor in its worst moment, and its worst moment must stay within 1 m.
+//! nor in its worst moment, and its worst moment must stay within 1 m;
+//! where the flight has the IMU, `imu-eskf`'s worst moment must not be
+//! above `tdoa-ekf`'s, nor its RMSE.
 //!
 //! The reference is the data README's plain filter: a constant-velocity
 //! EKF, one scalar update per range difference, a 3-sigma innovation gate,
@@ -53,23 +55,23 @@ const AIRBORNE_ABOVE_START_M: f64 = 0.5;
 /// The worst moment allowed anywhere, metres.
 const MAX_ERROR_M: f64 = 1.0;
 
-/// Flights and estimators known not to meet the targets, each with the
-/// reason found against the truth (docs/decisions/0040): printed, not
-/// asserted, so that every other flight still guards against regressions.
-/// - `pre0425-traj7-tdoa2`, `tdoa-ekf`: 2.0 m while landing, where most
-///   range differences of each 0.1 s (up to 65 %) fit a point 1-1.5 m
-///   above the vehicle better than the vehicle itself; the plain
-///   reference reaches 2.1 m on the same flight.
-/// - `pre0426-traj4-tdoa2`, `imu-eskf`: 1.12 m at 25-26 s, in a run of
-///   biased range differences that takes the plain `cv-ekf` beyond 1 m
-///   too.
-/// - `early-test-log00`, `imu-eskf`: 0.72 m against the 0.66 m allowed by
-///   a plain reference's 0.55 m.
-const KNOWN_UNMET: [(&str, &str); 3] = [
-    ("pre0425-traj7-tdoa2.csv", "tdoa-ekf"),
-    ("pre0426-traj4-tdoa2.csv", "imu-eskf"),
-    ("early-test-log00.csv", "imu-eskf"),
-];
+/// Started on the floor among the ground phase's bad ranges, an estimator
+/// must be tracking (`tracking_after_take_off_s` of the replay: within
+/// 0.5 m of the truth for 1 s) this soon after take-off, seconds.
+const TRACKING_AFTER_TAKE_OFF_S: f64 = 1.0;
+
+/// Flights and estimators known not to meet the targets against the plain
+/// reference (docs/decisions/0100): printed, not asserted, so that every
+/// other flight still guards against regressions.
+/// - `pre0426-traj4-tdoa2`, `tdoa-ekf`: 1.002 m at worst, at the 1 m
+///   bound, in a run of biased range differences that takes the plain
+///   reference to 2.3 m.
+const KNOWN_UNMET: [(&str, &str); 1] = [("pre0426-traj4-tdoa2.csv", "tdoa-ekf")];
+
+/// IMU flights where `imu-eskf`'s RMSE is known to be above `tdoa-ekf`'s:
+/// `pre0425-traj1-tdoa2`, 0.321 against 0.320 m (level; its worst moment
+/// is 0.69 against 0.88 m). Printed, not asserted.
+const KNOWN_IMU_RMSE_ABOVE: [&str; 1] = ["pre0425-traj1-tdoa2.csv"];
 
 struct Flight {
     dir: &'static str,
@@ -324,8 +326,9 @@ fn score(track: &[(f64, [f64; 3])], truth: &[(f64, [f64; 3])], from_s: f64) -> (
     ((sum2 / f64::from(n.max(1))).sqrt(), max)
 }
 
-/// RMSE and largest 3D error (metres) by estimator name.
-type Scores = HashMap<String, (f64, f64)>;
+/// RMSE and largest 3D error (metres) and seconds from take-off to
+/// tracking, by estimator name.
+type Scores = HashMap<String, (f64, f64, f64)>;
 
 /// The scores of each estimator of `ickon replay util` (`extra`: more
 /// options).
@@ -362,15 +365,19 @@ fn replay(root: &Path, f: &Flight, extra: &[&str]) -> Scores {
             let v = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
             (
                 e["name"].as_str().unwrap().to_owned(),
-                (v("rmse_3d_m"), v("max_3d_m")),
+                (
+                    v("rmse_3d_m"),
+                    v("max_3d_m"),
+                    v("tracking_after_take_off_s"),
+                ),
             )
         })
         .collect()
 }
 
-/// One flight: `(file, reference, estimator name, ours)`, each `(rmse,
-/// max)`.
-type Row = (&'static str, (f64, f64), &'static str, (f64, f64));
+/// One flight: `(file, reference, estimator name, ours)`: the reference's
+/// `(rmse, max)`, ours `(rmse, max, tracking after take-off)`.
+type Row = (&'static str, (f64, f64), &'static str, (f64, f64, f64));
 
 fn flight_rows(root: &Path, f: &Flight) -> Vec<Row> {
     let dir = root.join(f.dir);
@@ -403,7 +410,7 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
         jobs.into_iter().flat_map(|j| j.join().unwrap()).collect()
     });
     let mut failures = Vec::new();
-    for (file, (ref_rmse, ref_max), name, (rmse, max)) in &rows {
+    for (file, (ref_rmse, ref_max), name, (rmse, max, _)) in &rows {
         eprintln!("{file:<32} plain {ref_rmse:.3} / {ref_max:.2}  {name} {rmse:.3} / {max:.2}");
         let allowed_max = (1.2 * ref_max).clamp(0.5, MAX_ERROR_M);
         let mut missed = Vec::new();
@@ -426,7 +433,67 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
             (false, false) => failures.push(format!("{file} {name}: {}", missed.join(", "))),
         }
     }
+    failures.extend(rows.iter().filter_map(late_after_take_off));
+    failures.extend(imu_against_tdoa(&rows));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The failure of a row whose estimator was not tracking within
+/// [`TRACKING_AFTER_TAKE_OFF_S`] of take-off (NaN: never, or nothing
+/// published).
+fn late_after_take_off(row: &Row) -> Option<String> {
+    let (file, _, name, (_, _, tracking_s)) = row;
+    eprintln!("{file:<32} {name} tracking {tracking_s:.3} s after take-off");
+    (tracking_s.is_nan() || *tracking_s > TRACKING_AFTER_TAKE_OFF_S).then(|| {
+        format!(
+            "{file} {name}: tracking {tracking_s:.3} s after take-off (at most {TRACKING_AFTER_TAKE_OFF_S} s)"
+        )
+    })
+}
+
+/// On each IMU flight `imu-eskf` against `tdoa-ekf`: its worst moment not
+/// above, its RMSE not above (but where known); the failures.
+fn imu_against_tdoa(rows: &[Row]) -> Vec<String> {
+    let mut failures = Vec::new();
+    let of = |file: &str, name: &str| {
+        rows.iter()
+            .find(|r| r.0 == file && r.2 == name)
+            .map(|r| r.3)
+    };
+    for f in FLIGHTS.iter().filter(|f| f.imu) {
+        let (Some(tdoa), Some(imu)) = (of(f.file, "tdoa-ekf"), of(f.file, "imu-eskf")) else {
+            failures.push(format!("{}: no score for both filters", f.file));
+            continue;
+        };
+        eprintln!(
+            "{:<32} imu-eskf {:.3} / {:.2} against tdoa-ekf {:.3} / {:.2}",
+            f.file, imu.0, imu.1, tdoa.0, tdoa.1
+        );
+        // NaN (nothing published) fails both.
+        if imu.1.is_nan() || imu.1 > tdoa.1 {
+            failures.push(format!(
+                "{}: imu-eskf max {:.2} above tdoa-ekf's {:.2}",
+                f.file, imu.1, tdoa.1
+            ));
+        }
+        if imu.0.is_nan() || imu.0 > tdoa.0 {
+            let message = format!(
+                "{}: imu-eskf RMSE {:.3} above tdoa-ekf's {:.3}",
+                f.file, imu.0, tdoa.0
+            );
+            if KNOWN_IMU_RMSE_ABOVE.contains(&f.file) {
+                eprintln!("  known, not met: {message}");
+            } else {
+                failures.push(message);
+            }
+        } else if KNOWN_IMU_RMSE_ABOVE.contains(&f.file) {
+            eprintln!(
+                "  {}: imu-eskf RMSE now no worse; drop it from KNOWN_IMU_RMSE_ABOVE",
+                f.file
+            );
+        }
+    }
+    failures
 }
 
 /// The IMU flight replayed three times at a third of its measurement
@@ -437,9 +504,10 @@ fn no_flight_is_worse_than_the_plain_filter_nor_ever_a_metre_off() {
 /// one run's score fall differently. On each, `imu-eskf` must be no worse
 /// than `tdoa-ekf` in RMSE nor in its worst moment.
 ///
-/// Not asserted, because not met: on the whole flight at its full rate
-/// `imu-eskf` 15 % below `tdoa-ekf` in RMSE, or no worse in its worst
-/// moment (0.295 m / 0.81 m against 0.298 m / 0.79 m).
+/// On the whole flight at its full rate the two are level in RMSE
+/// (0.321 m against 0.320 m, a known miss above; the worst moment is
+/// below, 0.69 m against 0.88 m); on each third `imu-eskf` is below in
+/// both (docs/decisions/0100).
 #[test]
 fn imu_filter_is_no_worse_than_tdoa_only_on_every_third_of_the_imu_flight() {
     let Some(root) = data_root() else {

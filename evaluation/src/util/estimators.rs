@@ -20,7 +20,7 @@
 use std::collections::HashMap;
 
 use ickon_fusion::estimator::RangeDifferenceSample;
-use ickon_fusion::estimator::flight::{CvFilter, CvParams, ImuFilter, ImuParams};
+use ickon_fusion::estimator::flight::{CvFilter, CvParams, ExcessParams, ImuFilter, ImuParams};
 use ickon_fusion::estimator::guard::{
     FlightVolume, GuardCounts, GuardParams, Guarded, GuardedFilter,
 };
@@ -72,27 +72,45 @@ pub struct Overrides {
     pub shadow_m: Option<f64>,
     /// Prior standard deviation of an online shadow estimate, metres.
     pub shadow_prior_sigma_m: Option<f64>,
+    /// Standard deviation of each anchor's excess path, metres.
+    pub excess_sigma_m: Option<f64>,
+}
+
+/// The anchors' excess paths in the UTIL arena, sized from its geometry
+/// before any flight was scored: a signal reflected off the floor or off
+/// the wooden shelf beside the flight area, or crossing it, travels about
+/// a decimetre further than the straight line at the heights flown (a
+/// standard deviation of 0.1 m); it lasts about as long as the vehicle
+/// takes to cross the reflecting patch at its speed of about 1 m/s (a
+/// correlation time of 1 s).
+pub fn util_excess_params(o: Overrides) -> ExcessParams {
+    ExcessParams {
+        sigma_m: o.excess_sigma_m.unwrap_or(0.1),
+        correlation_s: 1.0,
+    }
 }
 
 /// `tdoa-ekf`'s filter on UTIL flights: the library defaults
-/// ([`CvParams::default`]: 1 m^2/s^3 as for the baseline, 3 sigma) and the
+/// ([`CvParams::default`]: 1 m^2/s^3 as for the baseline, 3 sigma), the
 /// drone's body shadow [`UTIL_SHADOW_M`], held (not estimated: online, it
 /// is nearly the signature of a height error and wandered, see the
-/// README's leave-one-out).
+/// README's leave-one-out), and the arena's excess paths
+/// ([`util_excess_params`]).
 pub fn util_cv_params(o: Overrides) -> CvParams {
     let d = CvParams::default();
     CvParams {
         accel_psd_m2_s3: o.accel_psd_m2_s3.unwrap_or(d.accel_psd_m2_s3),
         shadow_m: o.shadow_m.unwrap_or(UTIL_SHADOW_M),
         shadow_prior_sigma_m: o.shadow_prior_sigma_m.unwrap_or(0.0),
+        excess: util_excess_params(o),
         ..d
     }
 }
 
 /// `imu-eskf`'s filter: the library defaults ([`ImuParams::default`], all
 /// chosen from the IMU's class, none fitted to this data), the UTIL
-/// antenna lever arm, the start yaw, the same body shadow as `tdoa-ekf`,
-/// and the multirotor's thrust-axis model (`thrust_axis_only`: the UTIL
+/// antenna lever arm, the start yaw, the same body shadow and excess paths
+/// as `tdoa-ekf`, and the multirotor's thrust-axis model (`thrust_axis_only`: the UTIL
 /// vehicle is a quadrotor; in flight its accelerometer's horizontal
 /// channels read a tenth to a quarter of a g while it hovers level).
 pub fn util_imu_params(antenna_body_m: [f64; 3], initial_yaw_rad: f64, o: Overrides) -> ImuParams {
@@ -103,6 +121,7 @@ pub fn util_imu_params(antenna_body_m: [f64; 3], initial_yaw_rad: f64, o: Overri
         shadow_m: o.shadow_m.unwrap_or(UTIL_SHADOW_M),
         shadow_prior_sigma_m: o.shadow_prior_sigma_m.unwrap_or(0.0),
         thrust_axis_only: true,
+        excess: util_excess_params(o),
         ..d
     }
 }

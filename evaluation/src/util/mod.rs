@@ -69,6 +69,11 @@ pub struct UtilArgs {
     /// around `--shadow-m`, metres (default 0: held).
     #[arg(long)]
     pub shadow_prior_sigma_m: Option<f64>,
+    /// Override of the standard deviation of each anchor's excess path,
+    /// metres, for `tdoa-ekf` and `imu-eskf` (default: 0.1, a reflection
+    /// off the arena's floor and furniture; 0: no excess-path states).
+    #[arg(long)]
+    pub excess_sigma_m: Option<f64>,
     /// Print one JSON document on stdout instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -112,6 +117,10 @@ pub(crate) struct EstimatorReport {
     pub(crate) output_began_s: Option<f64>,
     /// Share of the measurements after which an estimate was published.
     pub(crate) published_pct: f64,
+    /// Seconds from take-off (the truth 0.5 m above its start) until the
+    /// estimate is within 0.5 m of the truth and stays there for 1 s;
+    /// `null` when it never is (or the truth never takes off).
+    pub(crate) tracking_after_take_off_s: Option<f64>,
     pub(crate) output_rate_hz: f64,
     pub(crate) rejected_pct: f64,
     pub(crate) rejected: Rejections,

@@ -31,6 +31,26 @@ const ANTENNA_BODY_M: [f64; 3] = [-0.01245, 0.00127, 0.0908];
 /// floor below an anchor's stand.
 const VOLUME_MARGIN_M: f64 = 0.5;
 
+/// The vehicle has taken off once its truth is this far above its first
+/// sample, metres: clear of the floor-level anchors' stands (about 0.2 m
+/// high) and of the body's own height.
+const TAKE_OFF_ABOVE_START_M: f64 = 0.5;
+/// An estimate tracks once it is within this of the truth (the watch's
+/// bound for a receiver placed elsewhere, `LostParams::disagree_m`) ...
+const TRACKING_WITHIN_M: f64 = 0.5;
+/// ... and stays so for this long, seconds.
+const TRACKING_HOLD_S: f64 = 1.0;
+
+/// Time of take-off: the first truth sample [`TAKE_OFF_ABOVE_START_M`]
+/// above the first one.
+fn take_off_s(truth: &[TruthRow]) -> Option<f64> {
+    let ground_z = truth.first()?.position_m[2];
+    truth
+        .iter()
+        .find(|r| r.position_m[2] >= ground_z + TAKE_OFF_ABOVE_START_M)
+        .map(|r| r.t_s)
+}
+
 /// Everything a replay produced.
 pub(crate) struct Replayed {
     pub(crate) measurements: u64,
@@ -125,6 +145,12 @@ pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
     let first_s = streams.tdoa.first().map(|m| m.1.t_s);
     let duration_s = streams.tdoa.last().map_or(0.0, |m| m.1.t_s) - first_s.unwrap_or(0.0);
     let mut reports = runners.reports(&runs, measurements, duration_s, first_s);
+    if let Some(t0) = take_off_s(&streams.truth) {
+        for (r, track) in reports.iter_mut().zip(&runs.tracks) {
+            r.tracking_after_take_off_s =
+                track.tracking_after(t0, TRACKING_WITHIN_M, TRACKING_HOLD_S);
+        }
+    }
     if let Some(r) = reports.iter_mut().find(|r| r.name == "imu-eskf") {
         r.imu_dropped = imu_dropped;
     }
@@ -177,6 +203,7 @@ impl Runners {
             accel_psd_m2_s3: args.accel_psd_m2_s3,
             shadow_m: args.shadow_m,
             shadow_prior_sigma_m: args.shadow_prior_sigma_m,
+            excess_sigma_m: args.excess_sigma_m,
         };
         let cv_params = estimators::util_cv_params(overrides);
         let cv = CvFilter::new(cv_params).map_err(|e| bad_input(args, e.to_string()))?;
@@ -400,6 +427,7 @@ pub(crate) fn report(
         unscored: track.unscored,
         output_began_s: None,
         published_pct: 100.0 * estimates as f64 / measurements.max(1) as f64,
+        tracking_after_take_off_s: None,
         output_rate_hz: if duration_s > 0.0 {
             estimates as f64 / duration_s
         } else {

@@ -37,6 +37,8 @@ pub struct Track {
     first_s: Option<f64>,
     /// 3D error of every scored estimate, metres (kept for the percentile).
     errors_3d_m: Vec<f64>,
+    /// Time of each of them, seconds.
+    error_times_s: Vec<f64>,
     /// NEES of every scored estimate that came with a covariance.
     nees: Vec<f64>,
     /// Scored estimates without a usable covariance.
@@ -140,6 +142,7 @@ impl Track {
         }
         let xy2 = d[0] * d[0] + d[1] * d[1];
         self.errors_3d_m.push((xy2 + d[2] * d[2]).sqrt());
+        self.error_times_s.push(t_s);
         self.sum2_xy += xy2;
         if let Some(series) = &mut self.series
             && series.last().is_none_or(|p| t_s - p.t_s >= PLOT_STEP_S)
@@ -150,6 +153,25 @@ impl Track {
                 truth_m,
             });
         }
+    }
+
+    /// Seconds from `from_s` to the first scored estimate from which the
+    /// error stays within `within_m` for `hold_s` (each estimate of that
+    /// stretch scored); `None` when that never happens.
+    pub fn tracking_after(&self, from_s: f64, within_m: f64, hold_s: f64) -> Option<f64> {
+        let mut start: Option<f64> = None;
+        let scored = self.error_times_s.iter().zip(&self.errors_3d_m);
+        for (&t, &e) in scored.filter(|(t, _)| **t >= from_s) {
+            if e > within_m {
+                start = None;
+                continue;
+            }
+            let s = *start.get_or_insert(t);
+            if t - s >= hold_s {
+                return Some(s - from_s);
+            }
+        }
+        None
     }
 
     /// The error statistics (none when nothing was scored).
@@ -285,6 +307,20 @@ mod tests {
             position_m: [x, 0.0, 1.0],
             attitude_xyzw: None,
         }
+    }
+
+    #[test]
+    fn tracking_starts_where_the_error_stays_small_for_the_hold() {
+        let mut track = Track::new(false);
+        // 1.5 m off until 1.0 s, then 0.1 m off, one spike at 1.3 s.
+        for k in 0..=40 {
+            let t = f64::from(k) * 0.05;
+            let x = if t < 1.0 || k == 26 { 1.5 } else { 0.1 };
+            track.score(t, [x, 0.0, 1.0], None, [0.0, 0.0, 1.0]);
+        }
+        let after = track.tracking_after(0.5, 0.5, 0.5).unwrap();
+        assert!((after - (1.35 - 0.5)).abs() < 1e-9, "{after}");
+        assert_eq!(track.tracking_after(0.5, 0.5, 5.0), None);
     }
 
     #[test]

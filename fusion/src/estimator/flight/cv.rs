@@ -1,18 +1,23 @@
-//! The 3D constant-velocity filter with the body shadow as a state:
-//! `[p, v, s]` (metres, m/s, metres), white-noise acceleration, one scalar
-//! update per range difference through the shared gate
+//! The 3D constant-velocity filter with the body shadow and the anchors'
+//! excess paths as states: `[p, v, s, e_1..e_8]` (metres, m/s, metres,
+//! metres; see `excess.rs`), white-noise acceleration, one scalar update
+//! per range difference through the shared gate
 //! ([`crate::estimator::tdoa_ekf`]), run under [`crate::estimator::guard::Guarded`].
 
 use nalgebra::{SMatrix, SVector, Vector3};
 
+use super::excess::{EXCESS_SLOTS, ExcessParams, ExcessSlots};
 use super::shadow;
 use crate::estimator::guard::{FlightVolume, GuardedFilter};
 use crate::estimator::tdoa_ekf::{Outcome, Rejection, gated_update};
 use crate::estimator::{InvalidParameter, RangeDifferenceSample};
 
-type V7 = SVector<f64, 7>;
-type M7 = SMatrix<f64, 7, 7>;
 const S: usize = 6;
+/// First excess-path state.
+const E: usize = 7;
+const N: usize = E + EXCESS_SLOTS;
+type VN = SVector<f64, N>;
+type MN = SMatrix<f64, N, N>;
 
 /// Parameters of [`CvFilter`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -31,6 +36,8 @@ pub struct CvParams {
     /// Prior standard deviation of `s`, metres; 0 holds it at `shadow_m`
     /// (not estimated).
     pub shadow_prior_sigma_m: f64,
+    /// The anchors' excess paths (off by default).
+    pub excess: ExcessParams,
 }
 
 impl Default for CvParams {
@@ -45,6 +52,7 @@ impl Default for CvParams {
             gate_sigma: 3.0,
             shadow_m: 0.0,
             shadow_prior_sigma_m: 0.0,
+            excess: ExcessParams::default(),
         }
     }
 }
@@ -71,6 +79,7 @@ impl CvParams {
                 return bad(field);
             }
         }
+        self.excess.validate("tdoa-ekf")?;
         for (field, v) in [
             ("shadow_m", self.shadow_m),
             ("shadow_prior_sigma_m", self.shadow_prior_sigma_m),
@@ -93,28 +102,32 @@ impl CvParams {
 pub struct CvFilter {
     params: CvParams,
     t_s: f64,
-    x: V7,
-    p: M7,
+    x: VN,
+    p: MN,
+    excess: ExcessSlots,
 }
 
 impl CvFilter {
     /// An unplaced filter.
     pub fn new(params: CvParams) -> Result<Self, InvalidParameter> {
         params.validate()?;
-        let mut p = M7::identity();
+        let mut p = MN::identity();
+        let excess = ExcessSlots::new(params.excess, E);
+        excess.init(&mut p);
         // Unobserved when the shadow is held: any variance will do.
         p[(S, S)] = if params.shadow_prior_sigma_m > 0.0 {
             params.shadow_prior_sigma_m.powi(2)
         } else {
             1.0
         };
-        let mut x = V7::zeros();
+        let mut x = VN::zeros();
         x[S] = params.shadow_m;
         Ok(Self {
             params,
             t_s: 0.0,
             x,
             p,
+            excess,
         })
     }
 
@@ -128,14 +141,24 @@ impl CvFilter {
         (self.x[S], self.p[(S, S)].sqrt())
     }
 
-    fn linearise(&self, m: &RangeDifferenceSample) -> Option<shadow::Linearised> {
+    /// The excess-path estimates of the anchors heard lately: `(anchor,
+    /// metres, standard deviation)`.
+    pub fn excess_paths_m(&self) -> Vec<([f64; 3], f64, f64)> {
+        self.excess.estimates(&self.x, &self.p)
+    }
+
+    /// The predicted range difference and its row of `H`.
+    fn linearise(&self, m: &RangeDifferenceSample) -> Option<(f64, SMatrix<f64, 1, N>)> {
         let p = Vector3::new(self.x[0], self.x[1], self.x[2]);
-        let mut l = shadow::linearise(&p, m, self.x[S])?;
-        if self.params.shadow_prior_sigma_m == 0.0 {
-            // Held: no column in H.
-            l.d_shadow = 0.0;
+        let l = shadow::linearise(&p, m, self.x[S])?;
+        let (mut h, excess_m) = self.excess.observe(&self.x, m);
+        h.fixed_view_mut::<1, 3>(0, 0)
+            .copy_from(&l.gradient.transpose());
+        // Held: no column in H.
+        if self.params.shadow_prior_sigma_m > 0.0 {
+            h[(0, S)] = l.d_shadow;
         }
-        Some(l)
+        Some((l.predicted_m + excess_m, h))
     }
 }
 
@@ -146,11 +169,12 @@ impl GuardedFilter for CvFilter {
         }
         let dt = t_s - self.t_s;
         let q = self.params.accel_psd_m2_s3;
-        let mut f = M7::identity();
-        let mut qm = M7::zeros();
+        let mut f = MN::identity();
+        let mut qm = MN::zeros();
         crate::estimator::kf::constant_velocity(&mut f, &mut qm, 0, 3, dt, q);
-        let p = crate::estimator::kf::predict(&self.p, &f, &qm);
-        let x = f * self.x;
+        let mut p = crate::estimator::kf::predict(&self.p, &f, &qm);
+        let mut x = f * self.x;
+        self.excess.decay(&mut x, &mut p, dt);
         if x.iter().chain(p.iter()).all(|v| v.is_finite()) {
             (self.x, self.p, self.t_s) = (x, p, t_s);
         }
@@ -169,22 +193,19 @@ impl GuardedFilter for CvFilter {
     }
 
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {
-        self.linearise(m).map(|l| l.predicted_m)
+        self.linearise(m).map(|(predicted_m, _)| predicted_m)
     }
 
     fn update(&mut self, m: &RangeDifferenceSample) -> Outcome {
-        let Some(l) = self.linearise(m) else {
+        self.excess.assign(&mut self.x, &mut self.p, m);
+        let Some((predicted_m, h)) = self.linearise(m) else {
             return Outcome::Rejected(Rejection::Numerical);
         };
-        let mut h = SMatrix::<f64, 1, 7>::zeros();
-        h.fixed_view_mut::<1, 3>(0, 0)
-            .copy_from(&l.gradient.transpose());
-        h[(0, S)] = l.d_shadow;
         match gated_update(
             &self.x,
             &self.p,
             &h,
-            m.d_m - l.predicted_m,
+            m.d_m - predicted_m,
             m.sigma_m,
             self.params.gate_sigma,
         ) {
@@ -192,6 +213,7 @@ impl GuardedFilter for CvFilter {
                 (self.x, self.p) = (x, p);
                 // A body can only delay a signal: the shadow is one-sided.
                 self.x[S] = self.x[S].max(0.0);
+                self.excess.clamp(&mut self.x);
                 outcome
             }
             Err(r) => Outcome::Rejected(r),
@@ -200,17 +222,17 @@ impl GuardedFilter for CvFilter {
 
     fn reset(&mut self, t_s: f64, position_m: Vector3<f64>, sigma_m: f64) {
         let sv = self.params.initial_velocity_sigma_m_s;
-        // The shadow belongs to the body, not to the lost track: kept.
-        let (s, var_s) = (self.x[S], self.p[(S, S)]);
-        self.x = V7::zeros();
+        // The shadow belongs to the body, the excess paths to the arena,
+        // not to the lost track: kept, uncorrelated with the new start.
         self.x.fixed_rows_mut::<3>(0).copy_from(&position_m);
-        self.x[S] = s;
-        self.p = M7::zeros();
+        self.x.fixed_rows_mut::<3>(3).fill(0.0);
+        self.p.fixed_view_mut::<6, N>(0, 0).fill(0.0);
+        self.p.fixed_view_mut::<N, 6>(0, 0).fill(0.0);
+        self.excess.decouple(&mut self.p);
         for k in 0..3 {
             self.p[(k, k)] = sigma_m * sigma_m;
             self.p[(k + 3, k + 3)] = sv * sv;
         }
-        self.p[(S, S)] = var_s;
         self.t_s = t_s;
     }
 

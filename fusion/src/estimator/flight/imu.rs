@@ -1,8 +1,9 @@
 //! The IMU error-state filter: the accelerometer and gyro drive the
 //! nominal state (position, velocity, attitude, accelerometer and gyro
-//! biases, body shadow), each range difference corrects its 16-dimensional
-//! error `[dp, dv, dtheta, dba, dbg, ds]` (attitude error in the body
-//! frame), and the correction is injected into the nominal state (Sola,
+//! biases, body shadow, the anchors' excess paths of `excess.rs`), each
+//! range difference corrects its 24-dimensional error `[dp, dv, dtheta,
+//! dba, dbg, ds, de_1..de_8]` (attitude error in the body frame), and the
+//! correction is injected into the nominal state (Sola,
 //! "Quaternion kinematics for the error-state Kalman filter", 2017,
 //! section 7). The antenna sits at a lever arm from the IMU: the range
 //! differences see `p + R l`.
@@ -17,13 +18,19 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
+use super::excess::{EXCESS_SLOTS, ExcessSlots};
 use super::imu_params::ImuParams;
 use super::shadow;
 use crate::estimator::guard::{FlightVolume, GuardedFilter};
 use crate::estimator::tdoa_ekf::{Outcome, Rejection, gated_update};
 use crate::estimator::{InvalidParameter, RangeDifferenceSample};
 
-const N: usize = 16;
+/// The states the IMU moves (all but the excess paths).
+const C: usize = 16;
+type MC = SMatrix<f64, C, C>;
+/// First excess-path state.
+const E: usize = C;
+const N: usize = C + EXCESS_SLOTS;
 type VN = SVector<f64, N>;
 type MN = SMatrix<f64, N, N>;
 const P: usize = 0;
@@ -56,6 +63,9 @@ pub struct ImuFilter {
     bg: Vector3<f64>,
     shadow_m: f64,
     cov: MN,
+    excess: ExcessSlots,
+    /// The excess paths' nominal values (rows `E..`; the others unused).
+    excess_m: VN,
     /// The last IMU sample, held until the next one.
     last: Option<ImuSample>,
     /// Sum of the specific forces (body) of the levelling window, their
@@ -85,6 +95,8 @@ impl ImuFilter {
         } else {
             1.0
         };
+        let excess = ExcessSlots::new(params.excess, E);
+        excess.init(&mut cov);
         Ok(Self {
             params,
             t_s: f64::NEG_INFINITY,
@@ -95,6 +107,8 @@ impl ImuFilter {
             bg: Vector3::zeros(),
             shadow_m: params.shadow_m,
             cov,
+            excess,
+            excess_m: VN::zeros(),
             last: None,
             level_sum: Vector3::zeros(),
             level_n: 0,
@@ -179,7 +193,7 @@ impl ImuFilter {
         }
         let dq = UnitQuaternion::from_scaled_axis(w * dt);
         self.q *= dq;
-        let mut f = MN::identity();
+        let mut f = MC::identity();
         let i3 = Matrix3::identity();
         f.fixed_view_mut::<3, 3>(P, V).copy_from(&(i3 * dt));
         f.fixed_view_mut::<3, 3>(V, TH)
@@ -195,16 +209,19 @@ impl ImuFilter {
             .copy_from(&dq.to_rotation_matrix().into_inner().transpose());
         f.fixed_view_mut::<3, 3>(TH, BG).copy_from(&(-i3 * dt));
         let pr = &self.params;
-        let mut q = MN::zeros();
+        let mut q = MC::zeros();
         for k in 0..3 {
             q[(V + k, V + k)] = pr.accel_noise_m_s2_rt_hz.powi(2) * dt;
             q[(TH + k, TH + k)] = pr.gyro_noise_rad_s_rt_hz.powi(2) * dt;
             q[(BA + k, BA + k)] = pr.accel_bias_walk_m_s3_rt_hz.powi(2) * dt;
             q[(BG + k, BG + k)] = pr.gyro_bias_walk_rad_s2_rt_hz.powi(2) * dt;
         }
-        let cov = crate::estimator::kf::predict(&self.cov, &f, &q);
-        if cov.iter().all(|v| v.is_finite()) {
+        let mut cov = predict_moved(&self.cov, &f, &q);
+        let mut excess_m = self.excess_m;
+        self.excess.decay(&mut excess_m, &mut cov, dt);
+        if cov.iter().chain(excess_m.iter()).all(|v| v.is_finite()) {
             self.cov = cov;
+            self.excess_m = excess_m;
         }
         self.t_s = t_s;
     }
@@ -213,13 +230,29 @@ impl ImuFilter {
         self.p_m + self.q * Vector3::from(self.params.antenna_body_m)
     }
 
-    fn linearise(&self, m: &RangeDifferenceSample) -> Option<shadow::Linearised> {
-        let mut l = shadow::linearise(&self.antenna_m(), m, self.shadow_m)?;
-        if self.params.shadow_prior_sigma_m == 0.0 {
-            // Held: no column in H.
-            l.d_shadow = 0.0;
+    /// The predicted range difference (excess paths included) and its row
+    /// of `H`.
+    fn linearise(&self, m: &RangeDifferenceSample) -> Option<(f64, SMatrix<f64, 1, N>)> {
+        let l = shadow::linearise(&self.antenna_m(), m, self.shadow_m)?;
+        let (mut h, excess_m) = self.excess.observe(&self.excess_m, m);
+        let r = self.q.to_rotation_matrix().into_inner();
+        let lever = Vector3::from(self.params.antenna_body_m);
+        h.fixed_view_mut::<1, 3>(0, P)
+            .copy_from(&l.gradient.transpose());
+        // d(R exp(dtheta) l) = -R [l]x dtheta.
+        h.fixed_view_mut::<1, 3>(0, TH)
+            .copy_from(&(-l.gradient.transpose() * r * skew(&lever)));
+        // Held: no column in H.
+        if self.params.shadow_prior_sigma_m > 0.0 {
+            h[(0, S)] = l.d_shadow;
         }
-        Some(l)
+        Some((l.predicted_m + excess_m, h))
+    }
+
+    /// The excess-path estimates of the anchors heard lately: `(anchor,
+    /// metres, standard deviation)`.
+    pub fn excess_paths_m(&self) -> Vec<([f64; 3], f64, f64)> {
+        self.excess.estimates(&self.excess_m, &self.cov)
     }
 
     /// Levels the attitude from the averaged specific force, with the
@@ -252,6 +285,21 @@ impl ImuFilter {
     }
 }
 
+/// `P <- F P F^T + Q` where `F` and `Q` act on the states the IMU moves;
+/// the excess paths' own transition is their decay, applied after. Cheaper
+/// than the whole matrix product at the IMU's rate.
+fn predict_moved(cov: &MN, f: &MC, q: &MC) -> MN {
+    let mut out = *cov;
+    let moved = crate::estimator::kf::predict(&cov.fixed_view::<C, C>(0, 0).into_owned(), f, q);
+    out.fixed_view_mut::<C, C>(0, 0).copy_from(&moved);
+    let cross = f * cov.fixed_view::<C, EXCESS_SLOTS>(0, E);
+    out.fixed_view_mut::<C, EXCESS_SLOTS>(0, E)
+        .copy_from(&cross);
+    out.fixed_view_mut::<EXCESS_SLOTS, C>(E, 0)
+        .copy_from(&cross.transpose());
+    out
+}
+
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
@@ -277,27 +325,20 @@ impl GuardedFilter for ImuFilter {
     }
 
     fn predicted_m(&self, m: &RangeDifferenceSample) -> Option<f64> {
-        self.linearise(m).map(|l| l.predicted_m)
+        self.linearise(m).map(|(predicted_m, _)| predicted_m)
     }
 
     fn update(&mut self, m: &RangeDifferenceSample) -> Outcome {
-        let Some(l) = self.linearise(m) else {
+        self.excess.assign(&mut self.excess_m, &mut self.cov, m);
+        let Some((predicted_m, h)) = self.linearise(m) else {
             return Outcome::Rejected(Rejection::Numerical);
         };
         let r = self.q.to_rotation_matrix().into_inner();
-        let lever = Vector3::from(self.params.antenna_body_m);
-        let mut h = SMatrix::<f64, 1, N>::zeros();
-        h.fixed_view_mut::<1, 3>(0, P)
-            .copy_from(&l.gradient.transpose());
-        // d(R exp(dtheta) l) = -R [l]x dtheta.
-        h.fixed_view_mut::<1, 3>(0, TH)
-            .copy_from(&(-l.gradient.transpose() * r * skew(&lever)));
-        h[(0, S)] = l.d_shadow;
         let (dx, cov, outcome) = match gated_update(
             &VN::zeros(),
             &self.cov,
             &h,
-            m.d_m - l.predicted_m,
+            m.d_m - predicted_m,
             m.sigma_m,
             self.params.gate_sigma,
         ) {
@@ -325,6 +366,10 @@ impl GuardedFilter for ImuFilter {
         self.bg += dx.fixed_rows::<3>(BG);
         // A body can only delay a signal: the shadow is one-sided.
         self.shadow_m = (self.shadow_m + dx[S]).max(0.0);
+        for i in E..N {
+            self.excess_m[i] += dx[i];
+        }
+        self.excess.clamp(&mut self.excess_m);
         self.cov = cov;
         outcome
     }

@@ -1,6 +1,7 @@
 //! The parameters of [`super::ImuFilter`], with the reason for every
 //! default.
 
+use super::excess::ExcessParams;
 use crate::estimator::InvalidParameter;
 
 /// Parameters of [`super::ImuFilter`].
@@ -48,6 +49,8 @@ pub struct ImuParams {
     /// accelerometer's x and y are then used only for levelling on the
     /// ground.
     pub thrust_axis_only: bool,
+    /// The anchors' excess paths (off by default).
+    pub excess: ExcessParams,
 }
 
 impl Default for ImuParams {
@@ -77,6 +80,7 @@ impl Default for ImuParams {
             gravity_m_s2: 9.81,
             max_imu_gap_s: 0.1,
             thrust_axis_only: false,
+            excess: ExcessParams::default(),
         }
     }
 }
@@ -135,6 +139,6 @@ impl ImuParams {
                 reason: "must be finite (the shadow terms non-negative)",
             });
         }
-        Ok(())
+        self.excess.validate("imu-eskf")
     }
 }

@@ -7,8 +7,13 @@
 //! body from a transmitter below the antenna, see `shadow.rs`): held at a
 //! value known before the flight (from the body's geometry), or estimated
 //! online from a prior (weakly observable: it looks like a height error).
+//! Both may also carry each anchor's excess path as a state (`excess.rs`):
+//! the errors of range differences come in runs, not as white noise.
 
 mod cv;
+mod excess;
+#[cfg(test)]
+mod excess_tests;
 mod imu;
 mod imu_params;
 #[cfg(test)]
@@ -18,5 +23,6 @@ mod shadow;
 mod tests;
 
 pub use cv::{CvFilter, CvParams};
+pub use excess::{EXCESS_SLOTS, ExcessParams};
 pub use imu::{ImuFilter, ImuSample};
 pub use imu_params::ImuParams;

@@ -151,10 +151,10 @@ pub async fn run(
         return Ok(MsuCounters::default());
     };
     let site = Site::from_toml(&info.site_toml, "<site from the central unit>")?;
-    let spec = site.robots.iter().find(|r| r.id == robot).ok_or_else(|| {
-        NodeError::Setup(format!("robot {robot:?} is not in site {:?}", site.name))
-    })?;
-    let config = settings.tuning.estimator_for(&site, spec.start);
+    let config = settings
+        .tuning
+        .estimator_for_robot(&site, robot)
+        .map_err(|e| NodeError::Setup(e.to_string()))?;
     let estimator = estimator::build(&config).map_err(|e| NodeError::Setup(e.to_string()))?;
     let msu_config = settings.tuning.msu_config(&site);
     let ranging_site = RangingSite {

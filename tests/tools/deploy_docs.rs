@@ -14,7 +14,7 @@
 //! boards. A simulated world (`ickon-world`) on a fifth host `air` plays
 //! the transmitter boards at the guide's addresses (10.0.10.21 and .22,
 //! port 4001) and the robot's receiver board (10.0.10.31), and drives the
-//! robot `r1` along a route appended to the site file. It needs the
+//! robot `r1` along a route the test adds to the site file. It needs the
 //! simulation's credential, so the guide's `ickon site secure` runs with
 //! `--sim` here, and the copying of each machine's files (step 4 of the
 //! checklist, `scp` on a real site) is done by the test.
@@ -48,18 +48,18 @@ const HOSTS: [(&str, &[&str]); 5] = [
 /// Every host's `/etc/hosts`: the name the guide's certificates carry.
 const HOSTS_FILE: &str = "127.0.0.1 localhost\n10.0.10.1 server.site.lan\n";
 
-/// The simulation's part of the site file: a route for the world's robot.
+/// The simulation's part of the site file: a route for the world's robot,
+/// given to the guide's `r1` (which has none, as on a real site).
 const ROBOT_ROUTE: &str = r#"
 # Appended by the deployment test: the simulated world drives r1 here.
 [[routes]]
 name = "corridor"
 closed = true
 points = [[1.0, 0.9], [15.0, 0.9], [15.0, 1.6], [1.0, 1.6]]
-
-[[robots]]
-id = "r1"
-route = "corridor"
 "#;
+
+/// The guide's robot entry, and the same with the test's route.
+const ROBOT_ENTRY: (&str, &str) = ("id = \"r1\"\n", "id = \"r1\"\nroute = \"corridor\"\n");
 
 /// Each machine's files of `ickon site secure`'s output (step 4).
 const COPIES: [(&str, &[&str]); 3] = [
@@ -364,7 +364,12 @@ fn the_deployment_guide_builds_a_secured_site_on_separate_hosts() {
         let secures = script.contains("ickon site secure");
         if secures {
             let site = lan.host("server").dir.join("etc-ickon/site.toml");
-            let mut text = std::fs::read_to_string(&site).expect("the guide wrote no site file");
+            let text = std::fs::read_to_string(&site).expect("the guide wrote no site file");
+            assert!(
+                text.contains(ROBOT_ENTRY.0),
+                "the guide's site file lists no r1"
+            );
+            let mut text = text.replacen(ROBOT_ENTRY.0, ROBOT_ENTRY.1, 1);
             text.push_str(ROBOT_ROUTE);
             std::fs::write(&site, text).expect("site file");
             script = script.replace("ickon site secure ", "ickon site secure --sim ");

@@ -161,9 +161,11 @@ fn without_sudo(cmd: &str) -> &str {
 /// an ICKON-rs command.
 fn as_ickon_args(line: &str) -> Option<Vec<String>> {
     let words = shlex::split(line)?;
-    // Placeholders the docs use for numbers.
+    // Placeholders the docs use for numbers; the command ends where the
+    // shell's next one begins (`ickon ... || echo ...`).
     let words: Vec<String> = words
         .into_iter()
+        .take_while(|w| !matches!(w.as_str(), "||" | "&&" | "|" | ";"))
         .map(|w| if w == "N" { "1".to_string() } else { w })
         .collect();
     let (first, rest) = words.split_first()?;
@@ -422,6 +424,10 @@ fn a_command_run_with_sudo_is_checked_as_the_command() {
         "install -m 0755 a b"
     );
     assert_eq!(without_sudo("ickon admin"), "ickon admin");
+    assert_eq!(
+        as_ickon_args("ickon admin status || echo refused"),
+        Some(vec!["ickon".into(), "admin".into(), "status".into()])
+    );
     let lines =
         command_lines("```sh\nsudo -u ickon ickon admin status \\\n    --site-name hall\n```\n");
     assert_eq!(

@@ -43,7 +43,7 @@ pub mod time_gate;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};
-pub use config_file::{MsuConfigError, MsuTuning};
+pub use config_file::{MissingStart, MsuConfigError, MsuTuning};
 pub use core::{MsuConfig, MsuCore, MsuError};
 pub use driver::{Fed, MsuDriver};
 pub use events::{Event, InputKind, Output};

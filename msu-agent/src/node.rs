@@ -133,10 +133,10 @@ pub async fn run(
     let Some(JoinedSite { info, site }) = join.site(&mut shutdown).await? else {
         return Ok(MsuCounters::default());
     };
-    let spec = site.robots.iter().find(|r| r.id == robot).ok_or_else(|| {
-        NodeError::Setup(format!("robot {robot:?} is not in site {:?}", site.name))
-    })?;
-    let config = settings.tuning.estimator_for(&site, spec.start);
+    let config = settings
+        .tuning
+        .estimator_for_robot(&site, robot)
+        .map_err(|e| NodeError::Setup(e.to_string()))?;
     let estimator = estimator::build(&config).map_err(|e| NodeError::Setup(e.to_string()))?;
     let msu_config = settings.tuning.msu_config(&site);
     let ranging_site = RangingSite {

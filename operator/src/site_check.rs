@@ -81,7 +81,12 @@ pub fn summary(site: &Site, file: &str) -> String {
             out,
             "  {:<8} on {:<10} start ({:.2}, {:.2}) heading {:.0} deg",
             robot.id,
-            robot.route,
+            // A real site's robot drives no route.
+            if robot.route.is_empty() {
+                "no route"
+            } else {
+                &robot.route
+            },
             robot.start[0],
             robot.start[1],
             robot.start[2].to_degrees()

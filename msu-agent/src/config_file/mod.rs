@@ -86,6 +86,20 @@ impl Default for SolverTuning {
     }
 }
 
+/// A robot the site file does not list, without `filter.start` in its
+/// MSU file: nothing says where it starts.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "robot {robot:?} is not in site {site:?} and its MSU file gives no start pose: \
+     set filter.start = [x_m, y_m, heading_deg] (where the robot is switched on)"
+)]
+pub struct MissingStart {
+    /// The robot's id.
+    pub robot: String,
+    /// The site's name.
+    pub site: String,
+}
+
 /// Everything an MSU agent is tuned with: what the file says, or the
 /// defaults of one estimator. The site supplies the rest (start pose,
 /// receiver height, floor) through [`MsuTuning::estimator_for`] and
@@ -158,6 +172,28 @@ impl MsuTuning {
         let mut c = self.estimator.clone();
         apply_site(&mut c, site, self.start.unwrap_or(site_start));
         c
+    }
+
+    /// The estimator configuration for robot `robot` of `site`: its start
+    /// pose is the file's `filter.start` if given, else the robot's start
+    /// in the site file. A real site need not list its robots (their
+    /// credentials come from `ickon site secure --robots`), so a robot the
+    /// site file does not list needs `filter.start`; without either, the
+    /// error says so.
+    pub fn estimator_for_robot(
+        &self,
+        site: &Site,
+        robot: &str,
+    ) -> Result<EstimatorConfig, MissingStart> {
+        let listed = site.robots.iter().find(|r| r.id == robot);
+        match (self.start, listed) {
+            (Some(start), _) => Ok(self.estimator_for(site, start)),
+            (None, Some(spec)) => Ok(self.estimator_for(site, spec.start)),
+            (None, None) => Err(MissingStart {
+                robot: robot.to_string(),
+                site: site.name.clone(),
+            }),
+        }
     }
 
     /// The fix solver's configuration on `site`.

@@ -341,3 +341,27 @@ fn the_marvelmind_block_sets_the_kits_settings_and_refuses_absurd_ones() {
         ]
     );
 }
+
+#[test]
+fn a_robot_the_site_does_not_list_starts_from_the_file_or_is_refused() {
+    let site = ickon_proto::site::Site::default_site();
+    let listed = &site.robots[0];
+    let t = MsuTuning::defaults("tdoa-ekf").unwrap();
+    let EstimatorConfig::TdoaEkf(p) = t.estimator_for_robot(&site, &listed.id).unwrap() else {
+        panic!()
+    };
+    let pose = p.initial_pose.unwrap();
+    assert_eq!([pose.x_m, pose.y_m, pose.theta_rad], listed.start);
+
+    let err = t.estimator_for_robot(&site, "amr-7").unwrap_err();
+    assert_eq!(err.robot, "amr-7");
+    assert!(err.to_string().contains("filter.start"), "{err}");
+
+    let t = parse("[filter]\nestimator = \"tdoa-ekf\"\nstart = [2.0, 3.0, 90.0]\n").unwrap();
+    let EstimatorConfig::TdoaEkf(p) = t.estimator_for_robot(&site, "amr-7").unwrap() else {
+        panic!()
+    };
+    let pose = p.initial_pose.unwrap();
+    assert_eq!([pose.x_m, pose.y_m], [2.0, 3.0]);
+    assert!((pose.theta_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+}

@@ -300,7 +300,7 @@ async fn ask<T: DeserializeOwned>(common: &Common, request: Request) -> Result<T
         .map_err(|_| no_answer())?
         .map_err(|e| {
             let why = match &user {
-                None => "; a router with access control refuses a client without a user and password (give the admin credential: --zenoh-config DIR/clients/admin.json5 of `ickon site secure`)".to_string(),
+                None => "; a secured router refuses a client without the site's TLS certificates and a user and password (give the admin credential: --zenoh-config DIR/clients/admin.json5 of `ickon site secure`)".to_string(),
                 Some(u) => format!("; the router may have refused the user {u:?} or its password"),
             };
             format!("{}: cannot connect: {e}{why}", no_answer())

@@ -143,8 +143,8 @@ pub struct SecureArgs {
     pub sim: bool,
     /// Robots to write credentials for besides those in the site file
     /// (repeatable): ids and ranges, comma-separated (`r1..r50`,
-    /// `amr-1,amr-2`). A real site's robots need no `[[robots]]` entry,
-    /// which only a simulation needs (for its route).
+    /// `amr-1,amr-2`): robots that have a credential but are not in the
+    /// site file yet (spares, robots still to be delivered).
     #[arg(long, value_name = "IDS", value_parser = robot_list::parse)]
     pub robots: Vec<robot_list::RobotIds>,
     /// ROS domain id of the robots' rmw_zenoh keys (`ickon-msu --ros2`).

@@ -1,6 +1,6 @@
-//! `ickon site secure --robots`: the robots of a real site, given on the
-//! command line instead of in the site file, where a `[[robots]]` entry
-//! needs a route (a simulation key a real robot has no use for).
+//! `ickon site secure --robots`: robots given on the command line besides
+//! the site file's, to hold credentials before they are listed there
+//! (spares, robots still to be delivered).
 //!
 //! A list is comma-separated; an item is a robot id or a range of ids
 //! sharing a prefix, `r1..r50` (a zero-padded start, `r01..r50`, pads them

@@ -68,7 +68,8 @@ pub(super) struct RawRoute {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawRobot {
     pub id: Spanned<String>,
-    pub route: Spanned<String>,
+    /// The route a simulation drives it along; a real site's robots have none.
+    pub route: Option<Spanned<String>>,
     /// `[x_m, y_m, heading_deg]`
     pub start: Option<Spanned<[f64; 3]>>,
 }

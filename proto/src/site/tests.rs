@@ -289,3 +289,21 @@ fn carrier_channels_default_to_one_and_a_transmitter_may_not_use_more_than_the_m
     let issues = issues_of(&broken("burst_length_ms = 2.0", "burst_length_ms = -2.0"));
     assert_eq!(issues[0].field, "burst_length_ms");
 }
+
+#[test]
+fn a_real_sites_robot_needs_no_route_but_a_start() {
+    let real = broken(
+        "id = \"r1\"\nroute = \"route-1\"",
+        "id = \"r1\"\nstart = [2.0, 1.2, 90.0]",
+    );
+    let site = Site::from_toml(&real, "test.toml").expect("a robot without a route");
+    let r1 = site.robots.iter().find(|r| r.id == "r1").unwrap();
+    assert_eq!(r1.route, "");
+    assert_eq!([r1.start[0], r1.start[1]], [2.0, 1.2]);
+
+    let nowhere = broken("id = \"r1\"\nroute = \"route-1\"", "id = \"r1\"");
+    let issues = issues_of(&nowhere);
+    assert_eq!(issues.len(), 1, "{issues:?}");
+    assert_eq!(issues[0].field, "robots[0].start");
+    assert!(issues[0].message.contains("without a route"), "{issues:?}");
+}

@@ -632,14 +632,32 @@ fn validate_robots(ctx: &mut Ctx, raw: &[RawRobot], site: &Site) -> Vec<RobotSpe
                 format!("duplicate robot id {:?}", r.id.get_ref()),
             );
         }
-        let route = site.route(r.route.get_ref());
-        if route.is_none() {
-            ctx.issue(
-                r.route.span(),
-                format!("{field}.route"),
-                format!("no route named {:?}", r.route.get_ref()),
-            );
-        }
+        // A real site's robots drive no route: they give where they start.
+        let route = match &r.route {
+            Some(name) => {
+                let route = site.route(name.get_ref());
+                if route.is_none() {
+                    ctx.issue(
+                        name.span(),
+                        format!("{field}.route"),
+                        format!("no route named {:?}", name.get_ref()),
+                    );
+                }
+                route
+            }
+            None => {
+                if r.start.is_none() {
+                    ctx.issue(
+                        r.id.span(),
+                        format!("{field}.start"),
+                        "a robot without a route needs its start = [x_m, y_m, heading_deg] \
+                         (where it is switched on)"
+                            .to_string(),
+                    );
+                }
+                None
+            }
+        };
         let start = match (&r.start, route) {
             (Some(s), _) => {
                 let v = *s.get_ref();
@@ -679,7 +697,11 @@ fn validate_robots(ctx: &mut Ctx, raw: &[RawRobot], site: &Site) -> Vec<RobotSpe
         };
         robots.push(RobotSpec {
             id: r.id.get_ref().clone(),
-            route: r.route.get_ref().clone(),
+            route: r
+                .route
+                .as_ref()
+                .map(|n| n.get_ref().clone())
+                .unwrap_or_default(),
             start,
         });
     }

@@ -113,8 +113,14 @@ impl Writers {
     /// Creates `anchors.csv`, `measurements.csv`, `truth.csv` in `dir`,
     /// refusing to overwrite.
     pub fn create(dir: &Path) -> Result<Self, CommandError> {
+        Self::create_named(dir, &["anchors.csv", "measurements.csv", "truth.csv"])
+    }
+
+    /// Creates the files `names` in `dir` (numbered in that order),
+    /// refusing to overwrite.
+    pub fn create_named(dir: &Path, names: &[&str]) -> Result<Self, CommandError> {
         let mut files = Vec::new();
-        for name in ["anchors.csv", "measurements.csv", "truth.csv"] {
+        for name in names {
             let path = dir.join(name);
             let f = File::options()
                 .write(true)
@@ -128,7 +134,8 @@ impl Writers {
         Ok(Self { files })
     }
 
-    /// Writes one line into file `k` (0 anchors, 1 measurements, 2 truth).
+    /// Writes one line into file `k` (with [`Self::create`]: 0 anchors, 1
+    /// measurements, 2 truth).
     pub fn line(&mut self, k: usize, text: &str) -> Result<(), CommandError> {
         let (path, w) = &mut self.files[k];
         writeln!(w, "{text}")

@@ -112,7 +112,8 @@ pub fn read_anchors(
 ) -> Result<HashMap<u32, [f64; 3]>, InputError> {
     let with_constellation = ["constellation", "anchor_id", "x", "y", "z"];
     let single = ["anchor_id", "x_m", "y_m", "z_m"];
-    let (mut reader, wanted) = match (Table::open(path, &with_constellation), constellation) {
+    let (mut reader, wanted) = match (Table::open(path, &with_constellation, false), constellation)
+    {
         (Ok(t), Some(c)) => (t, Some(c)),
         (Ok(_), None) => {
             return Err(InputError::Malformed {
@@ -121,7 +122,7 @@ pub fn read_anchors(
                 message: "the file has several constellations: give --constellation".into(),
             });
         }
-        (Err(InputError::MissingColumn { .. }), None) => (Table::open(path, &single)?, None),
+        (Err(InputError::MissingColumn { .. }), None) => (Table::open(path, &single, false)?, None),
         (Err(e), _) => return Err(e),
     };
     let offset = usize::from(wanted.is_some());
@@ -163,8 +164,31 @@ pub fn read_anchors(
     Ok(anchors)
 }
 
+/// Which streams of the measurement file a reader parses: a replay reads
+/// each stream with a reader of its own, so that each goes at its own
+/// pace through the file (the streams share the row index, not the time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Parts {
+    /// The TDOA columns.
+    pub tdoa: bool,
+    /// The truth columns (and the orientation, when the file has it).
+    pub truth: bool,
+    /// The IMU columns, when the file has them.
+    pub imu: bool,
+}
+
+impl Parts {
+    /// Every stream.
+    pub const ALL: Self = Self {
+        tdoa: true,
+        truth: true,
+        imu: true,
+    };
+}
+
 /// The measurement file, read one line at a time.
 pub struct UtilReader {
+    parts: Parts,
     table: Table,
     /// The optional columns, when the header has all of them.
     imu: Option<Table>,
@@ -193,15 +217,28 @@ const ATTITUDE_COLUMNS: [&str; 4] = ["pose_qx", "pose_qy", "pose_qz", "pose_qw"]
 impl UtilReader {
     /// Opens `path` and checks its header.
     pub fn open(path: &Path) -> Result<Self, InputError> {
-        let optional = |columns: &[&'static str]| match Table::open(path, columns) {
-            Ok(t) => Ok(Some(t)),
-            Err(InputError::MissingColumn { .. }) => Ok(None),
-            Err(e) => Err(e),
+        Self::open_parts(path, Parts::ALL, false)
+    }
+
+    /// Opens `path` to read the streams `parts` (the others' fields are
+    /// not looked at), with a progress bar when `progress` is set and
+    /// the file is large.
+    pub fn open_parts(path: &Path, parts: Parts, progress: bool) -> Result<Self, InputError> {
+        let optional = |wanted: bool, columns: &[&'static str]| {
+            if !wanted {
+                return Ok(None);
+            }
+            match Table::open(path, columns, false) {
+                Ok(t) => Ok(Some(t)),
+                Err(InputError::MissingColumn { .. }) => Ok(None),
+                Err(e) => Err(e),
+            }
         };
         Ok(Self {
-            table: Table::open(path, &DATA_COLUMNS)?,
-            imu: optional(&IMU_COLUMNS)?,
-            attitude: optional(&ATTITUDE_COLUMNS)?,
+            parts,
+            table: Table::open(path, &DATA_COLUMNS, progress)?,
+            imu: optional(parts.imu, &IMU_COLUMNS)?,
+            attitude: optional(parts.truth, &ATTITUDE_COLUMNS)?,
             last_tdoa_s: f64::NEG_INFINITY,
             last_truth_s: f64::NEG_INFINITY,
         })
@@ -226,7 +263,7 @@ impl UtilReader {
         };
         let line = self.table.line();
         let t = &self.table;
-        let tdoa = if t.all_blank(&f, 0..4) {
+        let tdoa = if !self.parts.tdoa || t.all_blank(&f, 0..4) {
             None
         } else {
             let row = TdoaRow {
@@ -250,7 +287,7 @@ impl UtilReader {
             None => None,
         };
         let t = &self.table;
-        let truth = if t.all_blank(&f, 4..8) {
+        let truth = if !self.parts.truth || t.all_blank(&f, 4..8) {
             None
         } else {
             let attitude_xyzw = match (&self.attitude, attitude) {
@@ -312,12 +349,16 @@ struct Table {
 }
 
 impl Table {
-    fn open(path: &Path, columns: &[&'static str]) -> Result<Self, InputError> {
-        let file = File::open(path).map_err(|source| InputError::Io {
+    fn open(path: &Path, columns: &[&'static str], progress: bool) -> Result<Self, InputError> {
+        let io = |source| InputError::Io {
             path: path.to_owned(),
             source,
-        })?;
-        let boxed: Box<dyn Read> = Box::new(std::io::BufReader::new(file));
+        };
+        let file = File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        let bar = crate::tdoa_log::read::progress_for(progress, len, path);
+        let counted = crate::tdoa_log::read::Counting::new(file, bar);
+        let boxed: Box<dyn Read> = Box::new(std::io::BufReader::new(counted));
         let mut reader = csv::ReaderBuilder::new().flexible(true).from_reader(boxed);
         let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
         let mut index = Vec::with_capacity(columns.len());

@@ -11,7 +11,7 @@ use super::dataset::TruthRow;
 
 /// Truth gaps longer than this are not interpolated across (a dropout of
 /// the motion capture), seconds.
-const MAX_TRUTH_GAP_S: f64 = 0.1;
+pub const MAX_TRUTH_GAP_S: f64 = 0.1;
 /// Spacing of the points kept for the plots, seconds.
 const PLOT_STEP_S: f64 = 0.02;
 
@@ -107,25 +107,24 @@ impl Track {
         self.first_s
     }
 
-    /// No estimate to come is older than this (minus infinity before the
-    /// first estimate).
-    fn needs_truth_from_s(&self) -> f64 {
-        self.pending
-            .front()
-            .map(|e| e.0)
-            .or(self.newest_s)
-            .unwrap_or(f64::NEG_INFINITY)
+    /// No estimate to come is older than this, given the caller's promise
+    /// `floor_s` (minus infinity before the first estimate without one).
+    fn needs_truth_from_s(&self, floor_s: f64) -> f64 {
+        match self.pending.front() {
+            Some(e) => e.0,
+            None => self.newest_s.unwrap_or(f64::NEG_INFINITY).max(floor_s),
+        }
     }
 
     /// Scores what the truth now covers; with `ended`, gives up on the rest.
-    fn resolve(&mut self, truth: &VecDeque<TruthRow>, ended: bool) {
+    fn resolve(&mut self, truth: &VecDeque<TruthRow>, ended: bool, max_gap_s: f64) {
         let newest = truth.back().map_or(f64::NEG_INFINITY, |r| r.t_s);
         while let Some(&(t, est, cov)) = self.pending.front() {
             if t > newest && !ended {
                 break;
             }
             self.pending.pop_front();
-            match interpolate(truth, t) {
+            match interpolate(truth, t, max_gap_s) {
                 Some(truth_m) => self.score(t, est, cov, truth_m),
                 None => self.unscored += 1,
             }
@@ -215,6 +214,10 @@ pub struct Truth {
     samples: VecDeque<TruthRow>,
     /// Added to the body centre to get the antenna, metres.
     antenna_offset_m: [f64; 3],
+    /// Longest gap interpolated across, seconds.
+    max_gap_s: f64,
+    /// No estimate to come is older than this (the caller's promise).
+    floor_s: f64,
 }
 
 impl Truth {
@@ -223,7 +226,23 @@ impl Truth {
         Self {
             samples: VecDeque::new(),
             antenna_offset_m,
+            max_gap_s: MAX_TRUTH_GAP_S,
+            floor_s: f64::NEG_INFINITY,
         }
+    }
+
+    /// Promises that no estimate to come, of any track, is older than
+    /// `t_s`: the truth before it is forgotten even for a track that has
+    /// published nothing yet.
+    pub fn set_floor(&mut self, t_s: f64) {
+        self.floor_s = self.floor_s.max(t_s);
+    }
+
+    /// The same, interpolating across gaps up to `max_gap_s` (a truth
+    /// sampled more slowly than a motion capture's).
+    pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
+        self.max_gap_s = max_gap_s;
+        self
     }
 
     /// Adds a pose, scores what it covers and forgets what is not needed.
@@ -235,12 +254,12 @@ impl Truth {
             attitude_xyzw: row.attitude_xyzw,
         });
         for track in tracks.iter_mut() {
-            track.resolve(&self.samples, false);
+            track.resolve(&self.samples, false, self.max_gap_s);
         }
         // Keep the last sample at or before the oldest estimate to come.
         let horizon = tracks
             .iter()
-            .map(|t| t.needs_truth_from_s())
+            .map(|t| t.needs_truth_from_s(self.floor_s))
             .fold(f64::INFINITY, f64::min);
         while self.samples.len() > 2 && self.samples[1].t_s <= horizon {
             self.samples.pop_front();
@@ -250,12 +269,12 @@ impl Truth {
     /// The end of the file: scores or gives up on every pending estimate.
     pub fn finish(&self, tracks: &mut [&mut Track]) {
         for track in tracks.iter_mut() {
-            track.resolve(&self.samples, true);
+            track.resolve(&self.samples, true, self.max_gap_s);
         }
     }
 }
 
-fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64) -> Option<[f64; 3]> {
+fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64, max_gap_s: f64) -> Option<[f64; 3]> {
     let i = truth.partition_point(|r| r.t_s <= t_s);
     if i == 0 {
         return None;
@@ -266,7 +285,7 @@ fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64) -> Option<[f64; 3]> {
     }
     let r1 = truth.get(i)?;
     let dt = r1.t_s - r0.t_s;
-    if dt > MAX_TRUTH_GAP_S {
+    if dt > max_gap_s {
         return None;
     }
     let w = (t_s - r0.t_s) / dt;

@@ -280,6 +280,34 @@ fn odometry_adds_the_ground_filters_and_bad_odometry_is_named() {
             "{doc}"
         );
     }
+    // The example's truth has no heading: dead reckoning has no start,
+    // and `all` says it left it out; asked for by name, it is refused.
+    assert_eq!(doc["left_out"][0]["name"], "odometry", "{doc}");
+    assert!(
+        !doc["estimators"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["name"] == "odometry"),
+        "{doc}"
+    );
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        Some(&example("truth.csv")),
+        &[
+            "--odometry",
+            odo.to_str().unwrap(),
+            "--estimator",
+            "odometry",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("`heading_rad`"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     std::fs::write(
         &odo,
         "time_s,dx_m,dy_m,dtheta_rad\n1.0,0.1,0,0\n0.5,0.1,0,nan\n",

@@ -158,6 +158,7 @@ pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
             "unsolved_epochs": out.unsolved,
             "truth_offset": out.truth_offset,
             "start_from_truth": out.start_from_truth,
+            "left_out": out.left_out.iter().map(|(n, why)| serde_json::json!({"name": n, "reason": why})).collect::<Vec<_>>(),
             "volume": r.volume,
             "measurements": r.measurements,
             "duration_s": r.duration_s,
@@ -217,6 +218,9 @@ fn print_summary(out: &replay::TdoaReplayed) {
         u.invalid,
         u.mixed_references_2d,
     );
+    for (name, why) in &out.left_out {
+        println!("{name} left out: {why}");
+    }
     if out.start_from_truth {
         println!(
             "odometry filters: started at the truth's first pose (position +-{} m, heading +-{} deg)",

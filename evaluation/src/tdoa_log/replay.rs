@@ -70,7 +70,12 @@ pub struct TdoaReplayed {
     pub start_from_truth: bool,
     /// Whether a truth file was given.
     pub has_truth: bool,
+    /// Estimators `all` left out, each with the reason.
+    pub left_out: Vec<(&'static str, &'static str)>,
 }
+
+/// Why `all` leaves dead reckoning out without a start pose.
+const NO_START: &str = "it starts at the truth's first pose: give a truth with `heading_rad`";
 
 enum Runner {
     TdoaEkf(Box<CvRunner>),
@@ -110,7 +115,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
         truth_offset,
         start,
     } = setup;
-    let names = selected(args, anchors.dim)?;
+    let (names, left_out) = selected(args, anchors.dim, start.is_some())?;
     let mut slots = Vec::with_capacity(names.len());
     for name in names {
         slots.push(Slot {
@@ -199,6 +204,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
         truth_offset,
         start_from_truth: start.is_some(),
         has_truth: args.truth.is_some(),
+        left_out,
     })
 }
 
@@ -426,7 +432,12 @@ fn slot_report(s: &Slot, c: &Counts) -> crate::util::EstimatorReport {
     r
 }
 
-fn selected(args: &TdoaArgs, dim: usize) -> Result<Vec<&'static str>, LogError> {
+/// The estimators asked for, and those `all` leaves out for want of what
+/// they need (dead reckoning without a start pose); asked for by name,
+/// those fail in [`runner`] with the same reason.
+type Selection = (Vec<&'static str>, Vec<(&'static str, &'static str)>);
+
+fn selected(args: &TdoaArgs, dim: usize, has_start: bool) -> Result<Selection, LogError> {
     let mut names: Vec<&'static str> = Vec::new();
     if dim == 2 {
         if args.odometry.is_some() {
@@ -441,7 +452,12 @@ fn selected(args: &TdoaArgs, dim: usize) -> Result<Vec<&'static str>, LogError> 
         names.extend(&NAMES_3D[1..]);
     }
     if args.estimator == "all" {
-        return Ok(names);
+        let mut left_out = Vec::new();
+        if !has_start && names.contains(&"odometry") {
+            names.retain(|n| *n != "odometry");
+            left_out.push(("odometry", NO_START));
+        }
+        return Ok((names, left_out));
     }
     let mut out = Vec::new();
     for want in args.estimator.split(',').map(str::trim) {
@@ -455,7 +471,7 @@ fn selected(args: &TdoaArgs, dim: usize) -> Result<Vec<&'static str>, LogError> 
             }
         }
     }
-    Ok(out)
+    Ok((out, Vec::new()))
 }
 
 fn runner(
@@ -485,9 +501,7 @@ fn runner(
                 .odometry
                 .as_deref()
                 .ok_or_else(|| usage("needs --odometry".into()))?;
-            let (pose, t_s) = start.ok_or_else(|| {
-                usage("dead reckoning starts at the truth's first pose: give a truth with `heading_rad`".into())
-            })?;
+            let (pose, t_s) = start.ok_or_else(|| usage(format!("dead reckoning: {NO_START}")))?;
             Runner::DeadReckoning(Box::new(DeadReckoning::new(path, pose, t_s)?))
         }
         ("imu-eskf", _) => {

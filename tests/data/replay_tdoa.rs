@@ -335,3 +335,86 @@ fn odometry_adds_the_ground_filters_and_bad_odometry_is_named() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--imu"));
 }
+
+/// A real flight with its IMU: converted with `--imu`, the IMU filter's
+/// replay gives the numbers of `ickon replay util --imu` within 1 %, and
+/// the other filters' too.
+#[test]
+fn a_converted_imu_flight_replays_to_the_same_numbers() {
+    let Some(util) = ickon_testkit::real_data("util-imu") else {
+        return;
+    };
+    let flight = util.join("pre0425-traj7-tdoa2.csv");
+    let anchors = util.join("anchors_0425.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let conv = dir.path().join("log");
+    let out = ickon()
+        .args(["convert", "util", "--imu", "--data"])
+        .arg(&flight)
+        .arg("--anchors")
+        .arg(&anchors)
+        .args(["--to", "tdoa"])
+        .arg(&conv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let native = json(
+        &ickon()
+            .args(["replay", "util", "--imu", "--json", "--data"])
+            .arg(&flight)
+            .arg("--anchors")
+            .arg(&anchors)
+            .output()
+            .unwrap(),
+    );
+    let converted = json(&replay(
+        &conv.join("anchors.csv"),
+        &conv.join("measurements.csv"),
+        Some(&conv.join("truth.csv")),
+        &[
+            "--imu",
+            conv.join("imu.csv").to_str().unwrap(),
+            "--imu-lever-arm-m",
+            "-0.01245,0.00127,0.0908",
+            "--shadow-m",
+            "0.0908",
+            "--json",
+        ],
+    ));
+    for name in ["imu-eskf", "tdoa-ekf", "cv-ekf", "window-gn"] {
+        for field in ["rmse_3d_m", "mean_3d_m", "p95_3d_m"] {
+            let a = estimator(&native, name)[field].as_f64().unwrap();
+            let b = estimator(&converted, name)[field].as_f64().unwrap();
+            eprintln!("{name} {field}: util --imu {a:.5}, tdoa --imu {b:.5}");
+            assert!(
+                (a - b).abs() <= 0.01 * a,
+                "{name} {field}: util {a}, tdoa {b}"
+            );
+        }
+    }
+    // Bad IMU rows are named by file, line and column, exit code 2.
+    let bad = dir.path().join("imu.csv");
+    for (rows, expected) in [
+        ("1,0,0,9.8,0,0,0\n0.5,0,0,9.8,0,0,0\n", "imu.csv:3:1:"),
+        ("1,0,0,9.8,0,0,0\n2,0,nan,9.8,0,0,0\n", "imu.csv:3:3:"),
+    ] {
+        std::fs::write(
+            &bad,
+            format!("time_s,ax_m_s2,ay_m_s2,az_m_s2,gx_rad_s,gy_rad_s,gz_rad_s\n{rows}"),
+        )
+        .unwrap();
+        let out = replay(
+            &conv.join("anchors.csv"),
+            &conv.join("measurements.csv"),
+            None,
+            &["--imu", bad.to_str().unwrap()],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(expected), "{err}");
+    }
+}

@@ -71,6 +71,11 @@ pub struct TdoaArgs {
     /// Yaw of the mobile when first placed, degrees from +x (`imu-eskf`).
     #[arg(long, default_value_t = 0.0)]
     pub initial_yaw_deg: f64,
+    /// Where the point the measurements concern (the antenna, the
+    /// emitter) sits in the IMU's body frame, `x,y,z` metres (`imu-eskf`;
+    /// default: at the IMU).
+    #[arg(long, value_parser = parse_lever_arm, default_value = "0,0,0", allow_hyphen_values = true)]
+    pub imu_lever_arm_m: LeverArm,
     /// Longest gap of the truth interpolated across, seconds (0.1 suits
     /// a motion capture; a slower truth needs more).
     #[arg(long, default_value_t = crate::util::score::MAX_TRUTH_GAP_S)]
@@ -108,6 +113,33 @@ pub struct TdoaArgs {
     #[arg(long)]
     pub plot: Option<PathBuf>,
 }
+
+/// A body-frame offset, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeverArm(pub [f64; 3]);
+
+fn parse_lever_arm(s: &str) -> Result<LeverArm, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("`{x}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z]
+            if v.iter()
+                .all(|c| c.is_finite() && c.abs() <= MAX_LEVER_ARM_M) =>
+        {
+            Ok(LeverArm([x, y, z]))
+        }
+        [_, _, _] => Err(format!(
+            "each component must be a number of metres within +-{MAX_LEVER_ARM_M}"
+        )),
+        _ => Err("three numbers `x,y,z` in metres".into()),
+    }
+}
+
+/// Longest lever arm taken, metres: a body is not larger (a value in
+/// millimetres is refused rather than taken).
+const MAX_LEVER_ARM_M: f64 = 10.0;
 
 /// Replays a log of the format and prints the tables.
 pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {

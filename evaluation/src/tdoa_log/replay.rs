@@ -510,7 +510,7 @@ fn runner(
                 .as_deref()
                 .ok_or_else(|| usage("needs --imu".into()))?;
             let params = estimators::util_imu_params(
-                [0.0; 3],
+                args.imu_lever_arm_m.0,
                 args.initial_yaw_deg.to_radians(),
                 Overrides {
                     shadow_m: Some(args.shadow_m),

@@ -15,6 +15,7 @@ fn args(dir: &Path, truth: bool) -> TdoaArgs {
         imu: None,
         odometry_fraction: crate::plaza::ODOMETRY_FRACTION,
         initial_yaw_deg: 0.0,
+        imu_lever_arm_m: super::LeverArm([0.0; 3]),
         truth_max_gap_s: crate::util::score::MAX_TRUTH_GAP_S,
         dim: None,
         estimator: "all".into(),

@@ -12,7 +12,7 @@
 pub(crate) mod attitude;
 pub(crate) mod dataset;
 pub(crate) mod estimators;
-mod imu_input;
+pub(crate) mod imu_input;
 pub(crate) mod plot;
 pub(crate) mod run;
 pub(crate) mod score;

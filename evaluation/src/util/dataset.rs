@@ -358,6 +358,7 @@ impl Table {
         let len = file.metadata().map_err(io)?.len();
         let bar = crate::tdoa_log::read::progress_for(progress, len, path);
         let counted = crate::tdoa_log::read::Counting::new(file, bar);
+        let counted = super::line_limit::LineLimit::new(counted);
         let boxed: Box<dyn Read> = Box::new(std::io::BufReader::new(counted));
         let mut reader = csv::ReaderBuilder::new().flexible(true).from_reader(boxed);
         let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();

@@ -13,6 +13,7 @@ pub(crate) mod attitude;
 pub(crate) mod dataset;
 pub(crate) mod estimators;
 pub(crate) mod imu_input;
+mod line_limit;
 pub(crate) mod plot;
 pub(crate) mod run;
 pub(crate) mod score;

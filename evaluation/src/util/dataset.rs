@@ -194,8 +194,15 @@ pub struct UtilReader {
     imu: Option<Table>,
     attitude: Option<Table>,
     last_tdoa_s: f64,
+    /// TDOA rows since `t_tdoa` last advanced.
+    tdoa_rows_at_last_s: u32,
     last_truth_s: f64,
 }
+
+/// Most TDOA rows stamped with one time: the flights never repeat a time
+/// (at 450 rows/s with microsecond stamps), and a clock stuck for this
+/// long would fill every estimator's window, a span of time, without end.
+pub const MAX_ROWS_AT_ONE_TIME: u32 = 1000;
 
 const DATA_COLUMNS: [&str; 8] = [
     "idA",
@@ -240,6 +247,7 @@ impl UtilReader {
             imu: optional(parts.imu, &IMU_COLUMNS)?,
             attitude: optional(parts.truth, &ATTITUDE_COLUMNS)?,
             last_tdoa_s: f64::NEG_INFINITY,
+            tdoa_rows_at_last_s: 0,
             last_truth_s: f64::NEG_INFINITY,
         })
     }
@@ -274,6 +282,20 @@ impl UtilReader {
             };
             if row.t_s < self.last_tdoa_s {
                 return Err(t.malformed(line, "t_tdoa goes back in time".into()));
+            }
+            if row.t_s == self.last_tdoa_s {
+                self.tdoa_rows_at_last_s += 1;
+                if self.tdoa_rows_at_last_s >= MAX_ROWS_AT_ONE_TIME {
+                    return Err(t.malformed(
+                        line,
+                        format!(
+                            "t_tdoa has stayed at {} s for more than {MAX_ROWS_AT_ONE_TIME} rows: the clock is stuck",
+                            row.t_s
+                        ),
+                    ));
+                }
+            } else {
+                self.tdoa_rows_at_last_s = 0;
             }
             self.last_tdoa_s = row.t_s;
             Some(row)
@@ -493,6 +515,31 @@ fn csv_error(path: &Path, e: csv::Error) -> InputError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_stuck_clock_is_refused_where_it_is_found() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("flight.csv");
+        let mut text = DATA_COLUMNS.join(",");
+        text.push('\n');
+        for _ in 0..MAX_ROWS_AT_ONE_TIME + 5 {
+            text.push_str("0,1,0.5,1.0,,,,\n");
+        }
+        std::fs::write(&path, text).unwrap();
+        let mut reader = UtilReader::open(&path).unwrap();
+        let mut rows = 0;
+        let e = loop {
+            match reader.next_row() {
+                Ok(Some(_)) => rows += 1,
+                Ok(None) => panic!("read to the end"),
+                Err(e) => break e.to_string(),
+            }
+        };
+        assert_eq!(rows, MAX_ROWS_AT_ONE_TIME);
+        let line = MAX_ROWS_AT_ONE_TIME + 2;
+        assert!(e.contains(&format!("flight.csv:{line}:")), "{e}");
+        assert!(e.contains("the clock is stuck"), "{e}");
+    }
 
     #[test]
     fn a_binary_file_is_refused_in_words() {

@@ -116,15 +116,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
         start,
     } = setup;
     let (names, left_out) = selected(args, anchors.dim, start.is_some())?;
-    let mut slots = Vec::with_capacity(names.len());
-    for name in names {
-        slots.push(Slot {
-            name,
-            runner: runner(name, args, &anchors, volume, start)?,
-            track: Track::new(args.plot.is_some()),
-            wall: Duration::ZERO,
-        });
-    }
+    let mut slots = make_slots(names, args, &anchors, volume, start)?;
     let mut solver = EpochSolver::new(
         anchors.dim,
         (volume.min_m, volume.max_m),
@@ -290,6 +282,27 @@ fn start_pose(
         };
         (pose, first.t_s + offset_s)
     }))
+}
+
+/// One slot per estimator named, each with its runner and its track.
+fn make_slots(
+    names: Vec<&'static str>,
+    args: &TdoaArgs,
+    anchors: &Anchors,
+    volume: FlightVolume,
+    start: Option<(InitialPose, f64)>,
+) -> Result<Vec<Slot>, LogError> {
+    names
+        .into_iter()
+        .map(|name| {
+            Ok(Slot {
+                name,
+                runner: runner(name, args, anchors, volume, start)?,
+                track: Track::new(args.plot.is_some()),
+                wall: Duration::ZERO,
+            })
+        })
+        .collect()
 }
 
 /// One epoch as the runners take it.

@@ -11,6 +11,7 @@
 
 pub(crate) mod attitude;
 pub(crate) mod dataset;
+mod error_stats;
 pub(crate) mod estimators;
 pub(crate) mod imu_input;
 mod line_limit;

@@ -4,10 +4,11 @@
 
 use std::collections::VecDeque;
 
-use ickon_sim::score::Nees;
+use ickon_sim::score::{Nees, nees_bounds};
 use nalgebra::{Matrix3, Vector3};
 
 use super::dataset::TruthRow;
+use super::error_stats::ErrorStats;
 
 /// Truth gaps longer than this are not interpolated across (a dropout of
 /// the motion capture), seconds.
@@ -35,10 +36,14 @@ pub struct Track {
     newest_s: Option<f64>,
     /// Time of the first estimate.
     first_s: Option<f64>,
-    /// 3D error of every scored estimate, metres (kept for the percentile).
-    errors_3d_m: Vec<f64>,
-    /// NEES of every scored estimate that came with a covariance.
-    nees: Vec<f64>,
+    /// 3D errors of the scored estimates, metres.
+    errors_3d_m: ErrorStats,
+    /// Sum of the NEES of the scored estimates that came with a
+    /// covariance, their number, and how many lay inside the 95 %
+    /// ellipsoid.
+    nees_sum: f64,
+    nees_n: u64,
+    nees_inside: u64,
     /// Scored estimates without a usable covariance.
     without_covariance: u64,
     sum2_xy: f64,
@@ -134,7 +139,11 @@ impl Track {
     fn score(&mut self, t_s: f64, est: [f64; 3], cov: Option<Matrix3<f64>>, truth_m: [f64; 3]) {
         let d: [f64; 3] = std::array::from_fn(|k| est[k] - truth_m[k]);
         match cov.and_then(|c| nees_3d(Vector3::from(d), &c)) {
-            Some(v) => self.nees.push(v),
+            Some(v) => {
+                self.nees_sum += v;
+                self.nees_n += 1;
+                self.nees_inside += u64::from(v <= CHI2_3D_95);
+            }
             None => self.without_covariance += 1,
         }
         let xy2 = d[0] * d[0] + d[1] * d[1];
@@ -168,29 +177,33 @@ impl Track {
             };
         }
         let nf = n as f64;
-        let mut sorted = self.errors_3d_m.clone();
-        sorted.sort_by(f64::total_cmp);
-        // Nearest rank.
-        let rank = ((0.95 * nf).ceil() as usize).clamp(1, n) - 1;
+        // Nearest rank for the 95th percentile; the middle pair's mean for
+        // an even count's median.
+        let p95 = ((0.95 * nf).ceil() as u64).clamp(1, n) - 1;
+        let mid = [(n - 1) / 2, n / 2];
+        let at = self.errors_3d_m.at_ranks(&[mid[0], mid[1], p95]);
+        let (sum, sum2) = self.errors_3d_m.sums();
+        let with_covariance = self.without_covariance == 0 && self.nees_n > 0;
         Summary {
-            scored: n as u64,
-            rmse_3d_m: Some((sorted.iter().map(|e| e * e).sum::<f64>() / nf).sqrt()),
+            scored: n,
+            rmse_3d_m: Some((sum2 / nf).sqrt()),
             rmse_xy_m: Some((self.sum2_xy / nf).sqrt()),
-            mean_3d_m: Some(sorted.iter().sum::<f64>() / nf),
-            median_3d_m: Some(if n % 2 == 1 {
-                sorted[n / 2]
-            } else {
-                0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+            mean_3d_m: Some(sum / nf),
+            median_3d_m: Some(0.5 * (at[0] + at[1])),
+            p95_3d_m: Some(at[2]),
+            max_3d_m: Some(self.errors_3d_m.max()),
+            inside_95_pct: (self.without_covariance == 0)
+                .then(|| 100.0 * self.nees_inside as f64 / nf),
+            nees: with_covariance.then(|| {
+                let samples = self.nees_n as usize;
+                let (low, high) = nees_bounds(3, samples);
+                Nees {
+                    mean: self.nees_sum / self.nees_n as f64,
+                    low,
+                    high,
+                    samples,
+                }
             }),
-            p95_3d_m: Some(sorted[rank]),
-            max_3d_m: Some(sorted[n - 1]),
-            inside_95_pct: (self.without_covariance == 0).then(|| {
-                let inside = self.nees.iter().filter(|&&v| v <= CHI2_3D_95).count();
-                100.0 * inside as f64 / nf
-            }),
-            nees: (self.without_covariance == 0)
-                .then(|| Nees::of_dim(&self.nees, 3))
-                .flatten(),
         }
     }
 }

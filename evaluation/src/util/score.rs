@@ -261,6 +261,12 @@ impl Truth {
     /// Adds a pose, scores what it covers and forgets what is not needed.
     pub fn push(&mut self, row: TruthRow, tracks: &mut [&mut Track]) {
         let p = row.position_m;
+        // Of a run of samples at one time, only the first and the last can
+        // be interpolated from: a clock that stops holds two, not all.
+        let n = self.samples.len();
+        if n >= 2 && self.samples[n - 2].t_s == row.t_s && self.samples[n - 1].t_s == row.t_s {
+            self.samples.pop_back();
+        }
         self.samples.push_back(TruthRow {
             t_s: row.t_s,
             position_m: std::array::from_fn(|k| p[k] + self.antenna_offset_m[k]),
@@ -336,6 +342,22 @@ mod tests {
         let s = track.summary();
         assert_eq!((s.scored, track.unscored), (2, 1));
         assert!(s.rmse_3d_m.is_some_and(|e| e < 1e-12), "{s:?}");
+    }
+
+    #[test]
+    fn a_truth_whose_clock_stops_holds_two_samples_and_scores_the_last() {
+        let mut truth = Truth::new([0.0; 3]);
+        let mut track = Track::new(false);
+        track.push(1.0, [5.0, 0.0, 1.0]);
+        for k in 0..1000 {
+            truth.push(row(1.0, f64::from(k)), &mut [&mut track]);
+        }
+        assert!(truth.samples.len() <= 2, "{}", truth.samples.len());
+        track.push(1.0, [999.0, 0.0, 1.0]);
+        truth.finish(&mut [&mut track]);
+        // The first estimate scored at the first sample (x 0), the second
+        // at the last (x 999).
+        assert_eq!(track.summary().max_3d_m, Some(5.0));
     }
 
     #[test]

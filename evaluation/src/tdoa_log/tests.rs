@@ -219,6 +219,21 @@ fn bad_rows_are_named_by_file_line_and_column() {
 }
 
 #[test]
+fn a_stuck_clock_is_refused_where_it_is_found() {
+    let n = u64::from(super::epochs::MAX_EPOCHS_AT_ONE_TIME) + 1;
+    let rows: String = (0..=n).map(|k| epoch(k, 1.0)).collect();
+    let e = error_of(ANCHORS_2D, &rows, None);
+    // The epoch past the limit (epoch n - 1, from 0), four rows an epoch
+    // below the header's three lines.
+    let line = 4 + 4 * (n - 1);
+    assert!(
+        e.contains(&format!(":{line}:2: column `time_s`: 1 s for more than"))
+            && e.contains("the clock is stuck"),
+        "{e}"
+    );
+}
+
+#[test]
 fn two_and_three_dimensions_do_not_mix() {
     let mixed = "id,x_m,y_m,z_m,role\na,0,0,1,receiver\nb,10,0,,receiver\n";
     let e = error_of(mixed, &epoch(0, 1.0), None);

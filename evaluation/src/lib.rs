@@ -26,6 +26,6 @@ mod util;
 
 pub use eval::table::print as print_estimator_table;
 pub use eval::{EvalArgs, run as run_eval};
-pub use plaza::{PlazaArgs, run as run_plaza};
+pub use plaza::{ConvertPlazaArgs, PlazaArgs, run as run_plaza, run_convert as run_convert_plaza};
 pub use tdoa_log::{ConvertUtilArgs, TdoaArgs, run as run_tdoa, run_convert_util};
 pub use util::{UtilArgs, run as run_util};

@@ -5,7 +5,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use ickon_evaluation::{ConvertUtilArgs, EvalArgs, PlazaArgs, TdoaArgs, UtilArgs};
+use ickon_evaluation::{
+    ConvertPlazaArgs, ConvertUtilArgs, EvalArgs, PlazaArgs, TdoaArgs, UtilArgs,
+};
 use ickon_launcher::{BenchCommand, SimArgs};
 use ickon_operator::{AdminCommand, DeviceCheckArgs, RouterArgs, SecureArgs};
 use ickon_recording::{McapArgs, RecordArgs};
@@ -99,6 +101,9 @@ pub enum ConvertSource {
     /// A UTIL UWB TDOA flight, written as an arrival-time log
     /// (`--to tdoa`, docs/log-format.md).
     Util(ConvertUtilArgs),
+    /// A CMU Plaza run (ranges, wheel odometry, truth), written as an
+    /// arrival-time log with its odometry (`--to tdoa`, docs/log-format.md).
+    Plaza(ConvertPlazaArgs),
 }
 
 /// Actions on site files.
@@ -175,9 +180,10 @@ pub fn run(cli: Cli) -> ExitCode {
             ReplaySource::Mcap(args) => ickon_recording::run_replay(&args),
             ReplaySource::Tdoa(args) => ickon_evaluation::run_tdoa(&args),
         },
-        Command::Convert {
-            source: ConvertSource::Util(args),
-        } => ickon_evaluation::run_convert_util(&args),
+        Command::Convert { source } => match source {
+            ConvertSource::Util(args) => ickon_evaluation::run_convert_util(&args),
+            ConvertSource::Plaza(args) => ickon_evaluation::run_convert_plaza(&args),
+        },
         Command::Sim(args) => ickon_launcher::run_sim(args),
         Command::Eval(args) => ickon_evaluation::run_eval(args),
         Command::Router(args) => ickon_operator::run_router(args),

@@ -187,3 +187,234 @@ fn a_converted_util_flight_replays_to_the_same_numbers() {
         }
     }
 }
+
+/// The real Plaza runs: converted with their odometry, they replay to the
+/// numbers of `ickon replay plaza` within 1 % (the ground filter and dead
+/// reckoning, both runs).
+#[test]
+fn converted_plaza_runs_replay_to_the_same_numbers() {
+    let Some(plaza) = ickon_testkit::real_data("plaza") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let conv = dir.path().join("plaza");
+    let out = ickon()
+        .args(["convert", "plaza", "--data"])
+        .arg(&plaza)
+        .args(["--to", "tdoa"])
+        .arg(&conv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let native = json(
+        &ickon()
+            .args(["replay", "plaza", "--json", "--data"])
+            .arg(&plaza)
+            .output()
+            .unwrap(),
+    );
+    for run in native["runs"].as_array().unwrap() {
+        let name = run["run"].as_str().unwrap();
+        let d = conv.join(name);
+        let converted = json(&replay(
+            &d.join("anchors.csv"),
+            &d.join("measurements.csv"),
+            Some(&d.join("truth.csv")),
+            &[
+                "--odometry",
+                d.join("odometry.csv").to_str().unwrap(),
+                "--truth-max-gap-s",
+                "0.5",
+                "--json",
+            ],
+        ));
+        assert_eq!(converted["start_from_truth"], true, "{converted}");
+        for (plaza_track, tdoa_name) in [("filter", "tdoa-ekf"), ("odometry", "odometry")] {
+            for (plaza_field, tdoa_field) in [
+                ("rmse_m", "rmse_3d_m"),
+                ("mean_m", "mean_3d_m"),
+                ("p95_m", "p95_3d_m"),
+                ("max_m", "max_3d_m"),
+            ] {
+                let a = run[plaza_track][plaza_field].as_f64().unwrap();
+                let b = estimator(&converted, tdoa_name)[tdoa_field]
+                    .as_f64()
+                    .unwrap();
+                eprintln!("{name} {tdoa_name} {tdoa_field}: plaza {a:.4}, tdoa {b:.4}");
+                assert!(
+                    (a - b).abs() <= 0.01 * a,
+                    "{name} {tdoa_name} {tdoa_field}: plaza {a}, tdoa {b}"
+                );
+            }
+        }
+    }
+}
+
+/// A small 2D log with odometry: the ground filter and dead reckoning
+/// run beside the baseline, and bad odometry is named by file, line and
+/// column with exit code 2.
+#[test]
+fn odometry_adds_the_ground_filters_and_bad_odometry_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let odo = dir.path().join("odometry.csv");
+    // The example's loop is not driven by these increments: the test is
+    // about what runs and what is refused, not about accuracy.
+    let mut text = String::from("time_s,dx_m,dy_m,dtheta_rad\n");
+    for k in 1..=400 {
+        text.push_str(&format!("{},0.02,0,0.001\n", 100.0 + f64::from(k) * 0.05));
+    }
+    std::fs::write(&odo, &text).unwrap();
+    let doc = json(&replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        Some(&example("truth.csv")),
+        &["--odometry", odo.to_str().unwrap(), "--json"],
+    ));
+    for name in ["tdoa-ekf", "cv-fix", "ls"] {
+        assert!(
+            estimator(&doc, name)["estimates"].as_u64().is_some(),
+            "{doc}"
+        );
+    }
+    // The example's truth has no heading: dead reckoning has no start,
+    // and `all` says it left it out; asked for by name, it is refused.
+    assert_eq!(doc["left_out"][0]["name"], "odometry", "{doc}");
+    assert!(
+        !doc["estimators"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["name"] == "odometry"),
+        "{doc}"
+    );
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        Some(&example("truth.csv")),
+        &[
+            "--odometry",
+            odo.to_str().unwrap(),
+            "--estimator",
+            "odometry",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("`heading_rad`"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(
+        &odo,
+        "time_s,dx_m,dy_m,dtheta_rad\n1.0,0.1,0,0\n0.5,0.1,0,nan\n",
+    )
+    .unwrap();
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        None,
+        &["--odometry", odo.to_str().unwrap()],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("odometry.csv:3:1: column `time_s`: 0.5 s after 1 s: times go backwards"),
+        "{err}"
+    );
+    // A 2D log takes no IMU; a 3D one no odometry.
+    let out = replay(
+        &example("anchors.csv"),
+        &example("measurements.csv"),
+        None,
+        &["--imu", odo.to_str().unwrap()],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--imu"));
+}
+
+/// A real flight with its IMU: converted with `--imu`, the IMU filter's
+/// replay gives the numbers of `ickon replay util --imu` within 1 %, and
+/// the other filters' too.
+#[test]
+fn a_converted_imu_flight_replays_to_the_same_numbers() {
+    let Some(util) = ickon_testkit::real_data("util-imu") else {
+        return;
+    };
+    let flight = util.join("pre0425-traj7-tdoa2.csv");
+    let anchors = util.join("anchors_0425.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let conv = dir.path().join("log");
+    let out = ickon()
+        .args(["convert", "util", "--imu", "--data"])
+        .arg(&flight)
+        .arg("--anchors")
+        .arg(&anchors)
+        .args(["--to", "tdoa"])
+        .arg(&conv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let native = json(
+        &ickon()
+            .args(["replay", "util", "--imu", "--json", "--data"])
+            .arg(&flight)
+            .arg("--anchors")
+            .arg(&anchors)
+            .output()
+            .unwrap(),
+    );
+    let converted = json(&replay(
+        &conv.join("anchors.csv"),
+        &conv.join("measurements.csv"),
+        Some(&conv.join("truth.csv")),
+        &[
+            "--imu",
+            conv.join("imu.csv").to_str().unwrap(),
+            "--imu-lever-arm-m",
+            "-0.01245,0.00127,0.0908",
+            "--shadow-m",
+            "0.0908",
+            "--json",
+        ],
+    ));
+    for name in ["imu-eskf", "tdoa-ekf", "cv-ekf", "window-gn"] {
+        for field in ["rmse_3d_m", "mean_3d_m", "p95_3d_m"] {
+            let a = estimator(&native, name)[field].as_f64().unwrap();
+            let b = estimator(&converted, name)[field].as_f64().unwrap();
+            eprintln!("{name} {field}: util --imu {a:.5}, tdoa --imu {b:.5}");
+            assert!(
+                (a - b).abs() <= 0.01 * a,
+                "{name} {field}: util {a}, tdoa {b}"
+            );
+        }
+    }
+    // Bad IMU rows are named by file, line and column, exit code 2.
+    let bad = dir.path().join("imu.csv");
+    for (rows, expected) in [
+        ("1,0,0,9.8,0,0,0\n0.5,0,0,9.8,0,0,0\n", "imu.csv:3:1:"),
+        ("1,0,0,9.8,0,0,0\n2,0,nan,9.8,0,0,0\n", "imu.csv:3:3:"),
+    ] {
+        std::fs::write(
+            &bad,
+            format!("time_s,ax_m_s2,ay_m_s2,az_m_s2,gx_rad_s,gy_rad_s,gz_rad_s\n{rows}"),
+        )
+        .unwrap();
+        let out = replay(
+            &conv.join("anchors.csv"),
+            &conv.join("measurements.csv"),
+            None,
+            &["--imu", bad.to_str().unwrap()],
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(expected), "{err}");
+    }
+}

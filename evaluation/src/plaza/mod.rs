@@ -23,10 +23,12 @@ use ickon_fusion::estimator::{InitialPose, PoseEstimate};
 mod dataset;
 mod plot;
 mod report;
+mod to_tdoa;
 
 use dataset::{PlazaRun, TruthRow, read_run};
 use ickon_runtime::CommandError;
 pub use report::{RunReport, Sample, Stats};
+pub use to_tdoa::{ConvertPlazaArgs, run as run_convert};
 
 /// Standard deviation of one range, metres: the data README's simple
 /// filter's value (the filter's one-sided heavy tail handles the long ones).
@@ -64,16 +66,24 @@ pub struct PlazaArgs {
 /// the robot's sensors (wheels only, 5 % of each increment, as the data
 /// README's simple filter) and its start pose.
 pub fn plaza_params(start: InitialPose) -> TdoaEkfParams {
+    wheel_params(Some(start), ODOMETRY_FRACTION)
+}
+
+/// The filter on a wheeled robot without a gyro whose odometry errs by
+/// `fraction` of each increment (distance and turn), started at `start`
+/// when given (else from its first consistent measurements), its
+/// receiver in the anchors' plane.
+pub fn wheel_params(start: Option<InitialPose>, fraction: f64) -> TdoaEkfParams {
     let sensors = GroundNoise {
-        // var = ((slip / sqrt 2) d)^2 = (0.05 d)^2.
-        wheel_slip_fraction: ODOMETRY_FRACTION * std::f64::consts::SQRT_2,
+        // var = ((slip / sqrt 2) d)^2 = (fraction d)^2.
+        wheel_slip_fraction: fraction * std::f64::consts::SQRT_2,
         wheel_slip_per_rad_s: 0.0,
-        wheel_heading_rad_per_rad: ODOMETRY_FRACTION,
+        wheel_heading_rad_per_rad: fraction,
         wheel_heading_rad_per_m: 0.0,
         ..GroundNoise::default()
     };
     TdoaEkfParams {
-        initial_pose: Some(start),
+        initial_pose: start,
         receiver_height_m: 0.0,
         sensors,
         use_gyro: false,
@@ -169,11 +179,7 @@ fn truth_at(truth: &[TruthRow], t_s: f64) -> Option<[f64; 2]> {
 /// pi, data README).
 fn start_pose(truth: &[TruthRow]) -> Option<InitialPose> {
     let first = truth.first()?;
-    let far = truth
-        .iter()
-        .find(|r| (r.xy_m[0] - first.xy_m[0]).hypot(r.xy_m[1] - first.xy_m[1]) >= START_CHORD_M)?;
-    let travel = (far.xy_m[1] - first.xy_m[1]).atan2(far.xy_m[0] - first.xy_m[0]);
-    let reversed = ickon_fusion::angle::diff(first.heading_rad, travel).abs() > FRAC_PI_2;
+    let reversed = heading_reversed(truth)?;
     Some(InitialPose {
         x_m: first.xy_m[0],
         y_m: first.xy_m[1],
@@ -181,6 +187,17 @@ fn start_pose(truth: &[TruthRow]) -> Option<InitialPose> {
         sigma_xy_m: START_SIGMA_XY_M,
         sigma_theta_rad: START_SIGMA_THETA_DEG.to_radians(),
     })
+}
+
+/// Whether the truth's heading points against the direction of travel
+/// over the first [`START_CHORD_M`]; `None` when it never moves that far.
+fn heading_reversed(truth: &[TruthRow]) -> Option<bool> {
+    let first = truth.first()?;
+    let far = truth
+        .iter()
+        .find(|r| (r.xy_m[0] - first.xy_m[0]).hypot(r.xy_m[1] - first.xy_m[1]) >= START_CHORD_M)?;
+    let travel = (far.xy_m[1] - first.xy_m[1]).atan2(far.xy_m[0] - first.xy_m[0]);
+    Some(ickon_fusion::angle::diff(first.heading_rad, travel).abs() > FRAC_PI_2)
 }
 
 /// Replays one run through the filter and dead reckoning.

@@ -11,6 +11,11 @@ use super::rows::MeasurementReader;
 /// cannot fill the memory.
 pub const MAX_EPOCH_ROWS: usize = 4096;
 
+/// Most epochs whose first rows share one time: the estimators' windows
+/// are spans of time, and a clock stuck this long would fill them without
+/// end (an array hears an emitter a few hundred times a second at most).
+pub const MAX_EPOCHS_AT_ONE_TIME: u32 = 1000;
+
 /// Epochs, one at a time.
 pub struct Epochs<'a> {
     reader: MeasurementReader,
@@ -21,6 +26,8 @@ pub struct Epochs<'a> {
     pub rows: u64,
     /// Time of the first and the last row, seconds.
     pub span_s: Option<(f64, f64)>,
+    /// Time of the last epoch's first row, and the epochs since it changed.
+    stuck: (f64, u32),
 }
 
 impl<'a> Epochs<'a> {
@@ -33,6 +40,7 @@ impl<'a> Epochs<'a> {
             next: None,
             rows: 0,
             span_s: None,
+            stuck: (f64::NAN, 0),
         }
     }
 
@@ -60,6 +68,27 @@ impl<'a> Epochs<'a> {
         Ok(Some(a))
     }
 
+    /// Refuses a clock that stays on one time over more than
+    /// [`MAX_EPOCHS_AT_ONE_TIME`] epochs.
+    fn check_clock(&mut self, first: &Arrival) -> Result<(), LogError> {
+        if first.t_s != self.stuck.0 {
+            self.stuck = (first.t_s, 0);
+            return Ok(());
+        }
+        self.stuck.1 += 1;
+        if self.stuck.1 < MAX_EPOCHS_AT_ONE_TIME {
+            return Ok(());
+        }
+        Err(self.reader.error(
+            first.line,
+            mc::TIME,
+            format!(
+                "{} s for more than {MAX_EPOCHS_AT_ONE_TIME} epochs: the clock is stuck",
+                first.t_s
+            ),
+        ))
+    }
+
     /// The next epoch's rows into `out` (cleared first); `false` at the
     /// end of the file.
     pub fn next_epoch(&mut self, out: &mut Vec<Arrival>) -> Result<bool, LogError> {
@@ -71,6 +100,7 @@ impl<'a> Epochs<'a> {
                 None => return Ok(false),
             },
         };
+        self.check_clock(&first)?;
         out.push(first);
         while let Some(a) = self.row()? {
             if a.epoch != first.epoch {

@@ -189,3 +189,73 @@ pub struct Meta {
     /// `propagation_speed_m_s`.
     pub propagation_speed_m_s: Option<f64>,
 }
+
+/// Columns of the odometry file: body-frame increments since the previous
+/// row (x forward, y left).
+pub mod odometry_columns {
+    /// Time at the end of the increment, on the measurements' clock, seconds.
+    pub const TIME: &str = "time_s";
+    /// Forward increment, metres.
+    pub const DX: &str = "dx_m";
+    /// Leftward increment, metres.
+    pub const DY: &str = "dy_m";
+    /// Heading change, radians counter-clockwise.
+    pub const DTHETA: &str = "dtheta_rad";
+}
+
+/// Columns of the IMU file: specific force and angular rate in the body
+/// frame.
+pub mod imu_columns {
+    /// Time of the sample, on the measurements' clock, seconds.
+    pub const TIME: &str = "time_s";
+    /// Specific force, m/s^2, body x, y, z.
+    pub const ACCEL: [&str; 3] = ["ax_m_s2", "ay_m_s2", "az_m_s2"];
+    /// Angular rate, rad/s, about body x, y, z.
+    pub const GYRO: [&str; 3] = ["gx_rad_s", "gy_rad_s", "gz_rad_s"];
+}
+
+/// One odometry row as the ground filter takes it: the distance along
+/// the arc of the increment and its turn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryRow {
+    /// Time at the end of the increment, seconds.
+    pub t_s: f64,
+    /// Distance along the arc, metres (negative: driving backwards).
+    pub distance_m: f64,
+    /// Heading change, radians.
+    pub dtheta_rad: f64,
+}
+
+impl OdometryRow {
+    /// The row of an increment `(dx, dy)` in the body frame with the turn
+    /// `dtheta`: the arc whose chord it is (the chord of an arc of length
+    /// `d` turning by `dtheta` is `2 d sin(dtheta/2) / dtheta` long, at
+    /// `dtheta/2` from the start heading). A lateral slip beyond the arc
+    /// is not modelled by the filter; the chord's length keeps it.
+    pub fn from_increment(t_s: f64, dx_m: f64, dy_m: f64, dtheta_rad: f64) -> Self {
+        let chord = dx_m.hypot(dy_m);
+        let half = 0.5 * dtheta_rad;
+        let arc_per_chord = if half.abs() < 1e-9 {
+            1.0
+        } else {
+            half / half.sin()
+        };
+        Self {
+            t_s,
+            distance_m: chord.copysign(dx_m) * arc_per_chord,
+            dtheta_rad,
+        }
+    }
+
+    /// The body-frame increment `(dx, dy)` of an arc of `distance_m`
+    /// turning by `dtheta_rad` (the inverse of [`Self::from_increment`]).
+    pub fn increment_m(distance_m: f64, dtheta_rad: f64) -> [f64; 2] {
+        let half = 0.5 * dtheta_rad;
+        let chord = if half.abs() < 1e-9 {
+            distance_m
+        } else {
+            distance_m * half.sin() / half
+        };
+        [chord * half.cos(), chord * half.sin()]
+    }
+}

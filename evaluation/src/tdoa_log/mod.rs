@@ -7,6 +7,9 @@
 //! - [`epochs`], [`epoch`]: rows grouped into epochs, turned into range
 //!   differences for the filters and into the per-epoch least-squares fix
 //!   of the MSU's solver (the baseline);
+//! - [`motion_rows`], [`motion`]: the optional odometry and IMU files and
+//!   the filters that take them (the ground filter, dead reckoning, the
+//!   IMU filter);
 //! - [`offset`]: the truth clock's offset, when it runs on another clock;
 //! - [`replay`]: the estimators of `ickon replay util` over the epochs,
 //!   scored and printed by the same code;
@@ -19,6 +22,8 @@ mod cv_fix;
 mod epoch;
 mod epochs;
 pub mod format;
+mod motion;
+mod motion_rows;
 mod offset;
 pub mod read;
 mod replay;
@@ -50,12 +55,39 @@ pub struct TdoaArgs {
     /// the estimates are counted, not scored.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// The odometry file (`time_s,dx_m,dy_m,dtheta_rad`, body-frame
+    /// increments; 2D): adds the ground robot's filter `tdoa-ekf` and
+    /// dead reckoning `odometry`.
+    #[arg(long)]
+    pub odometry: Option<PathBuf>,
+    /// The IMU file (`time_s,ax_m_s2,ay_m_s2,az_m_s2,gx_rad_s,gy_rad_s,gz_rad_s`,
+    /// body frame; 3D): adds the IMU filter `imu-eskf`.
+    #[arg(long)]
+    pub imu: Option<PathBuf>,
+    /// Odometry error, a fraction of each increment (distance and turn),
+    /// for `tdoa-ekf` with `--odometry`.
+    #[arg(long, default_value_t = crate::plaza::ODOMETRY_FRACTION)]
+    pub odometry_fraction: f64,
+    /// Yaw of the mobile when first placed, degrees from +x (`imu-eskf`).
+    #[arg(long, default_value_t = 0.0)]
+    pub initial_yaw_deg: f64,
+    /// Where the point the measurements concern (the antenna, the
+    /// emitter) sits in the IMU's body frame, `x,y,z` metres (`imu-eskf`;
+    /// default: at the IMU).
+    #[arg(long, value_parser = parse_lever_arm, default_value = "0,0,0", allow_hyphen_values = true)]
+    pub imu_lever_arm_m: LeverArm,
+    /// Longest gap of the truth interpolated across, seconds (0.1 suits
+    /// a motion capture; a slower truth needs more).
+    #[arg(long, default_value_t = crate::util::score::MAX_TRUTH_GAP_S)]
+    pub truth_max_gap_s: f64,
     /// The dimension the log must have (2 or 3): a check, the anchors
     /// file decides (3D when it has `z_m`).
     #[arg(long, value_parser = clap::value_parser!(u8).range(2..=3))]
     pub dim: Option<u8>,
     /// The estimators, comma-separated, or `all`: in 3D `tdoa-ekf`,
-    /// `cv-ekf`, `window-gn`, `cv-fix`, `ls`; in 2D `cv-fix`, `ls` (`ls`: the per-epoch least-squares fix, the baseline).
+    /// `cv-ekf`, `window-gn`, `cv-fix`, `ls` (and `imu-eskf` with
+    /// `--imu`); in 2D `cv-fix`, `ls` (and `tdoa-ekf`, `odometry` with
+    /// `--odometry`) (`ls`: the per-epoch least-squares fix, the baseline).
     #[arg(long, default_value = "all")]
     pub estimator: String,
     /// Propagation speed, m/s (overrides the file's
@@ -82,6 +114,33 @@ pub struct TdoaArgs {
     pub plot: Option<PathBuf>,
 }
 
+/// A body-frame offset, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeverArm(pub [f64; 3]);
+
+fn parse_lever_arm(s: &str) -> Result<LeverArm, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("`{x}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z]
+            if v.iter()
+                .all(|c| c.is_finite() && c.abs() <= MAX_LEVER_ARM_M) =>
+        {
+            Ok(LeverArm([x, y, z]))
+        }
+        [_, _, _] => Err(format!(
+            "each component must be a number of metres within +-{MAX_LEVER_ARM_M}"
+        )),
+        _ => Err("three numbers `x,y,z` in metres".into()),
+    }
+}
+
+/// Longest lever arm taken, metres: a body is not larger (a value in
+/// millimetres is refused rather than taken).
+const MAX_LEVER_ARM_M: f64 = 10.0;
+
 /// Replays a log of the format and prints the tables.
 pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
     if args.speed_m_s.is_some_and(|c| !(c.is_finite() && c > 0.0)) {
@@ -93,6 +152,21 @@ pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
     if !(args.accel_psd_m2_s3.is_finite() && args.accel_psd_m2_s3 > 0.0) {
         return Err(CommandError::bad_input(
             "--accel-psd-m2-s3 must be positive",
+        ));
+    }
+    if !(args.odometry_fraction.is_finite() && args.odometry_fraction > 0.0) {
+        return Err(CommandError::bad_input(
+            "--odometry-fraction must be positive",
+        ));
+    }
+    if !(args.truth_max_gap_s.is_finite() && args.truth_max_gap_s > 0.0) {
+        return Err(CommandError::bad_input(
+            "--truth-max-gap-s must be positive",
+        ));
+    }
+    if !args.initial_yaw_deg.is_finite() {
+        return Err(CommandError::bad_input(
+            "--initial-yaw-deg must be a number",
         ));
     }
     if !(args.shadow_m.is_finite() && args.shadow_m >= 0.0) {
@@ -115,6 +189,8 @@ pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
             "solved_epochs": out.solved,
             "unsolved_epochs": out.unsolved,
             "truth_offset": out.truth_offset,
+            "start_from_truth": out.start_from_truth,
+            "left_out": out.left_out.iter().map(|(n, why)| serde_json::json!({"name": n, "reason": why})).collect::<Vec<_>>(),
             "volume": r.volume,
             "measurements": r.measurements,
             "duration_s": r.duration_s,
@@ -174,6 +250,16 @@ fn print_summary(out: &replay::TdoaReplayed) {
         u.invalid,
         u.mixed_references_2d,
     );
+    for (name, why) in &out.left_out {
+        println!("{name} left out: {why}");
+    }
+    if out.start_from_truth {
+        println!(
+            "odometry filters: started at the truth's first pose (position +-{} m, heading +-{} deg)",
+            crate::plaza::START_SIGMA_XY_M,
+            crate::plaza::START_SIGMA_THETA_DEG
+        );
+    }
     if let Some(o) = &out.truth_offset {
         println!(
             "truth clock: measurements minus truth = {:+.4} s (median fix error {:.3} m over {} fixes)",

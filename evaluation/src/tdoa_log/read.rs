@@ -62,20 +62,38 @@ pub struct LineFile {
     progress: Option<ProgressBar>,
 }
 
-/// Counts the bytes read for the progress bar.
-struct Counting<R> {
+/// Counts the bytes read for the progress bar, and clears the bar at the
+/// end of the file.
+pub(crate) struct Counting<R> {
     inner: R,
     bar: Option<ProgressBar>,
+}
+
+impl<R> Counting<R> {
+    /// `inner`, advancing `bar` (when there is one) as it is read.
+    pub(crate) fn new(inner: R, bar: Option<ProgressBar>) -> Self {
+        Self { inner, bar }
+    }
 }
 
 impl<R: Read> Read for Counting<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
         if let Some(b) = &self.bar {
-            b.inc(n as u64);
+            if n == 0 && !buf.is_empty() {
+                b.finish_and_clear();
+            } else {
+                b.inc(n as u64);
+            }
         }
         Ok(n)
     }
+}
+
+/// A progress bar for a file of `len` bytes, when `wanted` and the file
+/// is large enough to wait for (drawn only on a terminal).
+pub(crate) fn progress_for(wanted: bool, len: u64, path: &Path) -> Option<ProgressBar> {
+    (wanted && len >= PROGRESS_FROM_BYTES).then(|| progress_bar(len, path))
 }
 
 impl LineFile {

@@ -11,6 +11,12 @@ fn args(dir: &Path, truth: bool) -> TdoaArgs {
         anchors: dir.join("anchors.csv"),
         measurements: dir.join("measurements.csv"),
         truth: truth.then(|| dir.join("truth.csv")),
+        odometry: None,
+        imu: None,
+        odometry_fraction: crate::plaza::ODOMETRY_FRACTION,
+        initial_yaw_deg: 0.0,
+        imu_lever_arm_m: super::LeverArm([0.0; 3]),
+        truth_max_gap_s: crate::util::score::MAX_TRUTH_GAP_S,
         dim: None,
         estimator: "all".into(),
         speed_m_s: None,
@@ -213,6 +219,21 @@ fn bad_rows_are_named_by_file_line_and_column() {
 }
 
 #[test]
+fn a_stuck_clock_is_refused_where_it_is_found() {
+    let n = u64::from(super::epochs::MAX_EPOCHS_AT_ONE_TIME) + 1;
+    let rows: String = (0..=n).map(|k| epoch(k, 1.0)).collect();
+    let e = error_of(ANCHORS_2D, &rows, None);
+    // The epoch past the limit (epoch n - 1, from 0), four rows an epoch
+    // below the header's three lines.
+    let line = 4 + 4 * (n - 1);
+    assert!(
+        e.contains(&format!(":{line}:2: column `time_s`: 1 s for more than"))
+            && e.contains("the clock is stuck"),
+        "{e}"
+    );
+}
+
+#[test]
 fn two_and_three_dimensions_do_not_mix() {
     let mixed = "id,x_m,y_m,z_m,role\na,0,0,1,receiver\nb,10,0,,receiver\n";
     let e = error_of(mixed, &epoch(0, 1.0), None);
@@ -346,4 +367,96 @@ fn every_kind_of_value_gives_the_same_fixes() {
             assert!(nearest < 1e-6, "{kind}: {b:?} is {nearest} m from any");
         }
     }
+}
+
+/// Writes the generated emitter's wheel odometry (50 Hz, each increment's
+/// distance and turn off by 2 % with a seeded draw) and a truth with its
+/// heading on the array's clock, over the generated run in `dir`.
+fn add_odometry(dir: &Path, net: &MicNetwork) {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let heading = |t: f64| {
+        let (a, b) = (synth::emitter_m(t - 1e-3), synth::emitter_m(t + 1e-3));
+        (b[1] - a[1]).atan2(b[0] - a[0])
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(net.seed + 100);
+    let slip = Normal::new(0.0, 0.02).unwrap();
+    let mut odo = String::from("# clock: array\ntime_s,dx_m,dy_m,dtheta_rad\n");
+    let mut truth = String::from("# clock: array\ntime_s,x_m,y_m,heading_rad\n");
+    let steps = (net.duration_s * 50.0) as u32;
+    for k in 0..=steps {
+        let t = 0.5 + f64::from(k) / 50.0;
+        let p = synth::emitter_m(t);
+        truth.push_str(&format!("{t},{},{},{}\n", p[0], p[1], heading(t)));
+        if k == 0 {
+            continue;
+        }
+        let t0 = t - 0.02;
+        let (p0, th0) = (synth::emitter_m(t0), heading(t0));
+        let (wx, wy) = (p[0] - p0[0], p[1] - p0[1]);
+        let dx = th0.cos() * wx + th0.sin() * wy;
+        let dy = -th0.sin() * wx + th0.cos() * wy;
+        let dth = ickon_fusion::angle::diff(heading(t), th0);
+        let (e_d, e_th) = (1.0 + slip.sample(&mut rng), 1.0 + slip.sample(&mut rng));
+        odo.push_str(&format!("{t},{},{},{}\n", dx * e_d, dy * e_d, dth * e_th));
+    }
+    std::fs::write(dir.join("odometry.csv"), odo).unwrap();
+    std::fs::write(dir.join("truth.csv"), truth).unwrap();
+}
+
+/// With the wheels' odometry, the MSU's ground filter beats the per-epoch
+/// fix on the generated network, and dead reckoning from the same start
+/// drifts; the ground filter needs no truth clock.
+#[test]
+fn with_odometry_the_ground_filter_beats_the_per_epoch_fix() {
+    let net = MicNetwork::default();
+    let dir = generated(&net);
+    add_odometry(dir.path(), &net);
+    let mut a = args(dir.path(), true);
+    a.odometry = Some(dir.path().join("odometry.csv"));
+    let r = replay(&a).unwrap();
+    assert!(r.start_from_truth);
+    let names: Vec<&str> = r.replayed.reports.iter().map(|e| e.name).collect();
+    assert_eq!(names, ["tdoa-ekf", "odometry", "cv-fix", "ls"]);
+    let (ground, ls, dead) = (
+        summary(&r, "tdoa-ekf"),
+        summary(&r, "ls"),
+        summary(&r, "odometry"),
+    );
+    eprintln!(
+        "ground: median {:.4} rmse {:.4} (n {}); ls: median {:.4} rmse {:.4}; odometry: rmse {:.4}",
+        ground.median_3d_m.unwrap(),
+        ground.rmse_3d_m.unwrap(),
+        ground.scored,
+        ls.median_3d_m.unwrap(),
+        ls.rmse_3d_m.unwrap(),
+        dead.rmse_3d_m.unwrap(),
+    );
+    assert!(ground.scored > 4000, "{ground:?}");
+    assert!(ground.rmse_3d_m.unwrap() < ls.rmse_3d_m.unwrap());
+    assert!(ground.rmse_3d_m.unwrap() < dead.rmse_3d_m.unwrap());
+}
+
+#[test]
+fn an_odometry_increment_is_the_chord_of_its_arc() {
+    use super::format::OdometryRow;
+    for (d, th) in [
+        (0.3, 0.0),
+        (0.3, 0.4),
+        (-0.2, -0.7),
+        (0.0, 0.5),
+        (1e-4, 1e-12),
+    ] {
+        let [dx, dy] = OdometryRow::increment_m(d, th);
+        let back = OdometryRow::from_increment(1.0, dx, dy, th);
+        assert!((back.distance_m - d).abs() < 1e-12, "{d} {th}: {back:?}");
+        assert_eq!(back.dtheta_rad, th);
+    }
+    // A quarter circle of radius 1: the chord is sqrt 2 at 45 degrees.
+    let [dx, dy] =
+        OdometryRow::increment_m(std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);
+    assert!(
+        (dx - 1.0).abs() < 1e-12 && (dy - 1.0).abs() < 1e-12,
+        "{dx} {dy}"
+    );
 }

@@ -112,7 +112,8 @@ pub fn read_anchors(
 ) -> Result<HashMap<u32, [f64; 3]>, InputError> {
     let with_constellation = ["constellation", "anchor_id", "x", "y", "z"];
     let single = ["anchor_id", "x_m", "y_m", "z_m"];
-    let (mut reader, wanted) = match (Table::open(path, &with_constellation), constellation) {
+    let (mut reader, wanted) = match (Table::open(path, &with_constellation, false), constellation)
+    {
         (Ok(t), Some(c)) => (t, Some(c)),
         (Ok(_), None) => {
             return Err(InputError::Malformed {
@@ -121,7 +122,7 @@ pub fn read_anchors(
                 message: "the file has several constellations: give --constellation".into(),
             });
         }
-        (Err(InputError::MissingColumn { .. }), None) => (Table::open(path, &single)?, None),
+        (Err(InputError::MissingColumn { .. }), None) => (Table::open(path, &single, false)?, None),
         (Err(e), _) => return Err(e),
     };
     let offset = usize::from(wanted.is_some());
@@ -163,15 +164,45 @@ pub fn read_anchors(
     Ok(anchors)
 }
 
+/// Which streams of the measurement file a reader parses: a replay reads
+/// each stream with a reader of its own, so that each goes at its own
+/// pace through the file (the streams share the row index, not the time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Parts {
+    /// The TDOA columns.
+    pub tdoa: bool,
+    /// The truth columns (and the orientation, when the file has it).
+    pub truth: bool,
+    /// The IMU columns, when the file has them.
+    pub imu: bool,
+}
+
+impl Parts {
+    /// Every stream.
+    pub const ALL: Self = Self {
+        tdoa: true,
+        truth: true,
+        imu: true,
+    };
+}
+
 /// The measurement file, read one line at a time.
 pub struct UtilReader {
+    parts: Parts,
     table: Table,
     /// The optional columns, when the header has all of them.
     imu: Option<Table>,
     attitude: Option<Table>,
     last_tdoa_s: f64,
+    /// TDOA rows since `t_tdoa` last advanced.
+    tdoa_rows_at_last_s: u32,
     last_truth_s: f64,
 }
+
+/// Most TDOA rows stamped with one time: the flights never repeat a time
+/// (at 450 rows/s with microsecond stamps), and a clock stuck for this
+/// long would fill every estimator's window, a span of time, without end.
+pub const MAX_ROWS_AT_ONE_TIME: u32 = 1000;
 
 const DATA_COLUMNS: [&str; 8] = [
     "idA",
@@ -193,16 +224,30 @@ const ATTITUDE_COLUMNS: [&str; 4] = ["pose_qx", "pose_qy", "pose_qz", "pose_qw"]
 impl UtilReader {
     /// Opens `path` and checks its header.
     pub fn open(path: &Path) -> Result<Self, InputError> {
-        let optional = |columns: &[&'static str]| match Table::open(path, columns) {
-            Ok(t) => Ok(Some(t)),
-            Err(InputError::MissingColumn { .. }) => Ok(None),
-            Err(e) => Err(e),
+        Self::open_parts(path, Parts::ALL, false)
+    }
+
+    /// Opens `path` to read the streams `parts` (the others' fields are
+    /// not looked at), with a progress bar when `progress` is set and
+    /// the file is large.
+    pub fn open_parts(path: &Path, parts: Parts, progress: bool) -> Result<Self, InputError> {
+        let optional = |wanted: bool, columns: &[&'static str]| {
+            if !wanted {
+                return Ok(None);
+            }
+            match Table::open(path, columns, false) {
+                Ok(t) => Ok(Some(t)),
+                Err(InputError::MissingColumn { .. }) => Ok(None),
+                Err(e) => Err(e),
+            }
         };
         Ok(Self {
-            table: Table::open(path, &DATA_COLUMNS)?,
-            imu: optional(&IMU_COLUMNS)?,
-            attitude: optional(&ATTITUDE_COLUMNS)?,
+            parts,
+            table: Table::open(path, &DATA_COLUMNS, progress)?,
+            imu: optional(parts.imu, &IMU_COLUMNS)?,
+            attitude: optional(parts.truth, &ATTITUDE_COLUMNS)?,
             last_tdoa_s: f64::NEG_INFINITY,
+            tdoa_rows_at_last_s: 0,
             last_truth_s: f64::NEG_INFINITY,
         })
     }
@@ -226,7 +271,7 @@ impl UtilReader {
         };
         let line = self.table.line();
         let t = &self.table;
-        let tdoa = if t.all_blank(&f, 0..4) {
+        let tdoa = if !self.parts.tdoa || t.all_blank(&f, 0..4) {
             None
         } else {
             let row = TdoaRow {
@@ -237,6 +282,20 @@ impl UtilReader {
             };
             if row.t_s < self.last_tdoa_s {
                 return Err(t.malformed(line, "t_tdoa goes back in time".into()));
+            }
+            if row.t_s == self.last_tdoa_s {
+                self.tdoa_rows_at_last_s += 1;
+                if self.tdoa_rows_at_last_s >= MAX_ROWS_AT_ONE_TIME {
+                    return Err(t.malformed(
+                        line,
+                        format!(
+                            "t_tdoa has stayed at {} s for more than {MAX_ROWS_AT_ONE_TIME} rows: the clock is stuck",
+                            row.t_s
+                        ),
+                    ));
+                }
+            } else {
+                self.tdoa_rows_at_last_s = 0;
             }
             self.last_tdoa_s = row.t_s;
             Some(row)
@@ -250,7 +309,7 @@ impl UtilReader {
             None => None,
         };
         let t = &self.table;
-        let truth = if t.all_blank(&f, 4..8) {
+        let truth = if !self.parts.truth || t.all_blank(&f, 4..8) {
             None
         } else {
             let attitude_xyzw = match (&self.attitude, attitude) {
@@ -312,12 +371,17 @@ struct Table {
 }
 
 impl Table {
-    fn open(path: &Path, columns: &[&'static str]) -> Result<Self, InputError> {
-        let file = File::open(path).map_err(|source| InputError::Io {
+    fn open(path: &Path, columns: &[&'static str], progress: bool) -> Result<Self, InputError> {
+        let io = |source| InputError::Io {
             path: path.to_owned(),
             source,
-        })?;
-        let boxed: Box<dyn Read> = Box::new(std::io::BufReader::new(file));
+        };
+        let file = File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        let bar = crate::tdoa_log::read::progress_for(progress, len, path);
+        let counted = crate::tdoa_log::read::Counting::new(file, bar);
+        let counted = super::line_limit::LineLimit::new(counted);
+        let boxed: Box<dyn Read> = Box::new(std::io::BufReader::new(counted));
         let mut reader = csv::ReaderBuilder::new().flexible(true).from_reader(boxed);
         let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
         let mut index = Vec::with_capacity(columns.len());
@@ -451,6 +515,31 @@ fn csv_error(path: &Path, e: csv::Error) -> InputError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_stuck_clock_is_refused_where_it_is_found() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("flight.csv");
+        let mut text = DATA_COLUMNS.join(",");
+        text.push('\n');
+        for _ in 0..MAX_ROWS_AT_ONE_TIME + 5 {
+            text.push_str("0,1,0.5,1.0,,,,\n");
+        }
+        std::fs::write(&path, text).unwrap();
+        let mut reader = UtilReader::open(&path).unwrap();
+        let mut rows = 0;
+        let e = loop {
+            match reader.next_row() {
+                Ok(Some(_)) => rows += 1,
+                Ok(None) => panic!("read to the end"),
+                Err(e) => break e.to_string(),
+            }
+        };
+        assert_eq!(rows, MAX_ROWS_AT_ONE_TIME);
+        let line = MAX_ROWS_AT_ONE_TIME + 2;
+        assert!(e.contains(&format!("flight.csv:{line}:")), "{e}");
+        assert!(e.contains("the clock is stuck"), "{e}");
+    }
 
     #[test]
     fn a_binary_file_is_refused_in_words() {

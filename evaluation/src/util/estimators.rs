@@ -297,6 +297,12 @@ impl WindowRunner {
         }
     }
 
+    /// Time of the first measurement of the open window: its estimate
+    /// will not be older.
+    pub fn window_start_s(&self) -> Option<f64> {
+        self.window_start_s
+    }
+
     /// Adds one measurement; when it closes a window, the window's estimate.
     pub fn step(&mut self, m: &RangeDifferenceSample) -> Option<(f64, [f64; 3])> {
         let start = *self.window_start_s.get_or_insert(m.t_s);

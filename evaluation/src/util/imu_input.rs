@@ -40,22 +40,64 @@ impl ImuDropped {
 }
 
 /// Screens `samples` (in file order): the samples to integrate, in time
-/// order, and what was dropped.
+/// order, and what was dropped (the whole-slice form of [`Screen`]).
+#[cfg(test)]
 pub fn screen(samples: &[ImuRow]) -> (Vec<ImuRow>, ImuDropped) {
+    let mut screen = Screen::default();
     let mut kept: Vec<ImuRow> = Vec::with_capacity(samples.len());
-    let mut dropped = ImuDropped::default();
-    let finite = |s: &ImuRow| {
-        s.t_s.is_finite()
+    for s in samples {
+        kept.extend(screen.push(*s));
+    }
+    kept.extend(screen.finish());
+    (kept, screen.dropped)
+}
+
+/// The screening of a stream one sample at a time: a sample is decided
+/// once the next with a finite time is known (to tell one stamped in the
+/// future), so at most one is held.
+#[derive(Debug, Clone, Default)]
+pub struct Screen {
+    held: Option<ImuRow>,
+    last_kept_s: Option<f64>,
+    /// Samples dropped so far, by reason.
+    pub dropped: ImuDropped,
+    /// Samples read.
+    pub read: u64,
+    /// Samples kept.
+    pub kept: u64,
+}
+
+impl Screen {
+    /// Takes the next sample in file order; the sample before it, when it
+    /// is now known to be kept.
+    pub fn push(&mut self, s: ImuRow) -> Option<ImuRow> {
+        self.read += 1;
+        let mut out = None;
+        if s.t_s.is_finite()
+            && let Some(h) = self.held.take()
+        {
+            out = self.decide(h, Some(s.t_s));
+        }
+        let finite = s.t_s.is_finite()
             && s.accel_m_s2
                 .iter()
                 .chain(&s.gyro_rad_s)
-                .all(|v| v.is_finite())
-    };
-    for (k, s) in samples.iter().enumerate() {
-        if !finite(s) {
-            dropped.non_finite += 1;
-            continue;
+                .all(|v| v.is_finite());
+        if finite {
+            self.held = Some(s);
+        } else {
+            self.dropped.non_finite += 1;
         }
+        out
+    }
+
+    /// The end of the stream: the last sample, when it is kept.
+    pub fn finish(&mut self) -> Option<ImuRow> {
+        let h = self.held.take()?;
+        self.decide(h, None)
+    }
+
+    fn decide(&mut self, s: ImuRow, next_s: Option<f64>) -> Option<ImuRow> {
         if s.accel_m_s2
             .iter()
             .any(|a| a.abs() >= CLIPPED_SHARE * ACCEL_FULL_SCALE_M_S2)
@@ -63,28 +105,25 @@ pub fn screen(samples: &[ImuRow]) -> (Vec<ImuRow>, ImuDropped) {
                 .iter()
                 .any(|w| w.abs() >= CLIPPED_SHARE * GYRO_FULL_SCALE_RAD_S)
         {
-            dropped.saturated += 1;
-            continue;
+            self.dropped.saturated += 1;
+            return None;
         }
-        if kept.last().is_some_and(|last| s.t_s <= last.t_s) {
-            dropped.out_of_order += 1;
-            continue;
+        let last_s = self.last_kept_s.unwrap_or(f64::NEG_INFINITY);
+        if s.t_s <= last_s {
+            self.dropped.out_of_order += 1;
+            return None;
         }
-        // Ahead of the next finite sample by more than any gap, while that
-        // one still follows the stream kept so far: this one is the odd
-        // one out, not all those after it.
-        let next = samples[k + 1..]
-            .iter()
-            .find(|n| n.t_s.is_finite())
-            .map(|n| n.t_s);
-        let last_s = kept.last().map_or(f64::NEG_INFINITY, |l| l.t_s);
-        if next.is_some_and(|n| s.t_s > n + FUTURE_S && n > last_s) {
-            dropped.future += 1;
-            continue;
+        // Ahead of the next sample by more than any gap, while that one
+        // still follows the stream kept so far: this one is the odd one
+        // out, not all those after it.
+        if next_s.is_some_and(|n| s.t_s > n + FUTURE_S && n > last_s) {
+            self.dropped.future += 1;
+            return None;
         }
-        kept.push(*s);
+        self.last_kept_s = Some(s.t_s);
+        self.kept += 1;
+        Some(s)
     }
-    (kept, dropped)
 }
 
 #[cfg(test)]

@@ -11,8 +11,10 @@
 
 pub(crate) mod attitude;
 pub(crate) mod dataset;
+mod error_stats;
 pub(crate) mod estimators;
-mod imu_input;
+pub(crate) mod imu_input;
+mod line_limit;
 pub(crate) mod plot;
 pub(crate) mod run;
 pub(crate) mod score;

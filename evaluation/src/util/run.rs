@@ -10,7 +10,7 @@ use ickon_fusion::estimator::guard::FlightVolume;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use super::attitude::AttitudeTrack;
-use super::dataset::{self, InputError, TruthRow, UtilReader};
+use super::dataset::{self, InputError, Parts, TruthRow, UtilReader};
 use super::estimators::{
     self, CvRunner, EkfRunner, ImuRunner, MEASUREMENT_SIGMA_M, Rejections, WindowRunner,
 };
@@ -35,11 +35,6 @@ const VOLUME_MARGIN_M: f64 = 0.5;
 /// sample, metres: clear of the floor-level anchors' stands (about 0.2 m
 /// high) and of the body's own height.
 const TAKE_OFF_ABOVE_START_M: f64 = 0.5;
-/// An estimate tracks once it is within this of the truth (the watch's
-/// bound for a receiver placed elsewhere, `LostParams::disagree_m`) ...
-const TRACKING_WITHIN_M: f64 = 0.5;
-/// ... and stays so for this long, seconds.
-const TRACKING_HOLD_S: f64 = 1.0;
 
 /// Time of take-off: the first truth sample [`TAKE_OFF_ABOVE_START_M`]
 /// above the first one.
@@ -60,33 +55,6 @@ pub(crate) struct Replayed {
     pub(crate) tracks: Vec<Track>,
 }
 
-/// The file's streams, each in time order.
-#[derive(Default)]
-struct Streams {
-    tdoa: Vec<(u64, dataset::TdoaRow)>,
-    imu: Vec<dataset::ImuRow>,
-    truth: Vec<TruthRow>,
-}
-
-fn read_streams(args: &UtilArgs, reader: &mut UtilReader) -> Result<Streams, InputError> {
-    let mut s = Streams::default();
-    let mut first_s = None;
-    let mut tdoa_rows = 0_u32;
-    while let Some(row) = reader.next_row()? {
-        if let Some(m) = row.tdoa {
-            let first = *first_s.get_or_insert(m.t_s);
-            let kept = tdoa_rows % args.thin == args.thin_phase;
-            tdoa_rows = (tdoa_rows + 1) % args.thin;
-            if kept && args.max_seconds.is_none_or(|max| m.t_s - first <= max) {
-                s.tdoa.push((row.line, m));
-            }
-        }
-        s.imu.extend(row.imu);
-        s.truth.extend(row.truth);
-    }
-    Ok(s)
-}
-
 /// The antenna's true position: with the orientation, the whole lever
 /// arm; without, its height only (nearly all of it).
 pub(crate) fn antenna(row: &TruthRow) -> TruthRow {
@@ -104,51 +72,85 @@ pub(crate) fn antenna(row: &TruthRow) -> TruthRow {
     }
 }
 
-/// Runs every estimator over the flight and scores them.
+/// Truth read ahead of the newest measurement, seconds: estimates wait
+/// for the truth after them before they are scored.
+const TRUTH_LEAD_S: f64 = 0.5;
+
+/// Oldest an estimate can be against the measurement just fused,
+/// seconds: every estimator publishes at a measurement's time, or at the
+/// mean of a window of [`estimators::WINDOW_S`] (whose start it reports).
+const ESTIMATE_LAG_S: f64 = 1.0;
+
+/// Runs every estimator over the flight and scores them, streaming: the
+/// TDOA, the IMU and the truth each read by a reader of its own, nothing
+/// held but the estimates waiting for their truth and the truth they need.
 pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
     let anchors = dataset::read_anchors(&args.anchors, args.constellation)?;
-    let mut reader = UtilReader::open(&args.data)?;
-    if args.imu && !reader.has_imu() {
+    if args.imu && !UtilReader::open(&args.data)?.has_imu() {
         return Err(bad_input(
             args,
             "--imu needs the IMU columns (t_acc, acc_*, t_gyro, gyro_*)".into(),
         ));
     }
+    let only = |tdoa, truth, imu| Parts { tdoa, truth, imu };
+    let mut reader = UtilReader::open_parts(&args.data, only(true, false, false), true)?;
     let positions: Vec<[f64; 3]> = anchors.values().copied().collect();
     let volume = match args.bounds {
         Some(v) => v,
         None => FlightVolume::around(&positions, VOLUME_MARGIN_M)
             .map_err(|e| bad_input(args, e.to_string()))?,
     };
-    let mut streams = read_streams(args, &mut reader)?;
-    let imu_dropped = if args.imu {
-        let (kept, dropped) = imu_input::screen(&streams.imu);
-        if kept.is_empty() {
-            return Err(bad_input(
-                args,
-                format!(
-                    "--imu: the file has no usable IMU sample ({} read, {} dropped: {dropped:?})",
-                    streams.imu.len(),
-                    dropped.total()
-                ),
-            ));
-        }
-        streams.imu = kept;
-        Some(dropped)
-    } else {
-        None
-    };
     let mut runners = Runners::new(args, &anchors, volume)?;
-    let mut runs = runners.run(&streams, &anchors, &reader, args.plot.is_some())?;
-    score(&streams, &mut runs);
-    let measurements = streams.tdoa.len() as u64;
-    let first_s = streams.tdoa.first().map(|m| m.1.t_s);
-    let duration_s = streams.tdoa.last().map_or(0.0, |m| m.1.t_s) - first_s.unwrap_or(0.0);
+    let mut imu = match args.imu {
+        true => Some(ImuFeed::open(&args.data)?),
+        false => None,
+    };
+    let mut truth = TruthFeed::open(&args.data)?;
+    let n_tracks = 3 + usize::from(args.imu);
+    let mut runs = Runs {
+        tracks: (0..n_tracks)
+            .map(|_| Track::new(args.plot.is_some()))
+            .collect(),
+        walls: vec![Duration::ZERO; n_tracks],
+        attitude: AttitudeTrack::default(),
+    };
+    let (mut measurements, mut span) = (0_u64, None::<(f64, f64)>);
+    let (mut tdoa_rows, mut first_row_s) = (0_u32, None);
+    while let Some(row) = reader.next_row()? {
+        let Some(m) = row.tdoa else { continue };
+        let first_row = *first_row_s.get_or_insert(m.t_s);
+        if args.max_seconds.is_some_and(|max| m.t_s - first_row > max) {
+            break;
+        }
+        let first = span.map_or(m.t_s, |s| s.0);
+        let kept = tdoa_rows % args.thin == args.thin_phase;
+        tdoa_rows = (tdoa_rows + 1) % args.thin;
+        if !kept {
+            continue;
+        }
+        measurements += 1;
+        span = Some((first, m.t_s));
+        let sample = sample(&anchors, &m, &reader, row.line)?;
+        runners.step(&sample, imu.as_mut(), &mut runs)?;
+        let floor = runners.window.window_start_s().unwrap_or(m.t_s).min(m.t_s) - ESTIMATE_LAG_S;
+        truth.advance(m.t_s + TRUTH_LEAD_S, floor, &mut runs)?;
+    }
+    if let Some((t, p)) = runners.window.finish() {
+        runs.tracks[2].push(t, p);
+    }
+    truth.advance(f64::INFINITY, f64::NEG_INFINITY, &mut runs)?;
+    truth.finish(&mut runs);
+    let imu_dropped = match &imu {
+        Some(feed) => Some(feed.check(args)?),
+        None => None,
+    };
+    let first_s = span.map(|s| s.0);
+    let duration_s = span.map_or(0.0, |s| s.1 - s.0);
     let mut reports = runners.reports(&runs, measurements, duration_s, first_s);
     if let Some(t0) = take_off_s(&streams.truth) {
         for (r, track) in reports.iter_mut().zip(&runs.tracks) {
             r.tracking_after_take_off_s =
-                track.tracking_after(t0, TRACKING_WITHIN_M, TRACKING_HOLD_S);
+                track.tracking_after(t0);
         }
     }
     if let Some(r) = reports.iter_mut().find(|r| r.name == "imu-eskf") {
@@ -161,6 +163,128 @@ pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
         reports,
         tracks: runs.tracks,
     })
+}
+
+/// The IMU stream, screened as it is read.
+struct ImuFeed {
+    reader: UtilReader,
+    screen: imu_input::Screen,
+    next: Option<dataset::ImuRow>,
+    ended: bool,
+}
+
+impl ImuFeed {
+    fn open(path: &std::path::Path) -> Result<Self, InputError> {
+        let parts = Parts {
+            tdoa: false,
+            truth: false,
+            imu: true,
+        };
+        Ok(Self {
+            reader: UtilReader::open_parts(path, parts, false)?,
+            screen: imu_input::Screen::default(),
+            next: None,
+            ended: false,
+        })
+    }
+
+    /// The next kept sample stamped at or before `t_s`.
+    fn next_until(&mut self, t_s: f64) -> Result<Option<dataset::ImuRow>, InputError> {
+        while self.next.is_none() && !self.ended {
+            match self.reader.next_row()? {
+                Some(row) => {
+                    if let Some(s) = row.imu {
+                        self.next = self.screen.push(s);
+                    }
+                }
+                None => {
+                    self.ended = true;
+                    self.next = self.screen.finish();
+                }
+            }
+        }
+        match self.next {
+            Some(s) if s.t_s <= t_s => {
+                self.next = None;
+                Ok(Some(s))
+            }
+            _ => Ok(None),
+        }
+    }
+
+    /// What was dropped; an error when nothing was usable.
+    fn check(&self, args: &UtilArgs) -> Result<imu_input::ImuDropped, InputError> {
+        let s = &self.screen;
+        if s.kept == 0 && self.ended {
+            return Err(bad_input(
+                args,
+                format!(
+                    "--imu: the file has no usable IMU sample ({} read, {} dropped: {:?})",
+                    s.read,
+                    s.dropped.total(),
+                    s.dropped
+                ),
+            ));
+        }
+        Ok(s.dropped)
+    }
+}
+
+/// The truth stream, read as far as the estimates need it.
+struct TruthFeed {
+    reader: UtilReader,
+    truth: Truth,
+    next: Option<TruthRow>,
+    ended: bool,
+}
+
+impl TruthFeed {
+    fn open(path: &std::path::Path) -> Result<Self, InputError> {
+        let parts = Parts {
+            tdoa: false,
+            truth: true,
+            imu: false,
+        };
+        Ok(Self {
+            reader: UtilReader::open_parts(path, parts, false)?,
+            truth: Truth::new([0.0; 3]),
+            next: None,
+            ended: false,
+        })
+    }
+
+    /// Scores with the truth up to `until_s`; no estimate to come is
+    /// older than `floor_s`.
+    fn advance(&mut self, until_s: f64, floor_s: f64, runs: &mut Runs) -> Result<(), InputError> {
+        self.truth.set_floor(floor_s);
+        runs.attitude.set_floor(floor_s);
+        loop {
+            while self.next.is_none() && !self.ended {
+                match self.reader.next_row()? {
+                    Some(row) => self.next = row.truth,
+                    None => self.ended = true,
+                }
+            }
+            match self.next {
+                Some(row) if row.t_s <= until_s => {
+                    let mut refs: Vec<&mut Track> = runs.tracks.iter_mut().collect();
+                    self.truth.push(antenna(&row), &mut refs);
+                    if let Some(q) = row.attitude_xyzw {
+                        runs.attitude.push_truth(row.t_s, q);
+                    }
+                    self.next = None;
+                }
+                _ => return Ok(()),
+            }
+        }
+    }
+
+    /// The end of the truth: scores or gives up on every pending estimate.
+    fn finish(&mut self, runs: &mut Runs) {
+        let mut refs: Vec<&mut Track> = runs.tracks.iter_mut().collect();
+        self.truth.finish(&mut refs);
+        runs.attitude.finish();
+    }
 }
 
 /// A complaint about the data file as a whole.
@@ -230,70 +354,62 @@ impl Runners {
         })
     }
 
-    /// Feeds every range difference to every estimator in time order (the
-    /// IMU filter gets the IMU samples up to each first), timing each;
-    /// `plot` keeps the tracks' points for a plot.
-    fn run(
+    /// Feeds one range difference to every estimator (the IMU filter
+    /// gets the IMU samples up to its time first), timing each.
+    fn step(
         &mut self,
-        streams: &Streams,
-        anchors: &HashMap<u32, [f64; 3]>,
-        reader: &UtilReader,
-        plot: bool,
-    ) -> Result<Runs, InputError> {
-        let n_tracks = 3 + usize::from(self.imu.is_some());
-        let mut tracks: Vec<Track> = (0..n_tracks).map(|_| Track::new(plot)).collect();
-        let mut walls = vec![Duration::ZERO; n_tracks];
-        let mut attitude = AttitudeTrack::default();
-        let mut next_imu = 0;
-        for &(line, m) in &streams.tdoa {
-            let sample = sample(anchors, &m, reader, line)?;
-            let mut timed = |k: usize, f: &mut dyn FnMut() -> Option<Estimate>| {
-                let t0 = Instant::now();
-                let out = f();
-                walls[k] += t0.elapsed();
-                if let Some((t, p, c)) = out {
-                    tracks[k].push_with(t, p, c);
-                }
-                out.is_some()
-            };
-            let ours = &mut self.ours;
-            timed(0, &mut || {
-                let (t, p) = ours.step(&sample)?;
-                Some((t, p, Some(ours.covariance_m2())))
-            });
-            let baseline = &mut self.baseline;
-            timed(1, &mut || {
-                let (t, p) = baseline.step(&sample)?;
-                Some((t, p, baseline.covariance_m2()))
-            });
-            let window = &mut self.window;
-            timed(2, &mut || window.step(&sample).map(|(t, p)| (t, p, None)));
-            if let Some(r) = &mut self.imu {
-                let published = timed(3, &mut || {
-                    while let Some(s) = streams.imu.get(next_imu).filter(|s| s.t_s <= m.t_s) {
-                        r.filter_mut().imu(&ImuSample {
-                            t_s: s.t_s,
-                            accel_m_s2: s.accel_m_s2,
-                            gyro_rad_s: s.gyro_rad_s,
-                        });
-                        next_imu += 1;
-                    }
-                    let (t, p) = r.step(&sample)?;
-                    Some((t, p, Some(r.covariance_m2())))
-                });
-                if published {
-                    attitude.push_estimate(m.t_s, r.filter().attitude_xyzw());
-                }
-            }
-        }
-        if let Some((t, p)) = self.window.finish() {
-            tracks[2].push(t, p);
-        }
-        Ok(Runs {
+        sample: &RangeDifferenceSample,
+        imu: Option<&mut ImuFeed>,
+        runs: &mut Runs,
+    ) -> Result<(), InputError> {
+        let Runs {
             tracks,
             walls,
             attitude,
-        })
+        } = runs;
+        let mut timed = |k: usize, f: &mut dyn FnMut() -> Option<Estimate>| {
+            let t0 = Instant::now();
+            let out = f();
+            walls[k] += t0.elapsed();
+            if let Some((t, p, c)) = out {
+                tracks[k].push_with(t, p, c);
+            }
+            out.is_some()
+        };
+        let ours = &mut self.ours;
+        timed(0, &mut || {
+            let (t, p) = ours.step(sample)?;
+            Some((t, p, Some(ours.covariance_m2())))
+        });
+        let baseline = &mut self.baseline;
+        timed(1, &mut || {
+            let (t, p) = baseline.step(sample)?;
+            Some((t, p, baseline.covariance_m2()))
+        });
+        let window = &mut self.window;
+        timed(2, &mut || window.step(sample).map(|(t, p)| (t, p, None)));
+        if let (Some(r), Some(feed)) = (&mut self.imu, imu) {
+            // Only the filter's time counts, not the reading of the file.
+            let mut fed = Duration::ZERO;
+            while let Some(s) = feed.next_until(sample.t_s)? {
+                let t0 = Instant::now();
+                r.filter_mut().imu(&ImuSample {
+                    t_s: s.t_s,
+                    accel_m_s2: s.accel_m_s2,
+                    gyro_rad_s: s.gyro_rad_s,
+                });
+                fed += t0.elapsed();
+            }
+            let published = timed(3, &mut || {
+                let (t, p) = r.step(sample)?;
+                Some((t, p, Some(r.covariance_m2())))
+            });
+            walls[3] += fed;
+            if published {
+                attitude.push_estimate(sample.t_s, r.filter().attitude_xyzw());
+            }
+        }
+        Ok(())
     }
 
     /// Each estimator's report over `measurements` range differences and
@@ -365,20 +481,6 @@ impl Runners {
         }
         reports
     }
-}
-
-/// Scores every track against the truth (at the antenna) and gives the
-/// attitude track its true attitudes.
-fn score(streams: &Streams, runs: &mut Runs) {
-    let mut truth = Truth::new([0.0; 3]);
-    let mut refs: Vec<&mut Track> = runs.tracks.iter_mut().collect();
-    for row in &streams.truth {
-        truth.push(antenna(row), &mut refs);
-        if let Some(q) = row.attitude_xyzw {
-            runs.attitude.push_truth(row.t_s, q);
-        }
-    }
-    truth.finish(&mut refs);
 }
 
 /// The range difference of a TDOA row, with its anchors looked up.

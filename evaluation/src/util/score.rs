@@ -4,16 +4,22 @@
 
 use std::collections::VecDeque;
 
-use ickon_sim::score::Nees;
+use ickon_sim::score::{Nees, nees_bounds};
 use nalgebra::{Matrix3, Vector3};
 
 use super::dataset::TruthRow;
+use super::error_stats::ErrorStats;
 
 /// Truth gaps longer than this are not interpolated across (a dropout of
 /// the motion capture), seconds.
-const MAX_TRUTH_GAP_S: f64 = 0.1;
+pub const MAX_TRUTH_GAP_S: f64 = 0.1;
 /// Spacing of the points kept for the plots, seconds.
 const PLOT_STEP_S: f64 = 0.02;
+/// An estimate tracks once it is within this of the truth (the watch's
+/// bound for a receiver placed elsewhere, `LostParams::disagree_m`) ...
+pub const TRACKING_WITHIN_M: f64 = 0.5;
+/// ... and stays so for this long, seconds.
+pub const TRACKING_HOLD_S: f64 = 1.0;
 
 /// One point of a plotted series.
 #[derive(Debug, Clone, Copy)]
@@ -35,12 +41,21 @@ pub struct Track {
     newest_s: Option<f64>,
     /// Time of the first estimate.
     first_s: Option<f64>,
-    /// 3D error of every scored estimate, metres (kept for the percentile).
-    errors_3d_m: Vec<f64>,
-    /// Time of each of them, seconds.
-    error_times_s: Vec<f64>,
-    /// NEES of every scored estimate that came with a covariance.
-    nees: Vec<f64>,
+    /// 3D errors of the scored estimates, metres.
+    errors_3d_m: ErrorStats,
+    /// Sum of the NEES of the scored estimates that came with a
+    /// covariance, their number, and how many lay inside the 95 %
+    /// ellipsoid.
+    nees_sum: f64,
+    nees_n: u64,
+    nees_inside: u64,
+    /// Runs of consecutive scored estimates within [`TRACKING_WITHIN_M`]
+    /// lasting at least [`TRACKING_HOLD_S`], `(first, last)` times: a few
+    /// per flight, so that when the tracking began is known without
+    /// keeping every error.
+    tracking_runs: Vec<(f64, f64)>,
+    /// The run going on, if the last scored estimate was within the bound.
+    tracking_run: Option<(f64, f64)>,
     /// Scored estimates without a usable covariance.
     without_covariance: u64,
     sum2_xy: f64,
@@ -109,25 +124,24 @@ impl Track {
         self.first_s
     }
 
-    /// No estimate to come is older than this (minus infinity before the
-    /// first estimate).
-    fn needs_truth_from_s(&self) -> f64 {
-        self.pending
-            .front()
-            .map(|e| e.0)
-            .or(self.newest_s)
-            .unwrap_or(f64::NEG_INFINITY)
+    /// No estimate to come is older than this, given the caller's promise
+    /// `floor_s` (minus infinity before the first estimate without one).
+    fn needs_truth_from_s(&self, floor_s: f64) -> f64 {
+        match self.pending.front() {
+            Some(e) => e.0,
+            None => self.newest_s.unwrap_or(f64::NEG_INFINITY).max(floor_s),
+        }
     }
 
     /// Scores what the truth now covers; with `ended`, gives up on the rest.
-    fn resolve(&mut self, truth: &VecDeque<TruthRow>, ended: bool) {
+    fn resolve(&mut self, truth: &VecDeque<TruthRow>, ended: bool, max_gap_s: f64) {
         let newest = truth.back().map_or(f64::NEG_INFINITY, |r| r.t_s);
         while let Some(&(t, est, cov)) = self.pending.front() {
             if t > newest && !ended {
                 break;
             }
             self.pending.pop_front();
-            match interpolate(truth, t) {
+            match interpolate(truth, t, max_gap_s) {
                 Some(truth_m) => self.score(t, est, cov, truth_m),
                 None => self.unscored += 1,
             }
@@ -137,12 +151,17 @@ impl Track {
     fn score(&mut self, t_s: f64, est: [f64; 3], cov: Option<Matrix3<f64>>, truth_m: [f64; 3]) {
         let d: [f64; 3] = std::array::from_fn(|k| est[k] - truth_m[k]);
         match cov.and_then(|c| nees_3d(Vector3::from(d), &c)) {
-            Some(v) => self.nees.push(v),
+            Some(v) => {
+                self.nees_sum += v;
+                self.nees_n += 1;
+                self.nees_inside += u64::from(v <= CHI2_3D_95);
+            }
             None => self.without_covariance += 1,
         }
         let xy2 = d[0] * d[0] + d[1] * d[1];
-        self.errors_3d_m.push((xy2 + d[2] * d[2]).sqrt());
-        self.error_times_s.push(t_s);
+        let error_m = (xy2 + d[2] * d[2]).sqrt();
+        self.errors_3d_m.push(error_m);
+        self.note_tracking(t_s, error_m);
         self.sum2_xy += xy2;
         if let Some(series) = &mut self.series
             && series.last().is_none_or(|p| t_s - p.t_s >= PLOT_STEP_S)
@@ -155,23 +174,35 @@ impl Track {
         }
     }
 
-    /// Seconds from `from_s` to the first scored estimate from which the
-    /// error stays within `within_m` for `hold_s` (each estimate of that
-    /// stretch scored); `None` when that never happens.
-    pub fn tracking_after(&self, from_s: f64, within_m: f64, hold_s: f64) -> Option<f64> {
-        let mut start: Option<f64> = None;
-        let scored = self.error_times_s.iter().zip(&self.errors_3d_m);
-        for (&t, &e) in scored.filter(|(t, _)| **t >= from_s) {
-            if e > within_m {
-                start = None;
-                continue;
-            }
-            let s = *start.get_or_insert(t);
-            if t - s >= hold_s {
-                return Some(s - from_s);
-            }
+    /// Extends or ends the run of estimates within the tracking bound.
+    fn note_tracking(&mut self, t_s: f64, error_m: f64) {
+        if error_m <= TRACKING_WITHIN_M {
+            let run = self.tracking_run.get_or_insert((t_s, t_s));
+            run.1 = t_s;
+        } else if let Some(run) = self.tracking_run.take()
+            && run.1 - run.0 >= TRACKING_HOLD_S
+        {
+            self.tracking_runs.push(run);
         }
-        None
+    }
+
+    /// Seconds from `from_s` to the first scored estimate from which the
+    /// error stays within [`TRACKING_WITHIN_M`] for [`TRACKING_HOLD_S`]
+    /// (each estimate of that stretch scored); `None` when that never
+    /// happens. When `from_s` falls inside such a stretch, the stretch is
+    /// taken to start at `from_s` (exact to within one estimate's spacing).
+    pub fn tracking_after(&self, from_s: f64) -> Option<f64> {
+        let ongoing = self
+            .tracking_run
+            .filter(|run| run.1 - run.0 >= TRACKING_HOLD_S);
+        self.tracking_runs
+            .iter()
+            .chain(ongoing.iter())
+            .filter(|run| run.1 >= from_s)
+            .find_map(|&(first, last)| {
+                let start = first.max(from_s);
+                (last - start >= TRACKING_HOLD_S).then_some(start - from_s)
+            })
     }
 
     /// The error statistics (none when nothing was scored).
@@ -191,29 +222,33 @@ impl Track {
             };
         }
         let nf = n as f64;
-        let mut sorted = self.errors_3d_m.clone();
-        sorted.sort_by(f64::total_cmp);
-        // Nearest rank.
-        let rank = ((0.95 * nf).ceil() as usize).clamp(1, n) - 1;
+        // Nearest rank for the 95th percentile; the middle pair's mean for
+        // an even count's median.
+        let p95 = ((0.95 * nf).ceil() as u64).clamp(1, n) - 1;
+        let mid = [(n - 1) / 2, n / 2];
+        let at = self.errors_3d_m.at_ranks(&[mid[0], mid[1], p95]);
+        let (sum, sum2) = self.errors_3d_m.sums();
+        let with_covariance = self.without_covariance == 0 && self.nees_n > 0;
         Summary {
-            scored: n as u64,
-            rmse_3d_m: Some((sorted.iter().map(|e| e * e).sum::<f64>() / nf).sqrt()),
+            scored: n,
+            rmse_3d_m: Some((sum2 / nf).sqrt()),
             rmse_xy_m: Some((self.sum2_xy / nf).sqrt()),
-            mean_3d_m: Some(sorted.iter().sum::<f64>() / nf),
-            median_3d_m: Some(if n % 2 == 1 {
-                sorted[n / 2]
-            } else {
-                0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+            mean_3d_m: Some(sum / nf),
+            median_3d_m: Some(0.5 * (at[0] + at[1])),
+            p95_3d_m: Some(at[2]),
+            max_3d_m: Some(self.errors_3d_m.max()),
+            inside_95_pct: (self.without_covariance == 0)
+                .then(|| 100.0 * self.nees_inside as f64 / nf),
+            nees: with_covariance.then(|| {
+                let samples = self.nees_n as usize;
+                let (low, high) = nees_bounds(3, samples);
+                Nees {
+                    mean: self.nees_sum / self.nees_n as f64,
+                    low,
+                    high,
+                    samples,
+                }
             }),
-            p95_3d_m: Some(sorted[rank]),
-            max_3d_m: Some(sorted[n - 1]),
-            inside_95_pct: (self.without_covariance == 0).then(|| {
-                let inside = self.nees.iter().filter(|&&v| v <= CHI2_3D_95).count();
-                100.0 * inside as f64 / nf
-            }),
-            nees: (self.without_covariance == 0)
-                .then(|| Nees::of_dim(&self.nees, 3))
-                .flatten(),
         }
     }
 }
@@ -237,6 +272,10 @@ pub struct Truth {
     samples: VecDeque<TruthRow>,
     /// Added to the body centre to get the antenna, metres.
     antenna_offset_m: [f64; 3],
+    /// Longest gap interpolated across, seconds.
+    max_gap_s: f64,
+    /// No estimate to come is older than this (the caller's promise).
+    floor_s: f64,
 }
 
 impl Truth {
@@ -245,24 +284,46 @@ impl Truth {
         Self {
             samples: VecDeque::new(),
             antenna_offset_m,
+            max_gap_s: MAX_TRUTH_GAP_S,
+            floor_s: f64::NEG_INFINITY,
         }
+    }
+
+    /// Promises that no estimate to come, of any track, is older than
+    /// `t_s`: the truth before it is forgotten even for a track that has
+    /// published nothing yet.
+    pub fn set_floor(&mut self, t_s: f64) {
+        self.floor_s = self.floor_s.max(t_s);
+    }
+
+    /// The same, interpolating across gaps up to `max_gap_s` (a truth
+    /// sampled more slowly than a motion capture's).
+    pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
+        self.max_gap_s = max_gap_s;
+        self
     }
 
     /// Adds a pose, scores what it covers and forgets what is not needed.
     pub fn push(&mut self, row: TruthRow, tracks: &mut [&mut Track]) {
         let p = row.position_m;
+        // Of a run of samples at one time, only the first and the last can
+        // be interpolated from: a clock that stops holds two, not all.
+        let n = self.samples.len();
+        if n >= 2 && self.samples[n - 2].t_s == row.t_s && self.samples[n - 1].t_s == row.t_s {
+            self.samples.pop_back();
+        }
         self.samples.push_back(TruthRow {
             t_s: row.t_s,
             position_m: std::array::from_fn(|k| p[k] + self.antenna_offset_m[k]),
             attitude_xyzw: row.attitude_xyzw,
         });
         for track in tracks.iter_mut() {
-            track.resolve(&self.samples, false);
+            track.resolve(&self.samples, false, self.max_gap_s);
         }
         // Keep the last sample at or before the oldest estimate to come.
         let horizon = tracks
             .iter()
-            .map(|t| t.needs_truth_from_s())
+            .map(|t| t.needs_truth_from_s(self.floor_s))
             .fold(f64::INFINITY, f64::min);
         while self.samples.len() > 2 && self.samples[1].t_s <= horizon {
             self.samples.pop_front();
@@ -272,12 +333,12 @@ impl Truth {
     /// The end of the file: scores or gives up on every pending estimate.
     pub fn finish(&self, tracks: &mut [&mut Track]) {
         for track in tracks.iter_mut() {
-            track.resolve(&self.samples, true);
+            track.resolve(&self.samples, true, self.max_gap_s);
         }
     }
 }
 
-fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64) -> Option<[f64; 3]> {
+fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64, max_gap_s: f64) -> Option<[f64; 3]> {
     let i = truth.partition_point(|r| r.t_s <= t_s);
     if i == 0 {
         return None;
@@ -288,7 +349,7 @@ fn interpolate(truth: &VecDeque<TruthRow>, t_s: f64) -> Option<[f64; 3]> {
     }
     let r1 = truth.get(i)?;
     let dt = r1.t_s - r0.t_s;
-    if dt > MAX_TRUTH_GAP_S {
+    if dt > max_gap_s {
         return None;
     }
     let w = (t_s - r0.t_s) / dt;
@@ -312,15 +373,18 @@ mod tests {
     #[test]
     fn tracking_starts_where_the_error_stays_small_for_the_hold() {
         let mut track = Track::new(false);
-        // 1.5 m off until 1.0 s, then 0.1 m off, one spike at 1.3 s.
-        for k in 0..=40 {
+        // 1.5 m off until 1.0 s, then 0.1 m off until 3 s, one spike at
+        // 1.3 s.
+        for k in 0..=60 {
             let t = f64::from(k) * 0.05;
             let x = if t < 1.0 || k == 26 { 1.5 } else { 0.1 };
             track.score(t, [x, 0.0, 1.0], None, [0.0, 0.0, 1.0]);
         }
-        let after = track.tracking_after(0.5, 0.5, 0.5).unwrap();
+        let after = track.tracking_after(0.5).unwrap();
         assert!((after - (1.35 - 0.5)).abs() < 1e-9, "{after}");
-        assert_eq!(track.tracking_after(0.5, 0.5, 5.0), None);
+        // From inside the stretch: at once; after its end: never.
+        assert_eq!(track.tracking_after(1.5), Some(0.0));
+        assert_eq!(track.tracking_after(2.5), None);
     }
 
     #[test]
@@ -340,6 +404,22 @@ mod tests {
         let s = track.summary();
         assert_eq!((s.scored, track.unscored), (2, 1));
         assert!(s.rmse_3d_m.is_some_and(|e| e < 1e-12), "{s:?}");
+    }
+
+    #[test]
+    fn a_truth_whose_clock_stops_holds_two_samples_and_scores_the_last() {
+        let mut truth = Truth::new([0.0; 3]);
+        let mut track = Track::new(false);
+        track.push(1.0, [5.0, 0.0, 1.0]);
+        for k in 0..1000 {
+            truth.push(row(1.0, f64::from(k)), &mut [&mut track]);
+        }
+        assert!(truth.samples.len() <= 2, "{}", truth.samples.len());
+        track.push(1.0, [999.0, 0.0, 1.0]);
+        truth.finish(&mut [&mut track]);
+        // The first estimate scored at the first sample (x 0), the second
+        // at the last (x 999).
+        assert_eq!(track.summary().max_3d_m, Some(5.0));
     }
 
     #[test]

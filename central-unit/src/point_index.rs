@@ -115,8 +115,7 @@ impl PointIndex {
     /// ascending). Nothing for a centre or radius that is not a number.
     pub fn within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
         let mut found = Vec::new();
-        if self.nx == 0 || !(centre[0].is_finite() && centre[1].is_finite()) || radius_m.is_nan()
-        {
+        if self.nx == 0 || !(centre[0].is_finite() && centre[1].is_finite()) || radius_m.is_nan() {
             return found;
         }
         let r = radius_m.max(0.0);

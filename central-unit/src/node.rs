@@ -961,7 +961,7 @@ async fn answer_admin(
     };
     match command.as_str() {
         // With a request, a page of the robots; without, the whole status
-        // (the web map's and older admins' question).
+        // (the recorder's Foxglove view and older admins' question).
         "robots" if q.payload().is_some() => {
             let page = match q.payload().map(|p| decode::<RobotsRequest>(&p.to_bytes())) {
                 Some(Ok(request)) => core.robots_page(now, &request),
@@ -976,7 +976,8 @@ async fn answer_admin(
             };
             reply(q, &page).await;
         }
-        "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
+        "robots" => reply(q, &core.status(now)).await,
+        "status" | "cells" | "sync" => reply(q, &core.status_summary(now)).await,
         "schedule" => reply(q, &core.current_firing()).await,
         "transmitters" => reply(q, &core.transmitters(now)).await,
         "coverage" => {

@@ -607,9 +607,9 @@ impl Observed {
             routers: 1,
             duration_s: self.duration_s,
             failure,
-            robots_up_at_central: status.map_or(0, |s| s.robots.iter().filter(|r| r.up).count()),
-            robots_posed_at_central: status
-                .map_or(0, |s| s.robots.iter().filter(|r| r.pose_valid).count()),
+            robots_up_at_central: status
+                .map_or(0, |s| (s.robot_counts.up + s.robot_counts.stale) as usize),
+            robots_posed_at_central: status.map_or(0, |s| s.robots_posed as usize),
             cycles: self.triggers.len(),
             cycle_period_ms: period_ms,
             trigger_jitter_p50_us: percentile(&jitter_us, 50.0),

@@ -7,7 +7,7 @@
 //! a figure that is not known yet is `null`, never a made-up zero.
 
 use ickon_proto::msg::admin::{
-    BoardAirStatus, CellHealth, CoverageReport, RobotHealth, RobotPage, StatusReport,
+    BoardAirStatus, CellHealth, CoverageReport, RobotCounts, RobotHealth, RobotPage, StatusReport,
     TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
@@ -244,9 +244,14 @@ pub struct StatusJson {
     /// Every cell, when asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cells: Option<Vec<CellJson>>,
-    /// Every robot seen, when asked for.
+    /// The robots listed (`admin status`: the worst of a large fleet),
+    /// when asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub robots: Option<Vec<RobotJson>>,
+    /// Every robot seen, by state: `up`, `stale`, `down`.
+    pub robot_counts: RobotCounts,
+    /// Of those, the robots with a pose.
+    pub robots_posed: u64,
 }
 
 impl StatusJson {
@@ -272,6 +277,8 @@ impl StatusJson {
             transmitters_left_out: s.transmitters_left_out.clone(),
             cells: cells.then(|| s.cells.iter().map(CellJson::from).collect()),
             robots: robots.then(|| s.robots.iter().map(RobotJson::from).collect()),
+            robot_counts: s.robot_counts,
+            robots_posed: s.robots_posed,
         }
     }
 }

@@ -30,6 +30,7 @@ pub mod learnt_speed;
 #[cfg(feature = "zenoh")]
 pub mod node;
 pub mod occupancy;
+pub mod point_index;
 pub mod robot_pages;
 pub mod schedule;
 pub mod selection;

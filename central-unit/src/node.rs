@@ -289,6 +289,14 @@ pub fn main_with(args: CentralArgs) -> ExitCode {
     })
 }
 
+/// How often the viewers are handed the whole status (every robot's
+/// health, every cell's): as often as a robot's health can change, at its
+/// summary (the robots move on the viewers with each summary, handed over
+/// as it is taken: `SUMMARY_PERIOD`). At the viewers' own 20 Hz, 10,000 robots' health made
+/// and copied twenty times a second was a large part of the central
+/// unit's core.
+const VIEWER_STATUS_PERIOD: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// Whoever watches the central unit's status live: the web map
 /// (`--http`) and the Foxglove server (`--foxglove`), each optional.
 #[derive(Default)]
@@ -373,7 +381,7 @@ const ACTIVE_QUERY_TIMEOUT: std::time::Duration = std::time::Duration::from_mill
 /// Serves `site` until `shutdown` completes. `clock` is the master time base
 /// (the system clock, with an injected offset and drift in a simulation);
 /// `viewers` (the web map, the Foxglove server) are handed the status
-/// several times a second. With
+/// twice a second. With
 /// `standby`, or when another central unit is active at its start, it
 /// follows the active central unit until it takes over: until
 /// then it answers no clock or schedule query and holds no `alive/central`
@@ -423,7 +431,7 @@ pub async fn run(
     };
 
     let (mut failed_puts, mut undecodable) = (0u64, 0u64);
-    let mut web_ticks = tokio::time::interval(crate::http::feed::SNAPSHOT_PERIOD);
+    let mut web_ticks = tokio::time::interval(VIEWER_STATUS_PERIOD);
     let mut reloads = reload::Reloads::new();
     let mut unknown_admin = LogLimiter::default();
     loop {
@@ -953,7 +961,7 @@ async fn answer_admin(
     };
     match command.as_str() {
         // With a request, a page of the robots; without, the whole status
-        // (the web map's and older admins' question).
+        // (the recorder's Foxglove view and older admins' question).
         "robots" if q.payload().is_some() => {
             let page = match q.payload().map(|p| decode::<RobotsRequest>(&p.to_bytes())) {
                 Some(Ok(request)) => core.robots_page(now, &request),
@@ -968,7 +976,8 @@ async fn answer_admin(
             };
             reply(q, &page).await;
         }
-        "status" | "cells" | "robots" | "sync" => reply(q, &core.status(now)).await,
+        "robots" => reply(q, &core.status(now)).await,
+        "status" | "cells" | "sync" => reply(q, &core.status_summary(now)).await,
         "schedule" => reply(q, &core.current_firing()).await,
         "transmitters" => reply(q, &core.transmitters(now)).await,
         "coverage" => {

@@ -186,6 +186,9 @@ pub fn plan(
     // thousand robots each region's points collected and sorted took most
     // of a cycle's plan.
     let mut in_region = vec![false; table.point_count()];
+    // The widest fire range each point's transmitters were marked for
+    // (negative: none yet).
+    let mut marked = vec![-1.0f64; table.point_count()];
     let mut centres: Vec<[f64; 2]> = Vec::new();
     let mut needs: Vec<Need> = Vec::new();
     for robot in robots {
@@ -234,6 +237,13 @@ pub fn plan(
             Some(need) => needs.push(need),
             None => {
                 for &p in &points {
+                    // A point of many robots' regions is walked once for
+                    // the widest range asked of it: the plan's time grows
+                    // with the floor and the fleet, not their product.
+                    if marked[p] >= range {
+                        continue;
+                    }
+                    marked[p] = range;
                     for &(k, d) in table.heard_at(p) {
                         if d <= range {
                             fire[k] = true;

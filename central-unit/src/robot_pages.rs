@@ -4,7 +4,62 @@
 //! same way. One pass over the fleet and one sort of the robots matching:
 //! the fleet's size, never its square.
 
+use std::cmp::Ordering;
+
 use ickon_proto::msg::admin::{RobotCounts, RobotHealth, RobotPage, RobotsRequest};
+
+/// The fleet's counts by state, how many have a pose, and the `n` worst
+/// robots (down, then stale, then the fewest fixes a second, then by id),
+/// listed in id order. One pass and one partial selection: the fleet's
+/// size, whatever `n`.
+pub fn worst(
+    robots: impl IntoIterator<Item = RobotHealth>,
+    n: usize,
+) -> (Vec<RobotHealth>, RobotCounts, u64) {
+    let mut counts = RobotCounts::default();
+    let mut posed = 0;
+    let all: Vec<RobotHealth> = robots
+        .into_iter()
+        .inspect(|h| {
+            count(&mut counts, h);
+            posed += u64::from(h.pose_valid);
+        })
+        .collect();
+    let mut kept = all;
+    if kept.len() > n {
+        if n == 0 {
+            kept.clear();
+        } else {
+            kept.select_nth_unstable_by(n - 1, worse_first);
+            kept.truncate(n);
+        }
+    }
+    kept.sort_unstable_by(|a, b| a.id.cmp(&b.id));
+    (kept, counts, posed)
+}
+
+/// Orders the worse of two robots first: down, then stale, then the
+/// fewer fixes a second, then the smaller id.
+fn worse_first(a: &RobotHealth, b: &RobotHealth) -> Ordering {
+    let rank = |h: &RobotHealth| match h.state() {
+        "down" => 0,
+        "stale" => 1,
+        _ => 2,
+    };
+    rank(a)
+        .cmp(&rank(b))
+        .then(a.fixes_per_s.total_cmp(&b.fixes_per_s))
+        .then_with(|| a.id.cmp(&b.id))
+}
+
+/// Counts `h` in its state.
+fn count(counts: &mut RobotCounts, h: &RobotHealth) {
+    match h.state() {
+        "down" => counts.down += 1,
+        "stale" => counts.stale += 1,
+        _ => counts.up += 1,
+    }
+}
 
 /// The page `request` asks of `robots` (in id order); a negative page,
 /// one beyond the last, or an unknown state is refused with the reason
@@ -13,11 +68,7 @@ pub fn page(robots: impl IntoIterator<Item = RobotHealth>, request: &RobotsReque
     let mut counts = RobotCounts::default();
     let mut matching: Vec<RobotHealth> = Vec::new();
     for h in robots {
-        match h.state() {
-            "down" => counts.down += 1,
-            "stale" => counts.stale += 1,
-            _ => counts.up += 1,
-        }
+        count(&mut counts, &h);
         if request.state.is_empty() || request.state == h.state() {
             matching.push(h);
         }
@@ -67,3 +118,6 @@ pub fn page(robots: impl IntoIterator<Item = RobotHealth>, request: &RobotsReque
         robots: matching.drain(start..end).collect(),
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -25,6 +25,7 @@ use ickon_proto::site::Site;
 use ickon_proto::time::Duration;
 
 use crate::audibility::{AUDIBLE_RANGE_M, GRID_M, sample_points};
+use crate::point_index::PointIndex;
 
 /// Spacings needed between every pair of transmitters: `need[i][j]` is the
 /// least time from `i`'s emission to `j`'s when `j` fires after `i`;
@@ -40,8 +41,9 @@ pub struct SpacingTable {
     pub cells: Vec<String>,
     /// The spacings over the whole floor.
     need: NeedMatrix,
-    /// The floor sample points (MSU height is the site's).
-    points: Vec<[f64; 2]>,
+    /// The floor sample points (MSU height is the site's), bucketed: a
+    /// robot's region without a scan of the floor.
+    points: PointIndex,
     /// At each point, the transmitters audible there and their distance, metres.
     heard: Vec<Vec<(usize, f64)>>,
     channels: Vec<u8>,
@@ -157,7 +159,7 @@ impl SpacingTable {
             tx_ids: txs.iter().map(|t| t.id).collect(),
             cells: txs.iter().map(|t| t.cell.clone()).collect(),
             need: Vec::new(),
-            points,
+            points: PointIndex::new(&points),
             heard,
             channels: txs.iter().map(|t| t.channel).collect(),
             positions: txs.iter().map(|t| t.position_m).collect(),
@@ -275,33 +277,17 @@ impl SpacingTable {
         self.points.len()
     }
 
-    /// The sample points within `radius_m` of `centre` (indices).
+    /// The sample points within `radius_m` of `centre` (indices, in no
+    /// particular order), from the bucketed floor: time in proportion to
+    /// the points near the disc, not to the floor.
     pub fn points_within(&self, centre: [f64; 2], radius_m: f64) -> Vec<usize> {
-        // Squared distances: the plan asks this for every robot, and
-        // `hypot`'s care for overflow (needless at a site's scale) was most
-        // of a plan's time.
-        let radius_sq = radius_m * radius_m;
-        (0..self.points.len())
-            .filter(|&k| {
-                let p = self.points[k];
-                let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
-                dx * dx + dy * dy <= radius_sq
-            })
-            .collect()
+        self.points.within(centre, radius_m)
     }
 
     /// The sample point nearest to `at` and its distance, metres (`None`
-    /// on a site without floor).
+    /// on a site without floor or for a place that is not a number).
     pub fn nearest_point(&self, at: [f64; 2]) -> Option<(usize, f64)> {
-        self.points
-            .iter()
-            .enumerate()
-            .map(|(k, p)| {
-                let (dx, dy) = (p[0] - at[0], p[1] - at[1]);
-                (k, dx * dx + dy * dy)
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(k, d_sq)| (k, d_sq.sqrt()))
+        self.points.nearest(at)
     }
 
     /// The transmitters audible at sample point `point` and their distance, metres.

@@ -35,6 +35,22 @@ pub fn router_config(args: &RouterArgs) -> Result<zenoh::Config, NodeError> {
             what: "mode".into(),
             reason: e.to_string(),
         })?;
+    // A configuration with limits of its own (`ickon site secure` writes
+    // them per site) keeps them; any other gets those of every site.
+    let has_limits = config
+        .get_json("low_pass_filter")
+        .ok()
+        .and_then(|v| serde_json::from_str::<serde_json::Value>(&v).ok())
+        .is_some_and(|v| v.as_array().is_some_and(|a| !a.is_empty()));
+    if !has_limits {
+        let limits = crate::secure::limits::low_pass_filter_any_site().to_string();
+        config
+            .insert_json5("low_pass_filter", &limits)
+            .map_err(|e| NodeError::Config {
+                what: "low_pass_filter".into(),
+                reason: e.to_string(),
+            })?;
+    }
     Ok(config)
 }
 
@@ -89,5 +105,31 @@ mod tests {
         ]);
         let config = router_config(&cli.router).unwrap();
         assert_eq!(config.get_json("mode").unwrap(), "\"router\"");
+    }
+
+    #[test]
+    fn a_router_without_limits_of_its_own_gets_every_sites() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            router: RouterArgs,
+        }
+        let cli = Cli::parse_from(["x", "-l", "tcp/127.0.0.1:0"]);
+        let config = router_config(&cli.router).unwrap();
+        let limits: serde_json::Value =
+            serde_json::from_str(&config.get_json("low_pass_filter").unwrap()).unwrap();
+        // Zenoh fills the fields left out (as null): compare those written.
+        let written = crate::secure::limits::low_pass_filter_any_site();
+        let fields = ["id", "messages", "key_exprs", "size_limit"];
+        let pick = |v: &serde_json::Value| -> Vec<serde_json::Value> {
+            v.as_array()
+                .into_iter()
+                .flatten()
+                .flat_map(|rule| fields.iter().map(|f| rule[f].clone()))
+                .collect()
+        };
+        assert_eq!(pick(&limits), pick(&written));
+        assert_eq!(limits.as_array().map(Vec::len), Some(2));
     }
 }

@@ -46,6 +46,18 @@ fn payload(len: usize) -> Vec<u8> {
     bytes
 }
 
+/// A session with no credential on `endpoint`, as any client of the
+/// default mesh.
+fn open_plain(endpoint: &str) -> zenoh::Session {
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"client\"").unwrap();
+    config
+        .insert_json5("connect/endpoints", &format!("[{endpoint:?}]"))
+        .unwrap();
+    config.insert_json5("connect/timeout_ms", "10000").unwrap();
+    zenoh::open(config).wait().expect("the router lets it in")
+}
+
 /// What a subscriber with the recorder's credential receives of the
 /// messages `sent` (their lengths) that robot r1 publishes on its
 /// odometry key, through a router started with `router_config` on
@@ -58,11 +70,24 @@ fn through_router(
     keys: &Keys,
     sent: &[usize],
 ) -> Vec<usize> {
-    let log_dir = dir.parent().unwrap();
     let mut cmd = Command::new(ICKON);
     cmd.args(["router", "--zenoh-config"])
         .arg(router_config)
         .args(["--listen", endpoint]);
+    let open = |user: &str| open_as(&client_file(dir, user), endpoint);
+    through(cmd, dir.parent().unwrap(), endpoint, keys, sent, &open)
+}
+
+/// The same through the router `cmd` starts, the sessions opened by
+/// `open` (by user), the router's log in `log_dir`.
+fn through(
+    cmd: Command,
+    log_dir: &Path,
+    endpoint: &str,
+    keys: &Keys,
+    sent: &[usize],
+    open: &dyn Fn(&str) -> zenoh::Session,
+) -> Vec<usize> {
     let mut router = ChildGuard::spawn("router", cmd, log_dir).expect("router");
     let port: u16 = endpoint.rsplit(':').next().unwrap().parse().unwrap();
     poll_until(START_TIMEOUT, "the router to listen", || {
@@ -74,13 +99,13 @@ fn through_router(
     .unwrap_or_else(|e| panic!("{e}\n{}", router.log()));
 
     let key = keys.robot("r1", RobotTopic::Odom).unwrap();
-    let recorder = open_as(&client_file(dir, "recorder"), endpoint);
+    let recorder = open("recorder");
     let heard = recorder
         .declare_subscriber(&key)
         .with(FifoChannel::new(1_000))
         .wait()
         .unwrap();
-    let robot = open_as(&client_file(dir, "robot-r1"), endpoint);
+    let robot = open("robot-r1");
     let publisher = robot
         .declare_publisher(&key)
         .congestion_control(zenoh::qos::CongestionControl::Block)
@@ -157,7 +182,8 @@ fn a_secured_router_drops_a_robots_oversized_message_and_passes_the_rest() {
         "the router passes what fits a robot's {NODE_MESSAGE_BYTES} bytes and drops the rest"
     );
 
-    // The same router without its limits: everything passes.
+    // The same router with limits far above the messages (a router
+    // without limits of its own gets every site's): everything passes.
     // JSON under a header of `//` comments.
     let text = std::fs::read_to_string(dir.join("router.json5")).unwrap();
     let json: String = text
@@ -167,11 +193,17 @@ fn a_secured_router_drops_a_robots_oversized_message_and_passes_the_rest() {
         .join("\n");
     let mut config: serde_json::Value =
         serde_json::from_str(&json).expect("the router's configuration is JSON");
+    let loose = serde_json::json!([{
+        "id": "loose",
+        "messages": ["put", "delete", "query", "reply"],
+        "key_exprs": ["**"],
+        "size_limit": 1u64 << 30,
+    }]);
     assert!(
         config
             .as_object_mut()
             .unwrap()
-            .remove("low_pass_filter")
+            .insert("low_pass_filter".into(), loose)
             .is_some(),
         "the router's configuration has its limits"
     );
@@ -182,6 +214,37 @@ fn a_secured_router_drops_a_robots_oversized_message_and_passes_the_rest() {
     assert_eq!(
         received,
         sent.to_vec(),
-        "without limits every message passes"
+        "under loose limits every message passes"
+    );
+}
+
+/// A router the product starts without a configuration of its own (as
+/// `ickon sim` starts its routers on the default mesh) drops an outside
+/// client's messages of megabytes on a node's keys, and the link goes on
+/// carrying the small ones after them.
+#[test]
+fn a_plain_router_drops_oversized_messages_and_keeps_the_link() {
+    let tmp = tempfile::tempdir().expect("temp dir");
+    let site = format!("plain-limits-{}", std::process::id());
+    let keys = Keys::new(&site).unwrap();
+    let endpoint = ickon_testkit::loopback_endpoint().expect("port");
+    let mut cmd = Command::new(ICKON);
+    cmd.args(["router", "--listen", &endpoint]);
+    let eight_mib = 8 << 20;
+    let sent = [
+        1_024,
+        eight_mib,
+        2_048,
+        eight_mib,
+        NODE_MESSAGE_BYTES,
+        4_096,
+    ];
+    let received = through(cmd, tmp.path(), &endpoint, &keys, &sent, &|_| {
+        open_plain(&endpoint)
+    });
+    assert_eq!(
+        received,
+        vec![1_024, 2_048, NODE_MESSAGE_BYTES, 4_096],
+        "the router drops the 8 MiB messages and passes the rest"
     );
 }

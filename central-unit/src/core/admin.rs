@@ -2,7 +2,7 @@
 //! site.
 
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, RobotHealth, RobotPage, RobotsRequest, StatusReport,
+    AdminAck, CoverageReport, RobotHealth, RobotPage, RobotsRequest, STATUS_ROBOTS, StatusReport,
     TransmitterStatus, TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
@@ -60,8 +60,28 @@ impl CentralCore {
         }
     }
 
-    /// The answer to `status`, `cells`, `robots` and `sync`.
+    /// The answer to `status`, `cells` and `sync`: [`Self::status`] with
+    /// only the worst [`STATUS_ROBOTS`] robots listed (and the whole
+    /// fleet's counts), so that an operator's console refreshing it costs
+    /// the same at ten robots and at ten thousand, bar one pass over them.
+    pub fn status_summary(&self, now: Time) -> StatusReport {
+        self.status_listing(now, STATUS_ROBOTS)
+    }
+
+    /// The status with every robot (the viewers', the answer to `robots`
+    /// without a request).
     pub fn status(&self, now: Time) -> StatusReport {
+        self.status_listing(now, usize::MAX)
+    }
+
+    /// The status listing at most `listed` robots, the worst.
+    fn status_listing(&self, now: Time, listed: usize) -> StatusReport {
+        let (robots, robot_counts, robots_posed) = crate::robot_pages::worst(
+            self.robots
+                .iter()
+                .map(|(id, r)| self.robot_health(id, r, now)),
+            listed,
+        );
         let schedule = self.schedule_for(self.last_cycle());
         StatusReport {
             site: self.site.name.clone(),
@@ -71,11 +91,9 @@ impl CentralCore {
             schedule_version: schedule.version,
             update_rate_hz: crate::schedule::update_rate_hz(schedule),
             cells: self.cells.iter().map(|(id, c)| c.health(id)).collect(),
-            robots: self
-                .robots
-                .iter()
-                .map(|(id, r)| self.robot_health(id, r, now))
-                .collect(),
+            robots,
+            robot_counts,
+            robots_posed,
             epoch: self.epoch,
             foreign_control: self.foreign_control,
             active: self.standby.is_none(),

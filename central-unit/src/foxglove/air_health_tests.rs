@@ -33,6 +33,8 @@ fn status(speed: f64, sigma: f64) -> StatusReport {
         speed_of_sound_sigma_m_s: sigma,
         site_speed_of_sound_m_s: 343.2,
         transmitters_left_out: Vec::new(),
+        robot_counts: Default::default(),
+        robots_posed: 0,
     }
 }
 

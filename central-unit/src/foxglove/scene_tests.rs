@@ -82,6 +82,8 @@ fn report(site: &Site, down: &str) -> StatusReport {
         speed_of_sound_sigma_m_s: 0.3,
         site_speed_of_sound_m_s: 343.2,
         transmitters_left_out: vec![],
+        robot_counts: Default::default(),
+        robots_posed: 0,
     }
 }
 

@@ -33,6 +33,7 @@ use crate::metrics::{CellStats, percentile};
 use crate::nodes::NodeCommands;
 use crate::observe::open_observer;
 use crate::supervisor::Supervisor;
+use crate::synthetic_fleet::FleetKeptUp;
 use crate::usage::ProcUsage;
 
 /// How long the processes get to come up and announce themselves.
@@ -69,6 +70,11 @@ pub struct CentralArgs {
     /// Which transmitters fire each cycle (`ickon sim --firing`).
     #[arg(long, value_enum, default_value_t = ickon_central::node::Firing::Occupancy)]
     pub firing: ickon_central::node::Firing,
+    /// Zones, each with its own router (`ickon sim --routers`): the
+    /// cells and the synthetic fleet's robots of a zone connect to its
+    /// router (one fleet process per zone), the central unit to the first.
+    #[arg(long, default_value_t = 1)]
+    pub routers: usize,
     /// Print one JSON document instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -79,6 +85,8 @@ pub struct CentralArgs {
 pub struct CentralReport {
     /// Robots of the synthetic fleet.
     pub robots: usize,
+    /// Zones, one router each.
+    pub routers: usize,
     /// Seconds measured.
     pub duration_s: f64,
     /// Why the run failed (a process died), if it did; the numbers are
@@ -105,10 +113,9 @@ pub struct CentralReport {
     pub central_cpu_per_robot_ppm: Option<f64>,
     /// The central unit's peak resident memory, MiB.
     pub central_peak_rss_mib: Option<f64>,
-    /// The router's CPU, share of one core.
+    /// The routers' CPU together, share of one core.
     pub router_cpu_share: Option<f64>,
-    /// The synthetic fleet's CPU, share of one core (near 1: it could not
-    /// keep up, and the central unit saw less than the fleet's rates).
+    /// The synthetic fleet's CPU (all its processes), share of one core.
     pub fleet_cpu_share: Option<f64>,
     /// The cells' sync error (burst fired vs scheduled), 99th percentile
     /// and largest, µs.
@@ -141,6 +148,18 @@ pub struct CentralReport {
     pub survey_publish_mean_ms: Option<f64>,
     /// See `survey_publish_mean_ms`.
     pub survey_publish_max_ms: Option<f64>,
+    /// What the synthetic fleet said of itself when it stopped, its
+    /// processes added up (`None`: one did not say, e.g. it was killed).
+    pub fleet: Option<FleetKeptUp>,
+}
+
+impl CentralReport {
+    /// Whether the synthetic fleet sent any robot's summary over a
+    /// period late: then the central unit heard less than the fleet's
+    /// rates, and the figures are the generator's limit, not its.
+    pub fn generator_fell_behind(&self) -> bool {
+        self.fleet.is_some_and(|f| f.late_turns > 0)
+    }
 }
 
 /// Runs `ickon bench central`.
@@ -177,6 +196,13 @@ pub fn run(args: CentralArgs) -> Result<(), CommandError> {
             .ok_or_else(|| CommandError::failure("cannot start the runtime"))??;
         if let Some(why) = &report.failure {
             eprintln!("warning: {n} robots: {why}");
+        }
+        if let Some(f) = report.fleet.filter(|_| report.generator_fell_behind()) {
+            eprintln!(
+                "warning: {n} robots: the synthetic fleet fell behind ({} of {} summaries \
+                 over a period late): the central unit heard less than the fleet's rates",
+                f.late_turns, f.summaries
+            );
         }
         reports.push(report);
     }
@@ -223,7 +249,7 @@ fn sim_args(args: &CentralArgs, robots: usize) -> SimArgs {
         receivers: Default::default(),
         robots_per_process: None,
         split_cores: false,
-        routers: 1,
+        routers: args.routers,
     }
 }
 
@@ -240,7 +266,13 @@ async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, Com
         .map(|f| f.path().to_path_buf())
         .or(sim.site.clone());
     let keys = Keys::new(&site.name).map_err(|e| failed(&e))?;
-    let (zoned, hub, hub_port) = crate::run::zoned_mesh(&sim, &site, &[], "tcp")?;
+    let ids: Vec<String> = site
+        .robots
+        .iter()
+        .take(robots)
+        .map(|r| r.id.clone())
+        .collect();
+    let (zoned, hub, _) = crate::run::zoned_mesh(&sim, &site, &ids, "tcp")?;
     let commands = NodeCommands::build(
         &sim,
         &site,
@@ -252,44 +284,50 @@ async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, Com
         site_file.as_deref(),
     )
     .map_err(|e| failed(&e))?;
-    let ids: Vec<String> = site
-        .robots
-        .iter()
-        .take(robots)
-        .map(|r| r.id.clone())
-        .collect();
-    let mut fleet = node_command(
-        &sim,
-        &site,
-        site_file.as_deref(),
-        "synthetic-fleet",
-        &hub,
-        "tcp/127.0.0.1:0",
-    )
-    .map_err(|e| failed(&e))?;
-    fleet.args([
-        "--robots",
-        &ids.join(","),
-        "--profile",
-        &args.profile,
-        "--seed",
-        &args.seed.to_string(),
-    ]);
     let mut central = commands.central;
     let mut others: Vec<(String, Command)> = commands.cells;
-    others.push(("fleet".to_string(), fleet));
-    let mut router = commands
-        .routers
-        .into_iter()
-        .next()
-        .map(|(_, cmd)| cmd)
-        .ok_or_else(|| CommandError::failure("no router"))?;
+    let mut kept_up_files = Vec::new();
+    for (k, zone) in zoned.zones().iter().enumerate() {
+        if zone.robots.is_empty() {
+            continue;
+        }
+        let endpoint = &zoned.listeners()[k].0;
+        let file = tempfile::NamedTempFile::new()
+            .map_err(|e| CommandError::failure(format!("a file for the fleet's report: {e}")))?;
+        let mut fleet = node_command(
+            &sim,
+            &site,
+            site_file.as_deref(),
+            "synthetic-fleet",
+            endpoint,
+            "tcp/127.0.0.1:0",
+        )
+        .map_err(|e| failed(&e))?;
+        fleet.arg("--report").arg(file.path()).args([
+            "--robots",
+            &zone.robots.join(","),
+            "--profile",
+            &args.profile,
+            "--seed",
+            &args.seed.to_string(),
+        ]);
+        let name = if zoned.zones().len() == 1 {
+            "fleet".to_string()
+        } else {
+            format!("fleet {}", zone.name)
+        };
+        others.push((name, fleet));
+        kept_up_files.push(file);
+    }
+    let mut routers = commands.routers;
+    if routers.is_empty() {
+        return Err(CommandError::failure("no router"));
+    }
     // The central unit alone on the first CPU, the rest on the others
     // (one CPU: nothing to separate).
     if let Ok(split) = CoreSplit::first_alone() {
         split.pin(&mut central, Side::Servers);
-        split.pin(&mut router, Side::Simulation);
-        for (_, cmd) in &mut others {
+        for (_, cmd) in routers.iter_mut().chain(others.iter_mut()) {
             split.pin(cmd, Side::Simulation);
         }
     }
@@ -299,8 +337,8 @@ async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, Com
         (&site, &ids),
         &keys,
         &hub,
-        hub_port,
-        (router, central, others),
+        &zoned.listeners().iter().map(|l| l.1).collect::<Vec<_>>(),
+        (routers, central, others),
         commands.web,
         &mut sup,
     )
@@ -309,12 +347,34 @@ async fn measure(args: &CentralArgs, robots: usize) -> Result<CentralReport, Com
     drop(commands.msu_file);
     drop(extended);
     let (observed, failure) = outcome?;
-    Ok(observed.report(robots, failure))
+    let mut report = observed.report(robots, failure);
+    report.routers = zoned.zones().len();
+    report.fleet = fleet_kept_up(&kept_up_files);
+    Ok(report)
 }
 
-/// The processes of one run: the router, the central unit, and the cells
-/// and the fleet, with their names.
-type Processes = (Command, Command, Vec<(String, Command)>);
+/// What the fleet's processes said of themselves, added up (`None` when
+/// one said nothing).
+fn fleet_kept_up(files: &[tempfile::NamedTempFile]) -> Option<FleetKeptUp> {
+    files.iter().try_fold(None::<FleetKeptUp>, |sum, file| {
+        let text = std::fs::read_to_string(file.path()).ok()?;
+        let one: FleetKeptUp = serde_json::from_str(&text).ok()?;
+        Some(Some(match sum {
+            None => one,
+            Some(s) => FleetKeptUp {
+                summaries: s.summaries + one.summaries,
+                late_turns: s.late_turns + one.late_turns,
+                failed_puts: s.failed_puts + one.failed_puts,
+                elapsed_s: s.elapsed_s.max(one.elapsed_s),
+                declare_s: s.declare_s.max(one.declare_s),
+            },
+        }))
+    })?
+}
+
+/// The processes of one run: the routers (the hub first), the central
+/// unit, and the cells and the fleet, with their names.
+type Processes = (Vec<(String, Command)>, Command, Vec<(String, Command)>);
 
 /// Starts the processes, waits until they are live, and observes.
 #[allow(clippy::too_many_arguments)]
@@ -323,16 +383,20 @@ async fn run_measured(
     (site, robots): (&Site, &[String]),
     keys: &Keys,
     hub: &str,
-    hub_port: u16,
-    (router, central, others): Processes,
+    router_ports: &[u16],
+    (routers, central, others): Processes,
     web: Option<std::net::SocketAddr>,
     sup: &mut Supervisor,
 ) -> Result<(Observed, Option<String>), CommandError> {
     let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
-    sup.spawn("router", router).map_err(|e| failed(&e))?;
-    wait_for_listener(hub_port, sup, STARTUP_TIMEOUT)
-        .await
-        .map_err(|e| failed(&e))?;
+    for (name, router) in routers {
+        sup.spawn(&name, router).map_err(|e| failed(&e))?;
+    }
+    for &port in router_ports {
+        wait_for_listener(port, sup, STARTUP_TIMEOUT)
+            .await
+            .map_err(|e| failed(&e))?;
+    }
     sup.spawn("central", central).map_err(|e| failed(&e))?;
     let session = open_observer(hub, Mesh::Router, None)
         .await
@@ -540,11 +604,12 @@ impl Observed {
         let status = self.last_status.as_ref();
         CentralReport {
             robots,
+            routers: 1,
             duration_s: self.duration_s,
             failure,
-            robots_up_at_central: status.map_or(0, |s| s.robots.iter().filter(|r| r.up).count()),
-            robots_posed_at_central: status
-                .map_or(0, |s| s.robots.iter().filter(|r| r.pose_valid).count()),
+            robots_up_at_central: status
+                .map_or(0, |s| (s.robot_counts.up + s.robot_counts.stale) as usize),
+            robots_posed_at_central: status.map_or(0, |s| s.robots_posed as usize),
             cycles: self.triggers.len(),
             cycle_period_ms: period_ms,
             trigger_jitter_p50_us: percentile(&jitter_us, 50.0),
@@ -576,6 +641,7 @@ impl Observed {
             survey_publish_max_ms: status
                 .filter(|s| s.survey_publications > 0)
                 .map(|s| s.survey_publish_max_us / 1e3),
+            fleet: None,
         }
     }
 

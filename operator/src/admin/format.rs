@@ -335,7 +335,7 @@ pub fn status(s: &StatusReport, json: bool) -> Result<String, FormatError> {
     let mut out = String::new();
     header(&mut out, s);
     cell_table(&mut out, s);
-    fleet_summary(&mut out, &s.robots);
+    fleet_summary(&mut out, s);
     Ok(out)
 }
 
@@ -344,14 +344,12 @@ pub fn status(s: &StatusReport, json: bool) -> Result<String, FormatError> {
 pub const WORST_ROBOTS: usize = 10;
 
 /// The fleet in a few lines: its counts by state and its worst robots.
-fn fleet_summary(out: &mut String, robots: &[RobotHealth]) {
-    let count = |state: &str| robots.iter().filter(|r| r.state() == state).count();
+fn fleet_summary(out: &mut String, s: &StatusReport) {
+    let (robots, counts) = (&s.robots, s.robot_counts);
     let _ = writeln!(
         out,
         "robots: {} up, {} stale, {} down",
-        count("up"),
-        count("stale"),
-        count("down")
+        counts.up, counts.stale, counts.down
     );
     let rank = |r: &RobotHealth| match r.state() {
         "down" => 0,
@@ -367,11 +365,12 @@ fn fleet_summary(out: &mut String, robots: &[RobotHealth]) {
     });
     let shown: Vec<RobotHealth> = worst.into_iter().take(WORST_ROBOTS).cloned().collect();
     robot_table(out, &shown);
-    if robots.len() > shown.len() {
+    let total = counts.up + counts.stale + counts.down;
+    if total > shown.len() as u64 {
         let _ = writeln!(
             out,
             "{} more: `ickon admin robots --page N` (or --state, --near X,Y)",
-            robots.len() - shown.len()
+            total - shown.len() as u64
         );
     }
 }
@@ -542,6 +541,12 @@ mod tests {
             speed_of_sound_sigma_m_s: 0.25,
             site_speed_of_sound_m_s: 343.21,
             transmitters_left_out: vec![12],
+            robot_counts: ickon_proto::msg::admin::RobotCounts {
+                up: 1,
+                stale: 0,
+                down: 0,
+            },
+            robots_posed: 1,
         }
     }
 
@@ -633,6 +638,11 @@ mod tests {
                 ..honest.clone()
             })
             .collect();
+        report.robot_counts = ickon_proto::msg::admin::RobotCounts {
+            up: 498,
+            stale: 1,
+            down: 1,
+        };
         let table = status(&report, false).unwrap();
         assert!(table.contains("robots: 498 up, 1 stale, 1 down"), "{table}");
         // The worst first: down, stale, then the fewest fixes.

@@ -11,7 +11,7 @@
 //! MSU's and the cells' input queues).
 
 use ickon_proto::codec::MAX_MESSAGE_BYTES;
-use ickon_proto::keys::Keys;
+use ickon_proto::keys::{Keys, ROOT};
 use serde_json::{Value, json};
 
 /// The largest message a robot or a cell puts, bytes. A robot's largest is
@@ -32,12 +32,25 @@ pub const SITE_MESSAGE_BYTES: usize = MAX_MESSAGE_BYTES + 64 * 1024;
 /// the robots' and cells' keys further. Keys outside the site (ROS 2's)
 /// are left alone: their sizes are the robots' applications' business.
 pub fn low_pass_filter(keys: &Keys) -> Value {
-    let prefix = keys.prefix();
+    limits_under(keys.prefix())
+}
+
+/// The same limits for every site's keys (`ickon/*`): what a router
+/// started without a configuration of its own enforces, which serves
+/// whatever site connects to it. An outside client's messages of
+/// megabytes on a node's keys, passed on to every subscriber, filled a
+/// link's queue until the router closed a node's transport; dropped at
+/// the router they cost no link anything.
+pub fn low_pass_filter_any_site() -> Value {
+    limits_under(&format!("{ROOT}/*"))
+}
+
+fn limits_under(prefix: &str) -> Value {
     json!([
         {
             "id": "site-messages",
             "messages": ["put", "delete", "query", "reply"],
-            "key_exprs": [keys.everything()],
+            "key_exprs": [format!("{prefix}/**")],
             "size_limit": SITE_MESSAGE_BYTES,
         },
         {
@@ -62,6 +75,9 @@ mod tests {
         config
             .insert_json5("low_pass_filter", &low_pass_filter(&keys).to_string())
             .expect("a valid low_pass_filter block");
+        config
+            .insert_json5("low_pass_filter", &low_pass_filter_any_site().to_string())
+            .expect("a valid low_pass_filter block for any site");
     }
 
     /// The arrivals of one cycle from a site far larger than any shipped

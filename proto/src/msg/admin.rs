@@ -149,6 +149,10 @@ impl RobotHealth {
     }
 }
 
+/// Most robots the answer to `status` lists (the worst of the fleet):
+/// every robot of a site of a few dozen, a page of a large fleet's.
+pub const STATUS_ROBOTS: usize = 100;
+
 /// Robots a page of `robots` holds when the request does not say.
 pub const DEFAULT_PAGE_SIZE: u32 = 50;
 /// Most robots a page of `robots` holds.
@@ -267,8 +271,15 @@ pub struct StatusReport {
     pub update_rate_hz: f64,
     /// Every cell of the site.
     pub cells: Vec<CellHealth>,
-    /// Every robot seen.
+    /// The robots seen: every one in the viewers' status and the answer to
+    /// `robots`; the worst [`STATUS_ROBOTS`] (down, then stale, then the
+    /// fewest fixes a second; in id order) in the answer to `status`,
+    /// `cells` and `sync`, whose size does not grow with the fleet.
     pub robots: Vec<RobotHealth>,
+    /// Every robot seen, by state (whatever `robots` lists).
+    pub robot_counts: RobotCounts,
+    /// Of those, the robots with a pose.
+    pub robots_posed: u64,
     /// The answering central unit's epoch (its start or term, master time, ns).
     pub epoch: u64,
     /// Control messages on the central unit's keys that it did not send

@@ -256,6 +256,8 @@ fn admin_messages_round_trip() {
         speed_of_sound_sigma_m_s: 0.2,
         site_speed_of_sound_m_s: 343.2,
         transmitters_left_out: vec![12],
+        robot_counts: Default::default(),
+        robots_posed: 0,
     });
     round_trip(TransmittersReport {
         site: "lab".into(),

@@ -160,7 +160,9 @@ async fn poll_status(
     keys: Keys,
     publish: impl Fn(StatusReport) + Send + 'static,
 ) {
-    let Ok(key) = keys.central_admin("status") else {
+    // `robots` without a request: the status with every robot (`status`
+    // lists only the worst of a large fleet), each drawn in the view.
+    let Ok(key) = keys.central_admin("robots") else {
         return;
     };
     let mut every = tokio::time::interval(STATUS_EVERY);

@@ -265,5 +265,13 @@ mod tests {
         p.sensors.temperature_sigma_c = 1e200;
         let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
         assert_eq!(err.field, "sensors.temperature_sigma_c");
+        let mut p = TdoaEkfParams::default();
+        p.sensors.local_air_sigma_c = f64::NAN;
+        let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
+        assert_eq!(err.field, "sensors.local_air_sigma_c");
+        let mut p = TdoaEkfParams::default();
+        p.sensors.air_correlation_length_m = -1.0;
+        let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
+        assert_eq!(err.field, "sensors.air_correlation_length_m");
     }
 }

@@ -56,8 +56,8 @@ use super::clock_slots::ClockSlots;
 use super::ground_chain::Chain;
 use super::ground_noise::GroundNoise;
 use super::ground_state::{
-    self as gs, BIAS, CLOCK, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, SCALE, State, TH, TURN_SCALE, X,
-    Y,
+    self as gs, BIAS, CLOCK, Cov, OFFSET, RANGE_BIAS, RANGE_SCALE, SCALE, SOUND_SCALE, State, TH,
+    TURN_SCALE, X, Y,
 };
 use super::observation::Outcome;
 use super::recovery::{RecoveryParams, RejectionWatch};
@@ -408,6 +408,16 @@ impl TdoaEkf {
         self.state.map(|(x, _)| x[TURN_SCALE])
     }
 
+    /// The learnt relative error of the speed of sound where the robot
+    /// drives against the speed the MSU uses (positive: sound is faster),
+    /// when the filter learns it.
+    pub fn sound_scale(&self) -> Option<f64> {
+        if !self.params.sensors.learns_local_air() {
+            return None;
+        }
+        self.state.map(|(x, _)| x[SOUND_SCALE])
+    }
+
     /// The estimated distance scale error (travelled = measured times one
     /// plus it).
     pub fn distance_scale(&self) -> Option<f64> {
@@ -438,6 +448,12 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
     d[RANGE_BIAS] = n.range_bias_sigma_m.powi(2);
     d[RANGE_SCALE] = n.range_scale_sigma.powi(2);
     d[TURN_SCALE] = turn_scale_sigma(params).powi(2);
+    // Unused (and so uncorrelated) when the local air is not learnt.
+    d[SOUND_SCALE] = if n.learns_local_air() {
+        n.local_air_rel_sigma().powi(2)
+    } else {
+        1.0
+    };
     // A slot not in use is uncorrelated with everything (one, like the
     // offset's, keeps the covariance positive definite).
     let clock = n.clock_bias_sigma_m();
@@ -445,6 +461,20 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
         d[c] = if clock > 0.0 { clock * clock } else { 1.0 };
     }
     Cov::from_diagonal(&d)
+}
+
+impl TdoaEkf {
+    /// The relative error of the speed of sound that no state of the
+    /// filter holds: the assumed temperature's, unless the local speed is
+    /// learnt.
+    pub(super) fn unmodelled_speed_rel_sigma(&self) -> f64 {
+        let sensors = &self.params.sensors;
+        if sensors.learns_local_air() {
+            0.0
+        } else {
+            sensors.speed_of_sound_rel_sigma()
+        }
+    }
 }
 
 /// The data sheet's scale error of the heading source.
@@ -502,7 +532,7 @@ impl InOrderFilter for TdoaEkf {
             at,
             sensors.survey_sigma_m,
             self.unexplained_m2,
-            sensors.speed_of_sound_rel_sigma(),
+            self.unmodelled_speed_rel_sigma(),
         ) {
             let mut xy = covariance.fixed_view_mut::<2, 2>(0, 0);
             xy += c;

@@ -77,6 +77,28 @@ pub struct GroundNoise {
     /// sqrt(s) made it, and the filter then trusted a bias the cell had
     /// moved on from) but forgotten over the cell's window.
     pub cell_sync_walk_per_sqrt_s: f64,
+    /// Distance over which the air between a robot and its transmitters
+    /// changes, metres (3: a heater's or an open door's warm or cold spot,
+    /// an air handler's draft, are a few metres across). The site-wide
+    /// speed of sound is right on average, not where the robot is: the air
+    /// a robot hears through can be a few degrees off it for as long as the
+    /// robot stays in one place, which scales every range it measures
+    /// there alike, cycle after cycle. So the local speed's relative error
+    /// is a state of the filter (the `temperature_sigma_c`'s share of the
+    /// speed as its spread), learnt from the differences between near and
+    /// far transmitters, and forgotten as the robot drives away from where
+    /// it was learnt. 0 leaves the state out, and the speed's error is then
+    /// counted as noise on each arrival.
+    pub air_correlation_length_m: f64,
+    /// Time over which the air at one place changes, seconds (60: a door
+    /// opened, a heater cycling, the hall's daily swing ahead of the
+    /// site-wide speed the fleet learns over minutes).
+    pub air_correlation_time_s: f64,
+    /// Standard deviation of the air temperature where a robot is against
+    /// the site-wide air the speed of sound is learnt for, degrees Celsius
+    /// (2: a hall's warm and cold spots and its layers, a few degrees
+    /// apart). The spread of the local speed state.
+    pub local_air_sigma_c: f64,
 }
 
 /// The speed of sound the sync error's microseconds are turned into metres
@@ -104,6 +126,9 @@ impl Default for GroundNoise {
             survey_sigma_m: 0.01,
             cell_sync_sigma_us: 0.0,
             cell_sync_walk_per_sqrt_s: 0.28,
+            air_correlation_length_m: 3.0,
+            air_correlation_time_s: 60.0,
+            local_air_sigma_c: 2.0,
         }
     }
 }
@@ -145,6 +170,31 @@ impl GroundNoise {
     /// `0.5 sigma_T / T` at 20 degC (0.17 % for the sheet's 1 degC).
     pub(super) fn speed_of_sound_rel_sigma(&self) -> f64 {
         0.5 * self.temperature_sigma_c / 293.15
+    }
+
+    /// Whether the local speed of sound is a state of the filter.
+    pub(super) fn learns_local_air(&self) -> bool {
+        self.air_correlation_length_m > 0.0
+            && self.air_correlation_time_s > 0.0
+            && self.local_air_rel_sigma() > 0.0
+    }
+
+    /// Relative standard deviation of the local speed of sound against the
+    /// site-wide one (the temperature's, as for the site-wide speed).
+    pub(super) fn local_air_rel_sigma(&self) -> f64 {
+        0.5 * self.local_air_sigma_c / 293.15
+    }
+
+    /// How much of the local speed error is still known after the robot
+    /// drove `distance_m` over `dt_s`: `exp(-(|d| / L + dt / T))`, a
+    /// first-order Gauss-Markov process in distance and in time.
+    pub(super) fn local_air_memory(&self, distance_m: f64, dt_s: f64) -> f64 {
+        if !self.learns_local_air() {
+            return 1.0;
+        }
+        let decay = distance_m.abs() / self.air_correlation_length_m
+            + dt_s.abs() / self.air_correlation_time_s;
+        (-decay).exp()
     }
 
     /// Checks the domain; `Err((field, reason))`. Each value also has an
@@ -254,6 +304,24 @@ impl GroundNoise {
                 self.cell_sync_walk_per_sqrt_s,
                 100.0,
                 "must be finite, non-negative and at most 100 per sqrt(s)",
+            ),
+            (
+                "sensors.air_correlation_length_m",
+                self.air_correlation_length_m,
+                10_000.0,
+                "must be finite, non-negative and at most 10000 m",
+            ),
+            (
+                "sensors.local_air_sigma_c",
+                self.local_air_sigma_c,
+                50.0,
+                "must be finite, non-negative and at most 50 degC",
+            ),
+            (
+                "sensors.air_correlation_time_s",
+                self.air_correlation_time_s,
+                1e6,
+                "must be finite, non-negative and at most 1e6 s",
             ),
         ];
         for (field, v, max, reason) in fields {

@@ -23,6 +23,11 @@
 //! 23.4 -> 15.6 mm mean). As a state with the sheet's prior it is learnt from
 //! the arrivals while the robot turns.
 //!
+//! `sound_scale` (the relative error of the speed of sound in the air
+//! around the robot against the site-wide speed the MSU uses: an arrival's
+//! pseudo-range reads `(1 - sound_scale) d` for a path of length `d`; see
+//! `ground_noise.rs` for why it is a state).
+//!
 //! Last, [`CLOCK_SLOTS`] clock biases (m): the residual sync error of each
 //! cell heard lately, as the extra path it adds to every arrival of that
 //! cell (see `ClockSlots` in `ground.rs`).
@@ -36,7 +41,7 @@ use crate::estimator::kf;
 /// three cells at a time on `warehouse`, all four on `lab`).
 pub(super) const CLOCK_SLOTS: usize = 4;
 /// Index of the first clock bias.
-pub(super) const CLOCK: usize = 9;
+pub(super) const CLOCK: usize = 10;
 /// Number of state components.
 pub(super) const N: usize = CLOCK + CLOCK_SLOTS;
 /// State vector.
@@ -64,6 +69,8 @@ pub(super) const RANGE_BIAS: usize = 6;
 pub(super) const RANGE_SCALE: usize = 7;
 /// Index of the turn scale error of the heading source.
 pub(super) const TURN_SCALE: usize = 8;
+/// Index of the local relative error of the speed of sound.
+pub(super) const SOUND_SCALE: usize = 9;
 
 /// One dead-reckoning step as the sensors measured it.
 #[derive(Debug, Clone, Copy)]
@@ -137,6 +144,21 @@ pub(super) fn update(x: &State, p: &Cov, h: &Row, nu: f64, r: f64) -> Option<(St
     )?;
     p.cholesky()?;
     Some((x, p))
+}
+
+/// A first-order Gauss-Markov step of component `k` of stationary sigma
+/// `sigma`: its mean and its correlations shrink by `memory` (in 0..=1),
+/// its variance relaxes towards `sigma^2`.
+pub(super) fn forget(x: &mut State, p: &mut Cov, k: usize, memory: f64, sigma: f64) {
+    let m = memory.clamp(0.0, 1.0);
+    x[k] *= m;
+    for j in 0..N {
+        if j != k {
+            p[(k, j)] *= m;
+            p[(j, k)] *= m;
+        }
+    }
+    p[(k, k)] = m * m * p[(k, k)] + (1.0 - m * m) * sigma * sigma;
 }
 
 /// `h P h^T + r`.

@@ -106,6 +106,9 @@ struct Trouble {
     /// One arrival's timing noise, metres, and the sigma the samples state
     /// (`SIGMA_ARRIVAL_M`, the data sheet's, when `None`).
     arrival_sigma_m: Option<f64>,
+    /// Sound travels faster than the filter assumes by this fraction (warm
+    /// air where the robot drives).
+    sound_scale: f64,
 }
 
 /// The cell of transmitter `i` ([`transmitters`]: four per cell, 4 m of
@@ -225,7 +228,10 @@ fn run_with_cycle(
             let t_arr = emit + d / SOUND_M_S;
             let (cell, factor) = cell_of(i);
             let sync = trouble.cell_sync_error_m.map_or(0.0, |e| e * factor);
-            let rho = d + extra + sync + sigma_arrival_m * unit.sample(&mut rng);
+            let rho = d / (1.0 + trouble.sound_scale)
+                + extra
+                + sync
+                + sigma_arrival_m * unit.sample(&mut rng);
             heard.push((*s_m, rho, t_arr, cell));
         }
         for pair in heard.windows(2) {
@@ -648,5 +654,29 @@ fn the_sync_error_of_each_cell_is_learnt_from_the_sigma_the_cells_report() {
     assert!(
         clean_mean < 0.03 && clean_mean < plain_mean + 0.003,
         "clean corridor: {clean_mean} with the states, {plain_mean} without clocks"
+    );
+}
+
+#[test]
+fn warmer_air_where_the_robot_drives_is_learnt_as_the_local_speed_of_sound() {
+    // Sound 0.5 % faster than assumed (about 3 degC warmer air): every
+    // range is short by its 0.5 %, more for the far transmitters.
+    let warm = Trouble {
+        sound_scale: 0.005,
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(120.0, warm, 3);
+    let (f, e) = errors(&inputs, &truth);
+    let scale = f.sound_scale().expect("learnt");
+    assert!((scale - 0.005).abs() < 0.0015, "local speed error {scale}");
+    let (learnt, _) = mean_max(&e, 20.0, 120.0);
+    let mut fixed = params();
+    fixed.sensors.air_correlation_length_m = 0.0;
+    let (g, e) = errors_with(&fixed, &inputs, &truth);
+    assert!(g.sound_scale().is_none());
+    let (assumed, _) = mean_max(&e, 20.0, 120.0);
+    assert!(
+        learnt < 0.9 * assumed,
+        "mean error {learnt} m learnt, {assumed} m with the speed assumed"
     );
 }

@@ -9,7 +9,7 @@ use super::{TdoaEkf, turn_scale_sigma};
 use crate::estimator::RangeDifferenceSample;
 use crate::estimator::tdoa_ekf::ground_chain::{Arrival, Link};
 use crate::estimator::tdoa_ekf::ground_state::{
-    self as gs, BIAS, OFFSET, Row, State, TH, TURN_SCALE, X, Y,
+    self as gs, BIAS, OFFSET, Row, SOUND_SCALE, State, TH, TURN_SCALE, X, Y,
 };
 use crate::estimator::tdoa_ekf::observation::{self, Outcome, Rejection};
 
@@ -24,7 +24,10 @@ const UNEXPLAINED_WEIGHT: f64 = 0.01;
 
 impl TdoaEkf {
     /// Predicted pseudo-range of an arrival without the offset, and its
-    /// row (position columns, and its cell's clock bias in `clock`).
+    /// row (position columns, the local speed of sound when it is learnt,
+    /// and its cell's clock bias in `clock`). A path of length `d` through
+    /// air where sound is faster by the fraction `k` than the speed the
+    /// MSU assumes reads `d / (1 + k)`, `(1 - k) d` to first order.
     fn arrival_model(&self, x: &State, a: &Arrival, clock: Option<usize>) -> Option<(f64, Row)> {
         let p = self.position_at(x, a.t_s);
         let r = p - Vector3::from(a.tx_m);
@@ -33,13 +36,19 @@ impl TdoaEkf {
             return None;
         }
         let mut h = Row::zeros();
-        h[X] = r.x / d;
-        h[Y] = r.y / d;
+        let scale = if self.params.sensors.learns_local_air() {
+            h[SOUND_SCALE] = -d;
+            1.0 - x[SOUND_SCALE]
+        } else {
+            1.0
+        };
+        h[X] = scale * r.x / d;
+        h[Y] = scale * r.y / d;
         let bias = clock.map_or(0.0, |c| {
             h[c] = 1.0;
             x[c]
         });
-        Some((d + bias, h))
+        Some((scale * d + bias, h))
     }
 
     /// The state column of the clock bias of `a`'s cell (giving the cell a
@@ -148,7 +157,8 @@ impl TdoaEkf {
         // (timing sigma 0.3 mm, the 1 us stamp) made the filter trust its
         // arrivals beyond every other model error it has and fail (57-118
         // mm on `lab` under `ideal`; 2-5 mm with it, see the README).
-        let speed = self.params.sensors.speed_of_sound_rel_sigma() * (pred - self.offset_range_m);
+        // When the local speed is a state, its error is in the row instead.
+        let speed = self.unmodelled_speed_rel_sigma() * (pred - self.offset_range_m);
         let r = self.arrival_variance(sigma_m) + speed * speed;
         let s = gs::innovation_variance(&p, &h, r);
         if !(s.is_finite() && s > 0.0) {

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use super::TdoaEkf;
 use crate::estimator::Input;
 use crate::estimator::tdoa_ekf::ground_state::{
-    self as gs, BIAS, RANGE_BIAS, Row, State, Step, TH, X, Y,
+    self as gs, BIAS, RANGE_BIAS, Row, SOUND_SCALE, State, Step, TH, X, Y,
 };
 use crate::estimator::tdoa_ekf::observation;
 use crate::estimator::tdoa_ekf::standstill;
@@ -134,10 +134,20 @@ impl TdoaEkf {
             var_dtheta,
             var_bias: walk.to_radians().powi(2) * dt,
         };
-        if let Some((nx, mut np)) = gs::predict(x, p, &step) {
+        if let Some((mut nx, mut np)) = gs::predict(x, p, &step) {
             np[(RANGE_BIAS, RANGE_BIAS)] += n.range_bias_walk_m_sqrt_s.powi(2) * dt;
             for (c, sigma_m) in self.clocks.used() {
                 np[(c, c)] += n.var_clock_walk(sigma_m, dt);
+            }
+            if n.learns_local_air() {
+                let memory = n.local_air_memory(distance_m, dt);
+                gs::forget(
+                    &mut nx,
+                    &mut np,
+                    SOUND_SCALE,
+                    memory,
+                    n.local_air_rel_sigma(),
+                );
             }
             *x = nx;
             *p = np;

@@ -37,13 +37,20 @@ const VOLUME_MARGIN_M: f64 = 0.5;
 const TAKE_OFF_ABOVE_START_M: f64 = 0.5;
 
 /// Time of take-off: the first truth sample [`TAKE_OFF_ABOVE_START_M`]
-/// above the first one.
-fn take_off_s(truth: &[TruthRow]) -> Option<f64> {
-    let ground_z = truth.first()?.position_m[2];
-    truth
-        .iter()
-        .find(|r| r.position_m[2] >= ground_z + TAKE_OFF_ABOVE_START_M)
-        .map(|r| r.t_s)
+/// above the first one, watched as the truth streams by.
+#[derive(Debug, Clone, Copy, Default)]
+struct TakeOff {
+    ground_z_m: Option<f64>,
+    at_s: Option<f64>,
+}
+
+impl TakeOff {
+    fn note(&mut self, row: &TruthRow) {
+        let ground = *self.ground_z_m.get_or_insert(row.position_m[2]);
+        if self.at_s.is_none() && row.position_m[2] >= ground + TAKE_OFF_ABOVE_START_M {
+            self.at_s = Some(row.t_s);
+        }
+    }
 }
 
 /// Everything a replay produced.
@@ -147,10 +154,9 @@ pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
     let first_s = span.map(|s| s.0);
     let duration_s = span.map_or(0.0, |s| s.1 - s.0);
     let mut reports = runners.reports(&runs, measurements, duration_s, first_s);
-    if let Some(t0) = take_off_s(&streams.truth) {
+    if let Some(t0) = truth.take_off.at_s {
         for (r, track) in reports.iter_mut().zip(&runs.tracks) {
-            r.tracking_after_take_off_s =
-                track.tracking_after(t0);
+            r.tracking_after_take_off_s = track.tracking_after(t0);
         }
     }
     if let Some(r) = reports.iter_mut().find(|r| r.name == "imu-eskf") {
@@ -236,6 +242,7 @@ struct TruthFeed {
     truth: Truth,
     next: Option<TruthRow>,
     ended: bool,
+    take_off: TakeOff,
 }
 
 impl TruthFeed {
@@ -250,6 +257,7 @@ impl TruthFeed {
             truth: Truth::new([0.0; 3]),
             next: None,
             ended: false,
+            take_off: TakeOff::default(),
         })
     }
 
@@ -267,6 +275,7 @@ impl TruthFeed {
             }
             match self.next {
                 Some(row) if row.t_s <= until_s => {
+                    self.take_off.note(&row);
                     let mut refs: Vec<&mut Track> = runs.tracks.iter_mut().collect();
                     self.truth.push(antenna(&row), &mut refs);
                     if let Some(q) = row.attitude_xyzw {

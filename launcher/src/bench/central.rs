@@ -33,8 +33,8 @@ use crate::metrics::{CellStats, percentile};
 use crate::nodes::NodeCommands;
 use crate::observe::open_observer;
 use crate::supervisor::Supervisor;
-use crate::synthetic_fleet::FleetKeptUp;
 use crate::usage::ProcUsage;
+use ickon_world::synthetic_fleet::FleetKeptUp;
 
 /// How long the processes get to come up and announce themselves.
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(60);

@@ -11,9 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use clap::Args;
 use ickon_proto::keys::{Key, Keys};
 use ickon_proto::msg::admin::{CoverageRequest, RobotCounts, RobotPage, RobotsRequest};
-use ickon_proto::msg::control::{
-    AirTemperature, Burst, CellStatus, ClockRequest, CycleTrigger, Schedule,
-};
+use ickon_proto::msg::control::{AirTemperature, Burst, CellStatus, ClockRequest, Schedule};
 use ickon_proto::msg::robot::{MsuStatus, RobotSummary, Truth};
 
 use crate::survey_calibration::SavedCalibration;
@@ -417,7 +415,7 @@ pub async fn run(
     let ends = Endpoints::declare(session, &keys, clock, epoch.clone(), viewers.any()).await?;
     // Declared last: whoever sees the token can query every queryable
     // above. A standby declares it when it takes over.
-    let mut token = if core.is_active() {
+    let token = if core.is_active() {
         Some(
             session
                 .liveliness()
@@ -430,126 +428,32 @@ pub async fn run(
         None
     };
 
-    let (mut failed_puts, mut undecodable) = (0u64, 0u64);
-    let mut web_ticks = tokio::time::interval(VIEWER_STATUS_PERIOD);
-    let mut reloads = reload::Reloads::new();
-    let mut unknown_admin = LogLimiter::default();
+    let mut node = event_loop::NodeLoop {
+        session,
+        keys,
+        clock,
+        viewers,
+        core,
+        ends,
+        survey_file,
+        epoch,
+        token,
+        reloads: reload::Reloads::new(),
+        unknown_admin: LogLimiter::default(),
+        survey_saves,
+        web_ticks: tokio::time::interval(VIEWER_STATUS_PERIOD),
+        failed_puts: 0,
+        undecodable: 0,
+    };
     loop {
-        let wake = if core.tick_pending() {
-            std::time::Duration::ZERO
-        } else {
-            core.next_wake().since(clock.now()).to_std()
-        };
-        let event = tokio::select! {
+        let input = tokio::select! {
             _ = &mut shutdown => break,
-            _ = tokio::time::sleep(wake) => Event::Tick,
-            _ = survey_saves.tick(), if survey_file.path.is_some() => {
-                survey_file.save(&core);
-                continue;
-            }
-            _ = web_ticks.tick(), if viewers.any() => {
-                viewers.publish(core.status(clock.now()));
-                viewers.publish_transmitters(|| core.transmitters(clock.now()));
-                continue;
-            }
-            Ok(q) = ends.site_q.recv_async() => { reply(&q, &core.site_info()).await; continue; }
-            Ok(q) = ends.schedule_q.recv_async() => {
-                if core.is_active() {
-                    reply(&q, core.latest_schedule()).await;
-                }
-                continue;
-            }
-            Ok(q) = ends.admin_q.recv_async() => {
-                if matches!(keys.parse(q.key_expr().as_str()), Ok(Key::CentralAdmin(c)) if c == "reload") {
-                    if reloads.in_flight() {
-                        reply(&q, &reload::busy()).await;
-                    } else {
-                        reloads.start(q);
-                    }
-                } else {
-                    answer_admin(&keys, &mut core, &q, clock.now(), &mut unknown_admin).await;
-                }
-                continue;
-            }
-            Some(checked) = reloads.done.recv() => {
-                reloads.finished();
-                let ack = match checked.result {
-                    Ok((site, toml, file_name)) => {
-                        let (ack, out) = core.reload_site(site, &toml, &file_name, clock.now());
-                        failed_puts += ends.publish(out.into_iter().collect()).await;
-                        ack
-                    }
-                    Err(refused) => refused,
-                };
-                reply(&checked.query, &ack).await;
-                continue;
-            }
-            Ok(s) = ends.alive.recv_async() => match alive_event(&keys, &s, core.is_active()) {
-                Some(e) => e,
-                None => continue,
-            },
-            Ok(s) = ends.status_sub.recv_async() => match status_event(&s, &mut undecodable) {
-                Some(e) => e,
-                None => continue,
-            },
-            Ok(s) = ends.air_sub.recv_async() => match air_event(&keys, &s, &mut undecodable) {
-                Some(ev) => ev,
-                None => continue,
-            },
-            Ok(s) = ends.burst_sub.recv_async() => match burst_event(&s, &clock, &mut undecodable) {
-                Some(e) => {
-                    if let Event::Burst(b) = &e {
-                        viewers.burst(b);
-                    }
-                    e
-                }
-                None => continue,
-            },
-            Ok(s) = ends.summary_sub.recv_async() => match summary_event(&keys, &s, &mut undecodable) {
-                Some(e) => e,
-                None => continue,
-            },
-            Some(s) = next_sample(&ends.truth_sub) => {
-                if let Some((robot, truth)) = truth_of(&keys, &s) {
-                    viewers.truth(&robot, truth);
-                }
-                continue;
-            }
-            Ok(s) = ends.robot_status_sub.recv_async() => match robot_status_event(&keys, &s, &mut undecodable) {
-                Some(e) => e,
-                None => continue,
-            },
-            Ok(s) = ends.cycle_sub.recv_async() => match decode_counted::<CycleTrigger>(&s, &mut undecodable) {
-                Some(t) => Event::TriggerSeen(t),
-                None => continue,
-            },
-            Ok(s) = ends.schedule_sub.recv_async() => match decode_counted::<Schedule>(&s, &mut undecodable) {
-                Some(t) => Event::ScheduleSeen(t),
-                None => continue,
-            },
+            input = node.next_input() => input,
         };
-        // The viewers draw a summary once the core took it (a flood or a
-        // forgery the gate dropped is not drawn either).
-        let shown = match &event {
-            Event::Summary { robot, summary } if viewers.any() => {
-                Some((robot.clone(), summary.clone()))
-            }
-            _ => None,
-        };
-        let handling = std::time::Instant::now();
-        let outputs = core.handle(clock.now(), event);
-        if let Some((robot, summary)) = shown
-            && core.last_pose_stamp(&robot) == Some(summary.stamp)
-        {
-            viewers.summary(&robot, &summary);
-        }
-        if outputs.iter().any(|o| matches!(o, Output::Survey(_))) {
-            core.note_survey_cost(handling.elapsed());
-        }
-        follow_role(session, &keys, &core, &epoch, &mut token).await;
-        failed_puts += ends.publish(outputs).await;
+        node.take(input).await;
     }
-    survey_file.save(&core);
+    node.survey_file.save(&node.core);
+    let (failed_puts, undecodable) = (node.failed_puts, node.undecodable);
     if failed_puts + undecodable > 0 {
         tracing::info!(
             "central unit stopped; {failed_puts} triggers or schedules not sent, {undecodable} undecodable reports"
@@ -1000,6 +904,7 @@ async fn answer_admin(
     }
 }
 
+mod event_loop;
 mod reload;
 
 #[cfg(test)]

@@ -19,7 +19,6 @@ const LONG: &[(&str, &str, usize)] = &[
     ("cell-controller/src/node.rs", "run", 105),
     ("cell-controller/src/sync.rs", "estimate", 106),
     ("central-unit/src/foxglove/layout.rs", "layout", 102),
-    ("central-unit/src/node.rs", "run", 170),
     ("central-unit/src/occupancy.rs", "plan", 119),
     ("central-unit/src/selection.rs", "choose", 101),
     ("device/src/message.rs", "decode", 106),

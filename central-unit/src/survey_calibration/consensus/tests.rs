@@ -386,3 +386,28 @@ fn the_reference_spread_is_the_fleets_when_it_is_wider_than_the_noise() {
         "{r3:?}"
     );
 }
+
+/// The selection's median is the sorted list's middle (the mean of the
+/// two middle values for an even count), for lengths odd and even.
+#[test]
+fn median_is_the_sorted_middle() {
+    let mut state = 12_345u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    assert_eq!(super::median(&mut []), 0.0);
+    for n in 1..60 {
+        let values: Vec<f64> = (0..n).map(|_| next() - 0.3).collect();
+        let mut sorted = values.clone();
+        sorted.sort_by(f64::total_cmp);
+        let expected = if n % 2 == 1 {
+            sorted[n / 2]
+        } else {
+            0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+        };
+        assert_eq!(super::median(&mut values.clone()), expected, "n = {n}");
+    }
+}

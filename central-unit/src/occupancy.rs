@@ -235,22 +235,7 @@ pub fn plan(
         };
         match served {
             Some(need) => needs.push(need),
-            None => {
-                for &p in &points {
-                    // A point of many robots' regions is walked once for
-                    // the widest range asked of it: the plan's time grows
-                    // with the floor and the fleet, not their product.
-                    if marked[p] >= range {
-                        continue;
-                    }
-                    marked[p] = range;
-                    for &(k, d) in table.heard_at(p) {
-                        if d <= range {
-                            fire[k] = true;
-                        }
-                    }
-                }
-            }
+            None => mark_heard(table, &points, range, &mut marked, &mut fire),
         }
         for &p in &points {
             in_region[p] = true;
@@ -272,11 +257,52 @@ pub fn plan(
     if set.is_empty() {
         return None;
     }
+    Some(packed_plan(
+        table, &set, region, &centres, history, config, hdops,
+    ))
+}
+
+/// Marks for firing every transmitter heard within `range_m` at one of
+/// `points`. A point of many robots' regions is walked once for the widest
+/// range asked of it (`marked`): the plan's time grows with the floor and
+/// the fleet, not their product.
+fn mark_heard(
+    table: &SpacingTable,
+    points: &[usize],
+    range_m: f64,
+    marked: &mut [f64],
+    fire: &mut [bool],
+) {
+    for &p in points {
+        if marked[p] >= range_m {
+            continue;
+        }
+        marked[p] = range_m;
+        for &(k, d) in table.heard_at(p) {
+            if d <= range_m {
+                fire[k] = true;
+            }
+        }
+    }
+}
+
+/// The plan of firing `set`: the spacings needed over `region` (and, with
+/// the reverberation modelled, against the previous cycle's bursts),
+/// packed with the transmitters nearest the robots' `centres` first.
+fn packed_plan(
+    table: &SpacingTable,
+    set: &[usize],
+    region: Vec<usize>,
+    centres: &[[f64; 2]],
+    history: &FiringHistory,
+    config: &FiringConfig,
+    hdops: Vec<f64>,
+) -> Plan {
     let need = match &config.reverb {
         Some(reverb) => {
             // The previous cycle's bursts may still be in the air when
             // this one starts: their spacings to this cycle's are needed.
-            let mut spaced = set.clone();
+            let mut spaced = set.to_vec();
             spaced.extend_from_slice(history.previous());
             table.needs_among(&spaced, region.into_iter(), reverb)
         }
@@ -293,11 +319,11 @@ pub fn plan(
             .fold(f64::INFINITY, f64::min)
             .sqrt()
     };
-    Some(Plan {
-        packing: table.pack_with(&set, &need, &nearest),
+    Plan {
+        packing: table.pack_with(set, &need, &nearest),
         need,
         hdops,
-    })
+    }
 }
 
 /// The transmitters (table indices, ascending) heard within `range_m` at

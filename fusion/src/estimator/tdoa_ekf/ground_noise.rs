@@ -263,6 +263,26 @@ impl GroundNoise {
                 1.0,
                 "must be finite, non-negative and at most 1 (100 %)",
             ),
+        ];
+        for (field, v, max, reason) in fields.into_iter().chain(self.absolute_bounds()) {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                return Err((field, reason));
+            }
+        }
+        if !(self.gyro_rate_hz.is_finite() && self.gyro_rate_hz > 0.0 && self.gyro_rate_hz <= 1e5) {
+            return Err((
+                "sensors.gyro_rate_hz",
+                "must be finite, positive and at most 100 kHz",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The bounds of the absolute measurements' sheet values (ranges,
+    /// the air, the survey, the cells' clocks): field, value, largest
+    /// allowed, and what is wrong beyond it.
+    fn absolute_bounds(&self) -> [(&'static str, f64, f64, &'static str); 10] {
+        [
             (
                 "sensors.range_bias_sigma_m",
                 self.range_bias_sigma_m,
@@ -323,18 +343,6 @@ impl GroundNoise {
                 1e6,
                 "must be finite, non-negative and at most 1e6 s",
             ),
-        ];
-        for (field, v, max, reason) in fields {
-            if !(v.is_finite() && (0.0..=max).contains(&v)) {
-                return Err((field, reason));
-            }
-        }
-        if !(self.gyro_rate_hz.is_finite() && self.gyro_rate_hz > 0.0 && self.gyro_rate_hz <= 1e5) {
-            return Err((
-                "sensors.gyro_rate_hz",
-                "must be finite, positive and at most 100 kHz",
-            ));
-        }
-        Ok(())
+        ]
     }
 }

@@ -259,16 +259,7 @@ impl Probe {
             // The router died between the nodes' start and this session (a
             // test kills it as soon as the run is up): say which node, as the
             // run would have a moment later, not only that nothing connects.
-            Err(e) => match sup.first_dead() {
-                Some(dead) => {
-                    return Err(LaunchError::DiedBeforeProbe {
-                        name: dead.name,
-                        status: dead.status,
-                        why: Box::new(e),
-                    });
-                }
-                None => return Err(e),
-            },
+            Err(e) => return Err(died_before_probe(sup, e).await),
         };
         let sub = probe_session
             .declare_subscriber(keys.sim_probe())
@@ -493,3 +484,28 @@ fn inject_due(
         }
     }
 }
+
+/// What to report when the probe session could not connect: the node that
+/// died (a router killed as the run came up), if one did within
+/// [`DEATH_GRACE`], else `why`. A killed process is seen dead a moment
+/// after the connection it served fails, not always at once.
+async fn died_before_probe(sup: &mut supervisor::Supervisor, why: LaunchError) -> LaunchError {
+    let deadline = tokio::time::Instant::now() + DEATH_GRACE;
+    loop {
+        if let Some(dead) = sup.first_dead() {
+            return LaunchError::DiedBeforeProbe {
+                name: dead.name,
+                status: dead.status,
+                why: Box::new(why),
+            };
+        }
+        if tokio::time::Instant::now() >= deadline {
+            return why;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+/// How long a node whose death made a connection fail may take to be seen
+/// dead.
+const DEATH_GRACE: Duration = Duration::from_secs(1);

@@ -103,8 +103,24 @@ impl NodeLoop<'_> {
     /// Handles one input whole: answers it, or hands the core its event.
     pub async fn take(&mut self, input: Input) {
         if let Some(event) = self.event_of(input).await {
+            // A cell coming or going changes what the viewers draw at once:
+            // it is not left to the next status tick (half a second, more
+            // than two cycles of a tight schedule). Cells come and go
+            // rarely, so this costs nothing at any fleet size.
+            let cell_changed = matches!(event, Event::CellAlive { .. });
             self.handle(event).await;
+            if cell_changed && self.viewers.any() {
+                self.hand_viewers_status();
+            }
         }
+    }
+
+    /// Hands the viewers the status and the transmitters' health.
+    fn hand_viewers_status(&self) {
+        let now = self.clock.now();
+        self.viewers.publish(self.core.status(now));
+        self.viewers
+            .publish_transmitters(|| self.core.transmitters(now));
     }
 
     /// The core's event for `input`, or `None` when the loop answered it
@@ -118,10 +134,7 @@ impl NodeLoop<'_> {
                 None
             }
             Input::WebTick => {
-                let now = self.clock.now();
-                self.viewers.publish(self.core.status(now));
-                self.viewers
-                    .publish_transmitters(|| self.core.transmitters(now));
+                self.hand_viewers_status();
                 None
             }
             Input::SiteQuery(q) => {

@@ -7,7 +7,9 @@
 //! shrinks.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+use crate::import_check::{crate_dirs, root};
 
 /// The longest a function may be, in lines.
 const MAX_LINES: usize = 100;
@@ -42,27 +44,16 @@ const LONG: &[(&str, &str, usize)] = &[
     ("world-node/src/synthetic_fleet/mod.rs", "run", 138),
 ];
 
-/// Crates whose code is tests or test support, not product.
-const NOT_PRODUCT: &[&str] = &["tests", "testkit", "vendor", "target"];
-
-/// The repository's root (the binary crate sits one level below it).
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+/// Crates whose code is tests or test support, not product (beside the
+/// vendored ones and the build output, which `crate_dirs` leaves out).
+const NOT_PRODUCT: &[&str] = &["tests", "testkit"];
 
 /// Every product `.rs` file: under each crate's `src/`, no test files.
 fn product_files() -> Vec<PathBuf> {
-    let mut crates: Vec<PathBuf> = std::fs::read_dir(root())
-        .expect("the root is readable")
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.join("Cargo.toml").is_file() && p.join("src").is_dir())
-        .filter(|p| {
-            p.file_name()
-                .is_some_and(|n| !NOT_PRODUCT.iter().any(|x| n == *x))
-        })
-        .collect();
-    crates.sort();
+    let crates = crate_dirs().into_iter().filter(|p| {
+        p.file_name()
+            .is_some_and(|n| !NOT_PRODUCT.iter().any(|x| n == *x))
+    });
     let mut out = Vec::new();
     for krate in crates {
         let mut dirs = vec![krate.join("src")];

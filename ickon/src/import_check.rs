@@ -15,13 +15,13 @@ use std::path::{Path, PathBuf};
 type Module = Vec<String>;
 
 /// The repository's root (the binary crate sits one level below it).
-fn root() -> PathBuf {
+pub(crate) fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 /// The workspace's crate folders: those at the root with a `Cargo.toml`
 /// and a `src/`.
-fn crate_dirs() -> Vec<PathBuf> {
+pub(crate) fn crate_dirs() -> Vec<PathBuf> {
     let mut out: Vec<PathBuf> = std::fs::read_dir(root())
         .expect("the root is readable")
         .flatten()

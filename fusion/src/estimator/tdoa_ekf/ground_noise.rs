@@ -84,8 +84,8 @@ pub struct GroundNoise {
     /// a robot hears through can be a few degrees off it for as long as the
     /// robot stays in one place, which scales every range it measures
     /// there alike, cycle after cycle. So the local speed's relative error
-    /// is a state of the filter (the `temperature_sigma_c`'s share of the
-    /// speed as its spread), learnt from the differences between near and
+    /// is a state of the filter (`local_air_sigma_c`'s share of the speed
+    /// as its spread), learnt from the differences between near and
     /// far transmitters, and forgotten as the robot drives away from where
     /// it was learnt. 0 leaves the state out, and the speed's error is then
     /// counted as noise on each arrival.

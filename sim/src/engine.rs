@@ -51,6 +51,9 @@ pub struct RunConfig {
     pub filter: FilterOptions,
     /// Transmitters that fail during the run.
     pub transmitter_faults: Vec<crate::tx_faults::TransmitterFault>,
+    /// Rows (arrivals, truth samples, odometry samples) to record for
+    /// export ([`RunOutput::recording`]); 0 records nothing.
+    pub record_rows: usize,
 }
 
 /// Options of the MSU's filter that a user turns on in its configuration
@@ -202,6 +205,9 @@ pub struct RunOutput {
     pub refused_inputs: Option<String>,
     /// The speed of sound the MSU used against the air's, every second.
     pub air: Vec<AirSample>,
+    /// The arrivals, truth and odometry, when [`RunConfig::record_rows`]
+    /// asked for them.
+    pub recording: Option<crate::recording::Recording>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -354,6 +360,9 @@ pub fn run(
             }
             Event::Encoders => {
                 let odom = run.world.odometry(t);
+                if let Some(r) = run.out.recording.as_mut() {
+                    r.odometry(odom);
+                }
                 run.msu_driver.feed(MsuEvent::Odometry(odom));
                 run.q.push(t + 1.0 / ENCODER_HZ, Event::Encoders);
             }
@@ -397,6 +406,8 @@ struct RouteRun<'a> {
     next_ref: usize,
     /// The fraction done last told to `progress`.
     last_progress_report: f64,
+    /// Physics steps taken.
+    physics_steps: u64,
 }
 
 impl<'a> RouteRun<'a> {
@@ -466,6 +477,8 @@ impl<'a> RouteRun<'a> {
             cells: Vec::new(),
             collisions: Default::default(),
             refused_inputs: None,
+            recording: (config.record_rows > 0)
+                .then(|| crate::recording::Recording::new(config.record_rows)),
         };
         let mut q = Queue::default();
         let gyro_dt = 1.0 / config.profile.gyro.rate_hz.max(1.0);
@@ -493,6 +506,7 @@ impl<'a> RouteRun<'a> {
             total_refs,
             next_ref: 0,
             last_progress_report: 0.0,
+            physics_steps: 0,
         })
     }
 
@@ -538,6 +552,14 @@ impl<'a> RouteRun<'a> {
     fn physics(&mut self, t: f64, progress: &mut dyn FnMut(f64)) -> bool {
         let moving = t > REST_S;
         self.world.step(t, PHYSICS_DT_S, moving);
+        self.physics_steps += 1;
+        if let Some(r) = self.out.recording.as_mut()
+            && self.physics_steps % crate::recording::TRUTH_EVERY_STEPS == 0
+        {
+            let mut sample = self.world.truth(t);
+            sample.t_s = self.world.msu_clock.local_s(t);
+            r.truth(sample);
+        }
         if moving {
             self.sample_references(t);
         }
@@ -604,8 +626,11 @@ impl<'a> RouteRun<'a> {
             return;
         }
         let msg = self.world.arrivals_from_emissions(&fired);
-        self.msu_driver
-            .feed(MsuEvent::Schedule(self.control.schedule_for(k).clone()));
+        let schedule = self.control.schedule_for(k);
+        if let Some(r) = self.out.recording.as_mut() {
+            r.cycle(crate::recording::RecordedCycle::of(k, &msg, schedule));
+        }
+        self.msu_driver.feed(MsuEvent::Schedule(schedule.clone()));
         if let Some(fix) = self.msu_driver.feed(MsuEvent::Arrivals(msg)).fix {
             self.control
                 .send_to_central(ickon_central::core::Event::Fix {

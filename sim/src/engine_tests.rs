@@ -13,7 +13,34 @@ fn config(route: &str, profile: &str, seed: u64, estimators: &[&str]) -> RunConf
         central: Default::default(),
         filter: Default::default(),
         transmitter_faults: Vec::new(),
+        record_rows: 0,
     }
+}
+
+#[test]
+fn a_recording_is_kept_only_when_asked_and_within_its_limit() {
+    let site = Site::default_site();
+    let mut c = config("route-1", "paper", 1, &["odometry"]);
+    let out = run(&site, &c, &mut |_| {}).unwrap();
+    assert!(out.recording.is_none());
+    c.record_rows = 1_000_000;
+    let out = run(&site, &c, &mut |_| {}).unwrap();
+    let r = out.recording.as_ref().unwrap();
+    assert!(!r.truncated);
+    assert!(r.cycles.len() > 50, "{} cycles", r.cycles.len());
+    assert!(r.truth.len() > 1000 && r.odometry.len() > 100);
+    // One clock: the truth's stamps run with the arrivals'.
+    let last_arrival = r.cycles.last().unwrap().arrivals[0].t_s;
+    let last_truth = r.truth.last().unwrap().t_s;
+    assert!((last_truth - last_arrival).abs() < 2.0, "{last_truth} {last_arrival}");
+    c.record_rows = 500;
+    let out = run(&site, &c, &mut |_| {}).unwrap();
+    let r = out.recording.unwrap();
+    assert!(r.truncated);
+    let rows: usize = r.cycles.iter().map(|c| c.arrivals.len()).sum::<usize>()
+        + r.truth.len()
+        + r.odometry.len();
+    assert!(rows <= 500, "{rows} rows");
 }
 
 #[test]

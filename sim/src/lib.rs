@@ -13,6 +13,7 @@
 //! - [`world`]: one robot's world, producing the messages its MSU receives.
 //! - [`engine`]: the discrete-event loop, one MSU core per estimator.
 //! - [`fleet`]: the first N robots of a site at once, their poses fed to the central unit.
+//! - [`recording`]: a run's arrivals, truth and odometry kept for export.
 //! - [`schedule_audit`]: whether a schedule lets every burst through everywhere.
 //! - [`score`]: the papers' metrics.
 //! - [`tx_faults`]: transmitters dying, growing weak or knocked out of place.
@@ -33,6 +34,7 @@ pub mod engine;
 pub mod fleet;
 pub mod profile;
 pub mod profile_file;
+pub mod recording;
 pub mod rng;
 pub mod robot;
 pub mod schedule_audit;

@@ -6,6 +6,7 @@
 //! same measurements. Tables go to stdout (or one JSON document with
 //! `--json`), the progress bar to stderr.
 
+mod export_tdoa;
 mod fleet;
 mod plot;
 pub(crate) mod table;
@@ -89,6 +90,11 @@ pub struct EvalArgs {
     /// probability), `moved:tx/ID@T=DX,DY,DZ` (metres); T in s or ms.
     #[arg(long)]
     pub faults: Option<String>,
+    /// Write each route's run into DIR/ROUTE/ in the arrival-time log
+    /// format (docs/log-format.md): the arrivals the MSU heard, the truth
+    /// and the wheel odometry, for `ickon replay tdoa` (not with `--robots`).
+    #[arg(long, value_name = "DIR", conflicts_with = "robots")]
+    pub export_tdoa: Option<PathBuf>,
 }
 
 /// The transmitter faults `--faults` names on `site` (none without it);
@@ -225,6 +231,9 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
         table::print_cells(&outputs);
         table::print_air(&outputs, site.speed_of_sound_m_s);
     }
+    if let Some(dir) = &args.export_tdoa {
+        export_tdoa::write_all(dir, &site, &outputs)?;
+    }
     if let Some(dir) = &args.plot
         && let Err(e) = plot::write_all(dir, &outputs, &scores, &flat)
     {
@@ -292,6 +301,11 @@ fn simulate(
                     },
                     filter: filter_options(args),
                     transmitter_faults: faults.to_vec(),
+                    record_rows: if args.export_tdoa.is_some() {
+                        export_tdoa::MAX_ROWS
+                    } else {
+                        0
+                    },
                 };
                 scope.spawn(move || {
                     let mut done = 0u64;

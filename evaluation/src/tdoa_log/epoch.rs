@@ -128,12 +128,15 @@ impl EpochSolver {
     /// the mean arrival time, where a mobile receiver was.
     pub fn new(
         dim: usize,
+        plane_z_m: f64,
         area: ([f64; 3], [f64; 3]),
         start_m: [f64; 3],
         at_emission: bool,
     ) -> Self {
         let mode = if dim == 2 {
-            Mode::TwoD { height_m: 0.0 }
+            Mode::TwoD {
+                height_m: plane_z_m,
+            }
         } else {
             Mode::ThreeD
         };
@@ -162,7 +165,11 @@ impl EpochSolver {
         anchors: &Anchors,
         units: &Units,
     ) -> Option<(f64, [f64; 3], Matrix3<f64>)> {
-        let (p, cov, emitted_s) = self.try_solve(rows, anchors, units)?;
+        let (mut p, cov, emitted_s) = self.try_solve(rows, anchors, units)?;
+        if self.dim == 2 {
+            // A 2D position is (x, y): the plane's height is given, not solved.
+            p[2] = 0.0;
+        }
         self.solved += 1;
         self.last_m = Vector3::from(p);
         let mean_s = rows.iter().map(|a| a.t_s).sum::<f64>() / rows.len() as f64;

@@ -132,6 +132,9 @@ pub struct Anchors {
     pub dim: usize,
     /// The role every anchor has.
     pub role: Role,
+    /// In 2D, the height of the plane the mobile moves in, metres (0
+    /// unless the anchors file gives `mobile_height_m`).
+    pub plane_z_m: f64,
 }
 
 impl Anchors {
@@ -188,6 +191,9 @@ pub struct Meta {
     pub clock: Option<String>,
     /// `propagation_speed_m_s`.
     pub propagation_speed_m_s: Option<f64>,
+    /// `mobile_height_m` (anchors file): the log is 2D, the mobile moving
+    /// in the horizontal plane at this height among anchors with heights.
+    pub mobile_height_m: Option<f64>,
 }
 
 /// Columns of the odometry file: body-frame increments since the previous

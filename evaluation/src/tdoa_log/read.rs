@@ -269,6 +269,17 @@ impl LineFile {
                     ));
                 }
             },
+            "mobile_height_m" => match value.parse::<f64>() {
+                Ok(v) if v.is_finite() && v.abs() <= 100_000.0 => {
+                    self.meta.mobile_height_m = Some(v);
+                }
+                _ => {
+                    return Err(self.bad(
+                        None,
+                        format!("mobile_height_m `{value}` is not a height in metres"),
+                    ));
+                }
+            },
             // Other keys are the writer's notes.
             _ => {}
         }

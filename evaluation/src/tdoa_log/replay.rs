@@ -119,6 +119,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
     let mut slots = make_slots(names, args, &anchors, volume, start)?;
     let mut solver = EpochSolver::new(
         anchors.dim,
+        anchors.plane_z_m,
         (volume.min_m, volume.max_m),
         anchors.centroid(),
         anchors.role == Role::Receiver,
@@ -231,7 +232,11 @@ fn set_up(args: &TdoaArgs) -> Result<(Setup, MeasurementReader), LogError> {
         speed_m_s: args.speed_m_s.or(reader.meta().propagation_speed_m_s),
         default_sigma_m: args.sigma_m,
     };
-    let positions = anchors.positions();
+    let mut positions = anchors.positions();
+    if anchors.dim == 2 {
+        // In 2D the mobile stays in its plane: the volume is the plane's.
+        positions.iter_mut().for_each(|p| p[2] = anchors.plane_z_m);
+    }
     let volume = FlightVolume::around(&positions, VOLUME_MARGIN_M)
         .map_err(|e| LogError::Usage(format!("{}: {e}", args.anchors.display())))?;
     let mut truth_offset = None;
@@ -502,7 +507,9 @@ fn runner(
                 .odometry
                 .as_deref()
                 .ok_or_else(|| usage("needs --odometry".into()))?;
-            let params = crate::plaza::wheel_params(start.map(|s| s.0), args.odometry_fraction);
+            let mut params =
+                crate::plaza::wheel_params(start.map(|s| s.0), args.odometry_fraction);
+            params.receiver_height_m = anchors.plane_z_m;
             Runner::Ground(Box::new(GroundRunner::new(
                 path,
                 &params,
@@ -573,6 +580,7 @@ fn estimate_offset(
     let mut epochs = Epochs::new(reader, anchors, units);
     let mut solver = EpochSolver::new(
         anchors.dim,
+        anchors.plane_z_m,
         (volume.min_m, volume.max_m),
         anchors.centroid(),
         anchors.role == Role::Receiver,

@@ -23,12 +23,16 @@ pub fn read_anchors(path: &Path) -> Result<Anchors, LogError> {
     let y = f.required(ac::Y)?;
     let z = f.column(ac::Z);
     let role = f.required(ac::ROLE)?;
-    let dim = if z.is_some() { 3 } else { 2 };
+    // Anchors with heights around a mobile held in one horizontal plane
+    // (ceiling transmitters over a ground robot) make a 2D log too.
+    let plane_z_m = f.meta.mobile_height_m;
+    let dim = if z.is_some() && plane_z_m.is_none() { 3 } else { 2 };
     let mut anchors = Anchors {
         list: Vec::new(),
         by_id: HashMap::new(),
         dim,
         role: Role::Transmitter,
+        plane_z_m: plane_z_m.unwrap_or(0.0),
     };
     while let Some(r) = f.next_fields()? {
         let name = f.present(&r, id)?.to_owned();

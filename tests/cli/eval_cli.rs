@@ -168,3 +168,90 @@ fn plot_directory_gets_one_picture_per_estimator_route_and_tour_plus_the_compari
     assert!(dir.join("comparison.png").is_file());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The replay's score of one estimator, from its `--json` document.
+fn replayed(doc: &serde_json::Value, name: &str) -> serde_json::Value {
+    doc["estimators"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == name)
+        .unwrap_or_else(|| panic!("no {name} in {doc}"))
+        .clone()
+}
+
+/// `ickon eval --export-tdoa` writes the run's arrivals, truth and odometry;
+/// `ickon replay tdoa` on them gives the raw fixes' score of `ickon eval`
+/// (`msu-raw`: every fix against the truth at its own time) as `ls`, within
+/// 10 %: the same solver on the same arrivals, where the MSU also relates
+/// each arrival to where the wheels say the robot was when it came, retries
+/// without transmitters hidden from it and picks roots by its last fix.
+#[test]
+fn an_exported_run_replays_to_the_raw_fixes_of_eval() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = dir.path().join("run");
+    let eval = |export: &std::path::Path| {
+        ickon()
+            .args([
+                "eval",
+                "--route",
+                "rectangle",
+                "--tours",
+                "1",
+                "--estimator",
+                "msu-raw",
+                "--no-survey-calibration",
+                "--no-speed-of-sound",
+                "--json",
+                "--export-tdoa",
+            ])
+            .arg(export)
+            .output()
+            .unwrap()
+    };
+    let out = eval(&export);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let raw = &doc["results"][0];
+    let (mean_mm, rmse_mm) = (
+        raw["fix_mean_mm"].as_f64().unwrap(),
+        raw["fix_rmse_mm"].as_f64().unwrap(),
+    );
+    let run = export.join("rectangle");
+    let replay = ickon()
+        .args(["replay", "tdoa", "--json", "--anchors"])
+        .arg(run.join("anchors.csv"))
+        .arg("--measurements")
+        .arg(run.join("measurements.csv"))
+        .arg("--truth")
+        .arg(run.join("truth.csv"))
+        .arg("--odometry")
+        .arg(run.join("odometry.csv"))
+        .output()
+        .unwrap();
+    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+    assert_eq!(doc["dim"], 2);
+    assert_eq!(doc["truth_offset"], serde_json::Value::Null);
+    let ls = replayed(&doc, "ls");
+    let ls_mean_mm = ls["mean_3d_m"].as_f64().unwrap() * 1e3;
+    let ls_rmse_mm = ls["rmse_3d_m"].as_f64().unwrap() * 1e3;
+    eprintln!("eval msu-raw {mean_mm:.2} / {rmse_mm:.2} mm, replay ls {ls_mean_mm:.2} / {ls_rmse_mm:.2} mm");
+    assert!((ls_mean_mm / mean_mm - 1.0).abs() < 0.10, "{ls_mean_mm} vs {mean_mm}");
+    assert!((ls_rmse_mm / rmse_mm - 1.0).abs() < 0.10, "{ls_rmse_mm} vs {rmse_mm}");
+    // Every cycle the MSU solved is an epoch the replay solved or counted.
+    let rate_hz = raw["fix_rate_hz"].as_f64().unwrap();
+    let ls_rate_hz = ls["output_rate_hz"].as_f64().unwrap();
+    assert!((ls_rate_hz / rate_hz - 1.0).abs() < 0.05, "{ls_rate_hz} vs {rate_hz}");
+    // The odometry and the truth's heading start the ground filter and
+    // dead reckoning at the truth's first pose.
+    assert_eq!(doc["start_from_truth"], true);
+    for name in ["tdoa-ekf", "odometry", "cv-fix"] {
+        assert!(replayed(&doc, name)["scored"].as_u64().unwrap() > 100, "{name}");
+    }
+    // A second export into the same directory does not overwrite it.
+    let again = eval(&export);
+    assert_eq!(again.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("cannot create") && err.contains("anchors.csv"), "{err}");
+}

@@ -460,3 +460,48 @@ fn an_odometry_increment_is_the_chord_of_its_arc() {
         "{dx} {dy}"
     );
 }
+
+#[test]
+fn a_mobile_in_a_plane_below_its_anchors_is_solved_in_that_plane() {
+    // Ceiling transmitters at 2.5 to 3 m, a receiver moving at 0.4 m.
+    let tx = [
+        ("a", 0.0, 0.0, 2.5),
+        ("b", 10.0, 0.0, 3.0),
+        ("c", 10.0, 8.0, 2.7),
+        ("d", 0.0, 8.0, 2.9),
+        ("e", 5.0, 0.0, 2.6),
+    ];
+    let mut anchors = String::from("# mobile_height_m: 0.4\nid,x_m,y_m,z_m,role\n");
+    for (id, x, y, z) in tx {
+        anchors.push_str(&format!("{id},{x},{y},{z},transmitter\n"));
+    }
+    let (mut rows, mut truth) = (String::new(), String::from("time_s,x_m,y_m\n"));
+    for k in 0..20_u32 {
+        let t = f64::from(k) * 0.2;
+        let p = [3.0 + 0.1 * t, 4.0, 0.4];
+        for (id, x, y, z) in tx {
+            let r = ((p[0] - x).powi(2) + (p[1] - y).powi(2) + (p[2] - z).powi(2)).sqrt();
+            rows.push_str(&format!("{k},{t},{id},,toa_s,{},\n", t + r / 343.0));
+        }
+        truth.push_str(&format!("{t},{},{}\n", p[0], p[1]));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "anchors.csv", &anchors);
+    write(dir.path(), "measurements.csv", &format!("{HEAD}{rows}"));
+    write(dir.path(), "truth.csv", &truth);
+    let mut a = args(dir.path(), true);
+    a.estimator = "ls".into();
+    let r = replay(&a).unwrap();
+    assert_eq!(r.dim, 2);
+    assert_eq!(r.solved, 20);
+    let ls = summary(&r, "ls");
+    let rmse_m = ls.rmse_3d_m.unwrap();
+    assert!(rmse_m < 1e-6, "{rmse_m}");
+    // A height that is not one is refused, naming the file.
+    let bad = anchors.replace("0.4", "NaN");
+    let e = error_of(&bad, &epoch(0, 1.0), None);
+    assert!(
+        e.contains("anchors.csv") && e.contains("mobile_height_m `NaN` is not a height"),
+        "{e}"
+    );
+}

@@ -255,3 +255,63 @@ fn an_exported_run_replays_to_the_raw_fixes_of_eval() {
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(err.contains("cannot create") && err.contains("anchors.csv"), "{err}");
 }
+
+/// `deploy/examples/ickon-robot/` is `ickon eval --export-tdoa` of one
+/// tour of `rectangle` (seed 1), byte for byte (`ICKON_WRITE_EXAMPLES=1`
+/// writes it anew after a change to the simulation), and replays with
+/// dead reckoning from the truth's heading.
+#[test]
+fn the_robot_example_is_an_export_and_replays_with_its_odometry() {
+    let example = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../deploy/examples/ickon-robot");
+    let dir = tempfile::tempdir().unwrap();
+    let out = ickon()
+        .args([
+            "eval",
+            "--route",
+            "rectangle",
+            "--tours",
+            "1",
+            "--estimator",
+            "msu-raw",
+            "--no-survey-calibration",
+            "--no-speed-of-sound",
+            "--json",
+            "--export-tdoa",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let names = ["anchors.csv", "measurements.csv", "truth.csv", "odometry.csv"];
+    for name in names {
+        let fresh = std::fs::read(dir.path().join("rectangle").join(name)).unwrap();
+        if std::env::var_os("ICKON_WRITE_EXAMPLES").is_some() {
+            std::fs::write(example.join(name), &fresh).unwrap();
+        }
+        let kept = std::fs::read(example.join(name)).unwrap();
+        assert!(
+            kept == fresh,
+            "{name} differs from a fresh export: run this test with ICKON_WRITE_EXAMPLES=1"
+        );
+    }
+    let replay = ickon()
+        .args(["replay", "tdoa", "--json", "--dim", "2", "--anchors"])
+        .arg(example.join("anchors.csv"))
+        .arg("--measurements")
+        .arg(example.join("measurements.csv"))
+        .arg("--truth")
+        .arg(example.join("truth.csv"))
+        .arg("--odometry")
+        .arg(example.join("odometry.csv"))
+        .output()
+        .unwrap();
+    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+    assert_eq!(doc["start_from_truth"], true);
+    let rmse = |name: &str| replayed(&doc, name)["rmse_3d_m"].as_f64().unwrap();
+    // Within the 1 m of a lost filter, beyond a few centimetres of a fix.
+    assert!(rmse("odometry") > 0.1 && rmse("odometry") < 1.0, "{}", rmse("odometry"));
+    assert!(rmse("tdoa-ekf") < 0.06, "{}", rmse("tdoa-ekf"));
+    assert!(rmse("ls") < 0.06, "{}", rmse("ls"));
+}

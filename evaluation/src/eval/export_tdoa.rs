@@ -135,21 +135,25 @@ fn usable(c: &RecordedCycle) -> Vec<ickon_sim::recording::RecordedArrival> {
     kept
 }
 
-/// `truth.csv` (file 2): the robot's pose every 10 ms on the MSU clock.
+/// `truth.csv` (file 2): the robot's pose every 10 ms on the MSU clock
+/// (to the micrometre and microradian).
 fn write_truth(out: &mut Writers, rec: &Recording) -> Result<(), CommandError> {
     out.line(2, &format!("# clock: {CLOCK}"))?;
     out.line(2, "time_s,x_m,y_m,heading_rad")?;
     for s in &rec.truth {
         out.line(
             2,
-            &format!("{:.9},{},{},{}", s.t_s, s.x_m, s.y_m, s.theta_rad),
+            &format!(
+                "{:.9},{:.6},{:.6},{:.6}",
+                s.t_s, s.x_m, s.y_m, s.theta_rad
+            ),
         )?;
     }
     Ok(())
 }
 
 /// `odometry.csv` (file 3): each odometry sample as the increment since
-/// the one before, in the body frame at its start.
+/// the one before, in the body frame at its start (to the nanometre).
 fn write_odometry(out: &mut Writers, rec: &Recording) -> Result<(), CommandError> {
     out.line(3, &format!("# clock: {CLOCK}"))?;
     out.line(3, "time_s,dx_m,dy_m,dtheta_rad")?;
@@ -159,7 +163,7 @@ fn write_odometry(out: &mut Writers, rec: &Recording) -> Result<(), CommandError
         out.line(
             3,
             &format!(
-                "{:.9},{dx},{dy},{}",
+                "{:.9},{dx:.9},{dy:.9},{:.9}",
                 b.stamp.as_secs_f64(),
                 b.theta_rad - a.theta_rad
             ),

@@ -32,14 +32,16 @@ fn a_recording_is_kept_only_when_asked_and_within_its_limit() {
     // One clock: the truth's stamps run with the arrivals'.
     let last_arrival = r.cycles.last().unwrap().arrivals[0].t_s;
     let last_truth = r.truth.last().unwrap().t_s;
-    assert!((last_truth - last_arrival).abs() < 2.0, "{last_truth} {last_arrival}");
+    assert!(
+        (last_truth - last_arrival).abs() < 2.0,
+        "{last_truth} {last_arrival}"
+    );
     c.record_rows = 500;
     let out = run(&site, &c, &mut |_| {}).unwrap();
     let r = out.recording.unwrap();
     assert!(r.truncated);
-    let rows: usize = r.cycles.iter().map(|c| c.arrivals.len()).sum::<usize>()
-        + r.truth.len()
-        + r.odometry.len();
+    let rows: usize =
+        r.cycles.iter().map(|c| c.arrivals.len()).sum::<usize>() + r.truth.len() + r.odometry.len();
     assert!(rows <= 500, "{rows} rows");
 }
 

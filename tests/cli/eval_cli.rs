@@ -1,11 +1,6 @@
 //! `ickon eval` end to end: one tour of one route, JSON on stdout.
 
-use std::process::Command;
-use support::ICKON;
-
-fn ickon() -> Command {
-    Command::new(ICKON)
-}
+use support::run::{estimator, ickon, json, replay_tdoa};
 
 #[test]
 fn one_tour_json_has_the_the_ickon_papers_table_for_every_estimator() {
@@ -22,12 +17,7 @@ fn one_tour_json_has_the_the_ickon_papers_table_for_every_estimator() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc = json(&out);
     assert_eq!(doc["profile"], "paper");
     assert_eq!(doc["seed"], 3);
     let results = doc["results"].as_array().unwrap();
@@ -169,17 +159,6 @@ fn plot_directory_gets_one_picture_per_estimator_route_and_tour_plus_the_compari
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// The replay's score of one estimator, from its `--json` document.
-fn replayed(doc: &serde_json::Value, name: &str) -> serde_json::Value {
-    doc["estimators"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["name"] == name)
-        .unwrap_or_else(|| panic!("no {name} in {doc}"))
-        .clone()
-}
-
 /// `ickon eval --export-tdoa` writes the run's arrivals, truth and odometry;
 /// `ickon replay tdoa` on them gives the raw fixes' score of `ickon eval`
 /// (`msu-raw`: every fix against the truth at its own time) as `ls`, within
@@ -209,51 +188,60 @@ fn an_exported_run_replays_to_the_raw_fixes_of_eval() {
             .output()
             .unwrap()
     };
-    let out = eval(&export);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc = json(&eval(&export));
     let raw = &doc["results"][0];
     let (mean_mm, rmse_mm) = (
         raw["fix_mean_mm"].as_f64().unwrap(),
         raw["fix_rmse_mm"].as_f64().unwrap(),
     );
     let run = export.join("rectangle");
-    let replay = ickon()
-        .args(["replay", "tdoa", "--json", "--anchors"])
-        .arg(run.join("anchors.csv"))
-        .arg("--measurements")
-        .arg(run.join("measurements.csv"))
-        .arg("--truth")
-        .arg(run.join("truth.csv"))
-        .arg("--odometry")
-        .arg(run.join("odometry.csv"))
-        .output()
-        .unwrap();
-    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+    let odometry = run.join("odometry.csv");
+    let doc = json(&replay_tdoa(
+        &run.join("anchors.csv"),
+        &run.join("measurements.csv"),
+        Some(&run.join("truth.csv")),
+        &["--json", "--odometry", odometry.to_str().unwrap()],
+    ));
     assert_eq!(doc["dim"], 2);
     assert_eq!(doc["truth_offset"], serde_json::Value::Null);
-    let ls = replayed(&doc, "ls");
+    let ls = estimator(&doc, "ls");
     let ls_mean_mm = ls["mean_3d_m"].as_f64().unwrap() * 1e3;
     let ls_rmse_mm = ls["rmse_3d_m"].as_f64().unwrap() * 1e3;
-    eprintln!("eval msu-raw {mean_mm:.2} / {rmse_mm:.2} mm, replay ls {ls_mean_mm:.2} / {ls_rmse_mm:.2} mm");
-    assert!((ls_mean_mm / mean_mm - 1.0).abs() < 0.10, "{ls_mean_mm} vs {mean_mm}");
-    assert!((ls_rmse_mm / rmse_mm - 1.0).abs() < 0.10, "{ls_rmse_mm} vs {rmse_mm}");
+    eprintln!(
+        "eval msu-raw {mean_mm:.2} / {rmse_mm:.2} mm, replay ls {ls_mean_mm:.2} / {ls_rmse_mm:.2} mm"
+    );
+    assert!(
+        (ls_mean_mm / mean_mm - 1.0).abs() < 0.10,
+        "{ls_mean_mm} vs {mean_mm}"
+    );
+    assert!(
+        (ls_rmse_mm / rmse_mm - 1.0).abs() < 0.10,
+        "{ls_rmse_mm} vs {rmse_mm}"
+    );
     // Every cycle the MSU solved is an epoch the replay solved or counted.
     let rate_hz = raw["fix_rate_hz"].as_f64().unwrap();
     let ls_rate_hz = ls["output_rate_hz"].as_f64().unwrap();
-    assert!((ls_rate_hz / rate_hz - 1.0).abs() < 0.05, "{ls_rate_hz} vs {rate_hz}");
+    assert!(
+        (ls_rate_hz / rate_hz - 1.0).abs() < 0.05,
+        "{ls_rate_hz} vs {rate_hz}"
+    );
     // The odometry and the truth's heading start the ground filter and
     // dead reckoning at the truth's first pose.
     assert_eq!(doc["start_from_truth"], true);
     for name in ["tdoa-ekf", "odometry", "cv-fix"] {
-        assert!(replayed(&doc, name)["scored"].as_u64().unwrap() > 100, "{name}");
+        assert!(
+            estimator(&doc, name)["scored"].as_u64().unwrap() > 100,
+            "{name}"
+        );
     }
     // A second export into the same directory does not overwrite it.
     let again = eval(&export);
     assert_eq!(again.status.code(), Some(1));
     let err = String::from_utf8_lossy(&again.stderr);
-    assert!(err.contains("cannot create") && err.contains("anchors.csv"), "{err}");
+    assert!(
+        err.contains("cannot create") && err.contains("anchors.csv"),
+        "{err}"
+    );
 }
 
 /// `deploy/examples/ickon-robot/` is `ickon eval --export-tdoa` of one
@@ -262,8 +250,8 @@ fn an_exported_run_replays_to_the_raw_fixes_of_eval() {
 /// dead reckoning from the truth's heading.
 #[test]
 fn the_robot_example_is_an_export_and_replays_with_its_odometry() {
-    let example = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../deploy/examples/ickon-robot");
+    let example =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/examples/ickon-robot");
     let dir = tempfile::tempdir().unwrap();
     let out = ickon()
         .args([
@@ -282,8 +270,13 @@ fn the_robot_example_is_an_export_and_replays_with_its_odometry() {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let names = ["anchors.csv", "measurements.csv", "truth.csv", "odometry.csv"];
+    json(&out);
+    let names = [
+        "anchors.csv",
+        "measurements.csv",
+        "truth.csv",
+        "odometry.csv",
+    ];
     for name in names {
         let fresh = std::fs::read(dir.path().join("rectangle").join(name)).unwrap();
         if std::env::var_os("ICKON_WRITE_EXAMPLES").is_some() {
@@ -295,23 +288,27 @@ fn the_robot_example_is_an_export_and_replays_with_its_odometry() {
             "{name} differs from a fresh export: run this test with ICKON_WRITE_EXAMPLES=1"
         );
     }
-    let replay = ickon()
-        .args(["replay", "tdoa", "--json", "--dim", "2", "--anchors"])
-        .arg(example.join("anchors.csv"))
-        .arg("--measurements")
-        .arg(example.join("measurements.csv"))
-        .arg("--truth")
-        .arg(example.join("truth.csv"))
-        .arg("--odometry")
-        .arg(example.join("odometry.csv"))
-        .output()
-        .unwrap();
-    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&replay.stdout).unwrap();
+    let odometry = example.join("odometry.csv");
+    let doc = json(&replay_tdoa(
+        &example.join("anchors.csv"),
+        &example.join("measurements.csv"),
+        Some(&example.join("truth.csv")),
+        &[
+            "--json",
+            "--dim",
+            "2",
+            "--odometry",
+            odometry.to_str().unwrap(),
+        ],
+    ));
     assert_eq!(doc["start_from_truth"], true);
-    let rmse = |name: &str| replayed(&doc, name)["rmse_3d_m"].as_f64().unwrap();
+    let rmse = |name: &str| estimator(&doc, name)["rmse_3d_m"].as_f64().unwrap();
     // Within the 1 m of a lost filter, beyond a few centimetres of a fix.
-    assert!(rmse("odometry") > 0.1 && rmse("odometry") < 1.0, "{}", rmse("odometry"));
+    assert!(
+        rmse("odometry") > 0.1 && rmse("odometry") < 1.0,
+        "{}",
+        rmse("odometry")
+    );
     assert!(rmse("tdoa-ekf") < 0.06, "{}", rmse("tdoa-ekf"));
     assert!(rmse("ls") < 0.06, "{}", rmse("ls"));
 }

@@ -6,18 +6,13 @@
 //! and bad input (exit code 2 with the file and line named).
 
 use std::path::PathBuf;
-use std::process::Command;
-use support::ICKON;
+use support::run::{ickon, json};
 
 /// The Plaza folder; called only after `real_data("plaza")` found it.
 fn data() -> PathBuf {
     ickon_testkit::data::data_root()
         .expect("ICKON_DATA is checked by real_data first")
         .join("plaza")
-}
-
-fn ickon() -> Command {
-    Command::new(ICKON)
 }
 
 #[test]
@@ -33,12 +28,7 @@ fn both_runs_meet_the_targets_with_the_odometry_baseline_beside_them() {
         .arg(&plots)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc = json(&out);
     let runs = doc["runs"].as_array().unwrap();
     let names: Vec<&str> = runs.iter().map(|r| r["run"].as_str().unwrap()).collect();
     assert_eq!(names, ["Plaza1", "Plaza2"]);

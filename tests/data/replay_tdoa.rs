@@ -5,47 +5,12 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-use support::ICKON;
-
-fn ickon() -> Command {
-    Command::new(ICKON)
-}
+use support::run::{estimator, ickon, json, replay_tdoa as replay};
 
 fn example(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../deploy/examples/mic-network")
         .join(name)
-}
-
-fn replay(anchors: &Path, measurements: &Path, truth: Option<&Path>, extra: &[&str]) -> Output {
-    let mut cmd = ickon();
-    cmd.args(["replay", "tdoa", "--anchors"])
-        .arg(anchors)
-        .arg("--measurements")
-        .arg(measurements);
-    if let Some(t) = truth {
-        cmd.arg("--truth").arg(t);
-    }
-    cmd.args(extra).output().unwrap()
-}
-
-fn json(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
-fn estimator<'a>(doc: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
-    doc["estimators"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["name"] == name)
-        .unwrap_or_else(|| panic!("no {name} in {doc}"))
 }
 
 #[test]

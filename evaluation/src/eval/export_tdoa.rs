@@ -69,7 +69,10 @@ pub fn write_all(dir: &Path, site: &Site, outputs: &[RunOutput]) -> Result<(), C
 
 /// `anchors.csv` (file 0): the site's transmitters as surveyed.
 fn write_anchors(out: &mut Writers, site: &Site) -> Result<(), CommandError> {
-    out.line(0, &format!("# written by ickon eval from site {}", site.name))?;
+    out.line(
+        0,
+        &format!("# written by ickon eval from site {}", site.name),
+    )?;
     out.line(0, &format!("# mobile_height_m: {}", site.msu.height_m))?;
     out.line(0, "id,x_m,y_m,z_m,role")?;
     for t in &site.transmitters {
@@ -143,10 +146,7 @@ fn write_truth(out: &mut Writers, rec: &Recording) -> Result<(), CommandError> {
     for s in &rec.truth {
         out.line(
             2,
-            &format!(
-                "{:.9},{:.6},{:.6},{:.6}",
-                s.t_s, s.x_m, s.y_m, s.theta_rad
-            ),
+            &format!("{:.9},{:.6},{:.6},{:.6}", s.t_s, s.x_m, s.y_m, s.theta_rad),
         )?;
     }
     Ok(())

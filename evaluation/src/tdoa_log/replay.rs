@@ -507,8 +507,7 @@ fn runner(
                 .odometry
                 .as_deref()
                 .ok_or_else(|| usage("needs --odometry".into()))?;
-            let mut params =
-                crate::plaza::wheel_params(start.map(|s| s.0), args.odometry_fraction);
+            let mut params = crate::plaza::wheel_params(start.map(|s| s.0), args.odometry_fraction);
             params.receiver_height_m = anchors.plane_z_m;
             Runner::Ground(Box::new(GroundRunner::new(
                 path,

@@ -26,7 +26,11 @@ pub fn read_anchors(path: &Path) -> Result<Anchors, LogError> {
     // Anchors with heights around a mobile held in one horizontal plane
     // (ceiling transmitters over a ground robot) make a 2D log too.
     let plane_z_m = f.meta.mobile_height_m;
-    let dim = if z.is_some() && plane_z_m.is_none() { 3 } else { 2 };
+    let dim = if z.is_some() && plane_z_m.is_none() {
+        3
+    } else {
+        2
+    };
     let mut anchors = Anchors {
         list: Vec::new(),
         by_id: HashMap::new(),

@@ -554,7 +554,9 @@ impl<'a> RouteRun<'a> {
         self.world.step(t, PHYSICS_DT_S, moving);
         self.physics_steps += 1;
         if let Some(r) = self.out.recording.as_mut()
-            && self.physics_steps % crate::recording::TRUTH_EVERY_STEPS == 0
+            && self
+                .physics_steps
+                .is_multiple_of(crate::recording::TRUTH_EVERY_STEPS)
         {
             let mut sample = self.world.truth(t);
             sample.t_s = self.world.msu_clock.local_s(t);

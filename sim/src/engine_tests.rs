@@ -20,7 +20,7 @@ fn config(route: &str, profile: &str, seed: u64, estimators: &[&str]) -> RunConf
 #[test]
 fn a_recording_is_kept_only_when_asked_and_within_its_limit() {
     let site = Site::default_site();
-    let mut c = config("route-1", "paper", 1, &["odometry"]);
+    let mut c = config("rectangle", "paper", 1, &["odometry"]);
     let out = run(&site, &c, &mut |_| {}).unwrap();
     assert!(out.recording.is_none());
     c.record_rows = 1_000_000;

@@ -273,5 +273,11 @@ mod tests {
         p.sensors.air_correlation_length_m = -1.0;
         let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
         assert_eq!(err.field, "sensors.air_correlation_length_m");
+        for bad in [f64::NAN, -0.5, 1e9] {
+            let mut p = TdoaEkfParams::default();
+            p.sensors.local_wind_sigma_m_s = bad;
+            let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
+            assert_eq!(err.field, "sensors.local_wind_sigma_m_s");
+        }
     }
 }

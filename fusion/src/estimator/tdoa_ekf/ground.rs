@@ -418,6 +418,17 @@ impl TdoaEkf {
         self.state.map(|(x, _)| x[SOUND_SCALE])
     }
 
+    /// The learnt wind where the robot drives, `[east, north]`, m/s, when
+    /// the filter learns it.
+    pub fn local_wind_m_s(&self) -> Option<[f64; 2]> {
+        if !self.params.sensors.learns_local_wind() {
+            return None;
+        }
+        let c = super::ground_noise::NOMINAL_SPEED_OF_SOUND_M_S;
+        self.state
+            .map(|(x, _)| [x[gs::WIND_X] * c, x[gs::WIND_Y] * c])
+    }
+
     /// The estimated distance scale error (travelled = measured times one
     /// plus it).
     pub fn distance_scale(&self) -> Option<f64> {
@@ -454,6 +465,10 @@ fn prior(params: &TdoaEkfParams, sigma_xy_m: f64, sigma_theta_rad: f64) -> Cov {
     } else {
         1.0
     };
+    let wind = n.local_wind_rel_sigma();
+    for k in [gs::WIND_X, gs::WIND_Y] {
+        d[k] = if wind > 0.0 { wind * wind } else { 1.0 };
+    }
     // A slot not in use is uncorrelated with everything (one, like the
     // offset's, keeps the covariance positive definite).
     let clock = n.clock_bias_sigma_m();

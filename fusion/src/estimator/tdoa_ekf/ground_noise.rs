@@ -99,11 +99,25 @@ pub struct GroundNoise {
     /// (2: a hall's warm and cold spots and its layers, a few degrees
     /// apart). The spread of the local speed state.
     pub local_air_sigma_c: f64,
+    /// Standard deviation of the wind where a robot is, m/s (0.5: air
+    /// handlers blow 0.5 to 2 m/s where they reach). A draft carries sound
+    /// faster along it and slower against it, so the transmitters up- and
+    /// downwind of a robot read short and long by a share of their
+    /// distance: an error no offset or scale takes up, which a fix turns
+    /// into a position error. The local wind is a state of the filter with
+    /// this spread, forgotten like the local speed of sound (over
+    /// `air_correlation_length_m` and `air_correlation_time_s`). Seen from
+    /// transmitters at similar distances, a wind looks like a shift of the
+    /// robot, so a wider spread lets it hide part of a heading error for a
+    /// while (a 1 deg/s gyro bias step tracked 20-40 % worse at 1 m/s);
+    /// the low end of real drafts keeps it small. 0 leaves the state out.
+    pub local_wind_sigma_m_s: f64,
 }
 
 /// The speed of sound the sync error's microseconds are turned into metres
-/// with (20 degC): only a variance depends on it.
-const NOMINAL_SPEED_OF_SOUND_M_S: f64 = 343.0;
+/// and the wind's spread into a share of the speed with (20 degC): only
+/// variances depend on it.
+pub(super) const NOMINAL_SPEED_OF_SOUND_M_S: f64 = 343.0;
 
 impl Default for GroundNoise {
     fn default() -> Self {
@@ -129,6 +143,7 @@ impl Default for GroundNoise {
             air_correlation_length_m: 3.0,
             air_correlation_time_s: 60.0,
             local_air_sigma_c: 2.0,
+            local_wind_sigma_m_s: 0.5,
         }
     }
 }
@@ -172,6 +187,21 @@ impl GroundNoise {
         0.5 * self.temperature_sigma_c / 293.15
     }
 
+    /// Standard deviation of the local wind over the speed of sound, 0
+    /// when the wind is not a state.
+    pub(super) fn local_wind_rel_sigma(&self) -> f64 {
+        if self.air_correlation_length_m > 0.0 && self.air_correlation_time_s > 0.0 {
+            self.local_wind_sigma_m_s / NOMINAL_SPEED_OF_SOUND_M_S
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether the local wind is a state of the filter.
+    pub(super) fn learns_local_wind(&self) -> bool {
+        self.local_wind_rel_sigma() > 0.0
+    }
+
     /// Whether the local speed of sound is a state of the filter.
     pub(super) fn learns_local_air(&self) -> bool {
         self.air_correlation_length_m > 0.0
@@ -185,11 +215,11 @@ impl GroundNoise {
         0.5 * self.local_air_sigma_c / 293.15
     }
 
-    /// How much of the local speed error is still known after the robot
-    /// drove `distance_m` over `dt_s`: `exp(-(|d| / L + dt / T))`, a
+    /// How much of the local air (its speed of sound, its wind) is still
+    /// known after the robot drove `distance_m` over `dt_s`: `exp(-(|d| / L + dt / T))`, a
     /// first-order Gauss-Markov process in distance and in time.
     pub(super) fn local_air_memory(&self, distance_m: f64, dt_s: f64) -> f64 {
-        if !self.learns_local_air() {
+        if !(self.learns_local_air() || self.learns_local_wind()) {
             return 1.0;
         }
         let decay = distance_m.abs() / self.air_correlation_length_m
@@ -281,7 +311,7 @@ impl GroundNoise {
     /// The bounds of the absolute measurements' sheet values (ranges,
     /// the air, the survey, the cells' clocks): field, value, largest
     /// allowed, and what is wrong beyond it.
-    fn absolute_bounds(&self) -> [(&'static str, f64, f64, &'static str); 10] {
+    fn absolute_bounds(&self) -> [(&'static str, f64, f64, &'static str); 11] {
         [
             (
                 "sensors.range_bias_sigma_m",
@@ -336,6 +366,12 @@ impl GroundNoise {
                 self.local_air_sigma_c,
                 50.0,
                 "must be finite, non-negative and at most 50 degC",
+            ),
+            (
+                "sensors.local_wind_sigma_m_s",
+                self.local_wind_sigma_m_s,
+                100.0,
+                "must be finite, non-negative and at most 100 m/s",
             ),
             (
                 "sensors.air_correlation_time_s",

@@ -41,7 +41,7 @@ use crate::estimator::kf;
 /// three cells at a time on `warehouse`, all four on `lab`).
 pub(super) const CLOCK_SLOTS: usize = 4;
 /// Index of the first clock bias.
-pub(super) const CLOCK: usize = 10;
+pub(super) const CLOCK: usize = 12;
 /// Number of state components.
 pub(super) const N: usize = CLOCK + CLOCK_SLOTS;
 /// State vector.
@@ -71,6 +71,10 @@ pub(super) const RANGE_SCALE: usize = 7;
 pub(super) const TURN_SCALE: usize = 8;
 /// Index of the local relative error of the speed of sound.
 pub(super) const SOUND_SCALE: usize = 9;
+/// Index of the local wind's east component over the speed of sound.
+pub(super) const WIND_X: usize = 10;
+/// Index of the local wind's north component over the speed of sound.
+pub(super) const WIND_Y: usize = 11;
 
 /// One dead-reckoning step as the sensors measured it.
 #[derive(Debug, Clone, Copy)]

@@ -9,7 +9,7 @@ use super::{TdoaEkf, turn_scale_sigma};
 use crate::estimator::RangeDifferenceSample;
 use crate::estimator::tdoa_ekf::ground_chain::{Arrival, Link};
 use crate::estimator::tdoa_ekf::ground_state::{
-    self as gs, BIAS, OFFSET, Row, SOUND_SCALE, State, TH, TURN_SCALE, X, Y,
+    self as gs, BIAS, OFFSET, Row, SOUND_SCALE, State, TH, TURN_SCALE, WIND_X, WIND_Y, X, Y,
 };
 use crate::estimator::tdoa_ekf::observation::{self, Outcome, Rejection};
 
@@ -44,11 +44,21 @@ impl TdoaEkf {
         };
         h[X] = scale * r.x / d;
         h[Y] = scale * r.y / d;
+        // Wind `w` along the path from the transmitter shortens its travel
+        // time by `w . r / c^2` to first order: the range reads `w . r / c`
+        // short; the state holds `w / c`.
+        let wind = if self.params.sensors.learns_local_wind() {
+            h[WIND_X] = -r.x;
+            h[WIND_Y] = -r.y;
+            -(x[WIND_X] * r.x + x[WIND_Y] * r.y)
+        } else {
+            0.0
+        };
         let bias = clock.map_or(0.0, |c| {
             h[c] = 1.0;
             x[c]
         });
-        Some((scale * d + bias, h))
+        Some((scale * d + wind + bias, h))
     }
 
     /// The state column of the clock bias of `a`'s cell (giving the cell a

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use super::TdoaEkf;
 use crate::estimator::Input;
 use crate::estimator::tdoa_ekf::ground_state::{
-    self as gs, BIAS, RANGE_BIAS, Row, SOUND_SCALE, State, Step, TH, X, Y,
+    self as gs, BIAS, RANGE_BIAS, Row, SOUND_SCALE, State, Step, TH, WIND_X, WIND_Y, X, Y,
 };
 use crate::estimator::tdoa_ekf::observation;
 use crate::estimator::tdoa_ekf::standstill;
@@ -138,6 +138,12 @@ impl TdoaEkf {
             np[(RANGE_BIAS, RANGE_BIAS)] += n.range_bias_walk_m_sqrt_s.powi(2) * dt;
             for (c, sigma_m) in self.clocks.used() {
                 np[(c, c)] += n.var_clock_walk(sigma_m, dt);
+            }
+            if n.learns_local_wind() {
+                let memory = n.local_air_memory(distance_m, dt);
+                for k in [WIND_X, WIND_Y] {
+                    gs::forget(&mut nx, &mut np, k, memory, n.local_wind_rel_sigma());
+                }
             }
             if n.learns_local_air() {
                 let memory = n.local_air_memory(distance_m, dt);

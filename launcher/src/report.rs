@@ -195,8 +195,16 @@ pub(crate) fn render_report(r: &SimReport) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s, {:.2} cycles/s",
-        r.site, r.estimator, r.profile, r.seed, r.duration_s, r.update_rate_hz
+        "ickon sim: site {}, estimator {}, profile {}, seed {}, {:.0} s, {} cycles triggered, {:.2} cycles/s \
+         (nominal {:.2} cycles/s when a cycle fires the whole schedule)",
+        r.site,
+        r.estimator,
+        r.profile,
+        r.seed,
+        r.duration_s,
+        r.cycles_triggered,
+        r.cycles_per_s,
+        r.update_rate_hz
     );
     if let Some(p) = &r.firing_plan {
         let _ = writeln!(

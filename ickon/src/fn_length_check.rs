@@ -25,7 +25,7 @@ const LONG: &[(&str, &str, usize)] = &[
     ("device/src/message.rs", "decode", 106),
     ("evaluation/src/eval/fleet.rs", "print_report", 109),
     ("fusion/src/tdoa/closed_form.rs", "closed_form_subset", 114),
-    ("launcher/src/report.rs", "render_report", 130),
+    ("launcher/src/report.rs", "render_report", 126),
     ("launcher/src/run.rs", "measure", 134),
     (
         "msu-agent/src/config_file/validate.rs",

@@ -1,12 +1,14 @@
 //! What the end-to-end test binaries (`mesh`, `cli`, `data`, `tools`)
 //! share: the `ickon` binary under test ([`ICKON`]), headless Chromium
-//! ([`browser`]), a client of Foxglove's protocol ([`foxglove_client`]) and
-//! a running `ickon sim` ([`sim_run`]). The loopback kit itself (ports,
+//! ([`browser`]), a client of Foxglove's protocol ([`foxglove_client`]),
+//! a running `ickon sim` ([`sim_run`]) and a static file server for the
+//! browser ([`static_http`]). The loopback kit itself (ports,
 //! process guards, bounded waits, the observer session) is `ickon-testkit`.
 
 pub mod browser;
 pub mod foxglove_client;
 pub mod ickon;
 pub mod sim_run;
+pub mod static_http;
 
 pub use ickon::ICKON;

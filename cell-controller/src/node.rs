@@ -198,6 +198,11 @@ struct Failures {
     undecodable: u64,
 }
 
+/// A publisher on `key` with Zenoh's default priority and congestion control.
+async fn plain_publisher(session: &Session, key: String) -> Result<Publisher<'static>, NodeError> {
+    session.declare_publisher(key).await.map_err(zerr)
+}
+
 /// Drives cell `args.cell` until `shutdown` completes.
 pub async fn run(
     session: &Session,
@@ -222,14 +227,8 @@ pub async fn run(
         .congestion_control(CongestionControl::Block)
         .await
         .map_err(zerr)?;
-    let status_pub = session
-        .declare_publisher(keys.cell_status(cell)?)
-        .await
-        .map_err(zerr)?;
-    let air_pub = session
-        .declare_publisher(keys.cell_air(cell)?)
-        .await
-        .map_err(zerr)?;
+    let status_pub = plain_publisher(session, keys.cell_status(cell)?).await?;
+    let air_pub = plain_publisher(session, keys.cell_air(cell)?).await?;
     // Replies to the core's requests come back through this channel.
     let (replies_tx, mut replies) = mpsc::unbounded_channel::<Event>();
     // The schedule in force now, before the token: the central unit
@@ -239,6 +238,9 @@ pub async fn run(
         let _ = replies_tx.send(Event::Schedule(s));
     }
     let _token = join.announce(keys.alive_cell(cell)?).await?;
+    // Its link to the router, for `ickon admin status` (when it last came back).
+    ickon_runtime::router_watch::report(session.clone(), keys.cell_link(cell)?, cell.into())
+        .map_err(|e| NodeError::Setup(format!("cannot start the router link report: {e}")))?;
     tracing::info!(
         "cell {cell}: up, driver {}, clock offset {} us, drift {} ppm",
         args.driver,

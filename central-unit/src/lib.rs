@@ -32,6 +32,7 @@ pub mod node;
 pub mod occupancy;
 pub mod point_index;
 pub mod robot_pages;
+pub mod router_links;
 pub mod schedule;
 pub mod selection;
 pub mod spacing;

@@ -11,7 +11,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use clap::Args;
 use ickon_proto::keys::{Key, Keys};
 use ickon_proto::msg::admin::{CoverageRequest, RobotCounts, RobotPage, RobotsRequest};
-use ickon_proto::msg::control::{AirTemperature, Burst, CellStatus, ClockRequest, Schedule};
+use ickon_proto::msg::control::{
+    AirTemperature, Burst, CellStatus, ClockRequest, RouterLink, Schedule,
+};
 use ickon_proto::msg::robot::{MsuStatus, RobotSummary, Truth};
 
 use crate::survey_calibration::SavedCalibration;
@@ -440,6 +442,7 @@ pub async fn run(
         token,
         reloads: reload::Reloads::new(),
         unknown_admin: LogLimiter::default(),
+        links: crate::router_links::RouterLinks::default(),
         survey_saves,
         web_ticks: tokio::time::interval(VIEWER_STATUS_PERIOD),
         failed_puts: 0,
@@ -553,6 +556,9 @@ struct Endpoints {
     /// odometry and cycle rates).
     summary_sub: Subscriber<Queue<Sample>>,
     robot_status_sub: Subscriber<Queue<Sample>>,
+    /// Each node's link to its router, as the node reports it.
+    cell_link_sub: Subscriber<Queue<Sample>>,
+    robot_link_sub: Subscriber<Queue<Sample>>,
     /// The simulation's truth, for the viewers only (declared when there
     /// are viewers).
     truth_sub: Option<Subscriber<Queue<Sample>>>,
@@ -624,6 +630,8 @@ impl Endpoints {
             air_sub: subscriber(session, keys.cell_air_all()).await?,
             summary_sub: subscriber(session, keys.robot_summary_all()).await?,
             robot_status_sub: subscriber(session, keys.robot_status_all()).await?,
+            cell_link_sub: subscriber(session, keys.cell_link_all()).await?,
+            robot_link_sub: subscriber(session, keys.robot_link_all()).await?,
             truth_sub: if for_viewers {
                 Some(subscriber(session, keys.sim_truth_all()).await?)
             } else {
@@ -706,6 +714,29 @@ fn air_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
         (_, Err(e)) => {
             *undecodable += 1;
             tracing::debug!("undecodable air temperature on {}: {e}", s.key_expr());
+            None
+        }
+        _ => None,
+    }
+}
+
+/// A node's report of its router link, under the key's id, counting one
+/// that does not decode.
+fn link_report(
+    keys: &Keys,
+    s: &Sample,
+    undecodable: &mut u64,
+) -> Option<(crate::router_links::NodeKind, String, RouterLink)> {
+    use crate::router_links::NodeKind;
+    match (
+        keys.parse(s.key_expr().as_str()),
+        decode::<RouterLink>(&s.payload().to_bytes()),
+    ) {
+        (Ok(Key::CellLink(id)), Ok(link)) => Some((NodeKind::Cell, id, link)),
+        (Ok(Key::RobotLink(id)), Ok(link)) => Some((NodeKind::Robot, id, link)),
+        (_, Err(e)) => {
+            *undecodable += 1;
+            tracing::debug!("undecodable router link on {}: {e}", s.key_expr());
             None
         }
         _ => None,

@@ -188,6 +188,9 @@ pub async fn run(
         robot_inputs.receivers.summary(),
     )
     .await?;
+    // Its link to the router, for `ickon admin status` (when it last came back).
+    ickon_runtime::router_watch::report(session.clone(), keys.robot_link(robot)?, robot.into())
+        .map_err(|e| NodeError::Setup(format!("cannot start the router link report: {e}")))?;
     drop(queue);
     let publishers = Publishers::declare(session, &keys, robot).await?;
     let ros = match settings.ros2.clone() {

@@ -13,6 +13,7 @@
 //! | `ickon/<site>/cell/<id>/burst` | [`msg::control::Burst`](crate::msg::control::Burst) |
 //! | `ickon/<site>/cell/<id>/status` | [`msg::control::CellStatus`](crate::msg::control::CellStatus) |
 //! | `ickon/<site>/cell/<id>/air` | [`msg::control::AirTemperature`](crate::msg::control::AirTemperature) |
+//! | `ickon/<site>/cell/<id>/link`, `.../robot/<id>/link` | [`msg::control::RouterLink`](crate::msg::control::RouterLink) |
 //! | `ickon/<site>/robot/<id>/ultrasound` | [`msg::robot::UltrasoundArrivals`](crate::msg::robot::UltrasoundArrivals) |
 //! | `ickon/<site>/robot/<id>/odom` | [`msg::robot::Odometry`](crate::msg::robot::Odometry) |
 //! | `ickon/<site>/robot/<id>/imu` | [`msg::robot::Imu`](crate::msg::robot::Imu) |
@@ -128,12 +129,16 @@ pub enum Key {
     CellStatus(String),
     /// `cell/<id>/air`
     CellAir(String),
+    /// `cell/<id>/link`
+    CellLink(String),
     /// `robot/<id>/<topic>`
     Robot(String, RobotTopic),
     /// `robot/<id>/status`
     RobotStatus(String),
     /// `robot/<id>/summary`
     RobotSummary(String),
+    /// `robot/<id>/link`
+    RobotLink(String),
     /// `sim/truth/<id>`
     SimTruth(String),
     /// `sim/kit/<id>`
@@ -265,6 +270,30 @@ impl Keys {
         format!("{}/cell/*/air", self.prefix)
     }
 
+    /// `ickon/<site>/cell/<id>/link`: the cell controller's
+    /// [`RouterLink`](crate::msg::control::RouterLink).
+    pub fn cell_link(&self, cell: &str) -> Result<String, KeyError> {
+        validate_id(cell)?;
+        Ok(format!("{}/cell/{cell}/link", self.prefix))
+    }
+
+    /// `ickon/<site>/cell/*/link`: every cell's link to its router.
+    pub fn cell_link_all(&self) -> String {
+        format!("{}/cell/*/link", self.prefix)
+    }
+
+    /// `ickon/<site>/robot/<id>/link`: the MSU agent's
+    /// [`RouterLink`](crate::msg::control::RouterLink).
+    pub fn robot_link(&self, robot: &str) -> Result<String, KeyError> {
+        validate_id(robot)?;
+        Ok(format!("{}/robot/{robot}/link", self.prefix))
+    }
+
+    /// `ickon/<site>/robot/*/link`: every robot's link to its router.
+    pub fn robot_link_all(&self) -> String {
+        format!("{}/robot/*/link", self.prefix)
+    }
+
     /// `ickon/<site>/robot/<id>/<topic>`: see [`RobotTopic`] for the payloads.
     pub fn robot(&self, robot: &str, topic: RobotTopic) -> Result<String, KeyError> {
         validate_id(robot)?;
@@ -358,8 +387,10 @@ impl Keys {
             ["cell", c, "burst"] => Ok(Key::CellBurst(id(c)?)),
             ["cell", c, "status"] => Ok(Key::CellStatus(id(c)?)),
             ["cell", c, "air"] => Ok(Key::CellAir(id(c)?)),
+            ["cell", c, "link"] => Ok(Key::CellLink(id(c)?)),
             ["robot", r, "status"] => Ok(Key::RobotStatus(id(r)?)),
             ["robot", r, "summary"] => Ok(Key::RobotSummary(id(r)?)),
+            ["robot", r, "link"] => Ok(Key::RobotLink(id(r)?)),
             ["robot", r, topic] => {
                 let topic = RobotTopic::ALL
                     .into_iter()
@@ -402,6 +433,8 @@ mod tests {
             (k.sim_truth("r9").unwrap(), Key::SimTruth("r9".into())),
             (k.sim_kit("r9").unwrap(), Key::SimKit("r9".into())),
             (k.robot_status("r9").unwrap(), Key::RobotStatus("r9".into())),
+            (k.cell_link("c2").unwrap(), Key::CellLink("c2".into())),
+            (k.robot_link("r9").unwrap(), Key::RobotLink("r9".into())),
             (
                 k.robot_summary("r9").unwrap(),
                 Key::RobotSummary("r9".into()),

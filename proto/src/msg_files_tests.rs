@@ -7,8 +7,8 @@
 use std::collections::BTreeSet;
 
 use crate::msg::control::{
-    AirTemperature, Burst, CellStatus, CycleTrigger, Emission, Firing, Schedule, SiteInfo,
-    SurveyCalibration, TransmitterOffset,
+    AirTemperature, Burst, CellStatus, CycleTrigger, Emission, Firing, RouterLink, Schedule,
+    SiteInfo, SurveyCalibration, TransmitterOffset,
 };
 use crate::msg::robot::{
     Arrival, Fix, FixQuality, Imu, MsuStatus, ObstacleRanges, Odometry, PoseStatus, RobotSummary,
@@ -411,6 +411,15 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
             cell_id: "c2x".into(),
             stamp: t,
             temperature_c: 21.37,
+        },
+        &mut checked,
+    );
+    check(
+        "RouterLink",
+        &RouterLink {
+            node_id: "r7".into(),
+            back_unix_ms: 1_796_000_000_123,
+            losses: 2,
         },
         &mut checked,
     );

@@ -11,7 +11,8 @@
 //! [`LogLimiter`], so a link that flaps writes one line of each per window
 //! with the number left unsaid.
 
-use std::time::{Duration, Instant};
+use std::sync::Mutex;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use zenoh::{Session, Wait};
 
@@ -54,6 +55,8 @@ pub struct RouterWatch {
     down_since: Option<Instant>,
     /// When the link last came back.
     last_back: Option<Instant>,
+    /// Losses since the watch started.
+    losses: u64,
     limiter: LogLimiter<Kind>,
 }
 
@@ -70,6 +73,7 @@ impl RouterWatch {
             seen: false,
             down_since: None,
             last_back: None,
+            losses: 0,
             limiter: LogLimiter::new(window),
         }
     }
@@ -91,6 +95,7 @@ impl RouterWatch {
             return None;
         }
         self.down_since = Some(now);
+        self.losses += 1;
         let held = self.limiter.admit(Kind::Lost, now)?;
         Some(RouterEvent::Lost { held })
     }
@@ -103,6 +108,53 @@ impl RouterWatch {
     /// When the link last came back after a loss.
     pub fn last_back(&self) -> Option<Instant> {
         self.last_back
+    }
+
+    /// Losses of the link since the watch started.
+    pub fn losses(&self) -> u64 {
+        self.losses
+    }
+}
+
+/// The link as the node reports it: when it last came back, on the wall
+/// clock (another host reads it), and how often it was lost.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LinkRecord {
+    /// When the link last came back after a loss, milliseconds since the
+    /// Unix epoch (0: not lost since the process started).
+    pub back_unix_ms: u64,
+    /// Losses since the process started.
+    pub losses: u64,
+}
+
+/// The record of this process's watch. One per process: a node opens one
+/// session, and the watch runs on a thread of its own that the node's
+/// reporting code does not hold.
+static LINK: Mutex<LinkRecord> = Mutex::new(LinkRecord {
+    back_unix_ms: 0,
+    losses: 0,
+});
+
+/// The link as this process's watch last saw it ([`spawn`]); all zero
+/// without a watch or before any loss.
+pub fn link_record() -> LinkRecord {
+    LINK.lock().map(|r| *r).unwrap_or_default()
+}
+
+/// Copies what `watch` knows into the process's record, stamping a new
+/// return with the wall clock.
+fn record(watch: &RouterWatch, seen_back: &mut Option<Instant>) {
+    let back = watch.last_back();
+    let mut fresh = link_record();
+    if back != *seen_back {
+        *seen_back = back;
+        fresh.back_unix_ms = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX));
+    }
+    fresh.losses = watch.losses();
+    if let Ok(mut r) = LINK.lock() {
+        *r = fresh;
     }
 }
 
@@ -139,6 +191,7 @@ pub fn spawn(session: Session) -> std::io::Result<std::thread::JoinHandle<()>> {
         .name("router-watch".into())
         .spawn(move || {
             let mut watch = RouterWatch::default();
+            let mut seen_back = None;
             loop {
                 std::thread::sleep(WATCH_PERIOD);
                 if session.is_closed() {
@@ -152,6 +205,49 @@ pub fn spawn(session: Session) -> std::io::Result<std::thread::JoinHandle<()>> {
                 if let Some(event) = watch.observe(routers, Instant::now()) {
                     log_event(&event);
                 }
+                record(&watch, &mut seen_back);
+            }
+        })
+}
+
+/// How often a node reports its link ([`report`]): a central unit started
+/// after the node learns it within this.
+pub const REPORT_PERIOD: Duration = Duration::from_secs(5);
+
+/// Publishes this process's [`link_record`] as node `node_id`'s
+/// [`RouterLink`](ickon_proto::msg::control::RouterLink) on `key` every
+/// [`REPORT_PERIOD`], until the session closes. A thread of its own, for
+/// the reason [`spawn`] gives; a report put while the link is down is lost,
+/// and the next one says the same and more.
+pub fn report(
+    session: Session,
+    key: String,
+    node_id: String,
+) -> std::io::Result<std::thread::JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name("router-link-report".into())
+        .spawn(move || {
+            let mut failures = LogLimiter::<()>::new(DEFAULT_WINDOW);
+            loop {
+                if session.is_closed() {
+                    return;
+                }
+                let r = link_record();
+                let message = ickon_proto::msg::control::RouterLink {
+                    node_id: node_id.clone(),
+                    back_unix_ms: r.back_unix_ms,
+                    losses: r.losses,
+                };
+                let sent = ickon_proto::encode(&message)
+                    .map_err(|e| e.to_string())
+                    .and_then(|bytes| session.put(&key, bytes).wait().map_err(|e| e.to_string()));
+                if let Err(e) = sent
+                    && !session.is_closed()
+                    && let Some(held) = failures.admit((), Instant::now())
+                {
+                    tracing::warn!("cannot report the router link on {key}: {e} ({held} more)");
+                }
+                std::thread::sleep(REPORT_PERIOD);
             }
         })
 }
@@ -188,6 +284,7 @@ mod tests {
             })
         );
         assert_eq!(w.last_back(), Some(at(5)));
+        assert_eq!(w.losses(), 1);
         assert_eq!(w.observe(2, at(6)), None);
     }
 

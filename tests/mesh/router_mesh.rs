@@ -3,7 +3,8 @@
 //! and two MSU agents clients of the second. Poses must flow across the
 //! link; when the second router dies and comes back on the same port, its
 //! clients reconnect on their own (nothing else restarts), each says in its
-//! log that its router went and came back, and poses flow again.
+//! log that its router went and came back, poses flow again, and `ickon
+//! admin status` lists each of them as back, and no other.
 //!
 //! Every wait polls with a deadline; every process is killed when its guard
 //! drops, whatever happens.
@@ -177,6 +178,40 @@ fn two_linked_routers_carry_the_site_and_clients_reconnect_to_a_router_that_retu
             n.log_tail(30)
         );
     }
+    // `ickon admin status` says which nodes came back, and when: the
+    // robots (second floor) once each, the cells (first floor) never.
+    let links = poll_until(
+        Duration::from_secs(30),
+        "the robots' returns in the admin",
+        || {
+            let links = admin_links(&site, &floor_1)?;
+            ROBOTS
+                .iter()
+                .all(|r| link_of(&links["robots"], r).is_some_and(|l| l.0.is_some() && l.1 == 1))
+                .then_some(links)
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}: {:?}", admin_links(&site, &floor_1)));
+    for cell in ["c1", "c2", "c3", "c4"] {
+        assert_eq!(link_of(&links["cells"], cell), Some((None, 0)), "{links}");
+    }
+}
+
+/// `ickon admin status --json`'s `router_links`, or `None` while it fails.
+fn admin_links(site: &str, router: &str) -> Option<serde_json::Value> {
+    let out = Command::new(ICKON)
+        .args(["admin", "status", "--json", "--timeout-ms", "10000"])
+        .args(["-e", router, "--no-multicast-scouting", "--site-name", site])
+        .output()
+        .ok()?;
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).ok()?;
+    Some(doc["router_links"].clone()).filter(|l| !l.is_null())
+}
+
+/// A node's (`back_unix_ms`, `losses`) in a `router_links` list.
+fn link_of(list: &serde_json::Value, id: &str) -> Option<(Option<u64>, u64)> {
+    let l = list.as_array()?.iter().find(|l| l["id"] == id)?;
+    Some((l["back_unix_ms"].as_u64(), l["losses"].as_u64()?))
 }
 
 /// The children of `parent` whose command line holds `word` as an argument.

@@ -5,6 +5,7 @@
 //! for it. One module per subject.
 
 mod deploy_docs;
+mod foxglove_app;
 mod netns_lan;
 mod record_mcap;
 mod ros2_msu;

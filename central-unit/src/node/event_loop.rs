@@ -18,7 +18,7 @@ use zenoh::sample::Sample;
 use super::reload;
 use super::{
     Endpoints, SurveyFile, Viewers, air_event, alive_event, answer_admin, burst_event,
-    decode_counted, follow_role, next_sample, reply, robot_status_event, status_event,
+    decode_counted, follow_role, link_report, next_sample, reply, robot_status_event, status_event,
     summary_event, truth_of,
 };
 use crate::core::{CentralCore, Event, Output};
@@ -43,6 +43,8 @@ pub(super) enum Input {
     Summary(Sample),
     Truth(Sample),
     RobotStatus(Sample),
+    /// A node's report of its router link.
+    Link(Sample),
     /// Its own trigger or schedule, come back (or another's).
     TriggerSeen(Sample),
     ScheduleSeen(Sample),
@@ -63,6 +65,8 @@ pub(super) struct NodeLoop<'a> {
     pub token: Option<LivelinessToken>,
     pub reloads: reload::Reloads,
     pub unknown_admin: LogLimiter<()>,
+    /// Each node's link to its router, for the admin's `links`.
+    pub links: crate::router_links::RouterLinks,
     pub survey_saves: tokio::time::Interval,
     pub web_ticks: tokio::time::Interval,
     /// Triggers or schedules that could not be put.
@@ -95,6 +99,8 @@ impl NodeLoop<'_> {
             Ok(s) = ends.summary_sub.recv_async() => Input::Summary(s),
             Some(s) = next_sample(&ends.truth_sub) => Input::Truth(s),
             Ok(s) = ends.robot_status_sub.recv_async() => Input::RobotStatus(s),
+            Ok(s) = ends.cell_link_sub.recv_async() => Input::Link(s),
+            Ok(s) = ends.robot_link_sub.recv_async() => Input::Link(s),
             Ok(s) = ends.cycle_sub.recv_async() => Input::TriggerSeen(s),
             Ok(s) = ends.schedule_sub.recv_async() => Input::ScheduleSeen(s),
         }
@@ -173,6 +179,12 @@ impl NodeLoop<'_> {
                 None
             }
             Input::RobotStatus(s) => robot_status_event(keys, &s, bad),
+            Input::Link(s) => {
+                if let Some((kind, id, link)) = link_report(keys, &s, bad) {
+                    self.links.observe(kind, id, link);
+                }
+                None
+            }
             Input::TriggerSeen(s) => {
                 decode_counted::<CycleTrigger>(&s, bad).map(Event::TriggerSeen)
             }
@@ -183,11 +195,13 @@ impl NodeLoop<'_> {
     /// An admin query: a reload is read off the loop (one at a time), the
     /// others are answered at once.
     async fn admin(&mut self, q: Query) {
-        let reload = matches!(
-            self.keys.parse(q.key_expr().as_str()),
-            Ok(Key::CentralAdmin(c)) if c == "reload"
-        );
-        if !reload {
+        let command = match self.keys.parse(q.key_expr().as_str()) {
+            Ok(Key::CentralAdmin(c)) => c,
+            _ => String::new(),
+        };
+        if command == "links" {
+            reply(&q, &self.links.report()).await;
+        } else if command != "reload" {
             let now = self.clock.now();
             answer_admin(&self.keys, &mut self.core, &q, now, &mut self.unknown_admin).await;
         } else if self.reloads.in_flight() {

@@ -14,6 +14,7 @@
 
 mod coverage_view;
 mod format;
+mod links_view;
 mod png;
 
 use std::path::PathBuf;
@@ -22,8 +23,8 @@ use std::time::Duration;
 use clap::{Args, Subcommand};
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::admin::{
-    AdminAck, CoverageReport, CoverageRequest, ReloadRequest, RobotPage, RobotsRequest,
-    StatusReport, TransmittersReport,
+    AdminAck, CoverageReport, CoverageRequest, LinksReport, ReloadRequest, RobotPage,
+    RobotsRequest, StatusReport, TransmittersReport,
 };
 use ickon_proto::msg::control::Schedule;
 use ickon_runtime::{RunDir, ZenohArgs, query_once, wait_for_token};
@@ -347,7 +348,9 @@ async fn ask<T: DeserializeOwned>(common: &Common, request: Request) -> Result<T
 
 /// What the central unit answered, by kind.
 enum Answer {
-    Status(StatusReport),
+    /// With `status`, each node's router link, when the central unit knows
+    /// `links` (one that does not leaves the query unanswered).
+    Status(StatusReport, Option<LinksReport>),
     Schedule(Schedule),
     Coverage(CoverageReport),
     Transmitters(TransmittersReport),
@@ -362,8 +365,14 @@ async fn answer(
     request: Request,
 ) -> Result<Answer, String> {
     Ok(match command {
-        AdminCommand::Status(_) | AdminCommand::Cells(_) | AdminCommand::Sync(_) => {
-            Answer::Status(ask(common, request).await?)
+        AdminCommand::Status(_) => {
+            let status = ask(common, request).await?;
+            // Not idempotent, so not asked again: no answer means none.
+            let links = ask(common, Request::new("links", None, false)).await.ok();
+            Answer::Status(status, links)
+        }
+        AdminCommand::Cells(_) | AdminCommand::Sync(_) => {
+            Answer::Status(ask(common, request).await?, None)
         }
         AdminCommand::Robots { .. } => Answer::Robots(ask(common, request).await?),
         AdminCommand::Schedule(_) => Answer::Schedule(ask(common, request).await?),
@@ -380,9 +389,11 @@ fn show(command: &AdminCommand, common: &Common, answer: Answer) -> Result<(), C
     let failed = |e: format::FormatError| CommandError::failure(e.to_string());
     let json = common.json;
     let text = match (command, answer) {
-        (AdminCommand::Cells(_), Answer::Status(s)) => format::cells(&s, json).map_err(failed)?,
-        (AdminCommand::Sync(_), Answer::Status(s)) => format::sync(&s, json).map_err(failed)?,
-        (_, Answer::Status(s)) => format::status(&s, json).map_err(failed)?,
+        (AdminCommand::Cells(_), Answer::Status(s, _)) => {
+            format::cells(&s, json).map_err(failed)?
+        }
+        (AdminCommand::Sync(_), Answer::Status(s, _)) => format::sync(&s, json).map_err(failed)?,
+        (_, Answer::Status(s, links)) => status_with_links(&s, links.as_ref(), json)?,
         (_, Answer::Schedule(s)) => format::schedule(&s, json).map_err(failed)?,
         (_, Answer::Transmitters(t)) => format::transmitters(&t, json).map_err(failed)?,
         (_, Answer::Robots(page)) => {
@@ -420,4 +431,28 @@ fn show(command: &AdminCommand, common: &Common, answer: Answer) -> Result<(), C
     };
     print!("{text}");
     Ok(())
+}
+
+/// `status`, and the nodes' router links under it when the central unit
+/// answered `links` (in the JSON document: `router_links`).
+fn status_with_links(
+    s: &StatusReport,
+    links: Option<&LinksReport>,
+    json: bool,
+) -> Result<String, CommandError> {
+    let failed = |e: format::FormatError| CommandError::failure(e.to_string());
+    let text = format::status(s, json).map_err(failed)?;
+    let Some(links) = links else {
+        return Ok(text);
+    };
+    if json {
+        let mut doc: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| CommandError::failure(format!("cannot add the router links: {e}")))?;
+        doc["router_links"] = links_view::to_json(links);
+        return format::to_json(&doc).map_err(failed);
+    }
+    let now_unix_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX));
+    Ok(text + &links_view::section(links, now_unix_ms))
 }

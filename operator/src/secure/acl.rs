@@ -83,6 +83,20 @@ pub struct Ros2Scope {
     pub domain: u32,
 }
 
+/// What the central unit subscribes to: every node's reports (its own
+/// keys it may publish and so hear).
+fn central_hears(keys: &Keys) -> Vec<String> {
+    vec![
+        keys.cell_status_all(),
+        keys.cell_burst_all(),
+        keys.robot_summary_all(),
+        keys.robot_status_all(),
+        keys.cell_link_all(),
+        keys.robot_link_all(),
+        keys.sim_truth_all(),
+    ]
+}
+
 /// Everything `identity` may do, as (verb, key expressions).
 ///
 /// One piece on purpose: it is the access table of the whole mesh, one
@@ -100,16 +114,7 @@ fn permissions(identity: &Identity, keys: &Keys, ros2: Ros2Scope) -> Vec<(Verb, 
             (Query, vec![format!("{p}/central/**")]),
             (Token, vec![keys.alive_central()]),
             (Watch, vec![keys.alive_all()]),
-            (
-                Subscribe,
-                vec![
-                    keys.cell_status_all(),
-                    keys.cell_burst_all(),
-                    keys.robot_summary_all(),
-                    keys.robot_status_all(),
-                    keys.sim_truth_all(),
-                ],
-            ),
+            (Subscribe, central_hears(keys)),
         ]),
         Identity::Cell(id) => out.extend([
             (Publish, vec![format!("{p}/cell/{id}/**")]),

@@ -5,8 +5,8 @@
 //! `status`, `cells`, `robots` and `sync` answer a [`StatusReport`];
 //! `schedule` answers a [`Schedule`](crate::msg::control::Schedule);
 //! `coverage` a [`CoverageReport`]; `transmitters` a
-//! [`TransmittersReport`]; `pause`, `resume` and `reload` an
-//! [`AdminAck`].
+//! [`TransmittersReport`]; `links` a [`LinksReport`]; `pause`, `resume`
+//! and `reload` an [`AdminAck`].
 
 use serde::{Deserialize, Serialize};
 
@@ -40,6 +40,19 @@ impl CellState {
     pub fn alive(self) -> bool {
         self != Self::Down
     }
+}
+
+/// The answer to `links`: each node's link to its Zenoh router as the node
+/// last reported it ([`RouterLink`](crate::msg::control::RouterLink)), in
+/// id order. An answer of its own, not fields of [`StatusReport`], so that
+/// an admin and a central unit of either version still read each other's
+/// status; a central unit that does not know `links` does not answer it.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct LinksReport {
+    /// The cells that reported their link.
+    pub cells: Vec<crate::msg::control::RouterLink>,
+    /// The robots that reported their link.
+    pub robots: Vec<crate::msg::control::RouterLink>,
 }
 
 /// Health of one cell as the central unit sees it.

@@ -301,6 +301,25 @@ pub struct AirTemperature {
     pub temperature_c: f64,
 }
 
+/// `cell/<id>/link` and `robot/<id>/link`: a node's link to its Zenoh
+/// router as the node itself sees it, every few seconds. A message of its
+/// own, not fields of [`CellStatus`] or
+/// [`MsuStatus`](crate::msg::robot::MsuStatus): a central unit that does
+/// not know it ignores the key, and one that does shows nothing for a node
+/// that does not send it, so nodes and central units of either version
+/// still read each other's status.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RouterLink {
+    /// The reporting node: the cell's or the robot's id.
+    #[serde(deserialize_with = "crate::wire_string::deserialize")]
+    pub node_id: String,
+    /// When the link last came back after a loss, milliseconds since the
+    /// Unix epoch on the node's system clock (0: not lost since it started).
+    pub back_unix_ms: u64,
+    /// Losses of the link since the node started.
+    pub losses: u64,
+}
+
 /// `cell/<id>/status`: a cell controller's health and sync estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CellStatus {

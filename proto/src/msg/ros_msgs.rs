@@ -43,6 +43,7 @@ pub const MSG_FILES: &[(&str, &str)] = &[
         "AirTemperature",
         include_str!("../../msg/AirTemperature.msg"),
     ),
+    ("RouterLink", include_str!("../../msg/RouterLink.msg")),
     ("MsuStatus", include_str!("../../msg/MsuStatus.msg")),
     ("RobotSummary", include_str!("../../msg/RobotSummary.msg")),
     (
@@ -126,6 +127,7 @@ pub fn recorded_as(key: &Key) -> Option<Recorded> {
         Key::CellAir(_) => own("AirTemperature"),
         Key::RobotStatus(_) => own("MsuStatus"),
         Key::RobotSummary(_) => own("RobotSummary"),
+        Key::CellLink(_) | Key::RobotLink(_) => own("RouterLink"),
         Key::SimTruth(_) | Key::SimKit(_) => own("Truth"),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => own("UltrasoundArrivals"),

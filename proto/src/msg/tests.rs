@@ -86,6 +86,23 @@ fn control_messages_round_trip() {
         actual: Time(1_004),
         epoch: 42,
     });
+    round_trip(RouterLink {
+        node_id: "c4".into(),
+        back_unix_ms: 1_796_000_000_123,
+        losses: 3,
+    });
+    round_trip(LinksReport {
+        cells: vec![RouterLink {
+            node_id: "c1".into(),
+            back_unix_ms: 0,
+            losses: 0,
+        }],
+        robots: vec![RouterLink {
+            node_id: "r2".into(),
+            back_unix_ms: 1_796_000_000_999,
+            losses: 1,
+        }],
+    });
     round_trip(AirTemperature {
         cell_id: "c4".into(),
         stamp: Time(98),

@@ -116,6 +116,11 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
         Key::CellAir(_) => own(Some(decode::<AirTemperature>(payload)?.stamp)),
         Key::RobotStatus(_) => own(Some(decode::<MsuStatus>(payload)?.stamp)),
         Key::RobotSummary(_) => own(Some(decode::<RobotSummary>(payload)?.stamp)),
+        // No master-time stamp: recorded at its receive time.
+        Key::CellLink(_) | Key::RobotLink(_) => {
+            decode::<ickon_proto::msg::control::RouterLink>(payload)?;
+            own(None)
+        }
         Key::SimTruth(_) | Key::SimKit(_) => own(Some(decode::<Truth>(payload)?.stamp)),
         Key::Robot(_, topic) => match topic {
             RobotTopic::Ultrasound => {

@@ -433,3 +433,16 @@ fn spawn_exchange(
         let _ = tx.send(Event::ClockExchange(sample));
     });
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Args;
+
+    /// The `ickon-cell` binary's command line (`src/main.rs`): a flag defined
+    /// twice panics only when parsed, so the definition is checked here.
+    #[test]
+    fn the_binarys_command_line_is_well_formed() {
+        let command = clap::Command::new("ickon-cell").version("0");
+        super::CellArgs::augment_args(command).debug_assert();
+    }
+}

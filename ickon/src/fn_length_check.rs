@@ -41,7 +41,6 @@ const LONG: &[(&str, &str, usize)] = &[
     ("sim/src/profile_file.rs", "check", 121),
     ("sim/src/score.rs", "score", 105),
     ("world-node/src/device_hosting.rs", "start", 127),
-    ("world-node/src/synthetic_fleet/mod.rs", "run", 138),
 ];
 
 /// Crates whose code is tests or test support, not product (beside the

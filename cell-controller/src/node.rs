@@ -198,11 +198,6 @@ struct Failures {
     undecodable: u64,
 }
 
-/// A publisher on `key` with Zenoh's default priority and congestion control.
-async fn plain_publisher(session: &Session, key: String) -> Result<Publisher<'static>, NodeError> {
-    session.declare_publisher(key).await.map_err(zerr)
-}
-
 /// Drives cell `args.cell` until `shutdown` completes.
 pub async fn run(
     session: &Session,
@@ -220,15 +215,7 @@ pub async fn run(
     let triggers = join.subscribe(keys.central_cycle()).await?;
     let schedules = join.subscribe(keys.central_schedule()).await?;
     let central_alive = join.watch_tokens(keys.alive_central()).await?;
-    let burst_pub = session
-        .declare_publisher(keys.cell_burst(cell)?)
-        .express(true)
-        .priority(Priority::RealTime)
-        .congestion_control(CongestionControl::Block)
-        .await
-        .map_err(zerr)?;
-    let status_pub = plain_publisher(session, keys.cell_status(cell)?).await?;
-    let air_pub = plain_publisher(session, keys.cell_air(cell)?).await?;
+    let [burst_pub, status_pub, air_pub] = declare_publishers(session, &keys, cell).await?;
     // Replies to the core's requests come back through this channel.
     let (replies_tx, mut replies) = mpsc::unbounded_channel::<Event>();
     // The schedule in force now, before the token: the central unit
@@ -305,6 +292,32 @@ pub async fn run(
         tracing::info!("cell {cell}: stopped; {failures:?}");
     }
     Ok(())
+}
+
+/// The cell's burst, status and air temperature publishers; the bursts
+/// sent at once with real-time priority, blocking rather than dropping
+/// when a link is busy.
+async fn declare_publishers(
+    session: &Session,
+    keys: &Keys,
+    cell: &str,
+) -> Result<[Publisher<'static>; 3], NodeError> {
+    let burst_pub = session
+        .declare_publisher(keys.cell_burst(cell)?)
+        .express(true)
+        .priority(Priority::RealTime)
+        .congestion_control(CongestionControl::Block)
+        .await
+        .map_err(zerr)?;
+    let status_pub = session
+        .declare_publisher(keys.cell_status(cell)?)
+        .await
+        .map_err(zerr)?;
+    let air_pub = session
+        .declare_publisher(keys.cell_air(cell)?)
+        .await
+        .map_err(zerr)?;
+    Ok([burst_pub, status_pub, air_pub])
 }
 
 /// Where the core's outputs go: the transmitter driver, the burst and
@@ -434,4 +447,17 @@ fn spawn_exchange(
         };
         let _ = tx.send(Event::ClockExchange(sample));
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Args;
+
+    /// The `ickon-cell` binary's command line (`src/main.rs`): a flag defined
+    /// twice panics only when parsed, so the definition is checked here.
+    #[test]
+    fn the_binarys_command_line_is_well_formed() {
+        let command = clap::Command::new("ickon-cell").version("0");
+        super::CellArgs::augment_args(command).debug_assert();
+    }
 }

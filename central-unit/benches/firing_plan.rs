@@ -84,7 +84,9 @@ fn bench(c: &mut Criterion) {
             .collect();
         let history = FiringHistory::default();
         let planned = plan(&table, &views, &config, now, cycle, &history).expect("a plan");
-        println!(
+        // On stderr: stdout is the benchmarks' list when the test runner
+        // asks for it (`--list`), which runs this set-up too.
+        eprintln!(
             "{name}: {} robots, {} transmitters fire, cycle period {:.1} ms",
             views.len(),
             planned.packing.offsets.len(),

@@ -7,6 +7,7 @@
 //! of their own (`docs/testing.md`).
 
 pub mod cli;
+mod closed_stdout;
 mod node;
 
 use std::process::ExitCode;
@@ -15,6 +16,7 @@ use clap::Parser;
 
 /// The whole program: the command line of this process, run.
 pub fn main() -> ExitCode {
+    closed_stdout::exit_quietly_when_stdout_closes();
     // Before any thread starts, so that every thread inherits the set.
     if let Err(e) = ickon_runtime::cpus::pin_from_env() {
         eprintln!("error: {}: {e}", ickon_runtime::cpus::CPUS_ENV);

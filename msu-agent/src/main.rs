@@ -13,14 +13,3 @@ fn main() -> std::process::ExitCode {
     ickon_runtime::init_tracing("info");
     ickon_msu::node::main_with(Cli::parse().args)
 }
-
-#[cfg(test)]
-mod tests {
-    use clap::CommandFactory;
-
-    /// A flag defined twice panics only when parsed: check the definition.
-    #[test]
-    fn the_command_line_is_well_formed() {
-        super::Cli::command().debug_assert();
-    }
-}

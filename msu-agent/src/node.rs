@@ -791,3 +791,16 @@ pub fn main_with(args: MsuArgs) -> ExitCode {
         r
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Args;
+
+    /// The `ickon-msu` binary's command line (`src/main.rs`): a flag defined
+    /// twice panics only when parsed, so the definition is checked here.
+    #[test]
+    fn the_binarys_command_line_is_well_formed() {
+        let command = clap::Command::new("ickon-msu").version("0");
+        super::MsuArgs::augment_args(command).debug_assert();
+    }
+}

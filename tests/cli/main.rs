@@ -2,6 +2,7 @@
 //! credential files, exit codes, emulated boards, `ickon eval`. One module
 //! per subject.
 
+mod closed_stdout;
 mod device_cli;
 mod endless_files;
 mod eval_cli;

@@ -15,6 +15,7 @@
 //! - [`ros2_sensors`]: each robot's odometry and gyro as ROS 2 topics.
 //! - [`synthetic_fleet`]: many robots' agents stood in for by one process
 //!   (`ickon node synthetic-fleet`, for `ickon bench central`).
+//! - [`fleet_args`]: the flags both of these nodes simulating robots take.
 
 pub mod board;
 pub mod device_hosting;
@@ -22,6 +23,7 @@ pub mod devices;
 pub mod emulate;
 pub mod emulate_hedgehog;
 mod emulate_listen;
+pub mod fleet_args;
 pub mod hedgehog;
 pub mod node;
 pub mod realtime;

@@ -16,12 +16,13 @@ use ickon_proto::msg::robot::Truth;
 use ickon_proto::time::Time;
 use ickon_proto::{decode, encode};
 use ickon_runtime::site_join::QueuedSubscriber;
-use ickon_runtime::{JoinedSite, LogLimiter, NodeArgs, NodeError, SiteJoin, system_now, zerr};
+use ickon_runtime::{JoinedSite, LogLimiter, NodeError, SiteJoin, system_now, zerr};
 use zenoh::Session;
 use zenoh::pubsub::Publisher;
 
 use crate::device_hosting::{BoundDevices, DeviceEvent, WorldDevices};
 use crate::devices::{DeviceEndpoint, DeviceKind, DeviceOwner};
+use crate::fleet_args::SimulatedRobotsArgs;
 use crate::realtime::{RealtimeWorld, WorldEvent, WorldOutput};
 use crate::ros2_sensors::RosSensorPublishers;
 use ickon_sim::profile::NoiseProfile;
@@ -373,18 +374,9 @@ async fn publish(
 /// Arguments of `ickon-world` (and `ickon node world`).
 #[derive(Debug, Clone, Args)]
 pub struct WorldArgs {
-    /// Connection flags.
+    /// The mesh, the robots, their noise profile and the seed.
     #[command(flatten)]
-    pub mesh: NodeArgs,
-    /// Robots to simulate, comma-separated ids.
-    #[arg(long, value_delimiter = ',', required = true)]
-    pub robots: Vec<String>,
-    /// Noise profile: ideal, paper, building, harsh, or a TOML file (deploy/profiles/paper.toml is a template).
-    #[arg(long, default_value = "paper")]
-    pub profile: String,
-    /// Seed of every random draw.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    pub fleet: SimulatedRobotsArgs,
     /// Publish each robot's odometry and gyro as ROS 2 topics (rmw_zenoh,
     /// domain 0, `/<robot>/odom` and `/<robot>/imu`) instead of on the ICKON keys.
     #[arg(long)]
@@ -407,7 +399,7 @@ pub struct WorldArgs {
 /// Runs the world as a process until Ctrl-C/SIGTERM. Exit code 2 for bad
 /// arguments, 1 for a failure at run time.
 pub fn main_with(args: WorldArgs) -> ExitCode {
-    let profile = match NoiseProfile::load(&args.profile) {
+    let profile = match NoiseProfile::load(&args.fleet.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -415,18 +407,31 @@ pub fn main_with(args: WorldArgs) -> ExitCode {
         }
     };
     let settings = WorldSettings {
-        site_name: args.mesh.site_name().to_string(),
-        robots: args.robots.clone(),
+        site_name: args.fleet.mesh.site_name().to_string(),
+        robots: args.fleet.robots.clone(),
         profile,
-        seed: args.seed,
+        seed: args.fleet.seed,
         ros2: args.ros2,
         devices: args.devices.clone(),
         transmitter_faults: args.transmitter_faults.clone(),
     };
     ickon_runtime::run_node(2, async {
-        let session = args.mesh.open().await?;
-        let r = run(&session, settings, args.mesh.shutdown()).await;
+        let session = args.fleet.mesh.open().await?;
+        let r = run(&session, settings, args.fleet.mesh.shutdown()).await;
         let _ = session.close().await;
         r
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Args;
+
+    /// The `ickon-world` binary's command line (`src/main.rs`): a flag defined
+    /// twice panics only when parsed, so the definition is checked here.
+    #[test]
+    fn the_binarys_command_line_is_well_formed() {
+        let command = clap::Command::new("ickon-world").version("0");
+        super::WorldArgs::augment_args(command).debug_assert();
+    }
 }

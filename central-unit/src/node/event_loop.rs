@@ -15,12 +15,15 @@ use zenoh::liveliness::LivelinessToken;
 use zenoh::query::Query;
 use zenoh::sample::Sample;
 
+use super::admin::{answer_admin, reply};
+use super::endpoints::{Endpoints, next_sample};
 use super::reload;
-use super::{
-    Endpoints, SurveyFile, Viewers, air_event, alive_event, answer_admin, burst_event,
-    decode_counted, follow_role, link_report, next_sample, reply, robot_status_event, status_event,
+use super::samples::{
+    air_event, alive_event, burst_event, decode_counted, link_report, robot_status_event,
+    status_event,
     summary_event, truth_of,
 };
+use super::{SurveyFile, Viewers, follow_role};
 use crate::core::{CentralCore, Event, Output};
 
 /// One input of the loop, as it arrived.

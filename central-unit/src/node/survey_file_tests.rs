@@ -1,7 +1,8 @@
 //! The survey calibration file: what a restart reads, and what it refuses.
 
+use super::survey_file::save_survey_file;
 use super::*;
-use crate::survey_calibration::{CalibrationConfig, SurveyCalibration};
+use crate::survey_calibration::{CalibrationConfig, SavedCalibration, SurveyCalibration};
 
 fn dir(name: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("ickon-survey-{}-{name}", std::process::id()));
@@ -187,4 +188,13 @@ fn the_cells_sync_memory_flag_sets_the_correlation_time_and_refuses_nonsense() {
     for bad in ["-1", "9000", "NaN", "inf", "a day"] {
         assert!(parse(&["--cell-sync-memory-h", bad]).is_err(), "{bad}");
     }
+}
+
+/// The `ickon-central` binary's command line (`src/main.rs`): a flag
+/// defined twice panics only when parsed, so the definition is checked here.
+#[test]
+fn the_binarys_command_line_is_well_formed() {
+    use clap::Args;
+    let command = clap::Command::new("ickon-central").version("0");
+    CentralArgs::augment_args(command).debug_assert();
 }

@@ -2,8 +2,9 @@
 //! that stands in, in one process, for the MSU agents of many robots. It
 //! publishes what the central unit hears of each agent, on the agent's
 //! keys and at its rates: its liveliness token, its summary every
-//! [`SUMMARY_PERIOD`] (the robots spread over the period) with the fix of
-//! the last cycle it heard enough transmitters of, and its status once a
+//! [`SUMMARY_PERIOD`](ickon_proto::msg::robot::SUMMARY_PERIOD) (the
+//! robots spread over the period) with the fix of the last cycle it heard
+//! enough transmitters of, and its status once a
 //! second. The agents' poses and fixes, which no central unit subscribes
 //! to, are not made. The robots drive the site's routes ([`model`]), so
 //! that the central unit's occupancy firing and survey calibration work
@@ -20,6 +21,7 @@
 //! declared many at a time: one after the other, 10,000 robots were not
 //! all live a minute after the start.
 
+mod fleet_loop;
 pub mod model;
 
 use std::process::ExitCode;
@@ -33,9 +35,10 @@ use zenoh::pubsub::Publisher;
 use ickon_proto::decode;
 use ickon_proto::keys::Keys;
 use ickon_proto::msg::control::{CycleTrigger, Schedule, SurveyCalibration};
-use ickon_proto::msg::robot::{MsuStatus, SUMMARY_PERIOD};
-use ickon_runtime::{JoinedSite, NodeArgs, NodeError, SimulatedClock, SiteJoin, put_counted, zerr};
+use ickon_runtime::{JoinedSite, NodeError, SimulatedClock, SiteJoin, zerr};
 
+use crate::fleet_args::SimulatedRobotsArgs;
+use fleet_loop::FleetLoop;
 use model::SyntheticFleet;
 
 /// The fleet's timer: every tick publishes the summaries of the robots
@@ -48,19 +51,10 @@ const STATUS_PERIOD: Duration = Duration::from_secs(1);
 /// Arguments of `ickon node synthetic-fleet`.
 #[derive(Debug, Clone, Args)]
 pub struct SyntheticFleetArgs {
-    /// Connection flags.
+    /// The mesh, the robots to stand in for, the noise profile their fixes
+    /// follow and the seed of that noise.
     #[command(flatten)]
-    pub mesh: NodeArgs,
-    /// Robots to stand in for, comma-separated ids of the site.
-    #[arg(long, value_delimiter = ',', required = true)]
-    pub robots: Vec<String>,
-    /// Noise profile whose timing noise and range the fixes follow: ideal,
-    /// paper, harsh, or a TOML file.
-    #[arg(long, default_value = "paper")]
-    pub profile: String,
-    /// Seed of the fixes' noise.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    pub fleet: SimulatedRobotsArgs,
     /// Where to write, when it stops, whether it kept up: a JSON document
     /// of the summaries it sent and how many of them went late.
     #[arg(long)]
@@ -85,7 +79,7 @@ pub struct FleetKeptUp {
 
 /// Runs the node and returns its exit code.
 pub fn main_with(args: SyntheticFleetArgs) -> ExitCode {
-    let profile = match ickon_sim::profile::NoiseProfile::load(&args.profile) {
+    let profile = match ickon_sim::profile::NoiseProfile::load(&args.fleet.profile) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -94,19 +88,19 @@ pub fn main_with(args: SyntheticFleetArgs) -> ExitCode {
     };
     let timing_sigma_s = ickon_sim::engine::timing_sigma_s(&profile);
     let max_range_m = profile.ultrasound.max_range_m;
-    let clock = args.mesh.clock();
+    let clock = args.fleet.mesh.clock();
     ickon_runtime::run_node(2, async {
-        let session = args.mesh.open().await?;
+        let session = args.fleet.mesh.open().await?;
         let settings = Settings {
-            site_name: args.mesh.site_name().to_string(),
-            robots: args.robots.clone(),
+            site_name: args.fleet.mesh.site_name().to_string(),
+            robots: args.fleet.robots.clone(),
             timing_sigma_s,
             max_range_m,
-            seed: args.seed,
+            seed: args.fleet.seed,
             clock,
             report: args.report.clone(),
         };
-        let r = run(&session, settings, args.mesh.shutdown()).await;
+        let r = run(&session, settings, args.fleet.mesh.shutdown()).await;
         let _ = session.close().await;
         r
     })
@@ -145,7 +139,7 @@ async fn run(
     let Some(JoinedSite { site, .. }) = join.site(&mut shutdown).await? else {
         return Ok(());
     };
-    let mut fleet = SyntheticFleet::new(
+    let fleet = SyntheticFleet::new(
         &site,
         &settings.robots,
         settings.timing_sigma_s,
@@ -156,12 +150,12 @@ async fn run(
     let triggers = join.subscribe(keys.central_cycle()).await?;
     let schedules = join.subscribe(keys.central_schedule()).await?;
     let surveys = join.subscribe(keys.central_survey()).await?;
-    let Some(mut schedule) = join.schedule(&mut shutdown).await? else {
+    let Some(schedule) = join.schedule(&mut shutdown).await? else {
         return Ok(());
     };
     let declared = Instant::now();
     let ids: Vec<String> = (0..fleet.len()).map(|i| fleet.id(i).to_string()).collect();
-    let (mut publishers, tokens) = declare_all(session, &keys, &ids).await?;
+    let (publishers, tokens) = declare_all(session, &keys, &ids).await?;
     let declare_s = declared.elapsed().as_secs_f64();
     tracing::info!(
         "{} robots' tokens and publishers declared in {declare_s:.1} s",
@@ -172,105 +166,57 @@ async fn run(
         fleet.len(),
         site.name
     );
-    let started = Instant::now();
+    let mut fleet = FleetLoop::new(fleet, publishers, schedule, settings.clock, declare_s);
     let mut ticks = tokio::time::interval(TICK);
     ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let per_summary = ticks_in(SUMMARY_PERIOD.to_std());
-    let per_status = ticks_in(STATUS_PERIOD);
-    let mut survey_version = 0u32;
-    // The transmitters of the last cycle that fired and has ended (its
-    // fixes exist once the next cycle is triggered, as an agent's do once
-    // the cycle's arrivals are in), and of the one triggered last.
-    let mut last_fired: Option<Vec<u32>> = None;
-    let mut firing: Option<Vec<u32>> = None;
-    let mut cycles = 0u64;
-    let mut failed_puts = 0u64;
-    let mut summaries = 0u64;
-    // The last tick served, so that a late tick serves every turn it
-    // skipped, and how many turns came late.
-    let mut served_ms = 0usize;
-    let mut late_turns = 0u64;
     loop {
         tokio::select! {
             _ = &mut shutdown => break,
-            _ = ticks.tick() => {
-                // By the time gone: every turn since the last tick served
-                // is served now (a late tick's turns counted late).
-                let now_ms = started.elapsed().as_millis() as usize;
-                let t_s = started.elapsed().as_secs_f64();
-                // Over a second behind, the turns beyond it are skipped
-                // (every robot's are in the last second) and counted late.
-                let window = per_summary.max(per_status);
-                let behind = now_ms.saturating_sub(served_ms);
-                late_turns += behind.saturating_sub(window) as u64;
-                let turns = (now_ms + 1 - behind.min(window)..=now_ms).filter(|&k| k > served_ms);
-                for k in turns {
-                    let late = now_ms - k >= per_summary;
-                    for i in (k % per_summary..fleet.len()).step_by(per_summary) {
-                        let p = &mut publishers[i];
-                        let stamp = settings.clock.now();
-                        let solved = cycles.saturating_sub(p.cycles_at_last).min(u64::from(u32::MAX)) as u32;
-                        let fix = last_fired
-                            .as_deref()
-                            .filter(|_| solved > 0)
-                            .and_then(|fired| fleet.fix(i, t_s, stamp, fired, survey_version));
-                        p.seq += 1;
-                        p.cycles_at_last = cycles;
-                        let summary = fleet.summary(i, t_s, stamp, p.seq, solved, fix.into_iter().collect());
-                        failed_puts += u64::from(!put_counted(&p.summary, &summary).await);
-                        summaries += 1;
-                        late_turns += u64::from(late);
-                    }
-                    for i in (k % per_status..fleet.len()).step_by(per_status) {
-                        let status = MsuStatus { stamp: settings.clock.now(), receivers: String::new() };
-                        failed_puts += u64::from(!put_counted(&publishers[i].status, &status).await);
-                    }
-                }
-                served_ms = now_ms;
-            }
+            _ = ticks.tick() => fleet.tick().await,
             Ok(s) = triggers.recv_async() => {
-                let Ok(trigger) = decode::<CycleTrigger>(&s.payload().to_bytes()) else { continue };
-                if let Some(fired) = firing.take() {
-                    last_fired = Some(fired);
-                    cycles += 1;
-                }
-                if trigger.schedule_version == schedule.version {
-                    firing = Some(trigger.emissions(&schedule).iter().map(|e| e.tx_id).collect());
+                if let Ok(trigger) = decode::<CycleTrigger>(&s.payload().to_bytes()) {
+                    fleet.trigger(&trigger);
                 }
             }
             Ok(s) = schedules.recv_async() => {
                 if let Ok(next) = decode::<Schedule>(&s.payload().to_bytes()) {
-                    schedule = next;
+                    fleet.schedule = next;
                 }
             }
             Ok(s) = surveys.recv_async() => {
                 if let Ok(survey) = decode::<SurveyCalibration>(&s.payload().to_bytes()) {
-                    survey_version = survey.version;
+                    fleet.survey_version = survey.version;
                 }
             }
         }
     }
     drop(tokens);
-    let elapsed_s = started.elapsed().as_secs_f64();
+    fleet.kept_up.elapsed_s = fleet.started.elapsed().as_secs_f64();
+    report(&fleet.kept_up, settings.report.as_deref());
+    Ok(())
+}
+
+/// Says whether the generator kept up: in its log, and in the file
+/// `--report` names.
+fn report(kept_up: &FleetKeptUp, file: Option<&std::path::Path>) {
+    let FleetKeptUp {
+        summaries,
+        late_turns,
+        failed_puts,
+        elapsed_s,
+        ..
+    } = *kept_up;
     tracing::info!(
         "synthetic fleet stopping after {elapsed_s:.0} s: {summaries} summaries ({:.0}/s), \
          {late_turns} sent more than a period late; {failed_puts} puts failed",
         summaries as f64 / elapsed_s.max(1e-9)
     );
-    if let Some(path) = &settings.report {
-        let kept_up = FleetKeptUp {
-            summaries,
-            late_turns,
-            failed_puts,
-            elapsed_s,
-            declare_s,
-        };
-        let text = serde_json::to_string(&kept_up).unwrap_or_default();
+    if let Some(path) = file {
+        let text = serde_json::to_string(kept_up).unwrap_or_default();
         if let Err(e) = std::fs::write(path, text) {
             tracing::warn!("cannot write the fleet's report {}: {e}", path.display());
         }
     }
-    Ok(())
 }
 
 /// How many robots' declarations are in flight at once: enough that the

@@ -234,6 +234,29 @@ impl Consensus {
             .rebuild(self.robots.values().map(|r| r.share.as_slice()), now);
     }
 
+    /// Robot `key` left: the fixes it holds are let go (returned for the
+    /// calibration if its window agreed or was unchecked, as they would
+    /// have been one by one as its later fixes came), and the robot is
+    /// forgotten unless the check holds something against it (quarantined,
+    /// or fixes kept out: a forger that leaves and comes back stays named).
+    pub fn forget(&mut self, key: &str) -> Vec<ReadFix> {
+        let Some(robot) = self.robots.get_mut(key) else {
+            return Vec::new();
+        };
+        let held = std::mem::take(&mut robot.held);
+        robot.share = Vec::new();
+        let agreed = matches!(robot.check, Check::Agrees | Check::Unchecked);
+        if robot.check != Check::Quarantined && robot.fixes_quarantined == 0 {
+            self.robots.remove(key);
+        }
+        self.reference.mark_stale();
+        if agreed {
+            held.into_iter().map(|h| h.read).collect()
+        } else {
+            Vec::new()
+        }
+    }
+
     /// What the check says of robot `key` (`Checking` when none of its
     /// fixes was seen).
     pub fn robot(&self, key: &str) -> RobotCheck {

@@ -249,7 +249,9 @@ impl Consensus {
         if robot.check != Check::Quarantined && robot.fixes_quarantined == 0 {
             self.robots.remove(key);
         }
-        self.reference.mark_stale();
+        // Its share stays in the reference until it is next gathered: its
+        // misfits were as good as any, and gathering at every departure
+        // would sort the fleet's misfits for each robot of a fleet leaving.
         if agreed {
             held.into_iter().map(|h| h.read).collect()
         } else {

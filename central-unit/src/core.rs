@@ -442,6 +442,7 @@ impl CentralCore {
 
 mod admin;
 pub use admin::parse_reloaded_site;
+pub use robots::RobotFootprint;
 mod cycles;
 mod foreign;
 mod membership;
@@ -451,6 +452,8 @@ pub mod standby;
 
 #[cfg(test)]
 mod air_tests;
+#[cfg(test)]
+mod fleet_memory_tests;
 #[cfg(test)]
 mod forged_tests;
 

@@ -222,6 +222,18 @@ impl RobotTracker {
     pub fn set_alive(&mut self, up: bool) {
         self.alive = up;
         self.gate.reset();
+        if !up {
+            // A robot gone keeps its last pose and counts for the admin;
+            // what grows with its messages is let go, so that a fleet
+            // that came and went leaves the tables as small as before.
+            self.fix_times = VecDeque::new();
+            self.receivers = String::new();
+        }
+    }
+
+    /// Fix reports it holds (the admin's fix rate window).
+    pub fn fix_reports_held(&self) -> usize {
+        self.fix_times.len()
     }
 
     /// Its agent's report of its state.

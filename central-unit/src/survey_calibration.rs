@@ -799,6 +799,20 @@ impl SurveyPublisher {
         Ok(())
     }
 
+    /// Robot `key` left: the fixes the fleet's check held of it are learnt
+    /// from if its window agreed, and the check forgets it
+    /// ([`Consensus::forget`]).
+    pub fn forget_robot(&mut self, key: &str) {
+        for read in self.consensus.forget(key) {
+            self.calibration.add(&read);
+        }
+    }
+
+    /// Robots the fleet's check holds a window or a standing of.
+    pub fn robots_checked(&self) -> usize {
+        self.consensus.len()
+    }
+
     /// Fixes held for the fleet's check, not learnt from yet.
     pub fn fixes_held(&self) -> usize {
         self.consensus.held()
@@ -978,4 +992,4 @@ mod read_fix;
 pub use read_fix::ReadFix;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

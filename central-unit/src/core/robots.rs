@@ -12,6 +12,22 @@ use crate::survey_calibration::{FixSkipped, SavedCalibration, SavedMismatch, Sur
 
 use super::CentralCore;
 
+/// What the central unit holds per robot, summed over the fleet
+/// ([`CentralCore::robot_footprint`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RobotFootprint {
+    /// Robots tracked (the site's robots seen, up or down).
+    pub trackers: usize,
+    /// Fix reports held for the robots' fix rates.
+    pub fix_reports: usize,
+    /// Robots with a share of the survey calibration's fixes.
+    pub fix_shares: usize,
+    /// Robots the fleet's check holds a window or a standing of.
+    pub checked: usize,
+    /// Fixes the fleet's check holds.
+    pub fixes_held: usize,
+}
+
 impl CentralCore {
     /// Gives a robot's fix to the survey calibration (a fix of a robot not
     /// on the site is counted by the health books, and still a fix of
@@ -78,6 +94,12 @@ impl CentralCore {
         if let Some(r) = self.robot_mut(id) {
             r.set_alive(up);
         }
+        if !up && self.on_site(id) {
+            if let Some(publisher) = self.survey.as_mut() {
+                publisher.forget_robot(id);
+            }
+            self.survey_fix_rate.forget(id);
+        }
     }
 
     /// Whether `id` is one of the site's robots (a robot tracked already
@@ -95,6 +117,18 @@ impl CentralCore {
         } else {
             self.unknown_robot_messages += 1;
             None
+        }
+    }
+
+    /// What the core holds per robot, summed over the fleet: the tables a
+    /// fleet that came and went must leave as small as it found them.
+    pub fn robot_footprint(&self) -> RobotFootprint {
+        RobotFootprint {
+            trackers: self.robots.len(),
+            fix_reports: self.robots.values().map(|r| r.fix_reports_held()).sum(),
+            fix_shares: self.survey_fix_rate.len(),
+            checked: self.survey.as_ref().map_or(0, |p| p.robots_checked()),
+            fixes_held: self.survey.as_ref().map_or(0, |p| p.fixes_held()),
         }
     }
 

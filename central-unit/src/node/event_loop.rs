@@ -79,16 +79,28 @@ pub(super) struct NodeLoop<'a> {
 }
 
 impl NodeLoop<'_> {
-    /// Waits for the next input. Cancel-safe: every branch is.
+    /// Waits for the next input. Cancel-safe: every branch is. The core's
+    /// wake-up (the next trigger) comes first whenever it is due: a loop
+    /// with inputs queued would otherwise pick it among them at random and
+    /// send the trigger late by the handling of the others.
     pub async fn next_input(&mut self) -> Input {
         let wake = if self.core.tick_pending() {
             std::time::Duration::ZERO
         } else {
             self.core.next_wake().since(self.clock.now()).to_std()
         };
+        tokio::select! {
+            biased;
+            _ = tokio::time::sleep(wake) => Input::Wake,
+            input = self.next_other() => input,
+        }
+    }
+
+    /// Waits for the next input other than the core's wake-up, taking the
+    /// ready ones in turn at random so that none starves another.
+    async fn next_other(&mut self) -> Input {
         let ends = &self.ends;
         tokio::select! {
-            _ = tokio::time::sleep(wake) => Input::Wake,
             _ = self.survey_saves.tick(), if self.survey_file.path.is_some() => Input::SaveSurvey,
             _ = self.web_ticks.tick(), if self.viewers.any() => Input::WebTick,
             Ok(q) = ends.site_q.recv_async() => Input::SiteQuery(q),
@@ -106,6 +118,8 @@ impl NodeLoop<'_> {
             Ok(s) = ends.robot_link_sub.recv_async() => Input::Link(s),
             Ok(s) = ends.cycle_sub.recv_async() => Input::TriggerSeen(s),
             Ok(s) = ends.schedule_sub.recv_async() => Input::ScheduleSeen(s),
+            // Every channel closed: only the wake-up is left to wait for.
+            else => std::future::pending().await,
         }
     }
 

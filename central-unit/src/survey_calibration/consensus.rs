@@ -30,12 +30,19 @@
 //! `ickon admin`, and its fixes are taken as before the check existed.
 //! The check is by majority: robots that forge alike and outnumber the
 //! honest ones make the reference theirs.
+//!
+//! The other robots' misfits are gathered and sorted once for many fixes,
+//! not for each ([`reference`]): the check costs a fix time logarithmic in
+//! the fleet, not the whole fleet's windows.
 
 use std::collections::{BTreeMap, VecDeque};
 
 use ickon_proto::time::Time;
 
 use super::ReadFix;
+use reference::{Reference, Spread, sort_share};
+
+mod reference;
 
 /// Fixes of one robot held and weighed together: about two seconds of
 /// fixes at the fleet's usual 10 cycles a second. Its median ignores up
@@ -132,6 +139,8 @@ struct RobotWindow {
     fixes_quarantined: u64,
     misfit_m: Option<f64>,
     bound_m: Option<f64>,
+    /// Its misfits in the reference as last gathered, sorted.
+    share: Vec<f64>,
 }
 
 impl Default for RobotWindow {
@@ -142,6 +151,7 @@ impl Default for RobotWindow {
             fixes_quarantined: 0,
             misfit_m: None,
             bound_m: None,
+            share: Vec::new(),
         }
     }
 }
@@ -152,6 +162,7 @@ impl Default for RobotWindow {
 pub struct Consensus {
     robots: BTreeMap<String, RobotWindow>,
     floor_m: f64,
+    reference: Reference,
 }
 
 impl Consensus {
@@ -161,6 +172,7 @@ impl Consensus {
         Self {
             robots: BTreeMap::new(),
             floor_m: spread_floor_m(range_sigma_m),
+            reference: Reference::default(),
         }
     }
 
@@ -168,16 +180,26 @@ impl Consensus {
     /// `misfit_m`, checks the robot, and returns the fix (its oldest held)
     /// that may now teach the calibration, if any.
     pub fn offer(&mut self, key: &str, read: ReadFix, misfit_m: f64, now: Time) -> Option<ReadFix> {
-        let reference = self.reference(key, now);
+        if self.reference.is_due(now) {
+            self.gather_reference(now);
+        }
+        self.reference.offered();
         let floor_m = self.floor_m;
-        let robot = self.robots.entry(key.to_string()).or_default();
+        if !self.robots.contains_key(key) {
+            self.robots.insert(key.to_string(), RobotWindow::default());
+        }
+        let robot = self.robots.get_mut(key)?;
         robot.held.push_back(Held {
             at: now,
             misfit_m,
             read,
         });
         if robot.held.len() >= WINDOW_FIXES {
-            robot.judge(reference, floor_m);
+            let was_out = robot.check == Check::Quarantined;
+            robot.judge(self.reference.without(&robot.share), floor_m);
+            if was_out != (robot.check == Check::Quarantined) {
+                self.reference.mark_stale();
+            }
         }
         if robot.held.len() <= WINDOW_FIXES {
             return None;
@@ -191,17 +213,50 @@ impl Consensus {
         }
     }
 
-    /// The other robots' recent misfits: every fix held by a robot other
-    /// than `key` that is not quarantined, arrived within
-    /// [`REFERENCE_AGE_S`] of `now`.
-    fn reference(&self, key: &str, now: Time) -> Vec<f64> {
-        self.robots
-            .iter()
-            .filter(|(k, r)| k.as_str() != key && r.check != Check::Quarantined)
-            .flat_map(|(_, r)| &r.held)
-            .filter(|h| (now - h.at).as_secs_f64() <= REFERENCE_AGE_S)
-            .map(|h| h.misfit_m)
-            .collect()
+    /// Gathers the reference at `now`: every fix held by a robot not
+    /// quarantined, arrived within [`REFERENCE_AGE_S`], each robot's share
+    /// remembered so that its own is left out when it is judged.
+    fn gather_reference(&mut self, now: Time) {
+        for robot in self.robots.values_mut() {
+            robot.share.clear();
+            if robot.check != Check::Quarantined {
+                robot.share.extend(
+                    robot
+                        .held
+                        .iter()
+                        .filter(|h| (now - h.at).as_secs_f64() <= REFERENCE_AGE_S)
+                        .map(|h| h.misfit_m),
+                );
+                sort_share(&mut robot.share);
+            }
+        }
+        self.reference
+            .rebuild(self.robots.values().map(|r| r.share.as_slice()), now);
+    }
+
+    /// Robot `key` left: the fixes it holds are let go (returned for the
+    /// calibration if its window agreed or was unchecked, as they would
+    /// have been one by one as its later fixes came), and the robot is
+    /// forgotten unless the check holds something against it (quarantined,
+    /// or fixes kept out: a forger that leaves and comes back stays named).
+    pub fn forget(&mut self, key: &str) -> Vec<ReadFix> {
+        let Some(robot) = self.robots.get_mut(key) else {
+            return Vec::new();
+        };
+        let held = std::mem::take(&mut robot.held);
+        robot.share = Vec::new();
+        let agreed = matches!(robot.check, Check::Agrees | Check::Unchecked);
+        if robot.check != Check::Quarantined && robot.fixes_quarantined == 0 {
+            self.robots.remove(key);
+        }
+        // Its share stays in the reference until it is next gathered: its
+        // misfits were as good as any, and gathering at every departure
+        // would sort the fleet's misfits for each robot of a fleet leaving.
+        if agreed {
+            held.into_iter().map(|h| h.read).collect()
+        } else {
+            Vec::new()
+        }
     }
 
     /// What the check says of robot `key` (`Checking` when none of its
@@ -234,11 +289,11 @@ impl Consensus {
 
 impl RobotWindow {
     /// Checks a full window against the other robots' misfits.
-    fn judge(&mut self, mut reference: Vec<f64>, floor_m: f64) {
+    fn judge(&mut self, reference: Spread, floor_m: f64) {
         let mut own: Vec<f64> = self.held.iter().map(|h| h.misfit_m).collect();
         let misfit_m = median(&mut own);
         self.misfit_m = Some(misfit_m);
-        if reference.len() < WINDOW_FIXES {
+        if reference.count < WINDOW_FIXES {
             // Nothing to compare with; a quarantine stays until the fleet
             // can say the robot agrees again.
             if self.check != Check::Quarantined {
@@ -247,9 +302,8 @@ impl RobotWindow {
             }
             return;
         }
-        let centre_m = median(&mut reference);
-        let mut deviations: Vec<f64> = reference.iter().map(|m| (m - centre_m).abs()).collect();
-        let spread_m = (MAD_TO_SIGMA * median(&mut deviations)).max(floor_m);
+        let centre_m = reference.centre_m;
+        let spread_m = (MAD_TO_SIGMA * reference.mad_m).max(floor_m);
         if self.check == Check::Quarantined {
             let release_m = centre_m + RELEASE_SPREADS * spread_m;
             self.bound_m = Some(release_m);
@@ -274,10 +328,7 @@ impl RobotWindow {
     }
 }
 
-/// The median of `values` (reordered); 0 for none. A selection, not a
-/// sort: the fleet check takes the median of every other robot's recent
-/// misfits for each fix, and sorting them was most of the central unit's
-/// time at a thousand robots.
+/// The median of `values` (reordered); 0 for none: a robot's own window's.
 fn median(values: &mut [f64]) -> f64 {
     let n = values.len();
     if n == 0 {

@@ -74,6 +74,15 @@ impl FixRate {
         self.buckets.get(key).map_or(0, |b| b.refused)
     }
 
+    /// Robot `key` left: its bucket is dropped unless it was refused fixes
+    /// (a count the admin shows). Coming back, it starts with a full burst,
+    /// as it did the first time.
+    pub fn forget(&mut self, key: &str) {
+        if self.buckets.get(key).is_some_and(|b| b.refused == 0) {
+            self.buckets.remove(key);
+        }
+    }
+
     /// Robots with a bucket.
     pub fn len(&self) -> usize {
         self.buckets.len()

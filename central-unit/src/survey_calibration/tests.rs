@@ -4,10 +4,10 @@ use ickon_proto::site::Wall;
 use nalgebra::Vector3;
 
 /// A deterministic normal draw (xorshift and Box-Muller): the tests' noise.
-pub(super) struct Noise(pub(super) u64);
+pub(crate) struct Noise(pub(crate) u64);
 
 impl Noise {
-    pub(super) fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
@@ -33,7 +33,7 @@ pub(super) fn config() -> CalibrationConfig {
 /// Where the lab's transmitters really hang: each height off by up to
 /// 1.5 cm (a fixed pattern), and, with `horizontal`, x and y off by up to
 /// 1 cm: errors of the size the prior (1 cm per axis) expects.
-pub(super) fn true_offsets(site: &Site, horizontal: bool) -> Applied {
+pub(crate) fn true_offsets(site: &Site, horizontal: bool) -> Applied {
     site.transmitters
         .iter()
         .enumerate()
@@ -55,7 +55,7 @@ pub(super) fn true_offsets(site: &Site, horizontal: bool) -> Applied {
 /// The fix an MSU at `at` solves from arrivals of the transmitters really
 /// at `truth`, with its table moved by `applied`; only transmitters in
 /// sight and within 8 m are heard.
-pub(super) fn fix_at(
+pub(crate) fn fix_at(
     site: &Site,
     at: [f64; 2],
     truth: &Applied,
@@ -143,7 +143,7 @@ fn fix_with_late(
 
 /// Places on the lab's floor, spread over its cells (rectangles), 0.3 m
 /// from their edges.
-pub(super) fn places(n: usize, noise: &mut Noise) -> Vec<[f64; 2]> {
+pub(crate) fn places(n: usize, noise: &mut Noise) -> Vec<[f64; 2]> {
     let site = Site::default_site();
     (0..n)
         .map(|_| {

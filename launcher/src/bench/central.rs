@@ -444,12 +444,7 @@ async fn wait_live(
             )));
         }
         if started.elapsed() > STARTUP_TIMEOUT {
-            let missing: Vec<String> = expected.into_iter().collect();
-            return Err(CommandError::failure(format!(
-                "not live after {} s: {}",
-                STARTUP_TIMEOUT.as_secs(),
-                missing.join(", ")
-            )));
+            return Err(CommandError::failure(not_live(&expected)));
         }
         if let Ok(Ok(sample)) =
             tokio::time::timeout(Duration::from_millis(100), alive.recv_async()).await
@@ -459,6 +454,32 @@ async fn wait_live(
         }
     }
     Ok(())
+}
+
+/// Keys of the tokens not live named in the start-up's error: a few say
+/// which kind of node is missing, ten thousand would bury it.
+const NOT_LIVE_NAMED: usize = 5;
+
+/// The start-up's error for the tokens still `missing`: how many, and
+/// the first few.
+fn not_live(missing: &BTreeSet<String>) -> String {
+    let named: Vec<&str> = missing
+        .iter()
+        .take(NOT_LIVE_NAMED)
+        .map(String::as_str)
+        .collect();
+    let more = missing.len().saturating_sub(named.len());
+    format!(
+        "{} tokens not live after {} s: {}{}",
+        missing.len(),
+        STARTUP_TIMEOUT.as_secs(),
+        named.join(", "),
+        if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// What the observer gathered over a run.
@@ -778,5 +799,24 @@ mod tests {
         assert!((jitter_us[0] - 1_000.0).abs() < 1.0);
         assert!((jitter_us[1] - 1_000.0).abs() < 1.0);
         assert!((period_ms.expect("cycles") - 100.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_start_up_error_counts_the_missing_tokens_and_names_a_few() {
+        let missing: BTreeSet<String> = (0..5_000)
+            .map(|i| format!("ickon/w/alive/robot/r{i:05}"))
+            .collect();
+        let text = not_live(&missing);
+        assert!(
+            text.starts_with("5000 tokens not live after 60 s: ickon/w/alive/robot/r00000, "),
+            "{text}"
+        );
+        assert!(text.ends_with(" and 4995 more"), "{text}");
+        assert!(text.len() < 300, "{text}");
+        let one: BTreeSet<String> = std::iter::once("ickon/w/alive/central".to_string()).collect();
+        assert_eq!(
+            not_live(&one),
+            "1 tokens not live after 60 s: ickon/w/alive/central"
+        );
     }
 }

@@ -411,3 +411,29 @@ fn median_is_the_sorted_middle() {
         assert_eq!(super::median(&mut values.clone()), expected, "n = {n}");
     }
 }
+
+#[test]
+fn a_robot_that_leaves_is_forgotten_unless_it_was_quarantined() {
+    let read = any_read();
+    let mut check = Consensus::new(0.01);
+    let at = |k: usize| Time::ZERO + Duration::from_millis(100 * k as i64);
+    for k in 0..WINDOW_FIXES {
+        for robot in ["r1", "r2"] {
+            let _ = check.offer(robot, read.clone(), 0.010, at(k));
+        }
+        let _ = check.offer("r3", read.clone(), 0.5, at(k));
+    }
+    assert_eq!(check.robot("r3").check, Check::Quarantined);
+    assert_ne!(check.robot("r1").check, Check::Quarantined);
+    assert_eq!(check.held(), 2 * WINDOW_FIXES);
+    // The window it held is handed back to be learnt, and it is forgotten.
+    assert_eq!(check.forget("r1").len(), WINDOW_FIXES);
+    assert_eq!(check.robot("r1").check, Check::Checking);
+    // A quarantined robot's standing stays; nothing of it is learnt.
+    assert!(check.forget("r3").is_empty());
+    assert_eq!(check.robot("r3").check, Check::Quarantined);
+    assert_eq!(check.robot("r3").fixes_quarantined, WINDOW_FIXES as u64);
+    assert_eq!(check.len(), 2);
+    assert_eq!(check.held(), WINDOW_FIXES);
+    assert!(check.forget("nobody").is_empty());
+}

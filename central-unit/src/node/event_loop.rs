@@ -20,8 +20,7 @@ use super::endpoints::{Endpoints, next_sample};
 use super::reload;
 use super::samples::{
     air_event, alive_event, burst_event, decode_counted, link_report, robot_status_event,
-    status_event,
-    summary_event, truth_of,
+    status_event, summary_event, truth_of,
 };
 use super::{SurveyFile, Viewers, follow_role};
 use crate::core::{CentralCore, Event, Output};

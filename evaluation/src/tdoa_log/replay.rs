@@ -187,6 +187,9 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
             volume,
             reports,
             tracks: slots.into_iter().map(|s| s.track).collect(),
+            // A log's truth is taken as given: it comes from any system,
+            // at any rate, with no top speed known to screen it by.
+            truth_dropped: 0,
         },
         dim: anchors.dim,
         role: anchors.role,

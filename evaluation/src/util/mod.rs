@@ -18,6 +18,7 @@ mod line_limit;
 pub(crate) mod plot;
 pub(crate) mod run;
 pub(crate) mod score;
+mod truth_screen;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -163,6 +164,7 @@ pub fn run(args: &UtilArgs) -> Result<(), CommandError> {
             "volume": r.volume,
             "measurements": r.measurements,
             "duration_s": r.duration_s,
+            "truth_dropped": r.truth_dropped,
             "wall_s": wall.as_secs_f64(),
             "estimators": r.reports,
         });
@@ -195,6 +197,12 @@ pub(crate) fn print_table(file: &str, r: &Replayed, wall: Duration) {
         r.duration_s,
         wall.as_secs_f64()
     );
+    if r.truth_dropped > 0 {
+        println!(
+            "truth: {} motion-capture samples dropped as out of the vehicle's reach",
+            r.truth_dropped
+        );
+    }
     println!(
         "estimator  rmse_3d_m rmse_xy_m mean_3d_m  p95_3d_m  max_3d_m rejected_%  rate_hz began_s published_%"
     );

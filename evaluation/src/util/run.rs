@@ -16,6 +16,7 @@ use super::estimators::{
 };
 use super::imu_input;
 use super::score::{Track, Truth};
+use super::truth_screen::TruthScreen;
 
 /// A published estimate: time, position and its covariance if any.
 type Estimate = (f64, [f64; 3], Option<nalgebra::Matrix3<f64>>);
@@ -60,6 +61,9 @@ pub(crate) struct Replayed {
     pub(crate) volume: FlightVolume,
     pub(crate) reports: Vec<EstimatorReport>,
     pub(crate) tracks: Vec<Track>,
+    /// Truth samples dropped as out of the vehicle's reach
+    /// ([`TruthScreen`]).
+    pub(crate) truth_dropped: u64,
 }
 
 /// The antenna's true position: with the orientation, the whole lever
@@ -168,6 +172,7 @@ pub(super) fn replay(args: &UtilArgs) -> Result<Replayed, InputError> {
         volume,
         reports,
         tracks: runs.tracks,
+        truth_dropped: truth.screen.dropped,
     })
 }
 
@@ -243,6 +248,7 @@ struct TruthFeed {
     next: Option<TruthRow>,
     ended: bool,
     take_off: TakeOff,
+    screen: TruthScreen,
 }
 
 impl TruthFeed {
@@ -258,6 +264,7 @@ impl TruthFeed {
             next: None,
             ended: false,
             take_off: TakeOff::default(),
+            screen: TruthScreen::default(),
         })
     }
 
@@ -274,6 +281,7 @@ impl TruthFeed {
                 }
             }
             match self.next {
+                Some(row) if row.t_s <= until_s && !self.screen.keep(&row) => self.next = None,
                 Some(row) if row.t_s <= until_s => {
                     self.take_off.note(&row);
                     let mut refs: Vec<&mut Track> = runs.tracks.iter_mut().collect();

@@ -26,6 +26,14 @@ pub struct CvParams {
     /// Power spectral density of the white acceleration, per axis,
     /// m^2/s^3.
     pub accel_psd_m2_s3: f64,
+    /// The vertical axis's acceleration density as a share of
+    /// `accel_psd_m2_s3` (1: the same on every axis). A vehicle that
+    /// changes its height less briskly than its horizontal velocity has a
+    /// smaller one; where the anchors' geometry sees height poorly (a
+    /// receiver level with most anchors) the dynamics then carry the
+    /// height through a run of biased range differences instead of letting
+    /// the run pull it.
+    pub vertical_psd_ratio: f64,
     /// Standard deviation of the velocity when (re)placed, per axis, m/s.
     pub initial_velocity_sigma_m_s: f64,
     /// Innovation gate, standard deviations.
@@ -41,13 +49,15 @@ pub struct CvParams {
 }
 
 impl Default for CvParams {
-    /// 1 m^2/s^3 (velocity changes of about 1 m/s within a second), 1 m/s,
+    /// 1 m^2/s^3 (velocity changes of about 1 m/s within a second) on
+    /// every axis, 1 m/s,
     /// 3 sigma, no body shadow. (Estimating the shadow online is possible
     /// but weak: it is nearly the same signature as a height error, and on
     /// the UTIL flights the estimate wandered; see the README.)
     fn default() -> Self {
         Self {
             accel_psd_m2_s3: 1.0,
+            vertical_psd_ratio: 1.0,
             initial_velocity_sigma_m_s: 1.0,
             gate_sigma: 3.0,
             shadow_m: 0.0,
@@ -69,6 +79,7 @@ impl CvParams {
         };
         for (field, v) in [
             ("accel_psd_m2_s3", self.accel_psd_m2_s3),
+            ("vertical_psd_ratio", self.vertical_psd_ratio),
             (
                 "initial_velocity_sigma_m_s",
                 self.initial_velocity_sigma_m_s,
@@ -172,6 +183,11 @@ impl GuardedFilter for CvFilter {
         let mut f = MN::identity();
         let mut qm = MN::zeros();
         crate::estimator::kf::constant_velocity(&mut f, &mut qm, 0, 3, dt, q);
+        // The vertical axis (z, index 2 of the position and velocity
+        // blocks) has its own share of the density.
+        for (i, j) in [(2, 2), (2, 5), (5, 2), (5, 5)] {
+            qm[(i, j)] *= self.params.vertical_psd_ratio;
+        }
         let mut p = crate::estimator::kf::predict(&self.p, &f, &qm);
         let mut x = f * self.x;
         self.excess.decay(&mut x, &mut p, dt);

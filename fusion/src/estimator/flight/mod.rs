@@ -21,6 +21,8 @@ mod imu_robustness_tests;
 mod shadow;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod vertical_tests;
 
 pub use cv::{CvFilter, CvParams};
 pub use excess::{EXCESS_SLOTS, ExcessParams};

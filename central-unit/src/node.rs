@@ -188,7 +188,6 @@ pub async fn run(
         reloads: reload::Reloads::new(),
         unknown_admin: LogLimiter::default(),
         links: crate::router_links::RouterLinks::default(),
-        links: crate::router_links::RouterLinks::default(),
         survey_saves,
         web_ticks: tokio::time::interval(VIEWER_STATUS_PERIOD),
         failed_puts: 0,

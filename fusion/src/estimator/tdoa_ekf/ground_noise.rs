@@ -99,18 +99,19 @@ pub struct GroundNoise {
     /// (2: a hall's warm and cold spots and its layers, a few degrees
     /// apart). The spread of the local speed state.
     pub local_air_sigma_c: f64,
-    /// Standard deviation of the wind where a robot is, m/s (0.5: air
-    /// handlers blow 0.5 to 2 m/s where they reach). A draft carries sound
-    /// faster along it and slower against it, so the transmitters up- and
-    /// downwind of a robot read short and long by a share of their
-    /// distance: an error no offset or scale takes up, which a fix turns
-    /// into a position error. The local wind is a state of the filter with
-    /// this spread, forgotten like the local speed of sound (over
-    /// `air_correlation_length_m` and `air_correlation_time_s`). Seen from
-    /// transmitters at similar distances, a wind looks like a shift of the
-    /// robot, so a wider spread lets it hide part of a heading error for a
-    /// while (a 1 deg/s gyro bias step tracked 20-40 % worse at 1 m/s);
-    /// the low end of real drafts keeps it small. 0 leaves the state out.
+    /// Standard deviation of the wind where a robot is, m/s (0: the state
+    /// is left out; 0.5 in a hall whose air handlers blow 0.5 to 2 m/s
+    /// where robots drive). A draft carries sound faster along it and
+    /// slower against it, so the transmitters up- and downwind of a robot
+    /// read short and long by a share of their distance: an error no
+    /// offset or scale takes up, which a fix turns into a position error.
+    /// With a spread, the local wind is a state of the filter, forgotten
+    /// like the local speed of sound (over `air_correlation_length_m` and
+    /// `air_correlation_time_s`). Seen from transmitters at similar
+    /// distances, a wind looks like a shift of the robot, so the state
+    /// lets it hide part of a heading error for a while (a 1 deg/s gyro
+    /// bias step tracked 5-25 % worse at 0.5 m/s) and costs a little in
+    /// still air; it is off unless the site's air calls for it.
     pub local_wind_sigma_m_s: f64,
 }
 
@@ -143,7 +144,7 @@ impl Default for GroundNoise {
             air_correlation_length_m: 3.0,
             air_correlation_time_s: 60.0,
             local_air_sigma_c: 2.0,
-            local_wind_sigma_m_s: 0.5,
+            local_wind_sigma_m_s: 0.0,
         }
     }
 }

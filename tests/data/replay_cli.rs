@@ -11,8 +11,8 @@
 //! a minute in debug.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
-use support::ICKON;
+use std::process::Output;
+use support::run::{estimator, ickon, json};
 
 /// Whether the UTIL flights are there (absent: said in one line, and a
 /// failure when `ICKON_REQUIRE_DATA=1`).
@@ -33,10 +33,6 @@ fn imu_data(name: &str) -> PathBuf {
     root().join("util-imu").join(name)
 }
 
-fn ickon() -> Command {
-    Command::new(ICKON)
-}
-
 fn replay(flight: &str, constellation: &str, extra: &[&str]) -> Output {
     let mut cmd = ickon();
     cmd.args(["replay", "util", "--data"])
@@ -46,24 +42,6 @@ fn replay(flight: &str, constellation: &str, extra: &[&str]) -> Output {
         .args(["--constellation", constellation, "--json"])
         .args(extra);
     cmd.output().unwrap()
-}
-
-fn json(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
-fn estimator<'a>(doc: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
-    doc["estimators"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["name"] == name)
-        .unwrap_or_else(|| panic!("no {name} in {doc}"))
 }
 
 #[test]

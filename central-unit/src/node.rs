@@ -204,7 +204,7 @@ pub async fn run(
     let (failed_puts, undecodable) = (node.failed_puts, node.undecodable);
     if failed_puts + undecodable > 0 {
         tracing::info!(
-            "central unit stopped; {failed_puts} triggers or schedules not sent, {undecodable} undecodable reports"
+            "central unit stopped; {failed_puts} triggers or schedules not sent, {undecodable} reports undecodable or refused"
         );
     }
     Ok(())

@@ -30,20 +30,26 @@ pub struct RouterLinks {
 
 impl RouterLinks {
     /// Takes `link` from a node of `kind`; the id is the key's, not the
-    /// payload's. A new id beyond [`MAX_NODES`] is dropped.
-    pub fn observe(&mut self, kind: NodeKind, id: String, link: RouterLink) {
+    /// payload's. Returns false, keeping nothing, for a report no honest
+    /// node sends (back after a loss it does not count) and for a new id
+    /// beyond [`MAX_NODES`].
+    pub fn observe(&mut self, kind: NodeKind, id: String, link: RouterLink) -> bool {
+        if link.back_unix_ms > 0 && link.losses == 0 {
+            return false;
+        }
         let map = match kind {
             NodeKind::Cell => &mut self.cells,
             NodeKind::Robot => &mut self.robots,
         };
         if map.len() >= MAX_NODES && !map.contains_key(&id) {
-            return;
+            return false;
         }
         let link = RouterLink {
             node_id: id.clone(),
             ..link
         };
         map.insert(id, link);
+        true
     }
 
     /// The answer to `links`.
@@ -86,11 +92,26 @@ mod tests {
         for k in 0..MAX_NODES {
             links.observe(NodeKind::Robot, format!("r{k}"), link("", 0, 0));
         }
-        links.observe(NodeKind::Robot, "extra".into(), link("", 1, 1));
-        links.observe(NodeKind::Robot, "r0".into(), link("", 3, 1));
+        assert!(!links.observe(NodeKind::Robot, "extra".into(), link("", 1, 1)));
+        assert!(links.observe(NodeKind::Robot, "r0".into(), link("", 3, 1)));
         let r = links.report();
         assert_eq!(r.robots.len(), MAX_NODES);
         assert!(r.robots.iter().all(|l| l.node_id != "extra"));
         assert!(r.robots.contains(&link("r0", 3, 1)));
+    }
+
+    #[test]
+    fn a_report_of_coming_back_without_a_loss_is_refused_and_the_last_kept() {
+        let mut links = RouterLinks::default();
+        assert!(links.observe(NodeKind::Cell, "c1".into(), link("c1", 5, 1)));
+        // Forged: back at the end of time, never lost.
+        assert!(!links.observe(NodeKind::Cell, "c1".into(), link("c1", u64::MAX, 0)));
+        assert!(!links.observe(NodeKind::Robot, "r9".into(), link("r9", 1, 0)));
+        let r = links.report();
+        assert_eq!(r.cells, vec![link("c1", 5, 1)]);
+        assert!(r.robots.is_empty());
+        // A restarted node (nothing lost since) is honest and replaces it.
+        assert!(links.observe(NodeKind::Cell, "c1".into(), link("c1", 0, 0)));
+        assert_eq!(links.report().cells, vec![link("c1", 0, 0)]);
     }
 }

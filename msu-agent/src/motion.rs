@@ -27,7 +27,8 @@ use nalgebra::Vector3;
 /// Odometry samples kept: 10 s at the robot's 50 Hz, far more than a cycle
 /// (under a second) needs, bounded whatever the sender does.
 const MAX_TRACK: usize = 512;
-/// Fixes the rotation is fitted to: about 12 s of fixes at 2.6 cycles/s.
+/// Fixes the rotation is fitted to: 8-12 s of fixes at a full schedule's
+/// 2.6-3.8 cycles/s (`warehouse`, `lab`).
 const MAX_FIXES: usize = 32;
 /// Oldest fix kept for the rotation, seconds: the odometry's own heading
 /// drifts (1.5 % of every turn with the paper's wheel-base error), so old

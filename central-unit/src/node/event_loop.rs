@@ -73,7 +73,7 @@ pub(super) struct NodeLoop<'a> {
     pub web_ticks: tokio::time::Interval,
     /// Triggers or schedules that could not be put.
     pub failed_puts: u64,
-    /// Reports that did not decode.
+    /// Reports that did not decode, or said what no honest node says.
     pub undecodable: u64,
 }
 
@@ -196,8 +196,10 @@ impl NodeLoop<'_> {
             }
             Input::RobotStatus(s) => robot_status_event(keys, &s, bad),
             Input::Link(s) => {
-                if let Some((kind, id, link)) = link_report(keys, &s, bad) {
-                    self.links.observe(kind, id, link);
+                if let Some((kind, id, link)) = link_report(keys, &s, bad)
+                    && !self.links.observe(kind, id, link)
+                {
+                    *bad += 1;
                 }
                 None
             }

@@ -8,6 +8,10 @@ use ickon_proto::msg::admin::LinksReport;
 use ickon_proto::msg::control::RouterLink;
 use serde_json::{Value, json};
 
+/// How far a node's clock may run ahead of this host's before a report
+/// stamped by it is called ahead: NTP keeps a site's hosts well inside.
+const CLOCK_TOLERANCE_MS: u64 = 1_000;
+
 /// The section under the status, `now_unix_ms` being this host's clock.
 pub fn section(links: &LinksReport, now_unix_ms: u64) -> String {
     let mut out = String::new();
@@ -38,6 +42,13 @@ pub fn section(links: &LinksReport, now_unix_ms: u64) -> String {
         let (back, ago) = if l.back_unix_ms == 0 {
             // Lost and not back when it last reported.
             ("not yet".to_string(), "-".to_string())
+        } else if l.back_unix_ms > now_unix_ms + CLOCK_TOLERANCE_MS {
+            // The node's clock is ahead of this host's, or the report
+            // lies: say so rather than "0 s".
+            (
+                clock_time(l.back_unix_ms),
+                format!("{} ahead", ago(l.back_unix_ms - now_unix_ms)),
+            )
         } else {
             (
                 clock_time(l.back_unix_ms),
@@ -135,6 +146,25 @@ mod tests {
         let v = to_json(&links);
         assert_eq!(v["cells"][0]["id"], "c1");
         assert!(v["cells"][0]["back_unix_ms"].is_null());
+    }
+
+    #[test]
+    fn a_report_stamped_ahead_of_this_host_says_so() {
+        let links = LinksReport {
+            cells: vec![link("c1", BACK + 90_000, 1), link("c2", u64::MAX, 3)],
+            robots: vec![link("r1", BACK + 500, 1)],
+        };
+        let text = section(&links, BACK);
+        assert!(text.contains("1 min 30 s ahead"), "{text}");
+        assert!(
+            text.contains("c2 ") && text.contains(" ahead       3"),
+            "{text}"
+        );
+        // Within the clocks' tolerance it is just now.
+        assert!(
+            text.contains("r1       robot        15:03:12          0 s       1"),
+            "{text}"
+        );
     }
 
     #[test]

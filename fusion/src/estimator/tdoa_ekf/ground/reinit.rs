@@ -31,8 +31,8 @@ const AGREEING_CYCLES_AGAINST_A_START: u32 = 3;
 
 /// Shortest time the cycles against a start pose, or against the state of
 /// a filter that has been tracking, must span, seconds. The
-/// count above was set at the `lab` rate (2.6 cycles/s: three cycles span
-/// about a second); at 10 cycles/s (occupancy firing, two carrier channels)
+/// count above was set for a full schedule's rate (`warehouse` 2.6,
+/// `lab` 3.8 cycles/s: three cycles span about a second); at 10 cycles/s (occupancy firing, two carrier channels)
 /// three cycles come within 0.3 s from one place and share its reflections,
 /// and a robot's right start was replaced by a wrong place 0.8 m off whose
 /// heading then came from the track the wrong way round (`warehouse` with

@@ -387,3 +387,36 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
     }
     best.filter(|b| b.probe_difference.is_finite())
 }
+
+/// One robot's cycles (each with the schedule last received before it:
+/// the one its MSU solved it with), odometry and truth on the robot's
+/// clock, as a simulated run records them for export; and the cycles left
+/// out for want of a schedule.
+pub fn recording_of(stream: &RobotStream) -> (ickon_sim::recording::Recording, u64) {
+    use ickon_sim::recording::RecordedCycle;
+    let mut run = ickon_sim::recording::Recording::default();
+    let mut schedule: Option<&Schedule> = None;
+    let mut unscheduled = 0;
+    for (_, input) in &stream.inputs {
+        match input {
+            Input::Schedule(s) => schedule = Some(s),
+            Input::Arrivals(m) => match schedule {
+                Some(s) => run.cycles.push(RecordedCycle::of(m.seq, m, s)),
+                None => unscheduled += 1,
+            },
+            Input::Odometry(o) => run.odometry.push(*o),
+            _ => {}
+        }
+    }
+    run.truth = stream
+        .truth
+        .iter()
+        .map(|t| ickon_sim::world::TruthSample {
+            t_s: t.robot_clock.as_secs_f64(),
+            x_m: t.x_m,
+            y_m: t.y_m,
+            theta_rad: t.theta_rad,
+        })
+        .collect();
+    (run, unscheduled)
+}

@@ -54,7 +54,7 @@ pub fn run(args: &ConvertMcapArgs) -> Result<(), CommandError> {
         eprintln!("warning: {}: {}", args.file.display(), p.0);
     }
     for stream in &streams {
-        let (run, unscheduled) = recording_of(stream);
+        let (run, unscheduled) = recording_of(stream, &site);
         if run.cycles.is_empty() {
             eprintln!(
                 "robot {}: no cycle with a schedule before it: nothing written",
@@ -77,6 +77,8 @@ pub fn run(args: &ConvertMcapArgs) -> Result<(), CommandError> {
 }
 
 fn file_name(path: &Path) -> String {
-    path.file_name()
-        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into())
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into(),
+    )
 }

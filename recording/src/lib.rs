@@ -17,7 +17,7 @@ mod convert;
 mod record;
 mod replay;
 
+pub use convert::{ConvertMcapArgs, run as run_convert};
 pub use record::sim_hook;
 pub use record::{RecordArgs, RecordReport, run as run_record};
-pub use convert::{ConvertMcapArgs, run as run_convert};
 pub use replay::{McapArgs, run as run_replay};

@@ -419,7 +419,7 @@ fn replay_robot(
             published,
         });
     }
-    let (run, _) = feed::recording_of(stream);
+    let (run, _) = feed::recording_of(stream, site);
     let ls = least_squares(site, setup.timing_sigma_us * 1e-6, &run);
     RobotReport {
         id: stream.id.clone(),

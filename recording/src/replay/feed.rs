@@ -136,16 +136,9 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
                     RobotTopic::Odom => decode(&m.data).map(|v| Some(Input::Odometry(v))),
                     RobotTopic::Imu => decode(&m.data).map(|v| Some(Input::Imu(v))),
                     RobotTopic::Range => decode(&m.data).map(|v| Some(Input::Range(v))),
-                    RobotTopic::Pose => decode::<PoseWithCovarianceStamped>(&m.data).map(|_| {
-                        robot(&mut robots, id).live_poses.push((t, m.data.clone()));
-                        None
-                    }),
-                    // The agent's fixes are not inputs of a replay; a
-                    // conversion places each cycle by them.
-                    RobotTopic::Fix => decode::<Fix>(&m.data).map(|f| {
-                        robot(&mut robots, id).fixes.push((t, f));
-                        None
-                    }),
+                    RobotTopic::Pose | RobotTopic::Fix => {
+                        kept(robot(&mut robots, id), *topic, t, &m.data).map(|()| None)
+                    }
                 };
                 match input {
                     Ok(Some(input)) => {
@@ -189,6 +182,23 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
         )));
     }
     (robots, problems)
+}
+
+/// The agent's poses and fixes: not inputs of a replay; the poses are
+/// compared with it, a conversion places each cycle by the fixes.
+fn kept(
+    r: &mut RobotStream,
+    topic: RobotTopic,
+    t: u64,
+    data: &[u8],
+) -> Result<(), ickon_proto::DecodeError> {
+    if topic == RobotTopic::Fix {
+        r.fixes.push((t, decode::<Fix>(data)?));
+    } else {
+        decode::<PoseWithCovarianceStamped>(data)?;
+        r.live_poses.push((t, data.to_vec()));
+    }
+    Ok(())
 }
 
 /// A pose published by a replayed core, with the receive time of the input

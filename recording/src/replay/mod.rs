@@ -481,6 +481,24 @@ fn compare(name: &str, live: &[(u64, Vec<u8>)], replayed: &[Published]) -> LiveC
     check
 }
 
+/// The robot's `ls` line, when it scored a fix.
+fn print_baseline(r: &RobotReport) {
+    let Some(b) = r.ls.as_ref().filter(|b| b.scored > 0) else {
+        return;
+    };
+    let mm = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}", v * 1e3));
+    println!(
+        "{} ls (per-epoch least squares, as `ickon replay tdoa` on the converted log): {} of {} epochs fixed, {} scored, rmse {} mm, mean {} mm, median {} mm",
+        r.id,
+        b.fixes,
+        b.epochs,
+        b.scored,
+        mm(b.rmse_m),
+        mm(b.mean_m),
+        mm(b.median_m)
+    );
+}
+
 fn print_text(
     args: &McapArgs,
     rec: &read::Recording,
@@ -529,19 +547,7 @@ fn print_text(
         if let Some(note) = &r.note {
             println!("{}: note: {note}", r.id);
         }
-        if let Some(b) = r.ls.as_ref().filter(|b| b.scored > 0) {
-            let mm = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}", v * 1e3));
-            println!(
-                "{} ls (per-epoch least squares, as `ickon replay tdoa` on the converted log): {} of {} epochs fixed, {} scored, rmse {} mm, mean {} mm, median {} mm",
-                r.id,
-                b.fixes,
-                b.epochs,
-                b.scored,
-                mm(b.rmse_m),
-                mm(b.mean_m),
-                mm(b.median_m)
-            );
-        }
+        print_baseline(r);
         for e in &r.estimators {
             if let Some(refused) = &e.refused_inputs {
                 println!("{} {}: {refused}", r.id, e.estimator);

@@ -481,8 +481,11 @@ fn compare(name: &str, live: &[(u64, Vec<u8>)], replayed: &[Published]) -> LiveC
     check
 }
 
-/// The robot's `ls` line, when it scored a fix.
-fn print_baseline(r: &RobotReport) {
+/// The robot's note, and its `ls` line when it scored a fix.
+fn print_note_and_baseline(r: &RobotReport) {
+    if let Some(note) = &r.note {
+        println!("{}: note: {note}", r.id);
+    }
     let Some(b) = r.ls.as_ref().filter(|b| b.scored > 0) else {
         return;
     };
@@ -544,10 +547,7 @@ fn print_text(
             ),
             None => println!(),
         }
-        if let Some(note) = &r.note {
-            println!("{}: note: {note}", r.id);
-        }
-        print_baseline(r);
+        print_note_and_baseline(r);
         for e in &r.estimators {
             if let Some(refused) = &e.refused_inputs {
                 println!("{} {}: {refused}", r.id, e.estimator);

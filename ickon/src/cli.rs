@@ -10,7 +10,7 @@ use ickon_evaluation::{
 };
 use ickon_launcher::{BenchCommand, SimArgs};
 use ickon_operator::{AdminCommand, DeviceCheckArgs, RouterArgs, SecureArgs};
-use ickon_recording::{McapArgs, RecordArgs};
+use ickon_recording::{ConvertMcapArgs, McapArgs, RecordArgs};
 use ickon_runtime::CommandError;
 use ickon_world::emulate::EmulateCommand;
 
@@ -104,6 +104,10 @@ pub enum ConvertSource {
     /// A CMU Plaza run (ranges, wheel odometry, truth), written as an
     /// arrival-time log with its odometry (`--to tdoa`, docs/log-format.md).
     Plaza(ConvertPlazaArgs),
+    /// A recording of `ickon record` or `ickon sim --record`, each robot
+    /// written as an arrival-time log with its truth and odometry
+    /// (`--to tdoa`, docs/log-format.md).
+    Mcap(ConvertMcapArgs),
 }
 
 /// Actions on site files.
@@ -183,6 +187,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Convert { source } => match source {
             ConvertSource::Util(args) => ickon_evaluation::run_convert_util(&args),
             ConvertSource::Plaza(args) => ickon_evaluation::run_convert_plaza(&args),
+            ConvertSource::Mcap(args) => ickon_recording::run_convert(&args),
         },
         Command::Sim(args) => ickon_launcher::run_sim(args),
         Command::Eval(args) => ickon_evaluation::run_eval(args),

@@ -35,7 +35,7 @@ const LONG: &[(&str, &str, usize)] = &[
     ("operator/src/secure/acl.rs", "permissions", 120),
     ("operator/src/secure/mod.rs", "write_dir", 133),
     ("recording/src/record/mod.rs", "run", 108),
-    ("recording/src/replay/mod.rs", "print_text", 103),
+    ("recording/src/replay/mod.rs", "print_text", 101),
     ("recording/src/replay/mod.rs", "run", 111),
     ("sim/src/profile_file.rs", "check", 121),
     ("sim/src/score.rs", "score", 105),

@@ -13,6 +13,7 @@ mod router_limits;
 mod router_mesh;
 mod secure_mesh;
 mod secure_tls;
+mod sim_convert_tdoa;
 mod sim_devices;
 mod sim_grouped;
 mod sim_health;

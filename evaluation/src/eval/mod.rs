@@ -6,7 +6,6 @@
 //! same measurements. Tables go to stdout (or one JSON document with
 //! `--json`), the progress bar to stderr.
 
-mod export_tdoa;
 mod fleet;
 mod plot;
 pub(crate) mod table;
@@ -232,7 +231,7 @@ pub fn run(args: EvalArgs) -> Result<(), CommandError> {
         table::print_air(&outputs, site.speed_of_sound_m_s);
     }
     if let Some(dir) = &args.export_tdoa {
-        export_tdoa::write_all(dir, &site, &outputs)?;
+        crate::tdoa_log::export::write_all(dir, &site, &outputs)?;
     }
     if let Some(dir) = &args.plot
         && let Err(e) = plot::write_all(dir, &outputs, &scores, &flat)
@@ -302,7 +301,7 @@ fn simulate(
                     filter: filter_options(args),
                     transmitter_faults: faults.to_vec(),
                     record_rows: if args.export_tdoa.is_some() {
-                        export_tdoa::MAX_ROWS
+                        crate::tdoa_log::export::MAX_ROWS
                     } else {
                         0
                     },

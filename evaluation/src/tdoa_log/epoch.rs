@@ -95,6 +95,42 @@ pub fn samples(rows: &[Arrival], anchors: &Anchors, units: &Units) -> Vec<RangeD
     out
 }
 
+/// The range differences of an epoch as the MSU hands a cycle to the
+/// ground filter: arrival times and ranges as differences of consecutive
+/// rows (in time order), each stamped at its later row and carrying the
+/// earlier row's time; differences as given.
+///
+/// The ground filter sums consecutive differences back into the cycle's
+/// arrivals, each related to the robot's position at its own time, and
+/// blames a reflection on the one arrival that was late. Differences
+/// against the epoch's first row break that chain at every difference:
+/// a first arrival heard by a reflection then biases all of them, and the
+/// filter, gating each, loses the robot (a figure-eight passing a
+/// neighbouring cell whose transmitter fires first).
+pub fn chain_samples(
+    rows: &[Arrival],
+    anchors: &Anchors,
+    units: &Units,
+) -> Vec<RangeDifferenceSample> {
+    if rows.first().is_none_or(|a| a.kind.is_difference()) {
+        return samples(rows, anchors, units);
+    }
+    let at = |k: usize| anchors.list[k].position_m;
+    let mut out = Vec::with_capacity(rows.len());
+    let mut previous: Option<(&Arrival, f64)> = None;
+    for a in rows {
+        let Some(r) = units.metres(a) else { continue };
+        if let Some((p, r0)) = previous {
+            let sigma = (units.sigma_m(a).powi(2) + units.sigma_m(p).powi(2)).sqrt();
+            let mut s = sample(a.t_s, at(p.anchor), at(a.anchor), r - r0, sigma);
+            s.a_t_s = Some(p.t_s);
+            out.push(s);
+        }
+        previous = Some((a, r));
+    }
+    out
+}
+
 fn sample(t_s: f64, a_m: [f64; 3], b_m: [f64; 3], d_m: f64, sigma_m: f64) -> RangeDifferenceSample {
     RangeDifferenceSample {
         a_t_s: None,
@@ -283,4 +319,79 @@ impl EpochSolver {
 /// times and ranges (pseudo-ranges) do not mix with differences.
 pub fn same_family(first: Kind, kind: Kind) -> bool {
     first.is_difference() == kind.is_difference()
+}
+
+#[cfg(test)]
+mod chain_tests {
+    use std::collections::HashMap;
+
+    use super::*;
+    use crate::tdoa_log::format::{Anchor, Role};
+
+    /// Three anchors and an epoch of arrival times at a mobile whose
+    /// pseudo-ranges are `rho`, the first one `late_m` long by a reflection.
+    fn epoch(late_m: f64) -> (Anchors, Vec<Arrival>) {
+        let at = [[0.0, 0.0, 3.0], [5.0, 0.0, 3.0], [0.0, 5.0, 3.0]];
+        let anchors = Anchors {
+            list: at
+                .iter()
+                .enumerate()
+                .map(|(k, &position_m)| Anchor {
+                    id: k.to_string(),
+                    position_m,
+                })
+                .collect(),
+            by_id: HashMap::new(),
+            dim: 2,
+            role: Role::Transmitter,
+            plane_z_m: 0.0,
+        };
+        let rho = [2.0 + late_m, 3.0, 4.5];
+        let rows = rho
+            .iter()
+            .enumerate()
+            .map(|(k, &r)| Arrival {
+                line: k as u64,
+                epoch: 0,
+                t_s: 0.1 * k as f64,
+                anchor: k,
+                reference: None,
+                kind: Kind::RangeM,
+                value: r,
+                sigma: Some(0.03),
+            })
+            .collect();
+        (anchors, rows)
+    }
+
+    #[test]
+    fn a_reflected_first_arrival_spoils_one_link_of_the_chain_not_every_difference() {
+        let units = Units {
+            speed_m_s: None,
+            default_sigma_m: 0.1,
+        };
+        let (anchors, clean) = epoch(0.0);
+        let (_, reflected) = epoch(0.7);
+        let chain = chain_samples(&reflected, &anchors, &units);
+        let clean_chain = chain_samples(&clean, &anchors, &units);
+        assert_eq!(chain.len(), 2);
+        // Consecutive pairs, each carrying its earlier arrival's time.
+        assert_eq!(
+            (chain[1].a_m, chain[1].b_m),
+            (anchors.list[1].position_m, anchors.list[2].position_m)
+        );
+        assert_eq!(chain[1].a_t_s, Some(0.1));
+        assert!((chain[1].t_s - 0.2).abs() < 1e-12);
+        assert!((chain[0].d_m - (clean_chain[0].d_m - 0.7)).abs() < 1e-12);
+        assert!((chain[1].d_m - clean_chain[1].d_m).abs() < 1e-12);
+        assert!((chain[1].sigma_m - 0.03 * std::f64::consts::SQRT_2).abs() < 1e-12);
+        // Against the first row, the reflection is in every difference.
+        let star = samples(&reflected, &anchors, &units);
+        let clean_star = samples(&clean, &anchors, &units);
+        assert!(
+            star.iter()
+                .zip(&clean_star)
+                .all(|(a, b)| (a.d_m - b.d_m + 0.7).abs() < 1e-12)
+        );
+    }
 }

@@ -13,14 +13,19 @@
 //! - [`offset`]: the truth clock's offset, when it runs on another clock;
 //! - [`replay`]: the estimators of `ickon replay util` over the epochs,
 //!   scored and printed by the same code;
-//! - [`convert`]: a UTIL flight written in the format;
+//! - [`baseline`]: the `ls` of a run held in memory, for a recording's
+//!   replay to print what its conversion's replay prints;
+//! - [`convert`]: a UTIL flight written in the format; [`export`]: a
+//!   simulated run or a recording's robot written in it;
 //! - [`synth`]: a microphone network hearing a mobile emitter, generated
 //!   (the example set and the measured expectations of the docs).
 
+pub mod baseline;
 pub mod convert;
 mod cv_fix;
 mod epoch;
 mod epochs;
+pub mod export;
 pub mod format;
 mod motion;
 mod motion_rows;

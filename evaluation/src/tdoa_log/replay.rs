@@ -117,13 +117,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
     } = setup;
     let (names, left_out) = selected(args, anchors.dim, start.is_some())?;
     let mut slots = make_slots(names, args, &anchors, volume, start)?;
-    let mut solver = EpochSolver::new(
-        anchors.dim,
-        anchors.plane_z_m,
-        (volume.min_m, volume.max_m),
-        anchors.centroid(),
-        anchors.role == Role::Receiver,
-    );
+    let mut solver = solver_for(&anchors, volume);
     let mut truth = match &args.truth {
         Some(path) => Some(TruthStream::open(
             path,
@@ -235,12 +229,7 @@ fn set_up(args: &TdoaArgs) -> Result<(Setup, MeasurementReader), LogError> {
         speed_m_s: args.speed_m_s.or(reader.meta().propagation_speed_m_s),
         default_sigma_m: args.sigma_m,
     };
-    let mut positions = anchors.positions();
-    if anchors.dim == 2 {
-        // In 2D the mobile stays in its plane: the volume is the plane's.
-        positions.iter_mut().for_each(|p| p[2] = anchors.plane_z_m);
-    }
-    let volume = FlightVolume::around(&positions, VOLUME_MARGIN_M)
+    let volume = volume_of(&anchors)
         .map_err(|e| LogError::Usage(format!("{}: {e}", args.anchors.display())))?;
     let mut truth_offset = None;
     let mut start = None;
@@ -266,6 +255,28 @@ fn set_up(args: &TdoaArgs) -> Result<(Setup, MeasurementReader), LogError> {
         start,
     };
     Ok((setup, reader))
+}
+
+/// The volume the mobile is kept in: the anchors' box with a margin (in
+/// 2D, the plane's).
+pub(super) fn volume_of(anchors: &Anchors) -> Result<FlightVolume, String> {
+    let mut positions = anchors.positions();
+    if anchors.dim == 2 {
+        // In 2D the mobile stays in its plane: the volume is the plane's.
+        positions.iter_mut().for_each(|p| p[2] = anchors.plane_z_m);
+    }
+    FlightVolume::around(&positions, VOLUME_MARGIN_M).map_err(|e| e.to_string())
+}
+
+/// The per-epoch least-squares solver of `anchors` in `volume`.
+pub(super) fn solver_for(anchors: &Anchors, volume: FlightVolume) -> EpochSolver {
+    EpochSolver::new(
+        anchors.dim,
+        anchors.plane_z_m,
+        (volume.min_m, volume.max_m),
+        anchors.centroid(),
+        anchors.role == Role::Receiver,
+    )
 }
 
 /// The truth's first pose, on the measurements' clock, when it has a
@@ -363,8 +374,9 @@ fn step(slot: &mut Slot, e: &Epoch) -> Result<(), LogError> {
 }
 
 /// The ground filter over one epoch: ranges as ranges (their bias and
-/// scale estimated), anything else as the epoch's range differences, each
-/// after the increments before it.
+/// scale estimated), anything else as the chain of range differences the
+/// MSU hands it ([`super::epoch::chain_samples`]), each after the
+/// increments before it.
 fn step_ground(g: &mut GroundRunner, track: &mut Track, e: &Epoch) -> Result<(), LogError> {
     if e.rows.iter().all(|a| a.kind == Kind::RangeM) {
         for a in e.rows {
@@ -373,7 +385,7 @@ fn step_ground(g: &mut GroundRunner, track: &mut Track, e: &Epoch) -> Result<(),
             g.range(a.t_s, position, a.value, e.units.sigma_m(a));
         }
     } else {
-        for s in e.samples {
+        for s in &super::epoch::chain_samples(e.rows, e.anchors, e.units) {
             g.drive_until(s.t_s, track)?;
             g.difference(s);
         }
@@ -580,13 +592,7 @@ fn estimate_offset(
 ) -> Result<Offset, LogError> {
     let reader = MeasurementReader::open(&args.measurements)?;
     let mut epochs = Epochs::new(reader, anchors, units);
-    let mut solver = EpochSolver::new(
-        anchors.dim,
-        anchors.plane_z_m,
-        (volume.min_m, volume.max_m),
-        anchors.centroid(),
-        anchors.role == Role::Receiver,
-    );
+    let mut solver = solver_for(anchors, volume);
     let mut rows = Vec::new();
     let mut fixes = Vec::new();
     while epochs.next_epoch(&mut rows)? {

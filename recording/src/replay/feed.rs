@@ -15,11 +15,12 @@
 use ickon_msu::{Event, MsuCore, MsuDriver};
 use ickon_proto::decode;
 use ickon_proto::keys::{Key, RobotTopic};
+use ickon_proto::site::Site;
 use std::sync::Arc;
 
 use ickon_proto::msg::control::{CellStatus, CycleTrigger, Schedule, SurveyCalibration};
 use ickon_proto::msg::robot::{
-    Imu, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
+    Fix, Imu, ObstacleRanges, Odometry, RobotPose, Truth, UltrasoundArrivals,
 };
 use ickon_proto::msg::ros::PoseWithCovarianceStamped;
 
@@ -79,6 +80,8 @@ pub struct RobotStream {
     pub live_poses: Vec<(u64, Vec<u8>)>,
     /// Ground truth, in recorded order (simulation only).
     pub truth: Vec<Truth>,
+    /// The fixes its agent published, with their receive time.
+    pub fixes: Vec<(u64, Fix)>,
 }
 
 /// Splits a recording into per-robot streams (in order of first appearance);
@@ -133,12 +136,9 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
                     RobotTopic::Odom => decode(&m.data).map(|v| Some(Input::Odometry(v))),
                     RobotTopic::Imu => decode(&m.data).map(|v| Some(Input::Imu(v))),
                     RobotTopic::Range => decode(&m.data).map(|v| Some(Input::Range(v))),
-                    RobotTopic::Pose => decode::<PoseWithCovarianceStamped>(&m.data).map(|_| {
-                        robot(&mut robots, id).live_poses.push((t, m.data.clone()));
-                        None
-                    }),
-                    // The agent's fixes are not inputs of a replay.
-                    RobotTopic::Fix => Ok(None),
+                    RobotTopic::Pose | RobotTopic::Fix => {
+                        kept(robot(&mut robots, id), *topic, t, &m.data).map(|()| None)
+                    }
                 };
                 match input {
                     Ok(Some(input)) => {
@@ -182,6 +182,23 @@ pub fn streams(rec: &Recording) -> (Vec<RobotStream>, Vec<Problem>) {
         )));
     }
     (robots, problems)
+}
+
+/// The agent's poses and fixes: not inputs of a replay; the poses are
+/// compared with it, a conversion places each cycle by the fixes.
+fn kept(
+    r: &mut RobotStream,
+    topic: RobotTopic,
+    t: u64,
+    data: &[u8],
+) -> Result<(), ickon_proto::DecodeError> {
+    if topic == RobotTopic::Fix {
+        r.fixes.push((t, decode::<Fix>(data)?));
+    } else {
+        decode::<PoseWithCovarianceStamped>(data)?;
+        r.live_poses.push((t, data.to_vec()));
+    }
+    Ok(())
 }
 
 /// A pose published by a replayed core, with the receive time of the input
@@ -386,4 +403,72 @@ pub fn join_point(make: &dyn Fn() -> Option<MsuCore>, stream: &RobotStream) -> O
         }
     }
     best.filter(|b| b.probe_difference.is_finite())
+}
+
+/// One robot's cycles, odometry and truth on the robot's clock, as a
+/// simulated run records them for export; and the cycles left out for
+/// want of a schedule.
+///
+/// Each cycle's emission offsets are those of the trigger its MSU matched
+/// it to ([`RecentTriggers::best_for`]: the central unit names the
+/// transmitters of each cycle and their offsets when it fires where the
+/// robots are), else of the newest schedule. As the MSU does, the match
+/// takes the flight times from where the robot last had a fix: the
+/// agent's last fix recorded before the cycle's arrivals (none: the
+/// starts include the flight times).
+pub fn recording_of(stream: &RobotStream, site: &Site) -> (ickon_sim::recording::Recording, u64) {
+    use ickon_msu::cycle_match::RecentTriggers;
+    use ickon_proto::epoch::ScheduleBook;
+    use ickon_sim::recording::RecordedCycle;
+    let mut run = ickon_sim::recording::Recording::default();
+    let mut book = ScheduleBook::new();
+    let mut triggers = RecentTriggers::default();
+    let mut unscheduled = 0;
+    let mut fixes = stream.fixes.iter().peekable();
+    let mut last_fix: Option<[f64; 3]> = None;
+    for (t, input) in &stream.inputs {
+        while let Some((_, f)) = fixes.next_if(|(ft, _)| ft <= t) {
+            last_fix = Some([f.x_m, f.y_m, f.z_m]);
+        }
+        match input {
+            // A schedule the MSU refuses is refused here too.
+            Input::Schedule(s) => _ = book.offer((**s).clone()),
+            Input::Trigger(t) => triggers.note((**t).clone(), &book),
+            Input::Arrivals(m) => {
+                let flight_ns = |tx: u32| flight_ns(site, last_fix?, tx);
+                let matched = triggers.best_for(m, &book, &flight_ns).and_then(|found| {
+                    let t = found.trigger;
+                    let schedule = book.get_in(t.epoch, t.schedule_version)?;
+                    Some(Schedule {
+                        emissions: t.emissions(schedule),
+                        ..schedule.clone()
+                    })
+                });
+                match matched.as_ref().or(book.latest()) {
+                    Some(s) => run.cycles.push(RecordedCycle::of(m.seq, m, s)),
+                    None => unscheduled += 1,
+                }
+            }
+            Input::Odometry(o) => run.odometry.push(*o),
+            _ => {}
+        }
+    }
+    run.truth = stream
+        .truth
+        .iter()
+        .map(|t| ickon_sim::world::TruthSample {
+            t_s: t.robot_clock.as_secs_f64(),
+            x_m: t.x_m,
+            y_m: t.y_m,
+            theta_rad: t.theta_rad,
+        })
+        .collect();
+    (run, unscheduled)
+}
+
+/// The flight time from transmitter `tx` of `site` to `at`, nanoseconds.
+fn flight_ns(site: &Site, at: [f64; 3], tx: u32) -> Option<i64> {
+    let p = site.transmitter(tx)?.position_m;
+    let d_m = ((p[0] - at[0]).powi(2) + (p[1] - at[1]).powi(2) + (p[2] - at[2]).powi(2)).sqrt();
+    Some((d_m / site.speed_of_sound_m_s * 1e9).round() as i64)
 }

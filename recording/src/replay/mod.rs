@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
+use ickon_evaluation::tdoa_log::baseline::{Baseline, least_squares};
 use ickon_fusion::estimator::{self, EstimatorConfig, WheelGeometry};
 use ickon_msu::{MsuConfig, MsuCore};
 use ickon_proto::keys::Key;
@@ -19,7 +20,7 @@ use ickon_proto::msg::control::SiteInfo;
 use ickon_proto::site::Site;
 use ickon_sim::{NoiseProfile, Row, Score};
 
-mod feed;
+pub(crate) mod feed;
 mod out;
 mod plot;
 pub(crate) mod read;
@@ -116,6 +117,11 @@ struct RobotReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     live: Option<LiveCheck>,
     estimators: Vec<EstimatorResult>,
+    /// The per-epoch least-squares baseline `ls` of `ickon replay tdoa`
+    /// on the robot's arrivals (as `ickon convert mcap --to tdoa` writes
+    /// them), scored as that replay scores it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ls: Option<Baseline>,
     #[serde(skip)]
     truth: Vec<ickon_proto::msg::robot::Truth>,
 }
@@ -141,7 +147,7 @@ pub fn run(args: &McapArgs) -> Result<(), CommandError> {
             args.file.display()
         )));
     }
-    let site = recorded_site(&rec, args, &mut problems)
+    let site = recorded_site(&rec, &args.file, args.site.as_deref(), &mut problems)
         .map_err(|e| CommandError::bad_input(e.to_string()))?;
     let sim = rec.metadata.get(SIM_METADATA);
     let profile = sim
@@ -233,11 +239,13 @@ pub fn run(args: &McapArgs) -> Result<(), CommandError> {
     }
 }
 
-/// The site the recording holds (the central unit's answer), else `--site`
-/// or the built-in one (noted as a problem when the recording had none).
-fn recorded_site(
+/// The site the recording holds (the central unit's answer), else the
+/// one `site` names (`--site`) or the built-in one (noted as a problem
+/// when the recording had none).
+pub(crate) fn recorded_site(
     rec: &read::Recording,
-    args: &McapArgs,
+    file: &std::path::Path,
+    site: Option<&std::path::Path>,
     problems: &mut Vec<Problem>,
 ) -> Result<Site, String> {
     let info = rec
@@ -247,19 +255,28 @@ fn recorded_site(
         .find_map(|m| ickon_proto::decode::<SiteInfo>(&m.data).ok());
     match info {
         Some(info) => Site::from_toml(&info.site_toml, "<site in the recording>")
-            .map_err(|e| format!("{}: the recorded site is invalid: {e}", args.file.display())),
+            .map_err(|e| format!("{}: the recorded site is invalid: {e}", file.display())),
         None => {
-            if args.site.is_none() {
+            if site.is_none() {
                 problems.push(Problem(
                     "the recording holds no site (central/site): the built-in site is used"
                         .to_string(),
                 ));
             }
-            Site::load_or_default(args.site.as_deref())
+            Site::load_or_default(site)
                 .map(|(s, _, _)| s)
                 .map_err(|e| e.to_string())
         }
     }
+}
+
+/// The timing sigma robot `robot`'s agent ran with (its recorded
+/// configuration, else the MSU's default), seconds.
+pub(crate) fn recorded_timing_sigma_s(rec: &read::Recording, robot: &str) -> f64 {
+    // The problems of the estimator's configuration are the replay's
+    // concern, not the conversion's.
+    let mut problems = Vec::new();
+    agent_setup(rec, &Site::default_site(), robot, &mut problems).timing_sigma_us * 1e-6
 }
 
 fn agent_setup(
@@ -402,9 +419,12 @@ fn replay_robot(
             published,
         });
     }
+    let (run, _) = feed::recording_of(stream, site);
+    let ls = least_squares(site, setup.timing_sigma_us * 1e-6, &run);
     RobotReport {
         id: stream.id.clone(),
         inputs: stream.inputs.len(),
+        ls,
         truth_samples: stream.truth.len(),
         join,
         note,
@@ -461,6 +481,27 @@ fn compare(name: &str, live: &[(u64, Vec<u8>)], replayed: &[Published]) -> LiveC
     check
 }
 
+/// The robot's note, and its `ls` line when it scored a fix.
+fn print_note_and_baseline(r: &RobotReport) {
+    if let Some(note) = &r.note {
+        println!("{}: note: {note}", r.id);
+    }
+    let Some(b) = r.ls.as_ref().filter(|b| b.scored > 0) else {
+        return;
+    };
+    let mm = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.2}", v * 1e3));
+    println!(
+        "{} ls (per-epoch least squares, as `ickon replay tdoa` on the converted log): {} of {} epochs fixed, {} scored, rmse {} mm, mean {} mm, median {} mm",
+        r.id,
+        b.fixes,
+        b.epochs,
+        b.scored,
+        mm(b.rmse_m),
+        mm(b.mean_m),
+        mm(b.median_m)
+    );
+}
+
 fn print_text(
     args: &McapArgs,
     rec: &read::Recording,
@@ -506,9 +547,7 @@ fn print_text(
             ),
             None => println!(),
         }
-        if let Some(note) = &r.note {
-            println!("{}: note: {note}", r.id);
-        }
+        print_note_and_baseline(r);
         for e in &r.estimators {
             if let Some(refused) = &e.refused_inputs {
                 println!("{} {}: {refused}", r.id, e.estimator);

@@ -1,7 +1,8 @@
 //! `ickon eval --export-tdoa DIR`: each route's simulated run written in
 //! the arrival-time log format (docs/log-format.md), so that
 //! `ickon replay tdoa` can be held against `ickon eval` on the same
-//! measurements.
+//! measurements; `ickon convert mcap` writes each robot of a recording
+//! through [`write_run`] the same way.
 //!
 //! One directory per route, `DIR/ROUTE/`: the site's transmitters with
 //! `# mobile_height_m:` (the MSU's height: a 2D log of a ground robot under
@@ -16,10 +17,10 @@ use std::path::Path;
 use ickon_proto::site::Site;
 use ickon_runtime::CommandError;
 use ickon_sim::RunOutput;
-use ickon_sim::recording::{RecordedCycle, Recording};
+use ickon_sim::recording::{RecordedArrival, RecordedCycle, Recording};
 
-use crate::tdoa_log::convert::Writers;
-use crate::tdoa_log::format::FORMAT;
+use super::convert::Writers;
+use super::format::FORMAT;
 
 /// The rows a route's recording may hold (arrivals, truth and odometry
 /// samples): about 100 bytes each in memory. A ten-tour `lab` route needs
@@ -41,39 +42,54 @@ pub fn write_all(dir: &Path, site: &Site, outputs: &[RunOutput]) -> Result<(), C
                 o.config.route
             )));
         }
-        let route_dir = dir.join(&o.config.route);
-        std::fs::create_dir_all(&route_dir).map_err(|e| {
-            CommandError::failure(format!("cannot create {}: {e}", route_dir.display()))
-        })?;
-        let names = [
-            "anchors.csv",
-            "measurements.csv",
-            "truth.csv",
-            "odometry.csv",
-        ];
-        let mut out = Writers::create_named(&route_dir, &names)?;
-        write_anchors(&mut out, site)?;
-        let rows = write_measurements(&mut out, site, o.timing_sigma_s, rec)?;
-        write_truth(&mut out, rec)?;
-        write_odometry(&mut out, rec)?;
-        out.flush()?;
-        eprintln!(
-            "route {}: {} cycles, {rows} arrivals written to {}",
-            o.config.route,
-            rec.cycles.len(),
-            route_dir.display()
-        );
+        write_run(
+            &dir.join(&o.config.route),
+            &format!("ickon eval from site {}", site.name),
+            site,
+            o.timing_sigma_s,
+            rec,
+        )?;
     }
     Ok(())
 }
 
+/// Writes one run `rec` into `dir` (created; existing files are refused):
+/// the anchors of `site` (`source`: who wrote them, said in a comment),
+/// the arrivals with the timing sigma `sigma_s`, the truth and the
+/// odometry.
+pub fn write_run(
+    dir: &Path,
+    source: &str,
+    site: &Site,
+    sigma_s: f64,
+    rec: &Recording,
+) -> Result<(), CommandError> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| CommandError::failure(format!("cannot create {}: {e}", dir.display())))?;
+    let names = [
+        "anchors.csv",
+        "measurements.csv",
+        "truth.csv",
+        "odometry.csv",
+    ];
+    let mut out = Writers::create_named(dir, &names)?;
+    write_anchors(&mut out, source, site)?;
+    let rows = write_measurements(&mut out, site, sigma_s, rec)?;
+    write_truth(&mut out, rec)?;
+    write_odometry(&mut out, rec)?;
+    out.flush()?;
+    eprintln!(
+        "{} cycles, {rows} arrivals written to {}",
+        rec.cycles.len(),
+        dir.display()
+    );
+    Ok(())
+}
+
 /// `anchors.csv` (file 0): the site's transmitters as surveyed.
-fn write_anchors(out: &mut Writers, site: &Site) -> Result<(), CommandError> {
-    out.line(
-        0,
-        &format!("# written by ickon eval from site {}", site.name),
-    )?;
-    out.line(0, &format!("# mobile_height_m: {}", site.msu.height_m))?;
+fn write_anchors(out: &mut Writers, source: &str, site: &Site) -> Result<(), CommandError> {
+    out.line(0, &format!("# written by {source}"))?;
+    out.line(0, &format!("# mobile_height_m: {}", mobile_height_m(site)))?;
     out.line(0, "id,x_m,y_m,z_m,role")?;
     for t in &site.transmitters {
         let [x, y, z] = t.position_m;
@@ -99,21 +115,13 @@ fn write_measurements(
     )?;
     out.line(1, "epoch,time_s,anchor,reference,kind,value,sigma")?;
     let mut rows = 0;
-    let mut last_s = f64::NEG_INFINITY;
-    for c in &rec.cycles {
-        for a in usable(c) {
-            // A late arrival of one cycle after the first of the next
-            // would put the file's time backwards: left out, as a receiver
-            // whose listening window had closed would leave it.
-            if a.t_s < last_s {
-                continue;
-            }
-            last_s = a.t_s;
+    for (cycle, arrivals) in epochs(rec) {
+        for a in arrivals {
             out.line(
                 1,
                 &format!(
                     "{},{:.9},{},,toa_s,{:.9},{sigma_s:e}",
-                    c.cycle,
+                    cycle,
                     a.t_s,
                     a.tx_id,
                     a.t_s - a.offset_s
@@ -125,10 +133,39 @@ fn write_measurements(
     Ok(rows)
 }
 
+/// The arrivals written of each cycle, with the cycle's number: those the
+/// MSU uses ([`usable`]), in time order. A late arrival of one cycle after
+/// the first of the next would put the file's time backwards: left out,
+/// as a receiver whose listening window had closed would leave it.
+pub(super) fn epochs(rec: &Recording) -> Vec<(u64, Vec<RecordedArrival>)> {
+    let mut last_s = f64::NEG_INFINITY;
+    let mut out = Vec::with_capacity(rec.cycles.len());
+    for c in &rec.cycles {
+        let mut kept = usable(c);
+        kept.retain(|a| {
+            let in_order = a.t_s >= last_s;
+            if in_order {
+                last_s = a.t_s;
+            }
+            in_order
+        });
+        if !kept.is_empty() {
+            out.push((c.cycle, kept));
+        }
+    }
+    out
+}
+
+/// The height of the plane the MSU moves in, metres (the anchors file's
+/// `# mobile_height_m:`).
+pub(super) fn mobile_height_m(site: &Site) -> f64 {
+    site.msu.height_m
+}
+
 /// The cycle's arrivals the MSU uses (the first of each transmitter), in
 /// time order.
-fn usable(c: &RecordedCycle) -> Vec<ickon_sim::recording::RecordedArrival> {
-    let mut kept: Vec<ickon_sim::recording::RecordedArrival> = Vec::new();
+fn usable(c: &RecordedCycle) -> Vec<RecordedArrival> {
+    let mut kept: Vec<RecordedArrival> = Vec::new();
     for a in &c.arrivals {
         if !kept.iter().any(|k| k.tx_id == a.tx_id) {
             kept.push(*a);
@@ -195,7 +232,6 @@ mod tests {
 
     #[test]
     fn a_transmitter_heard_twice_keeps_its_first_arrival_and_rows_sort_by_time() {
-        use ickon_sim::recording::RecordedArrival;
         let a = |tx_id, t_s| RecordedArrival {
             tx_id,
             t_s,

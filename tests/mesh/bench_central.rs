@@ -77,6 +77,9 @@ fn bench_central_serves_every_synthetic_robot_with_sane_figures() {
     // Every synthetic robot up at the central unit, and posed.
     assert_eq!(r["robots_up_at_central"], 30, "{r}");
     assert_eq!(r["robots_posed_at_central"], 30, "{r}");
+    // Every token came up within the bench's start-up timeout.
+    let live_s = number(r, "live_s");
+    assert!(live_s > 0.0 && live_s < 60.0, "{r}");
     // Cycles triggered all along (lab runs several a second).
     assert!(number(r, "cycles") >= 6.0, "{r}");
     let period_ms = number(r, "cycle_period_ms");

@@ -92,6 +92,10 @@ pub struct CentralReport {
     /// Why the run failed (a process died), if it did; the numbers are
     /// of what was measured until then.
     pub failure: Option<String>,
+    /// Seconds from the start of the cells and the synthetic fleet until
+    /// every robot's, every cell's and the central unit's token was live at
+    /// the bench's router.
+    pub live_s: f64,
     /// Robots the central unit listed as up in its last status.
     pub robots_up_at_central: usize,
     /// Robots in its last status with a pose.
@@ -411,8 +415,10 @@ async fn run_measured(
         for (name, cmd) in others {
             sup.spawn(&name, cmd).map_err(|e| failed(&e))?;
         }
-        wait_live(site, robots, keys, &alive, sup).await?;
-        observe(args, keys, &session, web, sup).await
+        let live_s = wait_live(site, robots, keys, &alive, sup).await?;
+        let (mut observed, failure) = observe(args, keys, &session, web, sup).await?;
+        observed.live_s = live_s;
+        Ok((observed, failure))
     }
     .await;
     let _ = session.close().await;
@@ -420,14 +426,14 @@ async fn run_measured(
 }
 
 /// Waits until the central unit, every cell and every robot of the fleet
-/// hold their liveliness tokens.
+/// hold their liveliness tokens; the seconds that took.
 async fn wait_live(
     site: &Site,
     robots: &[String],
     keys: &Keys,
     alive: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     sup: &mut Supervisor,
-) -> Result<(), CommandError> {
+) -> Result<f64, CommandError> {
     let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
     let mut expected: BTreeSet<String> = std::iter::once(keys.alive_central())
         .map(Ok)
@@ -453,7 +459,7 @@ async fn wait_live(
             expected.remove(sample.key_expr().as_str());
         }
     }
-    Ok(())
+    Ok(started.elapsed().as_secs_f64())
 }
 
 /// Keys of the tokens not live named in the start-up's error: a few say
@@ -486,6 +492,8 @@ fn not_live(missing: &BTreeSet<String>) -> String {
 #[derive(Debug, Default)]
 struct Observed {
     duration_s: f64,
+    /// Seconds until every token was live.
+    live_s: f64,
     /// Each trigger's arrival: (epoch, cycle), cycle start (master time,
     /// ns), when it arrived.
     triggers: Vec<((u64, u64), i64, Instant)>,
@@ -627,6 +635,7 @@ impl Observed {
             robots,
             routers: 1,
             duration_s: self.duration_s,
+            live_s: self.live_s,
             failure,
             robots_up_at_central: status
                 .map_or(0, |s| (s.robot_counts.up + s.robot_counts.stale) as usize),
@@ -722,8 +731,9 @@ fn render(reports: &[CentralReport]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+        "{:>6} {:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
         "robots",
+        "live",
         "up/posed",
         "cycles",
         "central",
@@ -738,14 +748,15 @@ fn render(reports: &[CentralReport]) -> String {
     );
     let _ = writeln!(
         out,
-        "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
-        "", "", "", "% core", "", "µs", "µs", "ms", "ms", "µs", "% core", "ms"
+        "{:>6} {:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+        "", "s", "", "", "% core", "", "µs", "µs", "ms", "ms", "µs", "% core", "ms"
     );
     for r in reports {
         let _ = writeln!(
             out,
-            "{:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
+            "{:>6} {:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
             r.robots,
+            format!("{:.1}", r.live_s),
             format!("{}/{}", r.robots_up_at_central, r.robots_posed_at_central),
             r.cycles,
             show(r.central_cpu_share.map(|s| s * 100.0), 1),

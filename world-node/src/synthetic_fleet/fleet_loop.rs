@@ -5,15 +5,21 @@ use std::time::Instant;
 
 use ickon_proto::msg::control::{CycleTrigger, Schedule};
 use ickon_proto::msg::robot::{MsuStatus, SUMMARY_PERIOD};
-use ickon_runtime::{SimulatedClock, put_counted};
+use serde::Serialize;
+use zenoh::Session;
+use zenoh::key_expr::KeyExpr;
+
+use ickon_runtime::SimulatedClock;
 
 use super::model::SyntheticFleet;
-use super::{FleetKeptUp, RobotPublishers, STATUS_PERIOD, ticks_in};
+use super::{FleetKeptUp, RobotKeys, STATUS_PERIOD, ticks_in};
 
 /// What the fleet's loop holds between two inputs.
 pub(super) struct FleetLoop {
+    /// The session the robots' messages are put on.
+    pub session: Session,
     pub fleet: SyntheticFleet,
-    pub publishers: Vec<RobotPublishers>,
+    pub robots: Vec<RobotKeys>,
     pub schedule: Schedule,
     pub clock: SimulatedClock,
     pub started: Instant,
@@ -38,15 +44,17 @@ pub(super) struct FleetLoop {
 impl FleetLoop {
     /// A loop of `fleet` starting now, under `schedule`.
     pub fn new(
+        session: Session,
         fleet: SyntheticFleet,
-        publishers: Vec<RobotPublishers>,
+        robots: Vec<RobotKeys>,
         schedule: Schedule,
         clock: SimulatedClock,
         declare_s: f64,
     ) -> Self {
         Self {
+            session,
             fleet,
-            publishers,
+            robots,
             schedule,
             clock,
             started: Instant::now(),
@@ -91,7 +99,7 @@ impl FleetLoop {
     async fn summaries_of_turn(&mut self, k: usize, t_s: f64, late: bool) {
         let per_summary = self.per_summary;
         for i in (k % per_summary..self.fleet.len()).step_by(per_summary) {
-            let p = &mut self.publishers[i];
+            let p = &mut self.robots[i];
             let stamp = self.clock.now();
             let solved = self
                 .cycles
@@ -107,7 +115,8 @@ impl FleetLoop {
             let summary =
                 self.fleet
                     .summary(i, t_s, stamp, p.seq, solved, fix.into_iter().collect());
-            self.kept_up.failed_puts += u64::from(!put_counted(&p.summary, &summary).await);
+            self.kept_up.failed_puts +=
+                u64::from(!put_counted(&self.session, &p.summary, &summary).await);
             self.kept_up.summaries += 1;
             self.kept_up.late_turns += u64::from(late);
         }
@@ -121,8 +130,8 @@ impl FleetLoop {
                 stamp: self.clock.now(),
                 receivers: String::new(),
             };
-            self.kept_up.failed_puts +=
-                u64::from(!put_counted(&self.publishers[i].status, &status).await);
+            let key = &self.robots[i].status;
+            self.kept_up.failed_puts += u64::from(!put_counted(&self.session, key, &status).await);
         }
     }
 
@@ -140,6 +149,25 @@ impl FleetLoop {
                     .map(|e| e.tx_id)
                     .collect(),
             );
+        }
+    }
+}
+
+/// Encodes `value` and puts it on `key` through `session`; `false` (and a
+/// debug log) if either failed, for the fleet to count.
+async fn put_counted<T: Serialize>(session: &Session, key: &KeyExpr<'_>, value: &T) -> bool {
+    let bytes = match ickon_proto::encode(value) {
+        Ok(b) => b,
+        Err(e) => {
+            tracing::debug!("not sent on {key}: {e}");
+            return false;
+        }
+    };
+    match session.put(key, bytes).await {
+        Ok(()) => true,
+        Err(e) => {
+            tracing::debug!("put on {key} failed: {e}");
+            false
         }
     }
 }

@@ -17,9 +17,9 @@
 //! late (a tick that came after the robot's turn had passed by more than
 //! a period) and says so when it stops (in its log, and in the file
 //! `--report` names), so that a benchmark can tell the generator falling
-//! behind from the central unit. The robots' tokens and publishers are
-//! declared many at a time: one after the other, 10,000 robots were not
-//! all live a minute after the start.
+//! behind from the central unit. The robots' summaries and statuses are
+//! puts on the session with no publisher declared, and only their tokens
+//! are declarations ([`declare_all`]).
 
 mod fleet_loop;
 pub mod model;
@@ -28,9 +28,9 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use zenoh::Session;
+use zenoh::key_expr::KeyExpr;
 use zenoh::liveliness::LivelinessToken;
-use zenoh::pubsub::Publisher;
+use zenoh::{Session, Wait};
 
 use ickon_proto::decode;
 use ickon_proto::keys::Keys;
@@ -117,10 +117,10 @@ struct Settings {
     report: Option<std::path::PathBuf>,
 }
 
-/// One robot's publishers and the count of its summaries.
-struct RobotPublishers {
-    summary: Publisher<'static>,
-    status: Publisher<'static>,
+/// One robot's keys (checked once) and the count of its summaries.
+struct RobotKeys {
+    summary: KeyExpr<'static>,
+    status: KeyExpr<'static>,
     seq: u64,
     /// The fleet's cycle count at its last summary: the fixes it solved
     /// since are the cycles since.
@@ -155,18 +155,22 @@ async fn run(
     };
     let declared = Instant::now();
     let ids: Vec<String> = (0..fleet.len()).map(|i| fleet.id(i).to_string()).collect();
-    let (publishers, tokens) = declare_all(session, &keys, &ids).await?;
+    let (robot_keys, tokens) = declare_all(session, &keys, &ids)?;
     let declare_s = declared.elapsed().as_secs_f64();
-    tracing::info!(
-        "{} robots' tokens and publishers declared in {declare_s:.1} s",
-        ids.len()
-    );
+    tracing::info!("{} robots' tokens declared in {declare_s:.1} s", ids.len());
     tracing::info!(
         "synthetic fleet of {} robots on site {:?}",
         fleet.len(),
         site.name
     );
-    let mut fleet = FleetLoop::new(fleet, publishers, schedule, settings.clock, declare_s);
+    let mut fleet = FleetLoop::new(
+        session.clone(),
+        fleet,
+        robot_keys,
+        schedule,
+        settings.clock,
+        declare_s,
+    );
     let mut ticks = tokio::time::interval(TICK);
     ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     loop {
@@ -219,58 +223,38 @@ fn report(kept_up: &FleetKeptUp, file: Option<&std::path::Path>) {
     }
 }
 
-/// How many robots' declarations are in flight at once: enough that the
-/// round trips to the router overlap (one at a time, 10,000 robots' tokens
-/// took over a minute), few enough that a fleet does not queue tens of
-/// thousands of declarations on the session at once.
-const DECLARE_IN_FLIGHT: usize = 256;
-
-/// Declares every robot's summary and status publishers and its
-/// liveliness token, [`DECLARE_IN_FLIGHT`] robots at a time; in `ids`'
-/// order.
-async fn declare_all(
+/// Every robot's summary and status keys, checked once, and its
+/// liveliness token, in `ids`' order. The summaries and statuses go out as
+/// puts on the session, with no publisher declared: in Zenoh 1.10 each
+/// declared publisher looks through every publisher of the session for
+/// one on its key and asks the router for its key's subscribers, so two
+/// publishers a robot made the fleet's start-up grow with the square of
+/// the fleet. Nothing subscribes to a publisher's matching status here,
+/// so nothing is lost. A token is one declaration the session sends
+/// without waiting for an answer, and the central unit needs it.
+fn declare_all(
     session: &Session,
     keys: &Keys,
     ids: &[String],
-) -> Result<(Vec<RobotPublishers>, Vec<LivelinessToken>), NodeError> {
-    let mut publishers = Vec::with_capacity(ids.len());
+) -> Result<(Vec<RobotKeys>, Vec<LivelinessToken>), NodeError> {
+    let mut robots = Vec::with_capacity(ids.len());
     let mut tokens = Vec::with_capacity(ids.len());
-    for chunk in ids.chunks(DECLARE_IN_FLIGHT) {
-        let mut set = tokio::task::JoinSet::new();
-        for (k, id) in chunk.iter().enumerate() {
-            let (session, summary, status, alive) = (
-                session.clone(),
-                keys.robot_summary(id)?,
-                keys.robot_status(id)?,
-                keys.alive_robot(id)?,
-            );
-            set.spawn(async move {
-                let summary = session.declare_publisher(summary).await?;
-                let status = session.declare_publisher(status).await?;
-                let token = session.liveliness().declare_token(alive).await?;
-                Ok::<_, zenoh::Error>((k, summary, status, token))
-            });
-        }
-        let mut done: Vec<Option<(RobotPublishers, LivelinessToken)>> =
-            (0..chunk.len()).map(|_| None).collect();
-        while let Some(joined) = set.join_next().await {
-            let (k, summary, status, token) = joined
-                .map_err(|e| NodeError::Setup(format!("declaring a robot: {e}")))?
-                .map_err(zerr)?;
-            let robot = RobotPublishers {
-                summary,
-                status,
-                seq: 0,
-                cycles_at_last: 0,
-            };
-            done[k] = Some((robot, token));
-        }
-        for (robot, token) in done.into_iter().flatten() {
-            publishers.push(robot);
-            tokens.push(token);
-        }
+    for id in ids {
+        let key = |k: String| KeyExpr::try_from(k).map_err(zerr);
+        robots.push(RobotKeys {
+            summary: key(keys.robot_summary(id)?)?,
+            status: key(keys.robot_status(id)?)?,
+            seq: 0,
+            cycles_at_last: 0,
+        });
+        let token = session
+            .liveliness()
+            .declare_token(keys.alive_robot(id)?)
+            .wait()
+            .map_err(zerr)?;
+        tokens.push(token);
     }
-    Ok((publishers, tokens))
+    Ok((robots, tokens))
 }
 
 /// How many fleet ticks make `period`.

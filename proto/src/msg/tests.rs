@@ -585,8 +585,9 @@ fn garbage_is_an_error_not_a_panic() {
     })
     .unwrap();
     let n = fix.len();
-    // The quality, before the survey version.
-    fix[n - 8..n - 4].copy_from_slice(&77u32.to_le_bytes());
+    // The quality, before the survey version and the unused arrivals'
+    // two (empty) arrays.
+    fix[n - 16..n - 12].copy_from_slice(&77u32.to_le_bytes());
     assert!(matches!(
         decode::<Fix>(&fix),
         Err(DecodeError::Malformed(_))

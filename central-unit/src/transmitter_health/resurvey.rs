@@ -130,9 +130,10 @@ impl Resurvey {
     ) {
         let p = Vector3::from(receiver_m);
         let s = Vector3::from(solved_at_m);
-        if !(residual_m.is_finite() && residual_m.abs() <= self.config.max_residual_m)
-            || !p.iter().chain(s.iter()).all(|v| v.is_finite())
-        {
+        let sane = residual_m.is_finite()
+            && residual_m.abs() <= self.config.max_residual_m
+            && p.iter().chain(s.iter()).all(|v| v.is_finite());
+        if !sane {
             return;
         }
         let range_m = (s - p).norm() + residual_m;

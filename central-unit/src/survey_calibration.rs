@@ -156,6 +156,12 @@ impl Default for CalibrationConfig {
     }
 }
 
+/// A moved transmitter is surveyed again only when the fleet's fixes place
+/// it this far from where it is taken, metres (three range sigmas of the
+/// calibration's floor): every re-survey restarts the check that takes it
+/// back, and the estimate wanders by a centimetre or two as fixes come.
+const RESURVEY_STEP_M: f64 = 0.03;
+
 /// A residual larger than this many range sigmas is down-weighted (Huber):
 /// a reflection that passed the fix's gate must not bend a height.
 const HUBER_SIGMAS: f64 = 2.0;
@@ -912,9 +918,15 @@ impl SurveyPublisher {
 
     /// Surveys again every moved transmitter the fleet's fixes now place
     /// away from where the calibration takes it (by more than three of its
-    /// sigmas and a centimetre), for the next publication.
+    /// sigmas and [`RESURVEY_STEP_M`]), for the next publication; one
+    /// surveyed again already is not, until the fixes solved with its new
+    /// position disagree with it.
     fn resurvey_moved(&mut self) {
         for tx_id in self.health.moved() {
+            // Surveyed again already, and being checked: the check decides.
+            if self.health.resurveyed_at(tx_id).is_some() {
+                continue;
+            }
             let (Some(r), Some(base)) = (
                 self.health.resurveyed(tx_id),
                 self.calibration.base_of(tx_id),
@@ -926,13 +938,15 @@ impl SurveyPublisher {
                 .sum::<f64>()
                 .sqrt();
             let sigma = r.sigma_m.iter().fold(0.0_f64, |m, s| m.max(*s));
-            if apart <= (3.0 * sigma).max(0.01) {
+            if apart <= (3.0 * sigma).max(RESURVEY_STEP_M) {
                 continue;
             }
             match self.calibration.rebase(tx_id, r.position_m, r.sigma_m) {
                 Ok(()) => {
                     tracing::warn!(
-                        "transmitter {tx_id} surveyed again by {} fixes of {} robots at                          ({:.3}, {:.3}, {:.3}) m (sigma {:.0} mm), {:.0} mm from where it was                          taken; left out until fixes solved with it there agree",
+                        "transmitter {tx_id} surveyed again by {} fixes of {} robots at \
+                         ({:.3}, {:.3}, {:.3}) m (sigma {:.0} mm), {:.0} mm from where it was \
+                         taken; left out until fixes solved with it there agree",
                         r.fixes,
                         r.robots,
                         r.position_m[0],

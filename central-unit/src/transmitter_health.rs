@@ -319,7 +319,9 @@ impl TransmitterHealth {
         };
         // Solved with an older calibration: not a check of the new position.
         let moved_since = (0..3).map(|a| (at[a] - solved_at[a]).powi(2)).sum::<f64>();
-        if moved_since > 1e-4 || !residual_m.is_finite() {
+        // Beyond the agreement's RMS bound twice over it is a reflection's
+        // (the fixes' gates reject those of healthy transmitters too).
+        if moved_since > 1e-4 || !(residual_m.abs() <= 2.0 * AGREEMENT_RMS_M) {
             return;
         }
         let (n, sum, sq) = &mut e.agreement;
@@ -332,7 +334,13 @@ impl TransmitterHealth {
         let mean = *sum / *n;
         let rms = (*sq / *n).sqrt();
         e.agreement = (0.0, 0.0, 0.0);
-        if mean.abs() <= AGREEMENT_MEAN_M && rms <= AGREEMENT_RMS_M {
+        if !(mean.abs() <= AGREEMENT_MEAN_M && rms <= AGREEMENT_RMS_M) {
+            // The new position does not explain the arrivals: it may be
+            // surveyed again from what the fixes say now.
+            e.resurveyed_at = None;
+            return;
+        }
+        {
             e.condition = Condition::Healthy;
             e.since = Some(now);
             e.resurveyed_at = None;
@@ -356,6 +364,12 @@ impl TransmitterHealth {
                 e.agreement = (0.0, 0.0, 0.0);
             }
         }
+    }
+
+    /// Where moved transmitter `tx_id` was surveyed again and is being
+    /// checked (`None`: not surveyed again, or its check failed).
+    pub fn resurveyed_at(&self, tx_id: u32) -> Option<[f64; 3]> {
+        self.entries[*self.index.get(&tx_id)?].resurveyed_at
     }
 
     /// The moved transmitters, by id.

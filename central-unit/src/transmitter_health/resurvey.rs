@@ -43,8 +43,8 @@ pub struct ResurveyConfig {
     pub min_spread_m: f64,
     /// Every coordinate's sigma must be under this, metres.
     pub max_sigma_m: f64,
-    /// A robot whose RMS residual against the joint solution is beyond
-    /// this disagrees with the fleet, metres.
+    /// A robot whose median absolute residual against the joint solution
+    /// is beyond this disagrees with the fleet, metres.
     pub agree_m: f64,
 }
 
@@ -55,7 +55,8 @@ impl Default for ResurveyConfig {
     /// floor of a range's error: receivers' spread on the robot, motion in
     /// a cycle), places spread by 0.5 m at least, every coordinate to
     /// 3 cm (a tenth of the 30 cm a forklift knocks a transmitter by), and
-    /// a robot's RMS residual within 5 cm (five times a range's sigma).
+    /// a robot's median absolute residual within 5 cm (five times a
+    /// range's sigma).
     fn default() -> Self {
         Self {
             min_fixes: 40,
@@ -104,6 +105,14 @@ pub struct Resurvey {
 const HUBER_SIGMAS: f64 = 2.0;
 /// Gauss-Newton steps at most; it converges in three or four.
 const MAX_STEPS: usize = 20;
+/// Steps taken with Huber's weights alone, from where the transmitter was
+/// (its residuals there are the move's, decimetres), before residuals
+/// beyond [`CUT_SIGMAS`] are left out.
+const HUBER_ONLY_STEPS: usize = 4;
+/// A residual beyond this many range sigmas, near the solution, is an
+/// arrival by a reflection (the fixes' gates reject most of them, and
+/// this transmitter's are rejected whatever their path): left out.
+const CUT_SIGMAS: f64 = 8.0;
 
 impl Resurvey {
     /// Nothing measured yet of a transmitter last known at `from_m` (where
@@ -195,7 +204,7 @@ impl Resurvey {
         let sigma = self.config.range_sigma_m.max(1e-6);
         let mut x = self.from_m;
         let mut information = Matrix3::zeros();
-        for _ in 0..MAX_STEPS {
+        for step in 0..MAX_STEPS {
             let mut normal = Matrix3::zeros();
             let mut rhs = Vector3::zeros();
             for r in ranges {
@@ -206,6 +215,11 @@ impl Resurvey {
                 }
                 let u = d / range;
                 let e = r.range_m - range;
+                // Once near the solution, a residual beyond the cut is a
+                // reflection's, and has no say at all.
+                if step >= HUBER_ONLY_STEPS && e.abs() > CUT_SIGMAS * sigma {
+                    continue;
+                }
                 let w = huber_weight(e, sigma) / (sigma * sigma);
                 normal += w * u * u.transpose();
                 rhs += w * e * u;
@@ -234,8 +248,16 @@ impl Resurvey {
             .sum::<f64>()
             / n)
             .sqrt();
-        // The residuals' own scale when it is larger than the assumed one.
-        let scale = (rms_m / self.config.range_sigma_m.max(1e-6)).max(1.0);
+        // The residuals' own scale when it is larger than the assumed one:
+        // their median absolute value as a sigma (1.4826 of it), so that
+        // the reflections left out do not inflate it.
+        let mut abs: Vec<f64> = ranges
+            .iter()
+            .map(|r| (r.range_m - (x - r.receiver_m).norm()).abs())
+            .collect();
+        abs.sort_by(f64::total_cmp);
+        let robust = 1.4826 * abs[abs.len() / 2];
+        let scale = (robust / self.config.range_sigma_m.max(1e-6)).max(1.0);
         let covariance = information.try_inverse()? * scale * scale;
         let sigma_m: [f64; 3] = std::array::from_fn(|i| covariance[(i, i)].max(0.0).sqrt());
         if !sigma_m
@@ -284,17 +306,20 @@ fn spread_enough(ranges: &[&Range], min_m: f64) -> bool {
         .all(|&v| v >= min_m * min_m)
 }
 
-/// Each robot's RMS residual against `x`.
+/// Each robot's median absolute residual against `x`: what most of its
+/// arrivals say, whatever a few reflections do.
 fn per_robot_rms<'a>(ranges: &[&'a Range], x: &Vector3<f64>) -> BTreeMap<&'a str, f64> {
-    let mut sums: BTreeMap<&str, (f64, f64)> = BTreeMap::new();
+    let mut residuals: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
     for r in ranges {
         let e = r.range_m - (x - r.receiver_m).norm();
-        let s = sums.entry(r.robot.as_str()).or_default();
-        s.0 += e * e;
-        s.1 += 1.0;
+        residuals.entry(r.robot.as_str()).or_default().push(e.abs());
     }
-    sums.into_iter()
-        .map(|(robot, (sq, n))| (robot, (sq / n).sqrt()))
+    residuals
+        .into_iter()
+        .map(|(robot, mut e)| {
+            e.sort_by(f64::total_cmp);
+            (robot, e[e.len() / 2])
+        })
         .collect()
 }
 

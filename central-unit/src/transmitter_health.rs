@@ -321,7 +321,8 @@ impl TransmitterHealth {
         let moved_since = (0..3).map(|a| (at[a] - solved_at[a]).powi(2)).sum::<f64>();
         // Beyond the agreement's RMS bound twice over it is a reflection's
         // (the fixes' gates reject those of healthy transmitters too).
-        if moved_since > 1e-4 || !(residual_m.abs() <= 2.0 * AGREEMENT_RMS_M) {
+        let plausible = residual_m.is_finite() && residual_m.abs() <= 2.0 * AGREEMENT_RMS_M;
+        if moved_since > 1e-4 || !plausible {
             return;
         }
         let (n, sum, sq) = &mut e.agreement;

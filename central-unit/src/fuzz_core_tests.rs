@@ -202,7 +202,7 @@ fn check_outputs(core: &CentralCore, now: Time, out: &[Output]) -> Result<(), Te
                     prop_assert!(
                         o.offset_m
                             .iter()
-                            .all(|v| v.abs() <= ickon_proto::msg::control::MAX_SURVEY_OFFSET_M),
+                            .all(|v| v.abs() <= ickon_proto::msg::control::MAX_RESURVEYED_OFFSET_M),
                         "{o:?}"
                     );
                     prop_assert!(

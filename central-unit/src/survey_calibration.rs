@@ -51,8 +51,8 @@
 use std::collections::BTreeMap;
 
 use ickon_proto::msg::control::{
-    MAX_LATE_M, MAX_SOUND_SPEED_CHANGE, MAX_SURVEY_OFFSET_M, SurveyCalibration as SurveyMessage,
-    TransmitterOffset,
+    MAX_LATE_M, MAX_RESURVEYED_OFFSET_M, MAX_SOUND_SPEED_CHANGE, MAX_SURVEY_OFFSET_M,
+    SurveyCalibration as SurveyMessage, TransmitterOffset,
 };
 use ickon_proto::msg::robot::{Fix, FixQuality};
 use ickon_proto::site::{Column, Site, Wall, line_of_sight};
@@ -155,6 +155,12 @@ impl Default for CalibrationConfig {
         }
     }
 }
+
+/// A moved transmitter is surveyed again only when the fleet's fixes place
+/// it this far from where it is taken, metres (three range sigmas of the
+/// calibration's floor): every re-survey restarts the check that takes it
+/// back, and the estimate wanders by a centimetre or two as fixes come.
+const RESURVEY_STEP_M: f64 = 0.03;
 
 /// A residual larger than this many range sigmas is down-weighted (Huber):
 /// a reflection that passed the fix's gate must not bend a height.
@@ -287,6 +293,11 @@ pub struct SavedCalibration {
     /// written before the lateness was forgotten (read as "just now").
     #[serde(default)]
     pub saved_at_s: Option<f64>,
+    /// The transmitters the fleet's fixes surveyed again, `(id, [dx, dy,
+    /// dz])` from their surveyed positions, metres: what the learnt
+    /// offsets of those are relative to (absent from older files: none).
+    #[serde(default)]
+    pub rebased: Vec<(u32, [f64; 3])>,
 }
 
 /// Why a saved calibration cannot be used.
@@ -312,6 +323,10 @@ pub struct SurveyCalibration {
     index: BTreeMap<u32, (usize, usize)>,
     ids: Vec<u32>,
     surveyed_m: Vec<Vector3<f64>>,
+    /// Where each transmitter was surveyed again from its surveyed
+    /// position (zero: it was not), metres: its learnt offset is taken
+    /// from there (`rebase`).
+    rebased_m: Vec<Vector3<f64>>,
     walls: Vec<Wall>,
     columns: Vec<Column>,
     information: DMatrix<f64>,
@@ -359,6 +374,7 @@ impl SurveyCalibration {
             index,
             ids,
             surveyed_m,
+            rebased_m: vec![Vector3::zeros(); n_tx],
             walls: site.walls.clone(),
             columns: site.columns.clone(),
             information,
@@ -394,6 +410,7 @@ impl SurveyCalibration {
             information: self.information.transpose().as_slice().to_vec(),
             weighted: self.weighted.as_slice().to_vec(),
             saved_at_s: None,
+            rebased: self.rebased(),
         }
     }
 
@@ -432,6 +449,18 @@ impl SurveyCalibration {
             return Err(SavedMismatch::Broken(
                 "the information is not positive definite",
             ));
+        }
+        for &(id, d) in &saved.rebased {
+            let &(tx, _) = c.index.get(&id).ok_or(SavedMismatch::OtherSite)?;
+            if !d
+                .iter()
+                .all(|v| v.is_finite() && v.abs() <= MAX_RESURVEYED_OFFSET_M)
+            {
+                return Err(SavedMismatch::Broken(
+                    "a re-surveyed position is out of bounds",
+                ));
+            }
+            c.rebased_m[tx] = Vector3::from(d);
         }
         c.information = information;
         c.weighted = DVector::from_column_slice(&saved.weighted);
@@ -472,15 +501,18 @@ impl SurveyCalibration {
         let mut rows = Vec::with_capacity(n);
         for &id in &fix.used {
             let &(tx, cell) = self.index.get(&id).ok_or(FixSkipped::UnknownTransmitter)?;
-            let surveyed = self.surveyed_m[tx];
+            // Where the transmitter is known to be: surveyed, or surveyed
+            // again by the fleet; the offset learnt is from there.
+            let base = self.surveyed_m[tx] + self.rebased_m[tx];
             if places
                 .iter()
-                .any(|&p| !line_of_sight(&self.walls, &self.columns, p, surveyed.into()))
+                .any(|&p| !line_of_sight(&self.walls, &self.columns, p, base.into()))
             {
                 return Err(FixSkipped::MaybeReflected);
             }
-            let offset = Vector3::from(applied.get(&id).copied().unwrap_or([0.0; 3]));
-            let to_tx = surveyed + offset - receiver;
+            let offset =
+                Vector3::from(applied.get(&id).copied().unwrap_or([0.0; 3])) - self.rebased_m[tx];
+            let to_tx = base + offset - receiver;
             let range = to_tx.norm();
             if range < 1e-3 {
                 return Err(FixSkipped::Degenerate);
@@ -506,9 +538,10 @@ impl SurveyCalibration {
         let sigma = self.config.survey_sigma_m;
         self.ids
             .iter()
-            .map(|&tx_id| TransmitterCorrection {
+            .zip(&self.rebased_m)
+            .map(|(&tx_id, rebased)| TransmitterCorrection {
                 tx_id,
-                offset_m: [0.0; 3],
+                offset_m: (*rebased).into(),
                 sigma_m: [sigma; 3],
                 late_m: 0.0,
                 late_sigma_m: self.config.cell_sync_sigma_m,
@@ -581,7 +614,7 @@ impl SurveyCalibration {
                     });
                 TransmitterCorrection {
                     tx_id,
-                    offset_m: std::array::from_fn(|a| estimate[3 * i + a]),
+                    offset_m: std::array::from_fn(|a| self.rebased_m[i][a] + estimate[3 * i + a]),
                     sigma_m: std::array::from_fn(|a| variance[3 * i + a].max(0.0).sqrt()),
                     late_m,
                     late_sigma_m,
@@ -630,15 +663,25 @@ fn checked_receiver(fix: &Fix) -> Result<Vector3<f64>, FixSkipped> {
 ///
 /// Why small offsets are not held at 0:
 /// [docs/decisions/0017-small-survey-offsets-published.md](../../docs/decisions/0017-small-survey-offsets-published.md).
-fn publishable(c: TransmitterCorrection, config: &CalibrationConfig) -> (TransmitterOffset, bool) {
-    let position_plausible = c.offset_m.iter().all(|v| v.abs() <= MAX_SURVEY_OFFSET_M)
+fn publishable(
+    c: TransmitterCorrection,
+    rebased_m: [f64; 3],
+    config: &CalibrationConfig,
+) -> (TransmitterOffset, bool) {
+    // What was learnt, from where the fleet surveyed it again if it did.
+    let learnt_plausible =
+        (0..3).all(|a| (c.offset_m[a] - rebased_m[a]).abs() <= MAX_SURVEY_OFFSET_M);
+    let position_plausible = learnt_plausible
+        && c.offset_m
+            .iter()
+            .all(|v| v.abs() <= MAX_RESURVEYED_OFFSET_M)
         && c.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0);
     let late_plausible =
         c.late_m.abs() <= MAX_LATE_M && c.late_sigma_m.is_finite() && c.late_sigma_m >= 0.0;
     let (offset_m, sigma_m) = if position_plausible {
         (c.offset_m, c.sigma_m)
     } else {
-        ([0.0; 3], [config.survey_sigma_m; 3])
+        (rebased_m, [config.survey_sigma_m; 3])
     };
     let (late_m, late_sigma_m) = if late_plausible {
         (c.late_m, c.late_sigma_m)
@@ -790,6 +833,16 @@ impl SurveyPublisher {
         // taken either: a forger must not get a healthy one left out.
         if self.consensus.robot(key).check != consensus::Check::Quarantined {
             self.health.observe(fix, now);
+            let solved_with = self
+                .history
+                .iter()
+                .find(|p| p.version == fix.survey_version)
+                .map(|p| &p.applied);
+            if fix.survey_version == 0 || solved_with.is_some() {
+                let none = Applied::new();
+                self.health
+                    .observe_unused(key, fix, solved_with.unwrap_or(&none), now);
+            }
         }
         let read = self.read(fix)?;
         let misfit_m = read.misfit_m(&self.estimate);
@@ -863,6 +916,62 @@ impl SurveyPublisher {
         self.health.report(now)
     }
 
+    /// Surveys again every moved transmitter the fleet's fixes now place
+    /// away from where the calibration takes it (by more than three of its
+    /// sigmas and [`RESURVEY_STEP_M`]), for the next publication; one
+    /// surveyed again already is not, until the fixes solved with its new
+    /// position disagree with it.
+    fn resurvey_moved(&mut self) {
+        for tx_id in self.health.moved() {
+            // Surveyed again already, and being checked: the check decides.
+            if self.health.resurveyed_at(tx_id).is_some() {
+                continue;
+            }
+            let (Some(r), Some(base)) = (
+                self.health.resurveyed(tx_id),
+                self.calibration.base_of(tx_id),
+            ) else {
+                continue;
+            };
+            let apart = (0..3)
+                .map(|a| (r.position_m[a] - base[a]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let sigma = r.sigma_m.iter().fold(0.0_f64, |m, s| m.max(*s));
+            if apart <= (3.0 * sigma).max(RESURVEY_STEP_M) {
+                continue;
+            }
+            match self.calibration.rebase(tx_id, r.position_m, r.sigma_m) {
+                Ok(()) => {
+                    tracing::warn!(
+                        "transmitter {tx_id} surveyed again by {} fixes of {} robots at \
+                         ({:.3}, {:.3}, {:.3}) m (sigma {:.0} mm), {:.0} mm from where it was \
+                         taken; left out until fixes solved with it there agree",
+                        r.fixes,
+                        r.robots,
+                        r.position_m[0],
+                        r.position_m[1],
+                        r.position_m[2],
+                        sigma * 1e3,
+                        apart * 1e3
+                    );
+                    self.health.mark_resurveyed(tx_id, r.position_m);
+                }
+                Err(e) => tracing::warn!("transmitter {tx_id} cannot be surveyed again: {e}"),
+            }
+        }
+    }
+
+    /// Where the fleet's fixes place moved transmitter `tx_id` now, if
+    /// they pin it down
+    /// ([`crate::transmitter_health::TransmitterHealth::resurveyed`]).
+    pub fn resurveyed(
+        &self,
+        tx_id: u32,
+    ) -> Option<crate::transmitter_health::resurvey::Resurveyed> {
+        self.health.resurveyed(tx_id)
+    }
+
     /// The speed of sound published last (the site's before the first).
     pub fn published_speed(&self) -> Option<LearntSpeed> {
         self.published_speed
@@ -894,6 +1003,7 @@ impl SurveyPublisher {
             self.calibration
                 .forget_cell_sync((now - last).as_secs_f64());
         }
+        self.resurvey_moved();
         let (corrections, estimate, speed) = self.calibration.corrections_estimate_and_speed();
         let speed = match self.air {
             Some(air) if self.calibration.config.learn_speed_of_sound => {
@@ -948,7 +1058,8 @@ impl SurveyPublisher {
         let offsets: Vec<TransmitterOffset> = corrections
             .into_iter()
             .map(|c| {
-                let (mut offset, plausible) = publishable(c, &config);
+                let rebased = self.calibration.rebased_of(c.tx_id);
+                let (mut offset, plausible) = publishable(c, rebased, &config);
                 offset.left_out = self.left_out.contains(&c.tx_id);
                 if !plausible && self.warned.insert(c.tx_id) {
                     tracing::warn!(
@@ -988,6 +1099,7 @@ pub mod consensus;
 pub mod fix_rate;
 mod forgetting;
 mod read_fix;
+pub mod rebase;
 
 pub use read_fix::ReadFix;
 

@@ -19,13 +19,19 @@
 //! The MSUs list a left-out transmitter's arrivals as rejected, so its
 //! heard share keeps being measured: a dead or weak one that recovers is
 //! taken back. A moved one stays left out (its arrivals stay off), until
-//! it is surveyed again and the site reloaded.
+//! it is surveyed again and the site reloaded; meanwhile the residuals the
+//! fixes report of its unused arrivals place it again ([`resurvey`],
+//! [`TransmitterHealth::resurveyed`]).
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use ickon_proto::msg::robot::Fix;
+use ickon_proto::msg::robot::{Fix, FixQuality};
 use ickon_proto::site::{Column, Site, Wall, line_of_sight};
 use ickon_proto::time::Time;
+
+pub mod resurvey;
+
+use resurvey::{Resurvey, ResurveyConfig, Resurveyed};
 
 /// What the health check assumes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -187,7 +193,22 @@ struct Entry {
     last_heard: Option<Time>,
     condition: Condition,
     since: Option<Time>,
+    /// Where the fleet surveyed it again while moved (published to the
+    /// MSUs), and the residuals of its unused arrivals since, solved with
+    /// that position: `(count, sum, sum of squares)`.
+    resurveyed_at: Option<[f64; 3]>,
+    agreement: (f64, f64, f64),
 }
+
+/// A re-surveyed transmitter is taken back into the fixes after this many
+/// fixes solved with its new position measured it...
+const AGREEMENT_FIXES: f64 = 20.0;
+/// ... with their residuals' mean within this, metres (the MSU's gate is
+/// about 10 cm, a healthy transmitter's mean millimetres; half the 5 cm
+/// that flags one as moved)...
+const AGREEMENT_MEAN_M: f64 = 0.025;
+/// ... and their RMS within this, metres (the flag's 5 cm).
+const AGREEMENT_RMS_M: f64 = 0.05;
 
 /// The fleet's view of every transmitter's health.
 #[derive(Debug, Clone)]
@@ -198,6 +219,8 @@ pub struct TransmitterHealth {
     walls: Vec<Wall>,
     columns: Vec<Column>,
     last_at: Option<Time>,
+    /// The fixes' measured ranges to each moved transmitter, by index.
+    resurveys: BTreeMap<usize, Resurvey>,
 }
 
 impl TransmitterHealth {
@@ -221,6 +244,8 @@ impl TransmitterHealth {
                 last_heard: None,
                 condition: Condition::Unknown,
                 since: None,
+                resurveyed_at: None,
+                agreement: (0.0, 0.0, 0.0),
             })
             .collect();
         let index = entries
@@ -235,7 +260,136 @@ impl TransmitterHealth {
             walls: site.walls.clone(),
             columns: site.columns.clone(),
             last_at: None,
+            resurveys: BTreeMap::new(),
         }
+    }
+
+    /// Takes what one good fix of robot `robot` (of a robot the fleet's
+    /// check trusts) says of the moved transmitters it heard and did not
+    /// use: their residuals, against the positions it was solved with
+    /// (`solved_with`: the calibration's offsets by id, absent: surveyed),
+    /// taken at `now`.
+    /// A fix that is not good, has fewer than four used signals (its own
+    /// position and offset would be as much in doubt as the arrival), or
+    /// whose unused lists do not pair up, says nothing.
+    pub fn observe_unused(
+        &mut self,
+        robot: &str,
+        fix: &Fix,
+        solved_with: &BTreeMap<u32, [f64; 3]>,
+        now: Time,
+    ) {
+        // A transmitter no longer moved needs no re-survey.
+        let entries = &self.entries;
+        self.resurveys
+            .retain(|&i, _| entries[i].condition == Condition::Moved);
+        if fix.quality != FixQuality::Good
+            || fix.used.len() < 4
+            || fix.unused.len() != fix.unused_residuals_m.len()
+        {
+            return;
+        }
+        let receiver = [fix.x_m, fix.y_m, fix.z_m];
+        for (id, &residual_m) in fix.unused.iter().zip(&fix.unused_residuals_m) {
+            let Some(&i) = self.index.get(id) else {
+                continue;
+            };
+            let e = &self.entries[i];
+            if e.condition != Condition::Moved {
+                continue;
+            }
+            let offset = solved_with.get(id).copied().unwrap_or([0.0; 3]);
+            let solved_at: [f64; 3] = std::array::from_fn(|a| e.position_m[a] + offset[a]);
+            self.resurveys
+                .entry(i)
+                .or_insert_with(|| Resurvey::new(solved_at, ResurveyConfig::default()))
+                .observe(robot, receiver, solved_at, residual_m);
+            self.check_agreement(i, solved_at, residual_m, now);
+        }
+    }
+
+    /// Whether moved transmitter `i`'s residual `residual_m`, solved with
+    /// it at `solved_at`, adds to the agreement with where it was surveyed
+    /// again; when enough of them agree it is healthy again, taken back
+    /// into the fixes.
+    fn check_agreement(&mut self, i: usize, solved_at: [f64; 3], residual_m: f64, now: Time) {
+        let e = &mut self.entries[i];
+        let Some(at) = e.resurveyed_at else {
+            return;
+        };
+        // Solved with an older calibration: not a check of the new position.
+        let moved_since = (0..3).map(|a| (at[a] - solved_at[a]).powi(2)).sum::<f64>();
+        // Beyond the agreement's RMS bound twice over it is a reflection's
+        // (the fixes' gates reject those of healthy transmitters too).
+        let plausible = residual_m.is_finite() && residual_m.abs() <= 2.0 * AGREEMENT_RMS_M;
+        if moved_since > 1e-4 || !plausible {
+            return;
+        }
+        let (n, sum, sq) = &mut e.agreement;
+        *n += 1.0;
+        *sum += residual_m;
+        *sq += residual_m * residual_m;
+        if *n < AGREEMENT_FIXES {
+            return;
+        }
+        let mean = *sum / *n;
+        let rms = (*sq / *n).sqrt();
+        e.agreement = (0.0, 0.0, 0.0);
+        if !(mean.abs() <= AGREEMENT_MEAN_M && rms <= AGREEMENT_RMS_M) {
+            // The new position does not explain the arrivals: it may be
+            // surveyed again from what the fixes say now.
+            e.resurveyed_at = None;
+            return;
+        }
+        {
+            e.condition = Condition::Healthy;
+            e.since = Some(now);
+            e.resurveyed_at = None;
+            // What was measured of it at its old position is no evidence
+            // of the new one.
+            let c = &mut e.counts;
+            (c.heard_any, c.rejected_any) = (0.0, 0.0);
+            (c.residual_n, c.residual_sum, c.residual_sq) = (0.0, 0.0, 0.0);
+            self.resurveys.remove(&i);
+        }
+    }
+
+    /// Moved transmitter `tx_id` was surveyed again at `position_m` and
+    /// published there: the residuals of fixes solved with it there decide
+    /// when it is taken back. Ignored for a transmitter not moved.
+    pub fn mark_resurveyed(&mut self, tx_id: u32, position_m: [f64; 3]) {
+        if let Some(&i) = self.index.get(&tx_id) {
+            let e = &mut self.entries[i];
+            if e.condition == Condition::Moved {
+                e.resurveyed_at = Some(position_m);
+                e.agreement = (0.0, 0.0, 0.0);
+            }
+        }
+    }
+
+    /// Where moved transmitter `tx_id` was surveyed again and is being
+    /// checked (`None`: not surveyed again, or its check failed).
+    pub fn resurveyed_at(&self, tx_id: u32) -> Option<[f64; 3]> {
+        self.entries[*self.index.get(&tx_id)?].resurveyed_at
+    }
+
+    /// The moved transmitters, by id.
+    pub fn moved(&self) -> Vec<u32> {
+        self.entries
+            .iter()
+            .filter(|e| e.condition == Condition::Moved)
+            .map(|e| e.tx_id)
+            .collect()
+    }
+
+    /// Where the fleet's fixes place moved transmitter `tx_id` now, if they
+    /// pin it down and the robots agree ([`resurvey`]).
+    pub fn resurveyed(&self, tx_id: u32) -> Option<Resurveyed> {
+        let i = *self.index.get(&tx_id)?;
+        if self.entries[i].condition != Condition::Moved {
+            return None;
+        }
+        self.resurveys.get(&i)?.estimate()
     }
 
     /// Takes what one fix (of a robot the fleet's check trusts) says,

@@ -117,6 +117,11 @@ pub struct SimArgs {
     /// (`learn_cell_sync = true` in the configuration file they are given).
     #[arg(long)]
     pub learn_cell_sync: bool,
+    /// Every agent's `tdoa-ekf` carries the wind where its robot is as a
+    /// state (`sensors.local_wind_sigma_m_s = 0.5` in the configuration
+    /// file they are given): for a hall with drafts.
+    #[arg(long)]
+    pub local_wind: bool,
     /// The central unit does not learn the transmitters' survey errors
     /// from the robots' fixes (on by default).
     #[arg(long)]
@@ -197,6 +202,7 @@ impl SimArgs {
     pub fn filter_options(&self) -> ickon_sim::engine::FilterOptions {
         ickon_sim::engine::FilterOptions {
             learn_cell_sync: self.learn_cell_sync,
+            local_wind: self.local_wind,
         }
     }
 }

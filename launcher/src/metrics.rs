@@ -728,6 +728,8 @@ mod tests {
             residuals_m: Vec::new(),
             quality: ickon_proto::msg::robot::FixQuality::Good,
             survey_version: 0,
+            unused: Vec::new(),
+            unused_residuals_m: Vec::new(),
         };
         let square = stats.fix_hdop(&fix(vec![1, 2, 3, 4])).unwrap();
         assert!(square > 0.5 && square < 5.0, "{square}");

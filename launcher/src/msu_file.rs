@@ -68,6 +68,7 @@ mod tests {
         let wheels = ickon_msu::config_file::pioneer_wheels();
         let options = ickon_sim::engine::FilterOptions {
             learn_cell_sync: true,
+            ..Default::default()
         };
         let config =
             ickon_sim::engine::estimator_config("tdoa-ekf", start, &site, &profile, options)
@@ -93,6 +94,35 @@ mod tests {
             panic!("{plain:?}");
         };
         assert!(!p.learn_cell_sync);
+    }
+
+    /// `ickon sim --local-wind` reaches the agents through their file: the
+    /// local wind state's spread, read back as written.
+    #[test]
+    fn the_local_wind_option_reaches_the_agents_file() {
+        let site = ickon_proto::site::Site::default_site();
+        let profile = ickon_sim::profile::NoiseProfile::by_name("paper").unwrap();
+        let start = site.robots[0].start;
+        let wheels = ickon_msu::config_file::pioneer_wheels();
+        let spread = |options| {
+            let config =
+                ickon_sim::engine::estimator_config("tdoa-ekf", start, &site, &profile, options)
+                    .unwrap();
+            let text = render(&config, 42e-6, wheels, false).unwrap();
+            let tuning = ickon_msu::MsuTuning::from_toml(&text, "sim").unwrap();
+            let read = tuning.estimator_for(&site, start);
+            assert_eq!(read, config);
+            let ickon_fusion::estimator::EstimatorConfig::TdoaEkf(p) = &read else {
+                panic!("{read:?}");
+            };
+            p.sensors.local_wind_sigma_m_s
+        };
+        let on = ickon_sim::engine::FilterOptions {
+            local_wind: true,
+            ..Default::default()
+        };
+        assert_eq!(spread(on), ickon_sim::engine::LOCAL_WIND_SIGMA_M_S);
+        assert_eq!(spread(Default::default()), 0.0);
     }
 
     /// What the sim writes is what the agent reads back: the same estimator

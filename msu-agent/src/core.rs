@@ -6,8 +6,8 @@
 
 use ickon_fusion::estimator::{EncoderSample, Estimator, GyroSample, Input, RangeSample};
 use ickon_proto::msg::control::{
-    CellStatus, CycleTrigger, MAX_LATE_M, MAX_SOUND_SPEED_CHANGE, MAX_SURVEY_OFFSET_M, Schedule,
-    SurveyCalibration,
+    CellStatus, CycleTrigger, MAX_LATE_M, MAX_RESURVEYED_OFFSET_M, MAX_SOUND_SPEED_CHANGE,
+    Schedule, SurveyCalibration,
 };
 use ickon_proto::msg::robot::{
     Fix, Imu, ObstacleRanges, Odometry, PoseStatus, RobotPose, UltrasoundArrivals,
@@ -305,7 +305,7 @@ impl MsuCore {
     /// Refused, and nothing changes: a
     /// calibration of another epoch than the schedules followed, an
     /// unknown or repeated transmitter, an offset or sigma that is not a
-    /// number, negative, or an offset beyond [`MAX_SURVEY_OFFSET_M`] or a
+    /// number, negative, or an offset beyond [`MAX_RESURVEYED_OFFSET_M`] or a
     /// lateness beyond [`MAX_LATE_M`], a speed of sound more than
     /// [`MAX_SOUND_SPEED_CHANGE`] from the site's.
     pub(crate) fn on_survey_calibration(
@@ -352,10 +352,10 @@ impl MsuCore {
             if !o
                 .offset_m
                 .iter()
-                .all(|v| v.is_finite() && v.abs() <= MAX_SURVEY_OFFSET_M)
+                .all(|v| v.is_finite() && v.abs() <= MAX_RESURVEYED_OFFSET_M)
             {
                 return Err(refuse(format!(
-                    "transmitter {}: offset {:?} m is not a number or beyond {MAX_SURVEY_OFFSET_M} m",
+                    "transmitter {}: offset {:?} m is not a number or beyond {MAX_RESURVEYED_OFFSET_M} m",
                     o.tx_id, o.offset_m
                 )));
             }

@@ -40,6 +40,7 @@ pub mod ros2;
 pub mod solver;
 pub mod summary;
 pub mod time_gate;
+mod unused_residuals;
 
 pub use assembly::{AssemblyError, CycleSignals, Signal, assemble};
 pub use config::{DEFAULT_MAX_FIX_SIGMA_M, estimator_for_site};

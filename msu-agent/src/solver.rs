@@ -319,6 +319,12 @@ impl FixSolver {
         let schedule = of_cycle.as_ref().unwrap_or(published);
         let c = self.config.speed_of_sound_m_s;
         let mut cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
+        // Every signal as the fix's are taken (lateness removed), to
+        // measure the unused ones against the fix.
+        let mut heard = cycle.signals.clone();
+        for s in &mut heard {
+            s.pseudo_range_m -= self.late_m.get(&s.tx_id).copied().unwrap_or(0.0);
+        }
         if !self.left_out.is_empty() {
             // Heard, but not solved with: listed as rejected, so that the
             // central unit sees when a left-out transmitter is heard again.
@@ -407,6 +413,8 @@ impl FixSolver {
         }
         let mut wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
         wire.survey_version = self.survey.map_or(0, |(_, version)| version);
+        (wire.unused, wire.unused_residuals_m) =
+            crate::unused_residuals::measured(&sol, &heard, &wire.rejected);
         Ok(SolvedCycle {
             fix: Some((sol, wire)),
             range_differences,
@@ -724,6 +732,8 @@ pub fn wire_fix(
         rejected,
         residuals_m: fix.residuals_m.clone(),
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
         quality: match fix.quality {
             tdoa::Quality::Good => FixQuality::Good,
             tdoa::Quality::Minimal => FixQuality::Minimal,

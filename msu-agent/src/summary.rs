@@ -105,6 +105,8 @@ mod tests {
             residuals_m: vec![],
             quality: FixQuality::Good,
             survey_version: 0,
+            unused: Vec::new(),
+            unused_residuals_m: Vec::new(),
         }
     }
 

@@ -260,6 +260,8 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
         residuals_m: vec![0.001, -0.002, 0.0005],
         quality,
         survey_version: 1_764_000_000,
+        unused: vec![9],
+        unused_residuals_m: vec![0.31],
     };
     for status in [PoseStatus::NoOdometry, PoseStatus::Localising] {
         check(
@@ -300,6 +302,8 @@ fn every_message_type_decodes_by_its_msg_file_alone() {
                 residuals_m: vec![0.001, -0.002, 0.0005],
                 quality,
                 survey_version: 1_764_000_000,
+                unused: vec![9],
+                unused_residuals_m: vec![0.31],
             },
             &mut checked,
         );

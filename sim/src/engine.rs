@@ -64,15 +64,30 @@ pub struct FilterOptions {
     /// `tdoa-ekf` learns each cell's sync error as a state
     /// (`[filter.params] learn_cell_sync = true`).
     pub learn_cell_sync: bool,
+    /// `tdoa-ekf` (ground) carries the wind where the robot is as a state,
+    /// with spread [`LOCAL_WIND_SIGMA_M_S`]
+    /// (`[filter.params] sensors.local_wind_sigma_m_s`).
+    pub local_wind: bool,
 }
+
+/// The spread of the local wind state that `--local-wind` sets, m/s: the
+/// low end of real air handlers' drafts, chosen in decision 0151 on the
+/// filter's corridor tests with a gyro bias step (wider spreads let the
+/// wind hide part of a heading error).
+pub const LOCAL_WIND_SIGMA_M_S: f64 = 0.5;
 
 impl FilterOptions {
     /// Why these options cannot go with estimator `name`, if they cannot.
     pub fn check_for(&self, name: &str) -> Result<(), String> {
-        if self.learn_cell_sync && name != "tdoa-ekf" {
-            return Err(format!(
-                "--learn-cell-sync is an option of `tdoa-ekf`, not of `{name}`"
-            ));
+        for (on, flag) in [
+            (self.learn_cell_sync, "--learn-cell-sync"),
+            (self.local_wind, "--local-wind"),
+        ] {
+            if on && name != "tdoa-ekf" {
+                return Err(format!(
+                    "{flag} is an option of `tdoa-ekf`, not of `{name}`"
+                ));
+            }
         }
         Ok(())
     }
@@ -284,6 +299,9 @@ pub fn estimator_config(
             s.gyro_bias_walk_deg_s_sqrt_s = g.bias_walk_deg_s_sqrt_s.max(0.001);
             s.gyro_scale_error = g.scale_error.max(0.001);
             p.learn_cell_sync = options.learn_cell_sync;
+            if options.local_wind {
+                s.local_wind_sigma_m_s = LOCAL_WIND_SIGMA_M_S;
+            }
         }
     }
     Ok(c)

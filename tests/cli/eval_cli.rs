@@ -104,31 +104,61 @@ fn flags_of_the_other_kind_of_run_are_refused() {
     assert!(!std::path::Path::new("/tmp/never-written").exists());
 }
 
-/// `--learn-cell-sync` is an option of `tdoa-ekf`: with another estimator
-/// it is refused by name (exit 2), not silently dropped.
+/// `--learn-cell-sync` and `--local-wind` are options of `tdoa-ekf`: with
+/// another estimator they are refused by name (exit 2), not silently dropped.
 #[test]
-fn learning_the_cells_sync_is_refused_for_an_estimator_without_it() {
-    for args in [
-        &["eval", "--estimator", "ickon-akf", "--learn-cell-sync"][..],
-        &[
-            "eval",
-            "--estimator",
-            "gyro-ckf",
-            "--robots",
-            "2",
-            "--learn-cell-sync",
-        ],
-        &["sim", "--estimator", "msu-raw", "--learn-cell-sync"],
-    ] {
-        let out = ickon().args(args).output().unwrap();
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            err.contains("--learn-cell-sync") && err.contains("tdoa-ekf"),
-            "{args:?}: {err}"
-        );
-        assert!(out.stdout.is_empty());
+fn the_filter_options_are_refused_for_an_estimator_without_them() {
+    for flag in ["--learn-cell-sync", "--local-wind"] {
+        for args in [
+            &["eval", "--estimator", "ickon-akf", flag][..],
+            &["eval", "--estimator", "gyro-ckf", "--robots", "2", flag],
+            &["sim", "--estimator", "msu-raw", flag],
+        ] {
+            let out = ickon().args(args).output().unwrap();
+            assert_eq!(out.status.code(), Some(2), "{args:?}");
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(
+                err.contains(flag) && err.contains("tdoa-ekf"),
+                "{args:?}: {err}"
+            );
+            assert!(out.stdout.is_empty());
+        }
     }
+}
+
+/// `--local-wind` reaches `tdoa-ekf`: the same seed and tour in a hall's
+/// air gives another track with the state than without it.
+#[test]
+fn the_local_wind_switch_changes_what_the_filter_estimates() {
+    let run = |extra: &[&str]| {
+        let out = ickon()
+            .args([
+                "eval",
+                "--estimator",
+                "tdoa-ekf",
+                "--profile",
+                "building",
+                "--route",
+                "route-1",
+                "--tours",
+                "1",
+                "--seed",
+                "1",
+                "--json",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        let doc = json(&out);
+        doc["results"][0]["mean"]["mean_mm"].as_f64().unwrap()
+    };
+    let still = run(&[]);
+    let windy = run(&["--local-wind"]);
+    assert!(still.is_finite() && windy.is_finite());
+    assert!(
+        (still - windy).abs() > 0.01,
+        "without {still} mm, with {windy} mm"
+    );
 }
 
 #[test]

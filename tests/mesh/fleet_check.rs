@@ -268,6 +268,8 @@ fn forged_fix(site: &Site, at: [f64; 2]) -> Fix {
         residuals_m: residuals.iter().copied().collect(),
         quality: FixQuality::Good,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     }
 }
 

@@ -60,6 +60,8 @@ fn fix() -> Fix {
         residuals_m: vec![0.0; 4],
         quality: FixQuality::Good,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     }
 }
 

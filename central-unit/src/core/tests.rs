@@ -55,6 +55,8 @@ pub(super) fn fix_of(robot: &str) -> Event {
             residuals_m: Vec::new(),
             quality: FixQuality::Minimal,
             survey_version: 0,
+            unused: Vec::new(),
+            unused_residuals_m: Vec::new(),
         }),
     }
 }

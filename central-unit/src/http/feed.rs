@@ -113,6 +113,16 @@ fn robot_message<T: DeserializeOwned>(keys: &Keys, s: &Sample) -> Option<(String
     Some((robot, message.ok()?))
 }
 
+/// A robot's fix, of the current layout or an older MSU's
+/// ([`Fix::decode`]).
+fn fix_message(keys: &Keys, s: &Sample) -> Option<(String, Fix)> {
+    let robot = match keys.parse(s.key_expr().as_str()) {
+        Ok(Key::Robot(robot, _)) => robot,
+        _ => return None,
+    };
+    Some((robot, Fix::decode(&s.payload().to_bytes()).ok()?))
+}
+
 impl Feed {
     /// Subscribes on `session` to what the map shows.
     pub async fn start(
@@ -136,7 +146,7 @@ impl Feed {
         subscribers.push(
             session
                 .declare_subscriber(keys.robot_all(RobotTopic::Fix))
-                .callback(move |s| match robot_message::<Fix>(&k, &s) {
+                .callback(move |s| match fix_message(&k, &s) {
                     Some((id, fix)) => v.lock().on_fix(&id, fix, clock.now()),
                     None => v.lock().ignore(),
                 })

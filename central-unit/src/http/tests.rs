@@ -346,6 +346,8 @@ fn forged_and_broken_messages_are_counted_not_kept() {
         residuals_m: vec![],
         quality: FixQuality::Suspect,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     };
     v.on_fix(&id, fix, Time(0));
     // A forged far-future pose still compares without overflow.

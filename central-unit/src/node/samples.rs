@@ -103,7 +103,7 @@ pub(super) fn burst_event(
 pub(super) fn summary_event(keys: &Keys, s: &Sample, undecodable: &mut u64) -> Option<Event> {
     match (
         keys.parse(s.key_expr().as_str()),
-        decode::<RobotSummary>(&s.payload().to_bytes()),
+        RobotSummary::decode(&s.payload().to_bytes()),
     ) {
         (Ok(Key::RobotSummary(robot)), Ok(summary)) => Some(Event::Summary {
             robot,

@@ -90,6 +90,8 @@ fn floods_repeats_the_future_and_impostors_are_dropped_and_the_robot_goes_on() {
             residuals_m: vec![],
             quality: ickon_proto::msg::robot::FixQuality::Good,
             survey_version: 0,
+            unused: Vec::new(),
+            unused_residuals_m: Vec::new(),
         };
         MAX_SUMMARY_FIXES + 1
     ];

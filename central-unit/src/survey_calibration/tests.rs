@@ -138,6 +138,8 @@ fn fix_with_late(
             _ => FixQuality::Suspect,
         },
         survey_version: version,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     })
 }
 
@@ -410,11 +412,15 @@ fn a_transmitter_beyond_a_calibrations_reach_is_published_at_its_survey() {
         late_m: 0.003,
         late_sigma_m: 0.002,
     };
-    let (o, ok) = publishable(learnt([0.01, -0.02, 0.2], [0.004; 3]), &config());
+    let (o, ok) = publishable(learnt([0.01, -0.02, 0.2], [0.004; 3]), [0.0; 3], &config());
     assert!(ok);
     assert_eq!(o.offset_m, [0.01, -0.02, 0.2]);
     // Small against its sigma: published as learnt (the prior has shrunk it).
-    let (o, ok) = publishable(learnt([0.007, -0.02, 0.002], [0.004; 3]), &config());
+    let (o, ok) = publishable(
+        learnt([0.007, -0.02, 0.002], [0.004; 3]),
+        [0.0; 3],
+        &config(),
+    );
     assert!(ok);
     assert_eq!(o.offset_m, [0.007, -0.02, 0.002]);
     assert_eq!(o.sigma_m, [0.004; 3]);
@@ -423,7 +429,7 @@ fn a_transmitter_beyond_a_calibrations_reach_is_published_at_its_survey() {
         ([f64::NAN, 0.0, 0.0], [0.004; 3]),
         ([0.0, 0.0, 0.01], [f64::INFINITY, 0.0, 0.0]),
     ] {
-        let (o, ok) = publishable(learnt(offset, sigma), &config());
+        let (o, ok) = publishable(learnt(offset, sigma), [0.0; 3], &config());
         assert!(!ok, "{offset:?} {sigma:?}");
         assert_eq!((o.tx_id, o.offset_m, o.sigma_m), (7, [0.0; 3], [0.01; 3]));
         // Its lateness is still published as learnt.
@@ -524,7 +530,7 @@ fn a_lateness_beyond_a_calibrations_reach_is_published_as_none() {
             late_m,
             late_sigma_m: 0.003,
         };
-        let (o, ok) = publishable(learnt, &c);
+        let (o, ok) = publishable(learnt, [0.0; 3], &c);
         assert!(!ok, "{late_m}");
         assert_eq!((o.late_m, o.late_sigma_m), (0.0, c.cell_sync_sigma_m));
         // The position is still published as learnt.
@@ -537,7 +543,7 @@ fn a_lateness_beyond_a_calibrations_reach_is_published_as_none() {
         late_m: -0.2,
         late_sigma_m: f64::NAN,
     };
-    assert_eq!(publishable(learnt, &c).0.late_m, 0.0);
+    assert_eq!(publishable(learnt, [0.0; 3], &c).0.late_m, 0.0);
 }
 
 /// The estimate and covariance of every parameter.

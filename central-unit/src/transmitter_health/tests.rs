@@ -45,6 +45,8 @@ fn fix_at(
         rejected: rejected_ids,
         quality: FixQuality::Good,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     }
 }
 
@@ -186,4 +188,89 @@ fn a_fleet_that_hears_everything_flags_nothing_and_garbage_fixes_change_nothing(
     short.residuals_m.pop();
     h.observe(&short, now);
     assert_eq!(h.report(now), before);
+}
+
+#[test]
+fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back() {
+    let site = Site::default_site();
+    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
+    let moved = site.transmitters[2].id;
+    let surveyed = site.transmitter(moved).unwrap().position_m;
+    let truth = [surveyed[0] + 0.3, surveyed[1], surveyed[2]];
+    let p = near(&site, moved);
+    let mut now = feed(&mut h, Time::ZERO, 100, |k| {
+        let rejected: &[u32] = if k % 5 == 0 { &[] } else { &[moved] };
+        fix_at(&site, p, &[], rejected, |id| {
+            if id == moved { 0.08 } else { 0.0 }
+        })
+    });
+    assert_eq!(condition(&h, moved), Condition::Moved);
+    let dist = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
+    // Fixes around it that list it as left out, with its residual against
+    // the position each was solved with.
+    let drive = |h: &mut TransmitterHealth, now: Time, solved_at: [f64; 3], n: u32| {
+        let offset: [f64; 3] = std::array::from_fn(|a| solved_at[a] - surveyed[a]);
+        let solved_with = BTreeMap::from([(moved, offset)]);
+        let mut now = now;
+        for k in 0..n {
+            let a = f64::from(k) * 0.37;
+            // An ellipse on the room's side of the transmitter.
+            let at = [p[0] + 1.0 * a.cos(), p[1] - 0.75 + 0.75 * a.sin()];
+            let mut fix = fix_at(&site, at, &[], &[moved], |_| 0.0);
+            let receiver = [fix.x_m, fix.y_m, fix.z_m];
+            fix.unused = vec![moved];
+            fix.unused_residuals_m = vec![dist(truth, receiver) - dist(solved_at, receiver)];
+            h.observe(&fix, now);
+            h.observe_unused("r1", &fix, &solved_with, now);
+            now = now + Duration::from_millis(100);
+        }
+        now
+    };
+    now = drive(&mut h, now, surveyed, 30);
+    assert!(h.resurveyed(moved).is_none(), "30 fixes are too few");
+    now = drive(&mut h, now, surveyed, 20);
+    let placed = h.resurveyed(moved).expect("placed");
+    assert!(dist(placed.position_m, truth) < 0.005, "{placed:?}");
+    assert_eq!(condition(&h, moved), Condition::Moved);
+    // Published there: the fixes solved with it there agree, and it is
+    // taken back; none of its neighbours was ever flagged.
+    h.mark_resurveyed(moved, placed.position_m);
+    now = drive(&mut h, now, placed.position_m, 19);
+    assert_eq!(
+        condition(&h, moved),
+        Condition::Moved,
+        "19 fixes are too few"
+    );
+    now = drive(&mut h, now, placed.position_m, 1);
+    assert_eq!(condition(&h, moved), Condition::Healthy);
+    assert!(h.left_out().is_empty(), "{:?}", h.left_out());
+    assert!(h.moved().is_empty());
+    // Used again, with its residuals centred: it stays healthy.
+    feed(&mut h, now, 100, |_| fix_at(&site, p, &[], &[], |_| 0.0));
+    assert_eq!(condition(&h, moved), Condition::Healthy);
+}
+
+#[test]
+fn unused_residuals_of_a_healthy_transmitter_or_a_bad_fix_survey_nothing() {
+    let site = Site::default_site();
+    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
+    let id = site.transmitters[2].id;
+    let p = near(&site, id);
+    for k in 0..80 {
+        let mut fix = fix_at(
+            &site,
+            [p[0] + 0.02 * f64::from(k), p[1]],
+            &[],
+            &[id],
+            |_| 0.0,
+        );
+        fix.unused = vec![id];
+        fix.unused_residuals_m = vec![0.3];
+        h.observe_unused("r1", &fix, &BTreeMap::new(), Time::ZERO);
+        // Unpaired lists: ignored whatever the transmitter's condition.
+        fix.unused_residuals_m.clear();
+        h.observe_unused("r1", &fix, &BTreeMap::new(), Time::ZERO);
+    }
+    assert!(h.resurveyed(id).is_none());
+    assert!(h.resurveys.is_empty());
 }

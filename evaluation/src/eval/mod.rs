@@ -75,6 +75,12 @@ pub struct EvalArgs {
     /// (with `--estimator all`: `tdoa-ekf` only).
     #[arg(long)]
     pub learn_cell_sync: bool,
+    /// `tdoa-ekf` carries the wind where the robot is as a state, as
+    /// `[filter.params] sensors.local_wind_sigma_m_s = 0.5` in an MSU
+    /// configuration does: for a hall with drafts (with `--estimator all`:
+    /// `tdoa-ekf` only).
+    #[arg(long)]
+    pub local_wind: bool,
     /// The central unit does not learn the transmitters' survey errors
     /// from the fleet's fixes (on by default; see
     /// `ickon_central::survey_calibration`).
@@ -139,6 +145,7 @@ pub(super) fn survey_calibration(
 pub(super) fn filter_options(args: &EvalArgs) -> ickon_sim::engine::FilterOptions {
     ickon_sim::engine::FilterOptions {
         learn_cell_sync: args.learn_cell_sync,
+        local_wind: args.local_wind,
     }
 }
 

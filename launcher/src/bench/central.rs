@@ -247,6 +247,7 @@ fn sim_args(args: &CentralArgs, robots: usize) -> SimArgs {
         standby: false,
         faults: None,
         learn_cell_sync: false,
+        local_wind: false,
         no_survey_calibration: false,
         no_speed_of_sound: false,
         devices: Default::default(),

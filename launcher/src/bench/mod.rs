@@ -129,6 +129,7 @@ pub fn run(command: BenchCommand) -> Result<(), CommandError> {
             standby: false,
             faults: None,
             learn_cell_sync: args.learn_cell_sync,
+            local_wind: false,
             no_survey_calibration: args.no_survey_calibration,
             no_speed_of_sound: false,
             devices: Default::default(),

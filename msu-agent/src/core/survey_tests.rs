@@ -113,7 +113,8 @@ fn a_calibration_that_cannot_be_right_is_refused_and_changes_nothing() {
         speed(site_m_s, -0.1),
         speed(site_m_s, f64::NAN),
         calibration(4, f64::NAN),
-        calibration(4, 0.3),
+        // Beyond what even a transmitter surveyed again by the fleet may be.
+        calibration(4, 1.1),
         calibration(4, -1e300),
         unknown,
         twice,

@@ -276,6 +276,8 @@ fn fix_without_heading_says_its_yaw_is_unobserved() {
         residuals_m: vec![0.0; 3],
         quality: FixQuality::Minimal,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     };
     let m = fix_message(&fix, "map").unwrap();
     assert_eq!(m.pose.pose.position.z, 0.3);

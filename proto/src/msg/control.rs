@@ -31,6 +31,14 @@ pub struct TransmitterEntry {
 /// transmitter at its surveyed position and says so).
 pub const MAX_SURVEY_OFFSET_M: f64 = 0.25;
 
+/// Largest offset a calibration may publish for a transmitter the fleet's
+/// fixes surveyed again after it was knocked out of place, metres (the
+/// part of it the calibration learns stays within [`MAX_SURVEY_OFFSET_M`]):
+/// a forklift moves one by decimetres; one moved further is mounted
+/// elsewhere and is surveyed again by hand. The MSU refuses a calibration
+/// that says more.
+pub const MAX_RESURVEYED_OFFSET_M: f64 = 1.0;
+
 /// The largest lateness of a transmitter's bursts a calibration may
 /// correct, metres of path (about 0.73 ms): a cell whose bursts are that
 /// late is failing its own synchronisation, which it reports in its status

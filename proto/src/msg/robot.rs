@@ -2,7 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::codec::{DecodeError, decode};
 use crate::time::Time;
+
+pub mod fix_before_unused;
 
 /// One ultrasonic arrival as the MSU records it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -132,6 +135,30 @@ pub struct Fix {
     /// the surveyed positions), so that the central unit reads the
     /// residuals against the table they were solved with.
     pub survey_version: u32,
+    /// Transmitters heard and not used whose arrival the MSU measured
+    /// against the fix: left out by the survey calibration or rejected by
+    /// the fix's gates (unknown or repeated ids are not measured).
+    pub unused: Vec<u32>,
+    /// The pseudo-range residual of each of `unused` (same order) against
+    /// the fix's position and common offset, metres (`rho - |s - p| - b`,
+    /// as `residuals_m`; positive: late): what the central unit re-surveys
+    /// a moved transmitter from.
+    pub unused_residuals_m: Vec<f64>,
+}
+
+impl Fix {
+    /// Decodes a `robot/<id>/fix` payload: the current layout, or the one
+    /// before a fix carried its unused arrivals (read with none). Neither
+    /// can be mistaken for the other: the current one is longer by its two
+    /// arrays' lengths. A payload of neither fails with the current
+    /// layout's error.
+    pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
+        decode::<Self>(payload).or_else(|current| {
+            decode::<fix_before_unused::FixWithoutUnused>(payload)
+                .map(Self::from)
+                .map_err(|_| current)
+        })
+    }
 }
 
 /// Whether a pose is tracked by the inputs it needs, and if not, which one stalled.
@@ -235,6 +262,16 @@ pub struct RobotSummary {
 }
 
 impl RobotSummary {
+    /// Decodes a `robot/<id>/summary` payload: the current layout, or the
+    /// one whose fixes carried no unused arrivals (see [`Fix::decode`]).
+    pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
+        decode::<Self>(payload).or_else(|current| {
+            decode::<fix_before_unused::SummaryWithoutUnused>(payload)
+                .map(Self::from)
+                .map_err(|_| current)
+        })
+    }
+
     /// The newest pose it summarises.
     pub fn pose(&self) -> RobotPose {
         RobotPose {

@@ -178,6 +178,8 @@ fn robot_messages_round_trip() {
         residuals_m: vec![0.001, -0.002, 0.0005],
         quality: FixQuality::Suspect,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     });
     round_trip(RobotPose {
         stamp: Time(5),
@@ -578,11 +580,14 @@ fn garbage_is_an_error_not_a_panic() {
         residuals_m: vec![],
         quality: FixQuality::Good,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     })
     .unwrap();
     let n = fix.len();
-    // The quality, before the survey version.
-    fix[n - 8..n - 4].copy_from_slice(&77u32.to_le_bytes());
+    // The quality, before the survey version and the unused arrivals'
+    // two (empty) arrays.
+    fix[n - 16..n - 12].copy_from_slice(&77u32.to_le_bytes());
     assert!(matches!(
         decode::<Fix>(&fix),
         Err(DecodeError::Malformed(_))

@@ -392,6 +392,8 @@ fn put_robot_cycle<W: std::io::Write + std::io::Seek>(
         residuals_m: (0..ARRIVALS_PER_CYCLE).map(|_| noise(rng, 0.01)).collect(),
         quality: FixQuality::Good,
         survey_version: 0,
+        unused: Vec::new(),
+        unused_residuals_m: Vec::new(),
     };
     put(recorder, &k[5], &fix, now)?;
     let pose = RobotPose {

@@ -115,7 +115,15 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
         Key::CellStatus(_) => own(Some(decode::<CellStatus>(payload)?.stamp)),
         Key::CellAir(_) => own(Some(decode::<AirTemperature>(payload)?.stamp)),
         Key::RobotStatus(_) => own(Some(decode::<MsuStatus>(payload)?.stamp)),
-        Key::RobotSummary(_) => own(Some(decode::<RobotSummary>(payload)?.stamp)),
+        // An older MSU's layout is stored in the current one (the
+        // channel's schema).
+        Key::RobotSummary(_) => {
+            let summary = RobotSummary::decode(payload)?;
+            Stored {
+                data: encode(&summary)?,
+                event_time: Some(summary.stamp),
+            }
+        }
         // No master-time stamp: recorded at its receive time.
         Key::CellLink(_) | Key::RobotLink(_) => {
             decode::<ickon_proto::msg::control::RouterLink>(payload)?;
@@ -132,7 +140,13 @@ pub fn prepare(plan: &Plan, payload: &[u8]) -> Result<Stored, Unrecordable> {
             RobotTopic::Odom => own(Some(decode::<Odometry>(payload)?.stamp)),
             RobotTopic::Imu => own(Some(decode::<Imu>(payload)?.stamp)),
             RobotTopic::Range => own(Some(decode::<ObstacleRanges>(payload)?.stamp)),
-            RobotTopic::Fix => own(Some(decode::<Fix>(payload)?.stamp)),
+            RobotTopic::Fix => {
+                let fix = Fix::decode(payload)?;
+                Stored {
+                    data: encode(&fix)?,
+                    event_time: Some(fix.stamp),
+                }
+            }
             RobotTopic::Pose => {
                 let pose = decode::<RobotPose>(payload)?;
                 Stored {
@@ -213,6 +227,36 @@ mod tests {
         })
         .unwrap();
         assert!(prepare(&p, &schedule_bytes).is_err());
+    }
+
+    #[test]
+    fn a_fix_of_the_layout_before_unused_arrivals_is_stored_in_the_current_one() {
+        // What an MSU sent before a fix carried its unused arrivals; the
+        // channel's schema is the current layout.
+        use ickon_proto::msg::robot::fix_before_unused::FixWithoutUnused;
+        let old = encode(&FixWithoutUnused {
+            stamp: Time::from_nanos(5_000_000_000),
+            arrivals_seq: 12,
+            x_m: 1.0,
+            y_m: 2.0,
+            z_m: 0.3,
+            covariance: [0.0; 9],
+            heading_rad: 0.0,
+            heading_valid: false,
+            used: vec![1, 2, 3],
+            rejected: vec![4],
+            residuals_m: vec![0.0; 3],
+            quality: ickon_proto::msg::robot::FixQuality::Minimal,
+            survey_version: 3,
+        })
+        .unwrap();
+        let keys = Keys::new("lab").unwrap();
+        let p = plan(&keys, "ickon/lab/robot/r1/fix").unwrap();
+        let stored = prepare(&p, &old).unwrap();
+        let read: Fix = decode(&stored.data).unwrap();
+        assert_eq!((read.arrivals_seq, read.rejected.clone()), (12, vec![4]));
+        assert!(read.unused.is_empty());
+        assert_eq!(stored.event_time, Some(Time::from_nanos(5_000_000_000)));
     }
 
     #[test]

@@ -268,6 +268,8 @@ impl SyntheticFleet {
             residuals_m,
             quality: FixQuality::Good,
             survey_version,
+            unused: Vec::new(),
+            unused_residuals_m: Vec::new(),
         })
     }
 

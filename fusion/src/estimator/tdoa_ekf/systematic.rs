@@ -238,13 +238,18 @@ mod tests {
         };
         let windy = fix_covariance(&tx, middle, 0.01, wind).unwrap();
         let draft = windy - survey;
-        // Equal horizontal paths of 2.83 m: the wind moves every range as a
-        // shift of the robot by `r w / c` moves it, 4.1 mm along each axis,
-        // which no offset takes up (a speed error costs nothing here).
-        let expected_mm = 2.0_f64.sqrt() * 2.0 * 0.5 / 343.0 * 1e3;
+        // Equal paths of 3.77 m (2.83 m across, 2.5 m up): the wind moves
+        // every range as a shift of the robot by `r w / c` moves it, 5.5 mm
+        // along each axis, which no offset takes up (a speed error costs
+        // nothing here).
+        let r_m = (8.0_f64 + 2.5 * 2.5).sqrt();
+        let expected_mm = r_m * 0.5 / 343.0 * 1e3;
         for k in 0..2 {
             let sigma_mm = draft[(k, k)].sqrt() * 1e3;
-            assert!((sigma_mm - expected_mm).abs() < 1e-6, "{sigma_mm} {expected_mm}");
+            assert!(
+                (sigma_mm - expected_mm).abs() < 1e-6,
+                "{sigma_mm} {expected_mm}"
+            );
         }
         assert!(draft[(0, 1)].abs() < 1e-12);
         // Through the heard-lately window, as the filter publishes it.
@@ -252,7 +257,9 @@ mod tests {
         for p in square() {
             h.note(0.0, p);
         }
-        let published = h.covariance(0.5, middle, 0.01, 0.0, 0.0, 0.5 / 343.0).unwrap();
+        let published = h
+            .covariance(0.5, middle, 0.01, 0.0, 0.0, 0.5 / 343.0)
+            .unwrap();
         assert!((published - windy).norm() < 1e-15);
     }
 

@@ -278,6 +278,10 @@ mod tests {
             p.sensors.local_wind_sigma_m_s = bad;
             let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
             assert_eq!(err.field, "sensors.local_wind_sigma_m_s");
+            let mut p = TdoaEkfParams::default();
+            p.sensors.draft_sigma_m_s = bad;
+            let err = EstimatorConfig::TdoaEkf(p).validate().unwrap_err();
+            assert_eq!(err.field, "sensors.draft_sigma_m_s");
         }
     }
 }

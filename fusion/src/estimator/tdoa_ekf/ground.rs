@@ -548,6 +548,7 @@ impl InOrderFilter for TdoaEkf {
             sensors.survey_sigma_m,
             self.unexplained_m2,
             self.unmodelled_speed_rel_sigma(),
+            sensors.unmodelled_wind_rel_sigma(),
         ) {
             let mut xy = covariance.fixed_view_mut::<2, 2>(0, 0);
             xy += c;

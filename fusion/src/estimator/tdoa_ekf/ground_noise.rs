@@ -113,6 +113,17 @@ pub struct GroundNoise {
     /// bias step tracked 5-25 % worse at 0.5 m/s) and costs a little in
     /// still air; it is off unless the site's air calls for it.
     pub local_wind_sigma_m_s: f64,
+    /// Standard deviation of the drafts where a robot is that no state of
+    /// the filter carries, m/s (0.5: the low end of an air handler's 0.5
+    /// to 2 m/s, as for `local_wind_sigma_m_s`). Seen from transmitters at
+    /// similar distances a draft looks like a shift of the robot along it
+    /// (`w r / c` for paths of length `r`), so no residual shows it, and it
+    /// stays while the robot is in the draft: it is added to the published
+    /// covariance as the position error it gives through the geometry heard
+    /// (`systematic.rs`), not to the arrivals' noise, so the estimate is
+    /// unchanged. Not used while the local wind is a state (its
+    /// covariance is in the state's); 0 leaves it out.
+    pub draft_sigma_m_s: f64,
 }
 
 /// The speed of sound the sync error's microseconds are turned into metres
@@ -145,6 +156,7 @@ impl Default for GroundNoise {
             air_correlation_time_s: 60.0,
             local_air_sigma_c: 2.0,
             local_wind_sigma_m_s: 0.0,
+            draft_sigma_m_s: 0.5,
         }
     }
 }
@@ -195,6 +207,17 @@ impl GroundNoise {
             self.local_wind_sigma_m_s / NOMINAL_SPEED_OF_SOUND_M_S
         } else {
             0.0
+        }
+    }
+
+    /// Standard deviation of the drafts no state carries over the speed of
+    /// sound: the published covariance's share of the wind, 0 while the
+    /// local wind is a state.
+    pub(super) fn unmodelled_wind_rel_sigma(&self) -> f64 {
+        if self.learns_local_wind() {
+            0.0
+        } else {
+            self.draft_sigma_m_s / NOMINAL_SPEED_OF_SOUND_M_S
         }
     }
 
@@ -312,7 +335,7 @@ impl GroundNoise {
     /// The bounds of the absolute measurements' sheet values (ranges,
     /// the air, the survey, the cells' clocks): field, value, largest
     /// allowed, and what is wrong beyond it.
-    fn absolute_bounds(&self) -> [(&'static str, f64, f64, &'static str); 11] {
+    fn absolute_bounds(&self) -> [(&'static str, f64, f64, &'static str); 12] {
         [
             (
                 "sensors.range_bias_sigma_m",
@@ -371,6 +394,12 @@ impl GroundNoise {
             (
                 "sensors.local_wind_sigma_m_s",
                 self.local_wind_sigma_m_s,
+                100.0,
+                "must be finite, non-negative and at most 100 m/s",
+            ),
+            (
+                "sensors.draft_sigma_m_s",
+                self.draft_sigma_m_s,
                 100.0,
                 "must be finite, non-negative and at most 100 m/s",
             ),

@@ -715,3 +715,59 @@ fn a_draft_along_the_corridor_is_learnt_as_the_local_wind() {
         "mean error {learnt} m with the wind learnt, {assumed} m without"
     );
 }
+
+/// Poses and the share of them whose truth lies inside their published
+/// 95 % ellipse, from `from_s` on.
+fn poses_inside_95(
+    params: &TdoaEkfParams,
+    inputs: &[Input],
+    truth: &[(f64, f64, f64)],
+    from_s: f64,
+) -> (Vec<(f64, f64)>, f64) {
+    let mut f = TdoaEkf::new(params);
+    let (mut poses, mut inside, mut n) = (Vec::new(), 0_u32, 0_u32);
+    let mut next = 0;
+    for input in inputs {
+        while next < truth.len() && truth[next].0 < input.t_s() {
+            let (t, x, y) = truth[next];
+            let p = f.pose().expect("started at a known pose");
+            if t >= from_s {
+                let c = p.covariance;
+                let (ex, ey) = (p.x_m - x, p.y_m - y);
+                let det = c[(0, 0)] * c[(1, 1)] - c[(0, 1)] * c[(1, 0)];
+                let d2 =
+                    (c[(1, 1)] * ex * ex - 2.0 * c[(0, 1)] * ex * ey + c[(0, 0)] * ey * ey) / det;
+                inside += u32::from(d2 <= 5.991);
+                n += 1;
+                poses.push((p.x_m, p.y_m));
+            }
+            next += 1;
+        }
+        f.step(input);
+    }
+    (poses, f64::from(inside) / f64::from(n.max(1)))
+}
+
+#[test]
+fn a_draft_no_state_carries_widens_the_published_covariance_only() {
+    // 1 m/s along the corridor and no wind state: the fix slides along
+    // the draft by the same amount cycle after cycle, which no residual
+    // shows. Counting a 0.5 m/s draft in the published covariance keeps
+    // the truth inside the ellipse without moving the estimate.
+    let draft = Trouble {
+        wind_m_s: [1.0, 0.0],
+        ..Trouble::default()
+    };
+    let (inputs, truth) = run(120.0, draft, 4);
+    let counted = params();
+    assert_eq!(counted.sensors.draft_sigma_m_s, 0.5);
+    let (with, inside_with) = poses_inside_95(&counted, &inputs, &truth, 20.0);
+    let mut ignored = params();
+    ignored.sensors.draft_sigma_m_s = 0.0;
+    let (without, inside_without) = poses_inside_95(&ignored, &inputs, &truth, 20.0);
+    assert_eq!(with, without, "the estimate moved");
+    assert!(
+        inside_with >= 0.9 && inside_with > inside_without + 0.05,
+        "inside the 95 % ellipse: {inside_with} counted, {inside_without} not"
+    );
+}

@@ -10,13 +10,15 @@
 //! The same holds for the speed of sound: the air the MSU turns arrival
 //! times into ranges with is known only to the temperature it assumes,
 //! and a speed off by a fraction scales every range by it, cycle after
-//! cycle.
+//! cycle. And for a draft: sound is faster along it and slower against
+//! it, so each range is off by the wind along its path, the same while
+//! the robot stays in the draft.
 //!
 //! The published covariance therefore adds the covariance a single fix
 //! from the transmitters heard in the last second would have with range
-//! errors of the survey's sigma and a speed of sound off by its sigma (the
-//! common offset eliminated): these errors as this geometry projects them
-//! onto the position. The state itself is not changed, so the estimate
+//! errors of the survey's sigma, a speed of sound off by its sigma and a
+//! wind of its sigma (the common offset eliminated): these errors as this
+//! geometry projects them onto the position. The state itself is not changed, so the estimate
 //! is the same; only what it says about itself is.
 
 use std::collections::VecDeque;
@@ -56,10 +58,11 @@ impl HeardLately {
     /// away: independent range errors on each transmitter of
     /// `survey_sigma_m` and of the variance `unexplained_m2` its arrivals
     /// showed beyond what the filter predicted (air the site-wide speed of
-    /// sound does not follow: warm and cold spots, drafts), and a speed of
-    /// sound off by the relative `speed_rel_sigma`, which scales every
-    /// range at once. `None` when fewer than three were heard or the
-    /// geometry fixes no position.
+    /// sound does not follow: warm and cold spots), a speed of sound off
+    /// by the relative `speed_rel_sigma`, which scales every range at
+    /// once, and a wind of `wind_rel_sigma` of the speed of sound along
+    /// each horizontal axis. `None` when fewer than three were heard or
+    /// the geometry fixes no position.
     pub(super) fn covariance(
         &self,
         now_s: f64,
@@ -67,10 +70,14 @@ impl HeardLately {
         survey_sigma_m: f64,
         unexplained_m2: f64,
         speed_rel_sigma: f64,
+        wind_rel_sigma: f64,
     ) -> Option<Matrix2<f64>> {
         let valid = |v: f64| v.is_finite() && v >= 0.0;
-        if !(valid(survey_sigma_m) && valid(speed_rel_sigma) && !unexplained_m2.is_nan())
-            || survey_sigma_m + speed_rel_sigma <= 0.0
+        if !(valid(survey_sigma_m)
+            && valid(speed_rel_sigma)
+            && valid(wind_rel_sigma)
+            && !unexplained_m2.is_nan())
+            || survey_sigma_m + speed_rel_sigma + wind_rel_sigma <= 0.0
         {
             return None;
         }
@@ -88,27 +95,44 @@ impl HeardLately {
         let n = tx.len() as f64;
         let shown = ((n - 3.0) / n).max(0.25);
         let sigma_m = (survey_sigma_m.powi(2) + unexplained_m2.max(0.0) / shown).sqrt();
-        fix_covariance(&tx, position_m, sigma_m, speed_rel_sigma)
+        let air = AirErrors {
+            speed_rel_sigma,
+            wind_rel_sigma,
+        };
+        fix_covariance(&tx, position_m, sigma_m, air)
     }
+}
+
+/// The errors of the air every range of a fix shares, over the speed of
+/// sound.
+#[derive(Debug, Clone, Copy)]
+struct AirErrors {
+    /// Sigma of the speed's relative error: `k r_i` on each range `r_i`.
+    speed_rel_sigma: f64,
+    /// Sigma of the wind along each horizontal axis: `u . h_i` on each
+    /// range, `h_i` the horizontal path from the transmitter.
+    wind_rel_sigma: f64,
 }
 
 /// The covariance of the least-squares fix `(x, y, offset)` from
 /// pseudo-ranges to `tx` whose errors are independent with sigma
-/// `survey_sigma_m` plus a common scale error of sigma `speed_rel_sigma`
-/// (`k r_i` on each range `r_i`): `M S M'` with `M = (A'A)^-1 A'`, rows of
-/// `A` the horizontal unit vectors from each transmitter and a one for the
-/// offset. The independent part alone is the CRLB of [`crate::tdoa::crlb`].
-/// A speed error is not absorbed by the offset where the ranges differ,
-/// which is where the robot is off the middle of what it hears.
+/// `survey_sigma_m` plus the air's errors common to the fix: `M S M'` with
+/// `M = (A'A)^-1 A'`, rows of `A` the horizontal unit vectors from each
+/// transmitter and a one for the offset. The independent part alone is
+/// the CRLB of [`crate::tdoa::crlb`]. A speed error is not absorbed by the
+/// offset where the ranges differ, which is where the robot is off the
+/// middle of what it hears; a wind is not absorbed anywhere: from paths
+/// of similar length it is a shift of the fix along it.
 fn fix_covariance(
     tx: &[Vector3<f64>],
     position_m: Vector3<f64>,
     survey_sigma_m: f64,
-    speed_rel_sigma: f64,
+    air: AirErrors,
 ) -> Option<Matrix2<f64>> {
     let n = tx.len();
     let mut a = DMatrix::<f64>::zeros(n, 3);
     let mut ranges = DVector::<f64>::zeros(n);
+    let mut paths = DMatrix::<f64>::zeros(n, 2);
     for (i, s) in tx.iter().enumerate() {
         let d = position_m - s;
         let r = d.norm();
@@ -120,11 +144,14 @@ fn fix_covariance(
         a[(i, 1)] = h.y / r;
         a[(i, 2)] = 1.0;
         ranges[i] = r;
+        paths[(i, 0)] = h.x;
+        paths[(i, 1)] = h.y;
     }
     let info = a.transpose() * &a;
     let m = info.try_inverse()? * a.transpose();
     let mut s = DMatrix::<f64>::identity(n, n) * survey_sigma_m.powi(2);
-    s += &ranges * ranges.transpose() * speed_rel_sigma.powi(2);
+    s += &ranges * ranges.transpose() * air.speed_rel_sigma.powi(2);
+    s += &paths * paths.transpose() * air.wind_rel_sigma.powi(2);
     let c = &m * s * m.transpose();
     let c = Matrix2::new(c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)]);
     c.iter().all(|v| v.is_finite()).then_some(c)
@@ -134,6 +161,13 @@ fn fix_covariance(
 mod tests {
     use super::*;
     use crate::tdoa;
+
+    fn speed_only(speed_rel_sigma: f64) -> AirErrors {
+        AirErrors {
+            speed_rel_sigma,
+            wind_rel_sigma: 0.0,
+        }
+    }
 
     fn square() -> [[f64; 3]; 4] {
         [
@@ -151,7 +185,7 @@ mod tests {
             h.note(k as f64 * 0.1, p);
         }
         let c = h
-            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0)
+            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
             .unwrap();
         let rms_m = c.trace().sqrt();
         // Four transmitters round the robot: the CRLB is of the order of
@@ -159,7 +193,7 @@ mod tests {
         assert!((0.005..0.05).contains(&rms_m), "{rms_m}");
         // Doubling the survey error doubles the floor.
         let c2 = h
-            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.02, 0.0, 0.0)
+            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.02, 0.0, 0.0, 0.0)
             .unwrap();
         assert!((c2.trace().sqrt() / rms_m - 2.0).abs() < 1e-9);
     }
@@ -168,7 +202,7 @@ mod tests {
     fn without_a_speed_error_it_is_the_crlb() {
         let tx: Vec<Vector3<f64>> = square().into_iter().map(Vector3::from).collect();
         for at in [Vector3::new(2.0, 2.0, 0.5), Vector3::new(0.7, 3.1, 0.5)] {
-            let c = fix_covariance(&tx, at, 0.01, 0.0).unwrap();
+            let c = fix_covariance(&tx, at, 0.01, speed_only(0.0)).unwrap();
             let bound = tdoa::crlb(&tx, at, 0.01, tdoa::Mode::TwoD { height_m: 0.5 }).unwrap();
             let b = bound.covariance_m2.fixed_view::<2, 2>(0, 0).into_owned();
             assert!((c - b).norm() < 1e-12 * b.norm(), "{c} {b}");
@@ -179,18 +213,54 @@ mod tests {
     fn a_speed_error_costs_nothing_in_the_middle_and_grows_off_it() {
         let tx: Vec<Vector3<f64>> = square().into_iter().map(Vector3::from).collect();
         let middle = Vector3::new(2.0, 2.0, 0.5);
-        let survey = fix_covariance(&tx, middle, 0.01, 0.0).unwrap();
-        let both = fix_covariance(&tx, middle, 0.01, 0.002).unwrap();
+        let survey = fix_covariance(&tx, middle, 0.01, speed_only(0.0)).unwrap();
+        let both = fix_covariance(&tx, middle, 0.01, speed_only(0.002)).unwrap();
         // Equal ranges: the offset takes the whole scale error.
         assert!((both - survey).norm() < 1e-12, "{both} {survey}");
         let corner = Vector3::new(0.5, 0.5, 0.5);
-        let survey = fix_covariance(&tx, corner, 0.01, 0.0).unwrap();
-        let both = fix_covariance(&tx, corner, 0.01, 0.002).unwrap();
-        let speed = fix_covariance(&tx, corner, 0.0, 0.002).unwrap();
+        let survey = fix_covariance(&tx, corner, 0.01, speed_only(0.0)).unwrap();
+        let both = fix_covariance(&tx, corner, 0.01, speed_only(0.002)).unwrap();
+        let speed = fix_covariance(&tx, corner, 0.0, speed_only(0.002)).unwrap();
         assert!((both - survey - speed).norm() < 1e-12);
         // Ranges of 2.6 to 5.2 m, 0.2 % off: millimetres towards the corner.
         let rms_mm = speed.trace().sqrt() * 1e3;
         assert!((1.0..20.0).contains(&rms_mm), "{rms_mm}");
+    }
+
+    #[test]
+    fn a_draft_shifts_the_fix_even_in_the_middle() {
+        let tx: Vec<Vector3<f64>> = square().into_iter().map(Vector3::from).collect();
+        let middle = Vector3::new(2.0, 2.0, 0.5);
+        let survey = fix_covariance(&tx, middle, 0.01, speed_only(0.0)).unwrap();
+        let wind = AirErrors {
+            speed_rel_sigma: 0.0,
+            wind_rel_sigma: 0.5 / 343.0,
+        };
+        let windy = fix_covariance(&tx, middle, 0.01, wind).unwrap();
+        let draft = windy - survey;
+        // Equal paths of 3.77 m (2.83 m across, 2.5 m up): the wind moves
+        // every range as a shift of the robot by `r w / c` moves it, 5.5 mm
+        // along each axis, which no offset takes up (a speed error costs
+        // nothing here).
+        let r_m = (8.0_f64 + 2.5 * 2.5).sqrt();
+        let expected_mm = r_m * 0.5 / 343.0 * 1e3;
+        for k in 0..2 {
+            let sigma_mm = draft[(k, k)].sqrt() * 1e3;
+            assert!(
+                (sigma_mm - expected_mm).abs() < 1e-6,
+                "{sigma_mm} {expected_mm}"
+            );
+        }
+        assert!(draft[(0, 1)].abs() < 1e-12);
+        // Through the heard-lately window, as the filter publishes it.
+        let mut h = HeardLately::default();
+        for p in square() {
+            h.note(0.0, p);
+        }
+        let published = h
+            .covariance(0.5, middle, 0.01, 0.0, 0.0, 0.5 / 343.0)
+            .unwrap();
+        assert!((published - windy).norm() < 1e-15);
     }
 
     #[test]
@@ -200,13 +270,13 @@ mod tests {
             h.note(0.0, p);
         }
         let at = Vector3::new(1.5, 2.5, 0.5);
-        let survey = h.covariance(0.5, at, 0.01, 0.0, 0.0).unwrap();
+        let survey = h.covariance(0.5, at, 0.01, 0.0, 0.0, 0.0).unwrap();
         // Four transmitters: a fix shows a quarter of each one's error, so
         // 1 cm^2 shown is 4 cm^2 in all, 5 cm^2 with the survey's.
-        let wider = h.covariance(0.5, at, 0.01, 1e-4, 0.0).unwrap();
+        let wider = h.covariance(0.5, at, 0.01, 1e-4, 0.0, 0.0).unwrap();
         assert!((wider.trace() / survey.trace() - 5.0).abs() < 1e-9);
         // A negative estimate (arrivals better than predicted) narrows nothing.
-        let same = h.covariance(0.5, at, 0.01, -1e-4, 0.0).unwrap();
+        let same = h.covariance(0.5, at, 0.01, -1e-4, 0.0, 0.0).unwrap();
         assert_eq!(same, survey);
     }
 
@@ -217,26 +287,26 @@ mod tests {
             h.note(0.0, p);
         }
         assert!(
-            h.covariance(0.1, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0)
+            h.covariance(0.1, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
                 .is_none()
         );
         for p in square() {
             h.note(0.0, p);
         }
         assert!(
-            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0)
+            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
                 .is_some()
         );
         assert!(
-            h.covariance(1.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0)
+            h.covariance(1.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
                 .is_none()
         );
         assert!(
-            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.0, 0.0, 0.0)
+            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.0, 0.0, 0.0, 0.0)
                 .is_none()
         );
         assert!(
-            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, f64::NAN)
+            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, f64::NAN, 0.0)
                 .is_none()
         );
     }

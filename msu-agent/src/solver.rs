@@ -319,28 +319,12 @@ impl FixSolver {
         let schedule = of_cycle.as_ref().unwrap_or(published);
         let c = self.config.speed_of_sound_m_s;
         let mut cycle = assemble(msg, schedule, &self.config.transmitters, c)?;
-        // Every signal as the fix's are taken (lateness removed), to
-        // measure the unused ones against the fix.
-        let mut heard = cycle.signals.clone();
-        for s in &mut heard {
-            s.pseudo_range_m -= self.late_m.get(&s.tx_id).copied().unwrap_or(0.0);
-        }
-        if !self.left_out.is_empty() {
-            // Heard, but not solved with: listed as rejected, so that the
-            // central unit sees when a left-out transmitter is heard again.
-            let left_out = &self.left_out;
-            cycle.rejected.extend(
-                cycle
-                    .signals
-                    .iter()
-                    .filter(|s| left_out.contains(&s.tx_id))
-                    .map(|s| s.tx_id),
-            );
-            cycle.signals.retain(|s| !left_out.contains(&s.tx_id));
-        }
         for s in &mut cycle.signals {
             s.pseudo_range_m -= self.late_m.get(&s.tx_id).copied().unwrap_or(0.0);
         }
+        // Every signal heard, to measure the unused ones against the fix.
+        let heard = cycle.signals.clone();
+        leave_out(&mut cycle, &self.left_out);
         let reference_s = clock.to_fusion(cycle.stamp);
         let hidden = self.hidden(&cycle.signals, reference_s);
         let range_differences = self.range_differences(&cycle.signals, &hidden, clock);
@@ -741,4 +725,24 @@ pub fn wire_fix(
             tdoa::Quality::Suspect => FixQuality::Suspect,
         },
     }
+}
+
+/// Takes the left-out transmitters' signals out of `cycle`: heard, but not
+/// solved with. They are listed as rejected, so that the central unit sees
+/// when a left-out transmitter is heard again.
+fn leave_out(
+    cycle: &mut crate::assembly::CycleSignals,
+    left_out: &std::collections::BTreeSet<u32>,
+) {
+    if left_out.is_empty() {
+        return;
+    }
+    cycle.rejected.extend(
+        cycle
+            .signals
+            .iter()
+            .filter(|s| left_out.contains(&s.tx_id))
+            .map(|s| s.tx_id),
+    );
+    cycle.signals.retain(|s| !left_out.contains(&s.tx_id));
 }

@@ -31,7 +31,7 @@ const LONG: &[(&str, &str, usize)] = &[
         "apply_to_estimator",
         107,
     ),
-    ("msu-agent/src/solver.rs", "solve", 111),
+    ("msu-agent/src/solver.rs", "solve", 103),
     ("operator/src/secure/acl.rs", "permissions", 120),
     ("operator/src/secure/mod.rs", "write_dir", 133),
     ("recording/src/record/mod.rs", "run", 108),

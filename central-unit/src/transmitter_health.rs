@@ -150,6 +150,9 @@ pub struct TransmitterReport {
     pub last_heard_s_ago: Option<f64>,
     /// Master time the condition began, seconds.
     pub since_s: Option<f64>,
+    /// Where the fleet surveyed a moved transmitter again and checks it
+    /// (`None`: not surveyed again, or taken back).
+    pub resurveyed_m: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -580,6 +583,7 @@ impl TransmitterHealth {
                         .map(|m| (c.residual_sq / c.residual_n - m * m).max(0.0).sqrt()),
                     last_heard_s_ago: e.last_heard.map(|t| (now - t).as_secs_f64().max(0.0)),
                     since_s: e.since.map(Time::as_secs_f64),
+                    resurveyed_m: e.resurveyed_at,
                 }
             })
             .collect()
@@ -601,10 +605,13 @@ impl TransmitterHealth {
                 pct(r.expected_pct)
             ),
             Condition::Moved => format!(
-                "{} of its arrivals rejected by the robots' gates, residuals {} mm on average",
+                "{} of its arrivals rejected by the robots' gates, residuals {} mm on average{}",
                 pct(r.rejected_pct),
                 r.residual_mean_m
-                    .map_or("-".into(), |m| format!("{:.0}", m * 1e3))
+                    .map_or("-".into(), |m| format!("{:.0}", m * 1e3)),
+                r.resurveyed_m.map_or(String::new(), |[x, y, z]| format!(
+                    "; surveyed again by the fleet at ({x:.3}, {y:.3}, {z:.3}) m, taken back once fixes agree there"
+                ))
             ),
             Condition::Healthy => format!(
                 "heard in {} of the fixes near it (its cell's others {})",

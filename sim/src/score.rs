@@ -356,8 +356,9 @@ pub struct AirScore {
     /// the calibration starts), percent.
     pub first_minute_mean_pct: f64,
     /// Largest absolute error of the speed used after the first minute
-    /// (the calibration's start), percent.
-    pub used_max_pct: f64,
+    /// (the calibration's start), percent; `None` for a run of a minute
+    /// or less.
+    pub used_max_pct: Option<f64>,
     /// Mean absolute error of the site file's speed, percent: what the
     /// MSU would have made of the air without learning it.
     pub site_mean_pct: f64,
@@ -392,7 +393,7 @@ impl AirScore {
                 .iter()
                 .filter(|(s, _, _)| *s >= 60.0)
                 .map(|&(_, t, u)| pct(u, t))
-                .fold(0.0, f64::max),
+                .reduce(f64::max),
             site_mean_pct: known.iter().map(|&(_, t, _)| pct(site_m_s, t)).sum::<f64>() / n,
             true_range_m_s: known.iter().fold([f64::INFINITY, 0.0], |r, &(_, t, _)| {
                 [r[0].min(t), r[1].max(t)]

@@ -111,8 +111,11 @@ impl TransmitterFault {
                 let [dx, dy, dz] = d[..] else {
                     return Err(bad(format!("{v:?} is not DX,DY,DZ in metres")));
                 };
+                if !d.iter().all(|x| x.is_finite()) {
+                    return Err(bad(format!("{v:?} is not DX,DY,DZ in metres")));
+                }
                 let norm = (dx * dx + dy * dy + dz * dz).sqrt();
-                if !(norm.is_finite() && norm <= FARTHEST_MOVE_M) {
+                if norm > FARTHEST_MOVE_M {
                     return Err(bad(format!(
                         "a move of {norm} m is beyond {FARTHEST_MOVE_M} m: put the transmitter's new place in the site file"
                     )));
@@ -292,7 +295,8 @@ mod tests {
             ("weak:tx/22@1s=nan", "above 0 and below 1"),
             ("moved:tx/22@1s=1,2", "DX,DY,DZ"),
             ("moved:tx/22@1s=10,0,0", "beyond"),
-            ("moved:tx/22@1s=inf,0,0", "beyond"),
+            ("moved:tx/22@1s=inf,0,0", "DX,DY,DZ"),
+            ("moved:tx/22@1s=0.3,NaN,0", "DX,DY,DZ"),
             ("weak:tx/abc@1s=0.5", "not a transmitter id"),
         ];
         for (item, why) in cases {

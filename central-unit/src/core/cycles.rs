@@ -12,8 +12,11 @@ use crate::spacing::SpacingTable;
 
 use super::{CentralCore, Output};
 
-/// Own triggers remembered to recognise them on the way back (a few cycles' worth).
-const SENT_TRIGGERS_KEPT: usize = 16;
+/// Own triggers remembered to recognise them on the way back: 25 s at
+/// 10 cycles/s, longer at slower rates. An overloaded router delivers a
+/// unit's own triggers back many cycles late; fewer would count them as
+/// forged.
+pub(super) const SENT_TRIGGERS_KEPT: usize = 256;
 
 /// Cycles that may still be triggered late in one tick; older ones are skipped.
 const MAX_LATE_CYCLES: i64 = 2;

@@ -54,6 +54,29 @@ fn its_own_schedule_and_triggers_coming_back_are_not_foreign() {
 }
 
 #[test]
+fn its_own_trigger_echoed_back_many_cycles_late_is_not_foreign_a_changed_one_is() {
+    let mut c = core();
+    let mut sent = Vec::new();
+    while sent.len() < 200 {
+        let now = c.next_wake();
+        sent.extend(c.tick(now).into_iter().filter_map(|o| match o {
+            Output::Trigger(t) => Some(t),
+            _ => None,
+        }));
+    }
+    let now = c.next_wake();
+    // The first of them, back after 200 cycles (a router under load).
+    c.handle(now, Event::TriggerSeen(sent[0].clone()));
+    assert_eq!(c.foreign_control(), 0);
+    let forged = CycleTrigger {
+        cycle_period: sent[0].cycle_period + Duration::from_nanos(1),
+        ..sent[0].clone()
+    };
+    c.handle(now, Event::TriggerSeen(forged));
+    assert_eq!(c.foreign_control(), 1);
+}
+
+#[test]
 fn an_empty_schedule_under_the_current_version_is_counted_and_answered_at_once() {
     let mut c = core();
     let mine = c.latest_schedule().clone();

@@ -241,8 +241,26 @@ fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back
         Condition::Moved,
         "19 fixes are too few"
     );
+    // The operator sees where the fleet placed it while it is checked.
+    let report = |h: &TransmitterHealth, now: Time| {
+        h.report(now)
+            .into_iter()
+            .find(|r| r.tx_id == moved)
+            .expect("reported")
+    };
+    let r = report(&h, now);
+    assert_eq!(r.resurveyed_m, Some(placed.position_m));
+    let [x, y, z] = placed.position_m;
+    let evidence = TransmitterHealth::evidence(&r);
+    assert!(
+        evidence.contains(&format!(
+            "surveyed again by the fleet at ({x:.3}, {y:.3}, {z:.3}) m"
+        )),
+        "{evidence}"
+    );
     now = drive(&mut h, now, placed.position_m, 1);
     assert_eq!(condition(&h, moved), Condition::Healthy);
+    assert_eq!(report(&h, now).resurveyed_m, None, "taken back");
     assert!(h.left_out().is_empty(), "{:?}", h.left_out());
     assert!(h.moved().is_empty());
     // Used again, with its residuals centred: it stays healthy.

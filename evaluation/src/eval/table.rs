@@ -151,6 +151,14 @@ fn fmt_rate(count: usize, seconds: f64) -> String {
     }
 }
 
+/// The worst error of the speed used after the first minute, in words.
+pub(crate) fn worst_after_first_minute(pct: Option<f64>) -> String {
+    match pct {
+        Some(p) => format!("{p:.3} % at worst after it"),
+        None => "nothing after it to judge (the run is a minute or shorter)".to_string(),
+    }
+}
+
 /// The speed of sound the MSU used against the air's, per route.
 pub fn print_air(outputs: &[ickon_sim::RunOutput], site_m_s: f64) {
     println!(
@@ -160,12 +168,12 @@ pub fn print_air(outputs: &[ickon_sim::RunOutput], site_m_s: f64) {
     for o in outputs {
         match ickon_sim::score::AirScore::of(&o.air, site_m_s) {
             Some(a) => println!(
-                "{:>11}: used {:.3} % off on average ({:.3} % in the first minute), {:.3} % at \
-                 worst after it (the site file's {:.3} % off); the air {:.1}-{:.1} m/s",
+                "{:>11}: used {:.3} % off on average ({:.3} % in the first minute), {} (the site \
+                 file's {:.3} % off); the air {:.1}-{:.1} m/s",
                 o.config.route,
                 a.used_mean_pct,
                 a.first_minute_mean_pct,
-                a.used_max_pct,
+                worst_after_first_minute(a.used_max_pct),
                 a.site_mean_pct,
                 a.true_range_m_s[0],
                 a.true_range_m_s[1]

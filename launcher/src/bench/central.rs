@@ -96,10 +96,11 @@ pub struct CentralReport {
     /// every robot's, every cell's and the central unit's token was live at
     /// the bench's router.
     pub live_s: f64,
-    /// Robots the central unit listed as up in its last status.
-    pub robots_up_at_central: usize,
-    /// Robots in its last status with a pose.
-    pub robots_posed_at_central: usize,
+    /// Robots the central unit listed as up in its last status; `None`
+    /// when it answered no status query.
+    pub robots_up_at_central: Option<usize>,
+    /// Robots in its last status with a pose; `None` likewise.
+    pub robots_posed_at_central: Option<usize>,
     /// Cycle triggers received.
     pub cycles: usize,
     /// Mean cycle period of the triggers, ms.
@@ -639,8 +640,8 @@ impl Observed {
             live_s: self.live_s,
             failure,
             robots_up_at_central: status
-                .map_or(0, |s| (s.robot_counts.up + s.robot_counts.stale) as usize),
-            robots_posed_at_central: status.map_or(0, |s| s.robots_posed as usize),
+                .map(|s| (s.robot_counts.up + s.robot_counts.stale) as usize),
+            robots_posed_at_central: status.map(|s| s.robots_posed as usize),
             cycles: self.triggers.len(),
             cycle_period_ms: period_ms,
             trigger_jitter_p50_us: percentile(&jitter_us, 50.0),
@@ -729,6 +730,7 @@ fn render(reports: &[CentralReport]) -> String {
     use std::fmt::Write;
     let show =
         |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |v| format!("{v:.digits$}"));
+    let count = |v: Option<usize>| v.map_or("-".to_string(), |v| v.to_string());
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -758,7 +760,11 @@ fn render(reports: &[CentralReport]) -> String {
             "{:>6} {:>6} {:>9} {:>7} {:>8} {:>8} {:>14} {:>11} {:>14} {:>14} {:>9} {:>9} {:>14}",
             r.robots,
             format!("{:.1}", r.live_s),
-            format!("{}/{}", r.robots_up_at_central, r.robots_posed_at_central),
+            format!(
+                "{}/{}",
+                count(r.robots_up_at_central),
+                count(r.robots_posed_at_central)
+            ),
             r.cycles,
             show(r.central_cpu_share.map(|s| s * 100.0), 1),
             show(r.central_peak_rss_mib, 1),

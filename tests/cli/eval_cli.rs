@@ -82,7 +82,7 @@ fn unknown_names_exit_with_code_two_and_list_the_valid_ones() {
 }
 
 /// A flag that does not apply to the kind of run asked for is refused, not
-/// silently ignored (`--plot` with `--robots` used to draw nothing and say
+/// silently ignored (`--plot` with `--robots` would draw nothing and say
 /// nothing).
 #[test]
 fn flags_of_the_other_kind_of_run_are_refused() {

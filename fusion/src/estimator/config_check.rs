@@ -243,8 +243,9 @@ mod tests {
             p.sensors.survey_sigma_m = sigma_m;
             EstimatorConfig::TdoaEkf(p).validate()
         };
-        // 1e300 used to pass: its CRLB overflowed and the survey term was
-        // then silently left out of the published covariance.
+        // 1e300 is within a plain range check, but its CRLB overflows and
+        // the survey term would be silently left out of the published
+        // covariance.
         for bad in [1e300, 1.01, -0.01, f64::INFINITY, f64::NAN] {
             let err = with_survey(bad).unwrap_err();
             assert_eq!(err.field, "sensors.survey_sigma_m", "{bad}");

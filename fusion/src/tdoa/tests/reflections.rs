@@ -147,8 +147,8 @@ fn an_early_outlier_is_left_to_the_consensus_when_only_late_ones_are_rejected_on
 fn a_wrong_id_heard_early_no_longer_throws_the_whole_cycle_away() {
     // A burst decoded with another transmitter's id is placed at that
     // transmitter's slot: tens of metres early. Every other signal then
-    // exceeds its baseline against it, and the physical check (which drops
-    // the later side) used to leave one signal.
+    // exceeds its baseline against it, and a physical check that dropped
+    // the later side would leave one signal.
     let p = Vector3::new(2.5, 2.0, 0.4);
     let mut s = signals_at(&ceiling(10), p, 2.0);
     s[6].pseudo_range_m -= 48.7;

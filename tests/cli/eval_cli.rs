@@ -199,26 +199,7 @@ fn plot_directory_gets_one_picture_per_estimator_route_and_tour_plus_the_compari
 fn an_exported_run_replays_to_the_raw_fixes_of_eval() {
     let dir = tempfile::tempdir().unwrap();
     let export = dir.path().join("run");
-    let eval = |export: &std::path::Path| {
-        ickon()
-            .args([
-                "eval",
-                "--route",
-                "rectangle",
-                "--tours",
-                "1",
-                "--estimator",
-                "msu-raw",
-                "--no-survey-calibration",
-                "--no-speed-of-sound",
-                "--json",
-                "--export-tdoa",
-            ])
-            .arg(export)
-            .output()
-            .unwrap()
-    };
-    let doc = json(&eval(&export));
+    let doc = json(&export_one_tour("rectangle", &export));
     let raw = &doc["results"][0];
     let (mean_mm, rmse_mm) = (
         raw["fix_mean_mm"].as_f64().unwrap(),
@@ -265,7 +246,7 @@ fn an_exported_run_replays_to_the_raw_fixes_of_eval() {
         );
     }
     // A second export into the same directory does not overwrite it.
-    let again = eval(&export);
+    let again = export_one_tour("rectangle", &export);
     assert_eq!(again.status.code(), Some(1));
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(
@@ -283,23 +264,7 @@ fn the_robot_example_is_an_export_and_replays_with_its_odometry() {
     let example =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/examples/ickon-robot");
     let dir = tempfile::tempdir().unwrap();
-    let out = ickon()
-        .args([
-            "eval",
-            "--route",
-            "rectangle",
-            "--tours",
-            "1",
-            "--estimator",
-            "msu-raw",
-            "--no-survey-calibration",
-            "--no-speed-of-sound",
-            "--json",
-            "--export-tdoa",
-        ])
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let out = export_one_tour("rectangle", dir.path());
     json(&out);
     let names = [
         "anchors.csv",
@@ -347,29 +312,13 @@ fn the_robot_example_is_an_export_and_replays_with_its_odometry() {
 /// at the start a transmitter of the neighbouring cell, heard by a
 /// reflection, fires first in the cycle, and differences against each
 /// epoch's first arrival would hand that reflection to every one of them
-/// (the filter then lost the robot for the whole tour, over a metre off);
+/// (the filter would lose the robot for the whole tour, over a metre off);
 /// the chain of consecutive differences the MSU hands the filter confines
 /// it to one arrival.
 #[test]
 fn an_exported_figure_eight_keeps_the_ground_filter_on_the_robot() {
     let dir = tempfile::tempdir().unwrap();
-    let out = ickon()
-        .args([
-            "eval",
-            "--route",
-            "eight",
-            "--tours",
-            "1",
-            "--estimator",
-            "msu-raw",
-            "--no-survey-calibration",
-            "--no-speed-of-sound",
-            "--json",
-            "--export-tdoa",
-        ])
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let out = export_one_tour("eight", dir.path());
     json(&out);
     let run = dir.path().join("eight");
     let odometry = run.join("odometry.csv");
@@ -398,4 +347,26 @@ fn an_exported_figure_eight_keeps_the_ground_filter_on_the_robot() {
     assert!(rmse_m("tdoa-ekf") < rmse_m("ls"), "{doc}");
     assert!(rmse_m("tdoa-ekf") < rmse_m("odometry"), "{doc}");
     assert!(ekf["rejected_pct"].as_f64().unwrap() < 30.0, "{doc}");
+}
+
+/// `ickon eval` of one tour of `route` with raw fixes, the central unit's
+/// learning off, exported into `dir`.
+fn export_one_tour(route: &str, dir: &std::path::Path) -> std::process::Output {
+    ickon()
+        .args([
+            "eval",
+            "--route",
+            route,
+            "--tours",
+            "1",
+            "--estimator",
+            "msu-raw",
+            "--no-survey-calibration",
+            "--no-speed-of-sound",
+            "--json",
+            "--export-tdoa",
+        ])
+        .arg(dir)
+        .output()
+        .unwrap()
 }

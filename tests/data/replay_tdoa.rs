@@ -216,6 +216,17 @@ fn converted_plaza_runs_replay_to_the_same_numbers() {
                 );
             }
         }
+        // The ground filter's published covariance is judged alike by
+        // both readers (the share of poses inside its 95 % ellipse).
+        let a = run["inside_95_pct"].as_f64().unwrap();
+        let b = estimator(&converted, "tdoa-ekf")["inside_95_pct"]
+            .as_f64()
+            .unwrap();
+        eprintln!("{name} tdoa-ekf inside 95 %: plaza {a:.1}, tdoa {b:.1}");
+        assert!(
+            (a - b).abs() <= 1.0,
+            "{name} inside 95 %: plaza {a}, tdoa {b}"
+        );
     }
 }
 

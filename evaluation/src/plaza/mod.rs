@@ -27,6 +27,7 @@ mod to_tdoa;
 
 use dataset::{PlazaRun, TruthRow, read_run};
 use ickon_runtime::CommandError;
+use report::Consistency;
 pub use report::{RunReport, Sample, Stats};
 pub use to_tdoa::{ConvertPlazaArgs, run as run_convert};
 
@@ -66,7 +67,10 @@ pub struct PlazaArgs {
 /// the robot's sensors (wheels only, 5 % of each increment, as the data
 /// README's simple filter) and its start pose.
 pub fn plaza_params(start: InitialPose) -> TdoaEkfParams {
-    wheel_params(Some(start), ODOMETRY_FRACTION)
+    let mut params = wheel_params(Some(start), ODOMETRY_FRACTION);
+    // The Plaza ranges are radio (UWB): the air does not change them.
+    params.sensors = params.sensors.without_air();
+    params
 }
 
 /// The filter on a wheeled robot without a gyro whose odometry errs by
@@ -208,6 +212,7 @@ pub fn replay_run(name: &str, data: &PlazaRun) -> Result<RunReport, String> {
     let mut dead = (start.x_m, start.y_m, start.theta_rad);
     let (mut filter_track, mut odometry_track) = (Vec::new(), Vec::new());
     let (mut used, mut rejected) = (0u64, 0u64);
+    let mut consistency = Consistency::default();
     let mut ranges = data.ranges.iter().peekable();
     let mut last_t = t0;
     for o in &data.odometry {
@@ -232,7 +237,15 @@ pub fn replay_run(name: &str, data: &PlazaRun) -> Result<RunReport, String> {
         let Some(truth) = truth_at(&data.truth, o.t_s) else {
             continue;
         };
-        if let Some(PoseEstimate { x_m, y_m, .. }) = filter.pose() {
+        if let Some(PoseEstimate {
+            x_m,
+            y_m,
+            covariance,
+            ..
+        }) = filter.pose()
+        {
+            let c = [covariance[(0, 0)], covariance[(0, 1)], covariance[(1, 1)]];
+            consistency.push([x_m - truth[0], y_m - truth[1]], c);
             filter_track.push(Sample {
                 t_s: o.t_s - t0,
                 estimate_m: [x_m, y_m],
@@ -258,6 +271,8 @@ pub fn replay_run(name: &str, data: &PlazaRun) -> Result<RunReport, String> {
         distance_scale: filter.distance_scale().unwrap_or(0.0),
         turn_bias_deg_s: filter.turn_bias_rad_s().unwrap_or(0.0).to_degrees(),
         reinitialisations: filter.reinitialisations().len(),
+        inside_95_pct: consistency.inside_95_pct(),
+        nees: consistency.nees(),
         adaptations: filter.adaptations(),
         filter_track,
         odometry_track,
@@ -302,13 +317,13 @@ fn print_table(reports: &[RunReport]) {
         "ickon replay plaza: tdoa-ekf (ranges + wheel odometry, range bias and scale estimated) against dead reckoning"
     );
     println!(
-        "| run | track | 2D RMSE m | mean m | p95 m | max m | max after 60 s m | ranges used / rejected | range bias m | range scale |"
+        "| run | track | 2D RMSE m | mean m | p95 m | max m | max after 60 s m | ranges used / rejected | range bias m | range scale | inside 95 % | NEES (95 % bounds) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in reports {
         let f = &r.filter;
         println!(
-            "| {} | tdoa-ekf | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} / {} | {:.2} | {:.3} |",
+            "| {} | tdoa-ekf | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} / {} | {:.2} | {:.3} | {} | {} |",
             r.run,
             f.rmse_m,
             f.mean_m,
@@ -318,11 +333,17 @@ fn print_table(reports: &[RunReport]) {
             r.ranges_used,
             r.ranges_rejected,
             r.range_bias_m,
-            r.range_scale
+            r.range_scale,
+            r.inside_95_pct
+                .map_or_else(|| "-".to_owned(), |p| format!("{p:.1}")),
+            r.nees.map_or_else(
+                || "-".to_owned(),
+                |n| format!("{:.2} ({:.2}-{:.2})", n.mean, n.low, n.high)
+            ),
         );
         let o = &r.odometry;
         println!(
-            "| | odometry | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | | | |",
+            "| | odometry | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | | | | | |",
             o.rmse_m, o.mean_m, o.p95_m, o.max_m, o.max_after_60s_m
         );
     }

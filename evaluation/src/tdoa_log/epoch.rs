@@ -42,7 +42,23 @@ pub struct Units {
     pub default_sigma_m: f64,
 }
 
+/// Slowest and fastest speed of sound in air the ground robot's air
+/// states describe, m/s: dry air from -40 to 85 degC (306 and 379 m/s, the
+/// range a cell board's air sensor reads), with room for humidity (up to
+/// about half a percent faster).
+const SOUND_IN_AIR_M_S: std::ops::RangeInclusive<f64> = 300.0..=385.0;
+
 impl Units {
+    /// Whether the measurements travel as sound through air: the log names
+    /// a propagation speed within that of sound in air. Only then does the
+    /// air (its temperature, its drafts) change them, and the ground
+    /// filter learns the local speed of sound; a radio log, or one of
+    /// distances with no speed named, is replayed without those states.
+    pub fn carried_by_air(&self) -> bool {
+        self.speed_m_s
+            .is_some_and(|c| SOUND_IN_AIR_M_S.contains(&c))
+    }
+
     /// The row's value in metres (`None`: a time without a speed).
     pub fn metres(&self, a: &Arrival) -> Option<f64> {
         if a.kind.is_time() {
@@ -393,5 +409,21 @@ mod chain_tests {
                 .zip(&clean_star)
                 .all(|(a, b)| (a.d_m - b.d_m + 0.7).abs() < 1e-12)
         );
+    }
+
+    #[test]
+    fn only_a_speed_of_sound_in_air_brings_the_air_states() {
+        let units = |speed_m_s| Units {
+            speed_m_s,
+            default_sigma_m: 0.01,
+        };
+        // Sound in a hall, cold to warm; radio; sound in water; a log of
+        // distances that names no speed.
+        assert!(units(Some(343.0)).carried_by_air());
+        assert!(units(Some(306.0)).carried_by_air());
+        assert!(units(Some(379.0)).carried_by_air());
+        assert!(!units(Some(299_792_458.0)).carried_by_air());
+        assert!(!units(Some(1480.0)).carried_by_air());
+        assert!(!units(None).carried_by_air());
     }
 }

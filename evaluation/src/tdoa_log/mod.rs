@@ -206,7 +206,7 @@ pub fn run(args: &TdoaArgs) -> Result<(), CommandError> {
     } else {
         print_summary(&out);
         if out.has_truth {
-            print_table(&file, r, wall);
+            print_table(&file, r, out.dim, wall);
             let medians: Vec<String> = r
                 .reports
                 .iter()

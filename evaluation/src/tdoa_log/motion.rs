@@ -7,6 +7,8 @@
 
 use std::path::Path;
 
+use nalgebra::Matrix3;
+
 use ickon_fusion::estimator::flight::ImuSample;
 use ickon_fusion::estimator::history::InOrderFilter;
 use ickon_fusion::estimator::tdoa_ekf::TdoaEkf;
@@ -95,8 +97,21 @@ impl GroundRunner {
         while let Some((o, dt)) = self.odometry.next_before(t_s)? {
             self.filter
                 .increment(o.t_s, o.distance_m, o.dtheta_rad, dt, false);
-            if let Some(PoseEstimate { x_m, y_m, .. }) = self.filter.pose() {
-                track.push(o.t_s, [x_m, y_m, 0.0]);
+            if let Some(PoseEstimate {
+                x_m,
+                y_m,
+                covariance,
+                ..
+            }) = self.filter.pose()
+            {
+                // The pose's (x, y, heading) covariance: its position block,
+                // the height held at the floor's (a planar track's test
+                // leaves it out).
+                let mut position = Matrix3::identity();
+                position
+                    .fixed_view_mut::<2, 2>(0, 0)
+                    .copy_from(&covariance.fixed_view::<2, 2>(0, 0));
+                track.push_with(o.t_s, [x_m, y_m, 0.0], Some(position));
             }
         }
         Ok(())

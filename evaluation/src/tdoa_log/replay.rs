@@ -116,7 +116,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
         start,
     } = setup;
     let (names, left_out) = selected(args, anchors.dim, start.is_some())?;
-    let mut slots = make_slots(names, args, &anchors, volume, start)?;
+    let mut slots = make_slots(names, args, &anchors, units, volume, start)?;
     let mut solver = solver_for(&anchors, volume);
     let mut truth = match &args.truth {
         Some(path) => Some(TruthStream::open(
@@ -129,11 +129,14 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
     };
     let mut epochs = Epochs::new(reader, &anchors, units);
     let mut rows: Vec<Arrival> = Vec::new();
-    let (mut n_epochs, mut differences) = (0_u64, 0_u64);
+    let (mut n_epochs, mut differences, mut ranges) = (0_u64, 0_u64, 0_u64);
     while epochs.next_epoch(&mut rows)? {
         n_epochs += 1;
         let samples = super::epoch::samples(&rows, &anchors, epochs.units());
         differences += samples.len() as u64;
+        // A range row is a measurement of its own, beside the differences
+        // the other rows give.
+        ranges += rows.iter().filter(|a| a.kind == Kind::RangeM).count() as u64;
         let t0 = Instant::now();
         let fix = solver.solve(&rows, &anchors, epochs.units());
         let solve_wall = t0.elapsed();
@@ -176,7 +179,7 @@ pub fn replay(args: &TdoaArgs) -> Result<TdoaReplayed, LogError> {
     let reports = slots.iter().map(|s| slot_report(s, &count)).collect();
     Ok(TdoaReplayed {
         replayed: Replayed {
-            measurements: differences,
+            measurements: differences + ranges,
             duration_s,
             volume,
             reports,
@@ -308,6 +311,7 @@ fn make_slots(
     names: Vec<&'static str>,
     args: &TdoaArgs,
     anchors: &Anchors,
+    units: Units,
     volume: FlightVolume,
     start: Option<(InitialPose, f64)>,
 ) -> Result<Vec<Slot>, LogError> {
@@ -316,8 +320,12 @@ fn make_slots(
         .map(|name| {
             Ok(Slot {
                 name,
-                runner: runner(name, args, anchors, volume, start)?,
-                track: Track::new(args.plot.is_some()),
+                runner: runner(name, args, anchors, units, volume, start)?,
+                track: if anchors.dim == 2 {
+                    Track::new(args.plot.is_some()).planar()
+                } else {
+                    Track::new(args.plot.is_some())
+                },
                 wall: Duration::ZERO,
             })
         })
@@ -511,6 +519,7 @@ fn runner(
     name: &str,
     args: &TdoaArgs,
     anchors: &Anchors,
+    units: Units,
     volume: FlightVolume,
     start: Option<(InitialPose, f64)>,
 ) -> Result<Runner, LogError> {
@@ -524,6 +533,9 @@ fn runner(
                 .ok_or_else(|| usage("needs --odometry".into()))?;
             let mut params = crate::plaza::wheel_params(start.map(|s| s.0), args.odometry_fraction);
             params.receiver_height_m = anchors.plane_z_m;
+            if !units.carried_by_air() {
+                params.sensors = params.sensors.without_air();
+            }
             Runner::Ground(Box::new(GroundRunner::new(
                 path,
                 &params,

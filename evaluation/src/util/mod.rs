@@ -170,7 +170,7 @@ pub fn run(args: &UtilArgs) -> Result<(), CommandError> {
         });
         println!("{doc}");
     } else {
-        print_table(&file, r, wall);
+        print_table(&file, r, 3, wall);
     }
     if let Some(dir) = &args.plot {
         let stem = args
@@ -190,7 +190,9 @@ pub fn run(args: &UtilArgs) -> Result<(), CommandError> {
     Ok(())
 }
 
-pub(crate) fn print_table(file: &str, r: &Replayed, wall: Duration) {
+/// The replay's table; `dim` is the positions' (2 for a ground robot's
+/// planar track, whose covariance is judged by its ellipse).
+pub(crate) fn print_table(file: &str, r: &Replayed, dim: usize, wall: Duration) {
     println!(
         "{file}: {} measurements over {:.1} s, replayed in {:.2} s",
         r.measurements,
@@ -242,8 +244,9 @@ pub(crate) fn print_table(file: &str, r: &Replayed, wall: Duration) {
             e.published_pct,
         );
         if let (Some(inside), Some(n)) = (s.inside_95_pct, &s.nees) {
+            let shape = if dim == 2 { "ellipse" } else { "ellipsoid" };
             println!(
-                "{:<10} covariance: truth inside its 95 % ellipsoid {:.1} %, NEES {:.2} (3 if honest; {:.2}-{:.2} for {} points)",
+                "{:<10} covariance: truth inside its 95 % {shape} {:.1} %, NEES {:.2} ({dim} if honest; {:.2}-{:.2} for {} points)",
                 "", inside, n.mean, n.low, n.high, n.samples
             );
         }

@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use ickon_sim::score::{Nees, nees_bounds};
+use ickon_sim::score::{Nees, inside_95_ellipse, nees_2d, nees_bounds};
 use nalgebra::{Matrix3, Vector3};
 
 use super::dataset::TruthRow;
@@ -58,6 +58,10 @@ pub struct Track {
     tracking_run: Option<(f64, f64)>,
     /// Scored estimates without a usable covariance.
     without_covariance: u64,
+    /// Whether the positions are planar (a ground robot): the consistency
+    /// test then takes the horizontal error and its 2x2 covariance, not a
+    /// height both sides hold at the floor's.
+    planar: bool,
     sum2_xy: f64,
     /// Estimates with no truth around them (before, after, or in a gap).
     pub unscored: u64,
@@ -84,11 +88,13 @@ pub struct Summary {
     /// Largest 3D error, metres.
     pub max_3d_m: Option<f64>,
     /// Share of the scored estimates whose truth lies inside the 95 %
-    /// ellipsoid of the covariance the estimator published, percent (95
-    /// for an honest covariance); `None` unless every one came with one.
+    /// ellipsoid (the ellipse, for a planar track) of the covariance the
+    /// estimator published, percent (95 for an honest covariance); `None`
+    /// unless every one came with one.
     pub inside_95_pct: Option<f64>,
-    /// Bar-Shalom's test of that covariance: the average 3D NEES (3 for an
-    /// honest covariance) with its 95 % bounds; `None` as above.
+    /// Bar-Shalom's test of that covariance: the average NEES (3 for an
+    /// honest covariance, 2 for a planar track's) with its 95 % bounds;
+    /// `None` as above.
     pub nees: Option<Nees>,
 }
 
@@ -99,6 +105,12 @@ impl Track {
             series: plot.then(Vec::new),
             ..Self::default()
         }
+    }
+
+    /// The same track scoring the covariance in the plane (2D logs).
+    pub fn planar(mut self) -> Self {
+        self.planar = true;
+        self
     }
 
     /// Queues an estimate (times non-decreasing).
@@ -150,11 +162,20 @@ impl Track {
 
     fn score(&mut self, t_s: f64, est: [f64; 3], cov: Option<Matrix3<f64>>, truth_m: [f64; 3]) {
         let d: [f64; 3] = std::array::from_fn(|k| est[k] - truth_m[k]);
-        match cov.and_then(|c| nees_3d(Vector3::from(d), &c)) {
-            Some(v) => {
+        let consistency = cov.and_then(|c| {
+            if self.planar {
+                let (e, c) = ([d[0], d[1]], [c[(0, 0)], c[(0, 1)], c[(1, 1)]]);
+                Some((nees_2d(e, c)?, inside_95_ellipse(e, c)?))
+            } else {
+                let v = nees_3d(Vector3::from(d), &c)?;
+                Some((v, v <= CHI2_3D_95))
+            }
+        });
+        match consistency {
+            Some((v, inside)) => {
                 self.nees_sum += v;
                 self.nees_n += 1;
-                self.nees_inside += u64::from(v <= CHI2_3D_95);
+                self.nees_inside += u64::from(inside);
             }
             None => self.without_covariance += 1,
         }
@@ -241,7 +262,7 @@ impl Track {
                 .then(|| 100.0 * self.nees_inside as f64 / nf),
             nees: with_covariance.then(|| {
                 let samples = self.nees_n as usize;
-                let (low, high) = nees_bounds(3, samples);
+                let (low, high) = nees_bounds(if self.planar { 2 } else { 3 }, samples);
                 Nees {
                     mean: self.nees_sum / self.nees_n as f64,
                     low,

@@ -221,6 +221,21 @@ impl GroundNoise {
         }
     }
 
+    /// The same sensors ranging by radio (UWB, or any log whose
+    /// propagation speed is not that of sound in air): a radio wave's speed
+    /// does not depend on the air, so the assumed temperature's error, the
+    /// local speed of sound and wind states and the drafts' share of the
+    /// published covariance are all left out.
+    pub fn without_air(self) -> Self {
+        Self {
+            temperature_sigma_c: 0.0,
+            local_air_sigma_c: 0.0,
+            local_wind_sigma_m_s: 0.0,
+            draft_sigma_m_s: 0.0,
+            ..self
+        }
+    }
+
     /// Whether the local wind is a state of the filter.
     pub(super) fn learns_local_wind(&self) -> bool {
         self.local_wind_rel_sigma() > 0.0

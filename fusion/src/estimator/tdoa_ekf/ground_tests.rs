@@ -686,6 +686,37 @@ fn warmer_air_where_the_robot_drives_is_learnt_as_the_local_speed_of_sound() {
 }
 
 #[test]
+fn ranging_without_air_learns_no_speed_of_sound_and_counts_no_draft() {
+    // Radio ranges in still air: the same arrivals, with and without the
+    // air's states. Without them there is no local speed of sound or wind
+    // to learn and no draft in the published covariance, and the estimate
+    // is no worse for it.
+    let (inputs, truth) = run(60.0, Trouble::default(), 5);
+    let (f, e) = errors(&inputs, &truth);
+    assert!(f.sound_scale().is_some());
+    let (with_air, _) = mean_max(&e, 10.0, 60.0);
+    let mut radio = params();
+    radio.sensors = radio.sensors.without_air();
+    let (g, e) = errors_with(&radio, &inputs, &truth);
+    assert!(g.sound_scale().is_none() && g.local_wind_m_s().is_none());
+    let (without_air, _) = mean_max(&e, 10.0, 60.0);
+    assert!(
+        without_air <= 1.1 * with_air,
+        "mean error {without_air} m without the air's states, {with_air} m with"
+    );
+    let spread = |f: &TdoaEkf| {
+        let c = f.pose().expect("started").covariance;
+        c[(0, 0)] + c[(1, 1)]
+    };
+    assert!(
+        spread(&g) < spread(&f),
+        "published variance {} m^2 without the air, {} m^2 with",
+        spread(&g),
+        spread(&f)
+    );
+}
+
+#[test]
 fn a_draft_along_the_corridor_is_learnt_as_the_local_wind() {
     // An air handler's 1 m/s along the corridor (twice the spread set
     // for it): transmitters behind the robot read short, those ahead

@@ -87,18 +87,8 @@ pub fn util_excess_params(o: Overrides) -> ExcessParams {
     ExcessParams {
         sigma_m: o.excess_sigma_m.unwrap_or(0.1),
         correlation_s: 1.0,
-        blocked_sigmas: UTIL_BLOCKED_SIGMAS,
     }
 }
-
-/// Beyond how many standard deviations of the arena's reflections an
-/// anchor's excess path is taken for a blocked one
-/// ([`ExcessParams::blocked_sigmas`]): on the UTIL flights a ceiling
-/// anchor arrives 0.8 m late for seconds at a time, where the floor and
-/// shelf reflections the prior describes stay within a few decimetres.
-/// Chosen on six UTIL flights, confirmed on the other five (decision
-/// 0230 in `docs/decisions/`).
-pub const UTIL_BLOCKED_SIGMAS: f64 = 4.0;
 
 /// The UTIL vehicle's vertical acceleration density as a share of its
 /// horizontal one, from its flight plans before any flight was scored: the

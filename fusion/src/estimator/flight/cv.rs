@@ -230,7 +230,6 @@ impl GuardedFilter for CvFilter {
                 // A body can only delay a signal: the shadow is one-sided.
                 self.x[S] = self.x[S].max(0.0);
                 self.excess.clamp(&mut self.x);
-                self.excess.widen_blocked(&self.x, &mut self.p);
                 outcome
             }
             Err(r) => Outcome::Rejected(r),

@@ -32,11 +32,6 @@ pub struct ExcessParams {
     pub sigma_m: f64,
     /// Correlation time of an anchor's excess path, seconds.
     pub correlation_s: f64,
-    /// An excess path estimated beyond this many `sigma_m` is a blocked
-    /// path, not a reflection of the scale `sigma_m` describes: its
-    /// variance is raised to its estimate squared, so that the rest of
-    /// the run goes to that anchor rather than to the position (0: never).
-    pub blocked_sigmas: f64,
 }
 
 impl Default for ExcessParams {
@@ -46,7 +41,6 @@ impl Default for ExcessParams {
         Self {
             sigma_m: 0.0,
             correlation_s: 1.0,
-            blocked_sigmas: 0.0,
         }
     }
 }
@@ -66,13 +60,6 @@ impl ExcessParams {
                 estimator,
                 field: "excess.correlation_s",
                 reason: "must be finite and positive",
-            });
-        }
-        if !(self.blocked_sigmas.is_finite() && self.blocked_sigmas >= 0.0) {
-            return Err(InvalidParameter {
-                estimator,
-                field: "excess.blocked_sigmas",
-                reason: "must be finite and non-negative",
             });
         }
         Ok(())
@@ -230,30 +217,6 @@ impl ExcessSlots {
         }
     }
 
-    /// Raises the variance of each excess path estimated beyond
-    /// `blocked_sigmas` of its prior to its estimate squared (call after
-    /// an update and [`Self::clamp`]). A path a metre long is an anchor
-    /// heard through something in the way, whose excess is as uncertain
-    /// as it is large; kept at the prior's variance, the run it belongs to
-    /// would be shared between the anchor and the position (a late
-    /// ceiling anchor pulling the height down).
-    pub(crate) fn widen_blocked<const T: usize>(
-        &self,
-        x: &SVector<f64, T>,
-        p: &mut SMatrix<f64, T, T>,
-    ) {
-        let k = self.params.blocked_sigmas;
-        if !self.params.enabled() || k <= 0.0 {
-            return;
-        }
-        for s in 0..EXCESS_SLOTS {
-            let i = self.first + s;
-            if x[i] > k * self.params.sigma_m && p[(i, i)] < x[i] * x[i] {
-                p[(i, i)] = x[i] * x[i];
-            }
-        }
-    }
-
     /// Keeps the excess paths (they belong to the arena, not to the lost
     /// track) but forgets their correlation with the restarted rest.
     pub(crate) fn decouple<const T: usize>(&self, p: &mut SMatrix<f64, T, T>) {
@@ -295,7 +258,6 @@ mod tests {
         ExcessParams {
             sigma_m: 0.1,
             correlation_s: 1.0,
-            blocked_sigmas: 0.0,
         }
     }
 
@@ -356,30 +318,6 @@ mod tests {
     }
 
     #[test]
-    fn a_path_beyond_the_blocked_bound_gets_its_own_size_as_uncertainty() {
-        let s = ExcessSlots::new(
-            ExcessParams {
-                blocked_sigmas: 4.0,
-                ..params()
-            },
-            2,
-        );
-        let (mut x, mut p) = (V::zeros(), M::identity());
-        s.init(&mut p);
-        x[2] = 0.8; // Blocked: beyond 0.4 m.
-        x[3] = 0.3; // A reflection of the prior's scale.
-        s.widen_blocked(&x, &mut p);
-        assert!((p[(2, 2)] - 0.64).abs() < 1e-12);
-        assert!((p[(3, 3)] - 0.01).abs() < 1e-12);
-        // Off: nothing changes.
-        let off = ExcessSlots::new(params(), 2);
-        let mut q = M::identity();
-        off.init(&mut q);
-        off.widen_blocked(&x, &mut q);
-        assert!((q[(2, 2)] - 0.01).abs() < 1e-12);
-    }
-
-    #[test]
     fn without_the_model_nothing_is_observed() {
         let mut s = ExcessSlots::new(ExcessParams::default(), 2);
         let (mut x, mut p) = (V::zeros(), M::zeros());
@@ -400,11 +338,6 @@ mod tests {
         assert!(bad.validate("x").is_err());
         let bad = ExcessParams {
             correlation_s: 0.0,
-            ..params()
-        };
-        assert!(bad.validate("x").is_err());
-        let bad = ExcessParams {
-            blocked_sigmas: f64::NAN,
             ..params()
         };
         assert!(bad.validate("x").is_err());

@@ -26,12 +26,6 @@ struct Hover {
 /// 0.05 m of noise; anchor 0 (on the floor) is `late_m` late from 2 to
 /// 4 s.
 fn hover(excess: ExcessParams, late_m: f64) -> Hover {
-    hover_ramped(excess, late_m, 0.0)
-}
-
-/// [`hover`] with the lateness growing from 0 over the first `ramp_s` of
-/// the run (a path getting blocked as the vehicle moves).
-fn hover_ramped(excess: ExcessParams, late_m: f64, ramp_s: f64) -> Hover {
     let anchors = corners();
     let n = anchors.len();
     let truth = Vector3::new(2.5, 3.5, 1.2);
@@ -49,7 +43,7 @@ fn hover_ramped(excess: ExcessParams, late_m: f64, ramp_s: f64) -> Hover {
         let t_s = f64::from(i) / 400.0;
         let late = |id: usize| {
             if id == 0 && (2.0..4.0).contains(&t_s) {
-                late_m * ((t_s - 2.0) / ramp_s).min(1.0)
+                late_m
             } else {
                 0.0
             }
@@ -88,44 +82,7 @@ fn hover_ramped(excess: ExcessParams, late_m: f64, ramp_s: f64) -> Hover {
 const ON: ExcessParams = ExcessParams {
     sigma_m: 0.1,
     correlation_s: 1.0,
-    blocked_sigmas: 0.0,
 };
-
-#[test]
-fn a_blocked_anchor_goes_to_its_excess_path_once_beyond_the_bound() {
-    // Up to 0.8 m late within half a second, for 2 s: eight times the
-    // model's sigma, as a ceiling anchor of a UTIL flight heard through
-    // something in the way.
-    let held = hover_ramped(ON, 0.8, 0.5);
-    let widened = hover_ramped(
-        ExcessParams {
-            blocked_sigmas: 4.0,
-            ..ON
-        },
-        0.8,
-        0.5,
-    );
-    assert!(
-        widened.late_mean_m < 0.5 * held.late_mean_m,
-        "settled error {} against {}",
-        widened.late_mean_m,
-        held.late_mean_m
-    );
-    assert!(
-        widened.excess_m > 0.6,
-        "anchor 0's excess {} for 0.8 m late",
-        widened.excess_m
-    );
-    // Within the bound nothing changes.
-    let small = hover(
-        ExcessParams {
-            blocked_sigmas: 4.0,
-            ..ON
-        },
-        0.2,
-    );
-    assert_eq!(small.late_mean_m, hover(ON, 0.2).late_mean_m);
-}
 
 #[test]
 fn a_late_anchor_is_taken_up_by_its_excess_path_not_by_the_position() {

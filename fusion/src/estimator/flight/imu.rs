@@ -371,7 +371,6 @@ impl GuardedFilter for ImuFilter {
         }
         self.excess.clamp(&mut self.excess_m);
         self.cov = cov;
-        self.excess.widen_blocked(&self.excess_m, &mut self.cov);
         outcome
     }
 

@@ -35,7 +35,6 @@ fn worst_height_error_m(vertical_psd_ratio: f64, sine_m: f64, late_m: f64) -> f6
         excess: ExcessParams {
             sigma_m: 0.1,
             correlation_s: 1.0,
-            blocked_sigmas: 0.0,
         },
         ..CvParams::default()
     })

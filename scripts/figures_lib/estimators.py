@@ -1,0 +1,298 @@
+"""The sections of docs/estimators.md: accuracy in virtual time (`ickon
+eval`), on the live mesh (`ickon sim`) and on real data (`ickon replay`).
+
+The simulator is deterministic: the same command and seed give the same
+numbers on any machine and either build profile, so these sections need no
+quiet machine (the live mesh's excepted).
+"""
+
+from figures_lib.output import fmt, mean, span, table, command_block
+
+
+def _route_runs(run, seeds, extra):
+    """Every (seed, estimator, route) of `ickon eval --json` over `seeds`:
+    its mean error, share under 100 mm and ratio to the Cramér-Rao bound."""
+    runs, channels, commands = [], [], []
+    for seed in seeds:
+        args = ["eval", "--estimator", "all", "--seed", str(seed)] + extra
+        commands.append("ickon " + " ".join(args))
+        doc, _ = run.ickon_json(args + ["--json"])
+        for r in doc["results"]:
+            runs.append(
+                {
+                    "seed": seed,
+                    "estimator": r["estimator"],
+                    "route": r["route"],
+                    "mean_mm": r["mean"]["mean_mm"],
+                    "under_100": r["mean"]["under_100"],
+                    "crlb_ratio": r.get("crlb_ratio"),
+                }
+            )
+        channels += [c["fixes_per_s"] for c in doc.get("channel", [])]
+    return runs, channels, commands
+
+
+def _accuracy_table(runs):
+    """One row per estimator, best first: mean over the route runs, the worst
+    route run and the lowest share under 100 mm."""
+    names = sorted({r["estimator"] for r in runs})
+    rows = []
+    for name in names:
+        mine = [r for r in runs if r["estimator"] == name]
+        rows.append(
+            (
+                mean(r["mean_mm"] for r in mine),
+                [
+                    f"`{name}`",
+                    fmt(mean(r["mean_mm"] for r in mine), 1, "mm"),
+                    fmt(max(r["mean_mm"] for r in mine), 1, "mm"),
+                    fmt(min(r["under_100"] for r in mine), 1, "%"),
+                ],
+            )
+        )
+    rows.sort(key=lambda r: r[0])
+    headers = ["estimator", "mean error", "worst route run", "lowest share under 100 mm"]
+    return table(headers, [r[1] for r in rows])
+
+
+def _ratio_line(runs):
+    """How far `tdoa-ekf` stays below the others and the bound, in every run."""
+    by_run = {}
+    for r in runs:
+        by_run.setdefault((r["seed"], r["route"]), {})[r["estimator"]] = r
+    worst = {"ickon-akf": 0.0, "gyro-ckf": 0.0, "crlb": 0.0}
+    for ests in by_run.values():
+        ours = ests.get("tdoa-ekf")
+        if ours is None:
+            continue
+        for other in ("ickon-akf", "gyro-ckf"):
+            if other in ests and ests[other]["mean_mm"] > 0:
+                ratio = ours["mean_mm"] / ests[other]["mean_mm"]
+                worst[other] = max(worst[other], ratio)
+        if ours["crlb_ratio"] is not None:
+            worst["crlb"] = max(worst["crlb"], ours["crlb_ratio"])
+    return (
+        f"In every one of the {len(by_run)} route runs `tdoa-ekf`'s mean error is at most "
+        f"{worst['ickon-akf']:.2f} times `ickon-akf`'s, {worst['gyro-ckf']:.2f} times "
+        f"`gyro-ckf`'s and {worst['crlb']:.2f} times the Cramér-Rao bound of one raw fix "
+        "(the best a single fix could do with the timing noise alone)."
+    )
+
+
+def lab(run):
+    """`ickon eval` on `lab`, every estimator and route, seeds 1-9."""
+    seeds = [1] if run.quick else range(1, 10)
+    extra = ["--tours", "1", "--route", "route-1"] if run.quick else []
+    runs, _, commands = _route_runs(run, seeds, extra)
+    return "\n\n".join(
+        [
+            command_block(commands),
+            f"Over the route runs of seeds {span(seeds, 0)} ({len(runs)} runs of an estimator "
+            f"on a route, {1 if run.quick else 10} tours each; `paper` profile, tight schedule, "
+            "survey calibration on):",
+            _accuracy_table(runs),
+            _ratio_line(runs),
+        ]
+    )
+
+
+def paper(run):
+    """`ickon-akf` with the ICKON paper's schedule and no calibration."""
+    seeds = [1] if run.quick else [1, 2]
+    rows, commands, routes = [], [], []
+    for seed in seeds:
+        args = ["eval", "--schedule", "uniform", "--estimator", "ickon-akf"]
+        args += ["--no-survey-calibration", "--seed", str(seed)]
+        args += ["--tours", "1", "--route", "route-1"] if run.quick else []
+        commands.append("ickon " + " ".join(args))
+        doc, _ = run.ickon_json(args + ["--json"])
+        cells = {}
+        for r in doc["results"]:
+            if r["route"] not in routes:
+                routes.append(r["route"])
+            cells[r["route"]] = f"{r['mean']['mean_mm']:.1f} mm ({r['mean']['under_100']:.0f} %)"
+        rows.append([str(seed)] + [cells.get(route, "-") for route in routes])
+    headers = ["seed"] + [f"`{r}` mean (share under 100 mm)" for r in routes]
+    return command_block(commands) + "\n\n" + table(headers, rows)
+
+
+def warehouse(run):
+    """`ickon eval` on `warehouse`, one robot per route, seeds 1-3."""
+    seeds = [1] if run.quick else [1, 2, 3]
+    extra = ["--site", "warehouse", "--tours", "1" if run.quick else "3"]
+    extra += ["--route", "aisle-1"] if run.quick else []
+    runs, channels, commands = _route_runs(run, seeds, extra)
+    ours = [r for r in runs if r["estimator"] == "tdoa-ekf"]
+    return "\n\n".join(
+        [
+            command_block(commands),
+            _accuracy_table(runs),
+            _ratio_line(runs),
+            f"`tdoa-ekf`'s lowest share of points under 100 mm in a run: "
+            f"{min(r['under_100'] for r in ours):.1f} %. One robot alone on the site gets "
+            f"{span(channels, 1)} fixes per second.",
+        ]
+    )
+
+
+def fleet(run):
+    """Sixteen robots on `warehouse` at once, occupancy firing, seeds 1-4."""
+    seeds = [1] if run.quick else [1, 2, 3, 4]
+    robots, duration = ("4", "5") if run.quick else ("16", "30")
+    rows, commands, rates = [], [], []
+    for seed in seeds:
+        args = ["eval", "--site", "warehouse", "--robots", robots]
+        args += ["--duration", duration, "--seed", str(seed)]
+        commands.append("ickon " + " ".join(args))
+        doc, _ = run.ickon_json(args + ["--json"])
+        errs = [r["mean_err_mm"] for r in doc["fleet"]["robots"]]
+        rates += [r["fixes_per_s"] for r in doc["fleet"]["robots"]]
+        rows.append(
+            [
+                str(seed),
+                fmt(mean(errs), 1, "mm"),
+                fmt(max(errs), 0, "mm"),
+                fmt(mean(r["fixes_per_s"] for r in doc["fleet"]["robots"]), 1),
+            ]
+        )
+    headers = ["seed", "mean error over robots", "worst robot", "fixes/s per robot"]
+    return "\n\n".join(
+        [
+            command_block(commands),
+            table(headers, rows),
+            f"Each robot got {span(rates, 1)} fixes per second.",
+        ]
+    )
+
+
+def live(run):
+    """Three robots on the live mesh (`ickon sim`), seeds 1-3."""
+    seeds = [1] if run.quick else [1, 2, 3]
+    duration = "5" if run.quick else "20"
+    rows, commands = [], []
+    for seed in seeds:
+        args = ["sim", "--robots", "3", "--duration", duration, "--seed", str(seed)]
+        commands.append("ickon " + " ".join(args))
+        doc, _ = run.ickon_json(args + ["--json"])
+        for r in doc["robots"]:
+            rows.append(
+                [
+                    str(seed),
+                    r["id"],
+                    fmt(r.get("mean_mm"), 1, "mm"),
+                    fmt(r.get("p95_mm"), 1, "mm"),
+                    fmt(r.get("fixes_per_s"), 2),
+                    fmt(doc["cycles_per_s"], 2),
+                    fmt(doc["firing_plan"]["transmitters_per_cycle"], 1)
+                    if doc.get("firing_plan")
+                    else "all",
+                ]
+            )
+    headers = ["seed", "robot", "mean error", "p95", "fixes/s", "cycles/s", "transmitters a cycle"]
+    return command_block(commands) + "\n\n" + table(headers, rows)
+
+
+UTIL_FLIGHTS = [
+    ("util", "const1-trial1-tdoa2", "anchors.csv", ["--constellation", "1"]),
+    ("util", "const2-trial1-tdoa2", "anchors.csv", ["--constellation", "2"]),
+    ("util", "const1-trial1-tdoa3", "anchors.csv", ["--constellation", "1"]),
+    ("util-imu", "pre0425-traj1-tdoa2", "anchors_0425.csv", ["--imu"]),
+    ("util-imu", "pre0425-traj7-tdoa2", "anchors_0425.csv", ["--imu"]),
+    ("util-imu", "pre0426-traj4-tdoa2", "anchors_0426.csv", ["--imu"]),
+    ("util-imu", "early-test-log00", "anchors_0607.csv", ["--imu"]),
+]
+
+
+def _util_rows(flight, doc):
+    """The table's rows of one flight, the best RMSE and worst moment in bold."""
+    ests = doc["estimators"]
+    scored = [e for e in ests if e.get("rmse_3d_m") is not None]
+    best_rmse = min((e["rmse_3d_m"] for e in scored), default=None)
+    best_max = min((e["max_3d_m"] for e in scored), default=None)
+    rows = []
+    for i, e in enumerate(ests):
+        name = f"`{e['name']}`" + (" (baseline)" if e["name"] == "cv-ekf" else "")
+        rmse, worst = fmt(e.get("rmse_3d_m"), 3, "m"), fmt(e.get("max_3d_m"), 3, "m")
+        if e.get("rmse_3d_m") is not None and e["rmse_3d_m"] == best_rmse:
+            rmse = f"**{rmse}**"
+        if e.get("max_3d_m") is not None and e["max_3d_m"] == best_max:
+            worst = f"**{worst}**"
+        nees = e.get("nees") or {}
+        rows.append(
+            [
+                flight if i == 0 else "",
+                name,
+                rmse,
+                fmt(e.get("rmse_xy_m"), 3, "m"),
+                fmt(e.get("p95_3d_m"), 3, "m"),
+                worst,
+                fmt(e.get("output_began_s"), 2, "s"),
+                fmt(e.get("rejected_pct"), 2, "%"),
+                fmt(e.get("inside_95_pct"), 0, "%"),
+                fmt(nees.get("mean"), 1),
+                fmt(e.get("wall_s"), 2, "s"),
+            ]
+        )
+    return rows
+
+
+def util(run):
+    """The UTIL flights (UWB TDOA, motion-capture truth), every 3D filter."""
+    flights = UTIL_FLIGHTS[:1] if run.quick else UTIL_FLIGHTS
+    rows, commands = [], []
+    for sub, name, anchors, extra in flights:
+        folder = run.need_data(sub)
+        args = ["replay", "util"] + [a for a in extra if a == "--imu"]
+        args += ["--data", f"{folder}/{name}.csv", "--anchors", f"{folder}/{anchors}"]
+        args += [a for a in extra if a != "--imu"]
+        args += ["--max-seconds", "20"] if run.quick else []
+        shown = " ".join(args).replace(folder, "$ICKON_DATA/" + sub)
+        commands.append("ickon " + shown)
+        doc, _ = run.ickon_json(args + ["--json"])
+        label = name + (" (`--imu`)" if "--imu" in extra else "")
+        rows += _util_rows(label, doc)
+    headers = ["flight", "estimator", "3D RMSE", "xy RMSE", "p95 3D", "max 3D"]
+    headers += ["output began", "rejected", "truth inside 95 %", "NEES", "time"]
+    note = (
+        "`truth inside 95 %` is the share of estimates whose truth lies inside the "
+        "filter's 95 % ellipsoid (95 if its covariance is honest), `NEES` the average "
+        "3D normalised estimation error squared (3 if honest), `time` the estimator's "
+        "own processing time for the whole flight (this machine and build)."
+    )
+    return command_block(commands) + "\n\n" + table(headers, rows) + "\n\n" + note
+
+
+def plaza(run):
+    """The CMU Plaza runs: a wheeled robot's odometry and radio ranges."""
+    folder = run.need_data("plaza")
+    commands = ["ickon replay plaza --data $ICKON_DATA/plaza"]
+    doc, _ = run.ickon_json(["replay", "plaza", "--data", folder, "--json"])
+    rows = []
+    for r in doc["runs"]:
+        for i, (track, key) in enumerate([("`tdoa-ekf`", "filter"), ("odometry", "odometry")]):
+            e = r[key]
+            bias = f"{r['range_bias_m']:.2f} m / {r['range_scale']:.3f}" if i == 0 else ""
+            rows.append(
+                [
+                    r["run"] if i == 0 else "",
+                    track,
+                    fmt(e["rmse_m"], 2, "m"),
+                    fmt(e["mean_m"], 2, "m"),
+                    fmt(e["p95_m"], 2, "m"),
+                    fmt(e["max_m"], 2, "m"),
+                    bias,
+                ]
+            )
+    headers = ["run", "track", "RMSE", "mean", "p95", "max", "range bias / scale"]
+    return command_block(commands) + "\n\n" + table(headers, rows)
+
+
+SECTIONS = {
+    "lab": ("Accuracy on `lab` (simulation)", lab),
+    "paper": ("The ICKON paper's schedule on `lab`", paper),
+    "warehouse": ("Accuracy on `warehouse`, one robot per route", warehouse),
+    "fleet": ("Accuracy on `warehouse`, a fleet of 16", fleet),
+    "live": ("Accuracy on the live mesh", live),
+    "util": ("Real data: UTIL flights", util),
+    "plaza": ("Real data: CMU Plaza", plaza),
+}

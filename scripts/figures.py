@@ -19,6 +19,7 @@ full run takes.
 
 import argparse
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -117,7 +118,13 @@ def run_section(runner, name, args, out):
     runner.progress(f"written {os.path.join(out, name + '.md')} ({note})")
 
 
+def _interrupted(signum, _frame):
+    # As Ctrl-C: the command running is killed and waited for.
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main(argv):
+    signal.signal(signal.SIGTERM, _interrupted)
     args = parse_args(argv)
     if args.list:
         for name, (page, title, _) in SECTIONS.items():
@@ -137,6 +144,9 @@ def main(argv):
     except FiguresError as e:
         print(f"figures: error: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("figures: interrupted; the sections finished so far are written", file=sys.stderr)
+        return 130
     print(f"figures: {len(args.sections)} section(s) written to {out}")
     return 0
 

@@ -76,7 +76,8 @@ def machine(repo, ickon, profile):
     cpu = re.search(r"^model name\s*:\s*(.+)$", _read("/proc/cpuinfo"), re.M)
     mem = re.search(r"^MemTotal:\s*(\d+) kB", _read("/proc/meminfo"), re.M)
     commit = _first(["git", "-C", repo, "rev-parse", "--short=12", "HEAD"])
-    dirty = _first(["git", "-C", repo, "status", "--porcelain", "--untracked-files=no"], "")
+    # The docs are what the script writes: only changes elsewhere count.
+    dirty = _first(["git", "-C", repo, "status", "--porcelain", "--untracked-files=no", "--", ".", ":!docs"], "")
     load = os.getloadavg()
     return {
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),

@@ -247,7 +247,7 @@ def tls(run):
                 args = ["--robots", robots, "--duration", duration, "--seed", "7"] + extra
                 runs[name].append(_sim(run, args, commands))
     rows = [_tls_row(name, docs) for name, docs in runs.items()]
-    headers = ["links", f"CPU, all processes ({repeats} runs)", "mean", "router", "pose latency p50 / p99", "fixes"]
+    headers = ["links", f"CPU, all processes ({repeats} run{'s' if repeats > 1 else ''})", "mean", "router", "pose latency p50 / p99", "fixes"]
     note = (
         "CPU is the sum over every process of a run; the latency is the median over the "
         "robots of each robot's p50 and p99, averaged over the runs; fixes are the "

@@ -236,30 +236,86 @@ def _util_rows(flight, doc):
     return rows
 
 
+def _imu_row(flight, doc):
+    """`imu-eskf`'s attitude and both filters' tracking after take-off."""
+    by_name = {e["name"]: e for e in doc["estimators"]}
+    eskf = by_name.get("imu-eskf") or {}
+    att = eskf.get("attitude") or {}
+    return [
+        flight,
+        fmt(att.get("rmse_deg"), 2, "deg"),
+        f"{fmt(att.get('tilt_rmse_deg'), 2)} / {fmt(att.get('yaw_rmse_deg'), 2)} deg",
+        fmt(att.get("max_deg"), 1, "deg"),
+        fmt((by_name.get("tdoa-ekf") or {}).get("tracking_after_take_off_s"), 3, "s"),
+        fmt(eskf.get("tracking_after_take_off_s"), 3, "s"),
+    ]
+
+
+def _util_flight(run, flight, thin=None):
+    """One replay of a UTIL flight: its command line and its JSON."""
+    sub, name, anchors, extra = flight
+    folder = run.need_data(sub)
+    args = ["replay", "util"] + [a for a in extra if a == "--imu"]
+    args += ["--data", f"{folder}/{name}.csv", "--anchors", f"{folder}/{anchors}"]
+    args += [a for a in extra if a != "--imu"]
+    args += ["--thin", "3", "--thin-phase", str(thin)] if thin is not None else []
+    args += ["--max-seconds", "20"] if run.quick else []
+    shown = "ickon " + " ".join(args).replace(folder, "$ICKON_DATA/" + sub)
+    doc, _ = run.ickon_json(args + ["--json"])
+    return shown, doc
+
+
+def _thinned(run, commands):
+    """The first IMU flight at a third of its rate, three phases."""
+    rows = []
+    for phase in (0, 1, 2):
+        shown, doc = _util_flight(run, UTIL_FLIGHTS[3], thin=phase)
+        commands.append(shown)
+        by_name = {e["name"]: e for e in doc["estimators"]}
+        rows.append(
+            [str(phase)]
+            + [
+                f"{fmt(by_name[n].get('rmse_3d_m'), 3)} / {fmt(by_name[n].get('max_3d_m'), 2)} m"
+                for n in ("tdoa-ekf", "imu-eskf")
+            ]
+        )
+    headers = ["`--thin-phase`", "`tdoa-ekf` RMSE / max", "`imu-eskf` RMSE / max"]
+    return table(headers, rows)
+
+
 def util(run):
     """The UTIL flights (UWB TDOA, motion-capture truth), every 3D filter."""
-    flights = UTIL_FLIGHTS[:1] if run.quick else UTIL_FLIGHTS
-    rows, commands = [], []
-    for sub, name, anchors, extra in flights:
-        folder = run.need_data(sub)
-        args = ["replay", "util"] + [a for a in extra if a == "--imu"]
-        args += ["--data", f"{folder}/{name}.csv", "--anchors", f"{folder}/{anchors}"]
-        args += [a for a in extra if a != "--imu"]
-        args += ["--max-seconds", "20"] if run.quick else []
-        shown = " ".join(args).replace(folder, "$ICKON_DATA/" + sub)
-        commands.append("ickon " + shown)
-        doc, _ = run.ickon_json(args + ["--json"])
-        label = name + (" (`--imu`)" if "--imu" in extra else "")
+    flights = [UTIL_FLIGHTS[0], UTIL_FLIGHTS[3]] if run.quick else UTIL_FLIGHTS
+    rows, imu_rows, commands = [], [], []
+    for flight in flights:
+        shown, doc = _util_flight(run, flight)
+        commands.append(shown)
+        label = flight[1] + (" (`--imu`)" if "--imu" in flight[3] else "")
         rows += _util_rows(label, doc)
+        if "--imu" in flight[3]:
+            imu_rows.append(_imu_row(flight[1], doc))
     headers = ["flight", "estimator", "3D RMSE", "xy RMSE", "p95 3D", "max 3D"]
     headers += ["output began", "rejected", "truth inside 95 %", "NEES", "time"]
     note = (
         "`truth inside 95 %` is the share of estimates whose truth lies inside the "
         "filter's 95 % ellipsoid (95 if its covariance is honest), `NEES` the average "
         "3D normalised estimation error squared (3 if honest), `time` the estimator's "
-        "own processing time for the whole flight (this machine and build)."
+        "own wall time for the whole flight (this machine, build and load)."
     )
-    return command_block(commands) + "\n\n" + table(headers, rows) + "\n\n" + note
+    parts = [table(headers, rows), note]
+    if imu_rows:
+        headers = ["IMU flight", "`imu-eskf` attitude RMS", "tilt / yaw RMS", "worst"]
+        headers += ["`tdoa-ekf` tracking after take-off", "`imu-eskf` tracking after take-off"]
+        parts += [
+            "The IMU filter's attitude, and how soon after take-off each filter tracks "
+            "(within 0.5 m for the next second):",
+            table(headers, imu_rows),
+        ]
+    if not run.quick:
+        thinned = _thinned(run, commands)
+        parts += ["`pre0425-traj1-tdoa2` replayed at a third of its rate, three nearly "
+                  "independent runs (`--thin 3 --thin-phase K`):", thinned]
+    return "\n\n".join([command_block(commands)] + parts)
 
 
 def plaza(run):

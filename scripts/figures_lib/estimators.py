@@ -259,7 +259,7 @@ def _util_flight(run, flight, thin=None):
     args += ["--data", f"{folder}/{name}.csv", "--anchors", f"{folder}/{anchors}"]
     args += [a for a in extra if a != "--imu"]
     args += ["--thin", "3", "--thin-phase", str(thin)] if thin is not None else []
-    args += ["--max-seconds", "20"] if run.quick else []
+    args += ["--max-seconds", "8"] if run.quick else []
     shown = "ickon " + " ".join(args).replace(folder, "$ICKON_DATA/" + sub)
     doc, _ = run.ickon_json(args + ["--json"])
     return shown, doc

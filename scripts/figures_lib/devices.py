@@ -6,14 +6,17 @@ accuracy and latency (`ickon sim --devices`, `--receivers`).
 from figures_lib.output import fmt, mean, span, table, command_block
 
 
-def _runs(run, args, seeds, commands):
-    """Every robot of `ickon sim ARGS --seed N` for each seed."""
+def _runs(run, args, seeds, commands, fired=None):
+    """Every robot of `ickon sim ARGS --seed N` for each seed; the
+    transmitters each run's cycles fired go into `fired`."""
     robots = []
     for seed in seeds:
         full = args + ["--seed", str(seed)]
         commands.append("ickon sim " + " ".join(full))
         doc, _ = run.ickon_json(["sim"] + full + ["--json"])
         robots += doc["robots"]
+        if fired is not None and doc.get("firing_plan"):
+            fired.append(doc["firing_plan"]["transmitters_per_cycle"])
     return robots
 
 
@@ -27,7 +30,8 @@ def devices(run):
     seeds, duration = ([1], "5") if run.quick else ([1, 2, 3], "30")
     rows, commands = [], []
     for name, extra in [("direct", []), ("through boards", ["--devices", "emulated"])]:
-        robots = _runs(run, ["--robots", "2", "--duration", duration] + extra, seeds, commands)
+        fired = []
+        robots = _runs(run, ["--robots", "2", "--duration", duration] + extra, seeds, commands, fired)
         rows.append(
             [
                 name,
@@ -35,11 +39,12 @@ def devices(run):
                 span([r.get("p95_mm") for r in robots], 1),
                 _range_mean(robots, "fixes_per_s", 2),
                 span([r.get("fix_share") for r in robots], 2),
+                span(fired, 1),
                 span([r["latency_p50_us"] / 1e3 for r in robots if r.get("latency_p50_us")], 2),
                 span([r["latency_p99_us"] / 1e3 for r in robots if r.get("latency_p99_us")], 1),
             ]
         )
-    headers = ["run", "mean error mm (mean)", "p95 mm", "fixes/s (mean)", "fixes per cycle"]
+    headers = ["run", "mean error mm (mean)", "p95 mm", "fixes/s (mean)", "fixes per cycle", "transmitters a cycle"]
     headers += ["pose latency p50 ms", "p99 ms"]
     return command_block(commands) + "\n\n" + table(headers, rows)
 

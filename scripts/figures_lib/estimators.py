@@ -25,6 +25,7 @@ def _route_runs(run, seeds, extra):
                     "route": r["route"],
                     "mean_mm": r["mean"]["mean_mm"],
                     "under_100": r["mean"]["under_100"],
+                    "heading_std_deg": r["mean"].get("heading_std_deg"),
                     "crlb_ratio": r.get("crlb_ratio"),
                 }
             )
@@ -47,11 +48,13 @@ def _accuracy_table(runs):
                     fmt(mean(r["mean_mm"] for r in mine), 1, "mm"),
                     fmt(max(r["mean_mm"] for r in mine), 1, "mm"),
                     fmt(min(r["under_100"] for r in mine), 1, "%"),
+                    span([r["heading_std_deg"] for r in mine], 1, "deg"),
                 ],
             )
         )
     rows.sort(key=lambda r: r[0])
     headers = ["estimator", "mean error", "worst route run", "lowest share under 100 mm"]
+    headers += ["heading error sd, per route run"]
     return table(headers, [r[1] for r in rows])
 
 

@@ -87,7 +87,9 @@ def _cargo_bench(run, package, bench):
     target = os.environ.get("CARGO_TARGET_DIR") or os.path.join(run.repo, "target")
     argv = ["cargo", "bench", "-p", package, "--bench", bench]
     if run.quick:
-        argv += ["--", "--quick"]
+        # A smoke run: the test build's profile (no release build) and
+        # Criterion's shortest measurement.
+        argv += ["--profile", "dev", "--", "--quick"]
     _, err, _ = run.command(argv, cwd=run.repo)
     return err, os.path.join(target, "criterion")
 

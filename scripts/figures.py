@@ -105,7 +105,14 @@ def run_section(runner, name, args, out):
     runner.section = name
     started = time.monotonic()
     facts = machine(REPO, runner.ickon, runner.profile)
-    body = function(runner).strip()
+    try:
+        body = function(runner).strip()
+    except (KeyError, TypeError, IndexError, ValueError) as e:
+        # A report the section cannot read: its JSON changed shape.
+        raise FiguresError(
+            f"section {name} cannot read the report of `{runner.last_command}` "
+            f"({type(e).__name__}: {e}): did its JSON change?"
+        ) from e
     write_whole(os.path.join(out, f"{name}.md"), header(title, name, facts, args.quick) + "\n" + body + "\n")
     note = f"{time.monotonic() - started:.0f} s"
     if not args.quick:

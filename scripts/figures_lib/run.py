@@ -50,6 +50,7 @@ class Runner:
         self.section = ""
         self.commands = 0
         self.profile = "unknown"
+        self.last_command = ""
 
     def progress(self, text):
         """One progress line on stderr (stdout stays for the summary)."""
@@ -71,6 +72,7 @@ class Runner:
         """Runs `argv`; returns (stdout, stderr, Usage). Fails on a non-zero exit."""
         self.commands += 1
         shown = " ".join(shlex.quote(a) for a in argv)
+        self.last_command = shown
         self.progress(f"$ {shown}")
         full_env = dict(os.environ)
         full_env.update(env or {})

@@ -5,6 +5,7 @@
 //! for it. One module per subject.
 
 mod deploy_docs;
+mod figures_script;
 mod foxglove_app;
 mod netns_lan;
 mod record_mcap;

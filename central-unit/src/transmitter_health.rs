@@ -18,10 +18,12 @@
 //!
 //! The MSUs list a left-out transmitter's arrivals as rejected, so its
 //! heard share keeps being measured: a dead or weak one that recovers is
-//! taken back. A moved one stays left out (its arrivals stay off), until
-//! it is surveyed again and the site reloaded; meanwhile the residuals the
-//! fixes report of its unused arrivals place it again ([`resurvey`],
-//! [`TransmitterHealth::resurveyed`]).
+//! taken back. A moved one stays left out (its arrivals stay off): the
+//! residuals the fixes report of its unused arrivals place it again
+//! ([`resurvey`], [`TransmitterHealth::resurveyed`]), and it is taken back
+//! once fixes solved with the new position agree with it
+//! ([`TransmitterHealth::mark_resurveyed`]), or when it is surveyed again
+//! by hand and the site reloaded.
 
 use std::collections::{BTreeMap, BTreeSet};
 

@@ -764,6 +764,8 @@ struct Published {
     late: AppliedLate,
     /// The relative change of the speed of sound from the site's.
     sound_scale: f64,
+    /// The transmitters it left out of the fixes, by id.
+    left_out: std::collections::BTreeSet<u32>,
 }
 
 impl SurveyPublisher {
@@ -832,12 +834,14 @@ impl SurveyPublisher {
         // What a robot the fleet distrusts says of the transmitters is not
         // taken either: a forger must not get a healthy one left out.
         if self.consensus.robot(key).check != consensus::Check::Quarantined {
-            self.health.observe(fix, now);
-            let solved_with = self
+            let published = self
                 .history
                 .iter()
-                .find(|p| p.version == fix.survey_version)
-                .map(|p| &p.applied);
+                .find(|p| p.version == fix.survey_version);
+            let none = std::collections::BTreeSet::new();
+            let left_out = published.map_or(&none, |p| &p.left_out);
+            self.health.observe_solved(fix, left_out, now);
+            let solved_with = published.map(|p| &p.applied);
             if fix.survey_version == 0 || solved_with.is_some() {
                 let none = Applied::new();
                 self.health
@@ -918,9 +922,10 @@ impl SurveyPublisher {
 
     /// Surveys again every moved transmitter the fleet's fixes now place
     /// away from where the calibration takes it (by more than three of its
-    /// sigmas and [`RESURVEY_STEP_M`]), for the next publication; one
-    /// surveyed again already is not, until the fixes solved with its new
-    /// position disagree with it.
+    /// sigmas and [`RESURVEY_STEP_M`]), for the next publication, and
+    /// checks one they place where it is taken there; one surveyed again
+    /// already is not, until the fixes solved with its new position
+    /// disagree with it or place it elsewhere.
     fn resurvey_moved(&mut self) {
         for tx_id in self.health.moved() {
             // Surveyed again already, and being checked: the check decides.
@@ -939,6 +944,8 @@ impl SurveyPublisher {
                 .sqrt();
             let sigma = r.sigma_m.iter().fold(0.0_f64, |m, s| m.max(*s));
             if apart <= (3.0 * sigma).max(RESURVEY_STEP_M) {
+                // The fixes place it where it is taken: checked there.
+                self.health.mark_resurveyed(tx_id, base);
                 continue;
             }
             match self.calibration.rebase(tx_id, r.position_m, r.sigma_m) {
@@ -1083,6 +1090,7 @@ impl SurveyPublisher {
             applied: offsets.iter().map(|o| (o.tx_id, o.offset_m)).collect(),
             late: offsets.iter().map(|o| (o.tx_id, o.late_m)).collect(),
             sound_scale: speed.map_or(0.0, |s| s.scale),
+            left_out: self.left_out.clone(),
         });
         Some(SurveyMessage {
             epoch,

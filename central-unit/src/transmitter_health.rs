@@ -18,10 +18,12 @@
 //!
 //! The MSUs list a left-out transmitter's arrivals as rejected, so its
 //! heard share keeps being measured: a dead or weak one that recovers is
-//! taken back. A moved one stays left out (its arrivals stay off), until
-//! it is surveyed again and the site reloaded; meanwhile the residuals the
-//! fixes report of its unused arrivals place it again ([`resurvey`],
-//! [`TransmitterHealth::resurveyed`]).
+//! taken back. A moved one stays left out (its arrivals stay off): the
+//! residuals the fixes report of its unused arrivals place it again
+//! ([`resurvey`], [`TransmitterHealth::resurveyed`]), and it is taken back
+//! once fixes solved with the new position agree with it
+//! ([`TransmitterHealth::mark_resurveyed`]), or when it is surveyed again
+//! by hand and the site reloaded.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -213,6 +215,20 @@ const AGREEMENT_MEAN_M: f64 = 0.025;
 /// ... and their RMS within this, metres (the flag's 5 cm).
 const AGREEMENT_RMS_M: f64 = 0.05;
 
+/// A re-survey's estimate further than this (and three of its sigmas)
+/// from where the transmitter was published is surveyed again rather than
+/// taken back, metres: the calibration's step between re-surveys
+/// ([`crate::survey_calibration`]'s, three range sigmas of its floor).
+const SETTLED_STEP_M: f64 = 0.03;
+
+/// What the fleet's fixes say of a re-surveyed transmitter's position.
+enum Settled {
+    /// Where it was published (or not pinned down by them).
+    Yes,
+    /// Somewhere else: surveyed again.
+    Elsewhere,
+}
+
 /// The fleet's view of every transmitter's health.
 #[derive(Debug, Clone)]
 pub struct TransmitterHealth {
@@ -313,8 +329,8 @@ impl TransmitterHealth {
 
     /// Whether moved transmitter `i`'s residual `residual_m`, solved with
     /// it at `solved_at`, adds to the agreement with where it was surveyed
-    /// again; when enough of them agree it is healthy again, taken back
-    /// into the fixes.
+    /// again; when enough of them agree and the fleet's fixes still place
+    /// it there, it is healthy again, taken back into the fixes.
     fn check_agreement(&mut self, i: usize, solved_at: [f64; 3], residual_m: f64, now: Time) {
         let e = &mut self.entries[i];
         let Some(at) = e.resurveyed_at else {
@@ -344,17 +360,45 @@ impl TransmitterHealth {
             e.resurveyed_at = None;
             return;
         }
-        {
-            e.condition = Condition::Healthy;
-            e.since = Some(now);
-            e.resurveyed_at = None;
-            // What was measured of it at its old position is no evidence
-            // of the new one.
-            let c = &mut e.counts;
-            (c.heard_any, c.rejected_any) = (0.0, 0.0);
-            (c.residual_n, c.residual_sum, c.residual_sq) = (0.0, 0.0, 0.0);
-            self.resurveys.remove(&i);
+        match self.settled(i, at) {
+            Settled::Yes => self.take_back(i, now),
+            Settled::Elsewhere => self.entries[i].resurveyed_at = None,
         }
+    }
+
+    /// Whether the fleet's fixes now place moved transmitter `i` where it
+    /// was published, `at` (within three of their sigmas and
+    /// [`SETTLED_STEP_M`]): taken back then, surveyed again where they place
+    /// it now otherwise. Fixes that do not pin it down (robots that
+    /// disagree, places along a line) leave the agreement alone to decide.
+    fn settled(&self, i: usize, at: [f64; 3]) -> Settled {
+        let Some(r) = self.resurveys.get(&i).and_then(Resurvey::estimate) else {
+            return Settled::Yes;
+        };
+        let sigma = r.sigma_m.iter().fold(0.0_f64, |m, s| m.max(*s));
+        let apart = (0..3)
+            .map(|a| (r.position_m[a] - at[a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if apart > (3.0 * sigma).max(SETTLED_STEP_M) {
+            Settled::Elsewhere
+        } else {
+            Settled::Yes
+        }
+    }
+
+    /// Moved transmitter `i` is healthy again at `now`, back in the fixes.
+    fn take_back(&mut self, i: usize, now: Time) {
+        let e = &mut self.entries[i];
+        e.condition = Condition::Healthy;
+        e.since = Some(now);
+        e.resurveyed_at = None;
+        // What was measured of it at its old position is no evidence
+        // of the new one.
+        let c = &mut e.counts;
+        (c.heard_any, c.rejected_any) = (0.0, 0.0);
+        (c.residual_n, c.residual_sum, c.residual_sq) = (0.0, 0.0, 0.0);
+        self.resurveys.remove(&i);
     }
 
     /// Moved transmitter `tx_id` was surveyed again at `position_m` and
@@ -396,9 +440,21 @@ impl TransmitterHealth {
     }
 
     /// Takes what one fix (of a robot the fleet's check trusts) says,
-    /// taken at `now`. A fix with fewer than three used signals, or whose
-    /// numbers are not numbers, places nothing and is ignored.
+    /// taken at `now`, solved with a calibration that left none out. A fix
+    /// with fewer than three used signals, or whose numbers are not numbers,
+    /// places nothing and is ignored.
     pub fn observe(&mut self, fix: &Fix, now: Time) {
+        self.observe_solved(fix, &BTreeSet::new(), now);
+    }
+
+    /// As [`Self::observe`], for a fix solved with a calibration that left
+    /// the transmitters `left_out` out: their arrivals were rejected for
+    /// that, not by the fix's gates, and say nothing of a move. A
+    /// transmitter taken back into the fixes is heard in fixes solved with
+    /// the calibration before for a second or two (one is published a
+    /// second): counting those as rejected would flag it moved again at
+    /// once.
+    pub fn observe_solved(&mut self, fix: &Fix, left_out: &BTreeSet<u32>, now: Time) {
         self.forget(now);
         let p = [fix.x_m, fix.y_m, fix.z_m];
         if fix.used.len() < 3
@@ -412,6 +468,9 @@ impl TransmitterHealth {
             if let Some(&i) = self.index.get(id) {
                 let e = &mut self.entries[i];
                 e.last_heard = Some(now);
+                if left_out.contains(id) {
+                    continue;
+                }
                 e.counts.heard_any += 1.0;
                 if !fix.used.contains(id) {
                     e.counts.rejected_any += 1.0;

@@ -105,7 +105,8 @@ impl Endpoints {
             .history(true)
             .await
             .map_err(zerr)?;
-        let (summaries, _summary_sub) = latest_subscriber(session, keys.robot_summary_all()).await?;
+        let (summaries, _summary_sub) =
+            latest_subscriber(session, keys.robot_summary_all()).await?;
         let (robot_statuses, _robot_status_sub) =
             latest_subscriber(session, keys.robot_status_all()).await?;
         Ok(Self {

@@ -153,8 +153,7 @@ impl NodeLoop<'_> {
             }
             Input::RobotStatuses(batch) => {
                 for s in batch {
-                    if let Some(event) = robot_status_event(&self.keys, &s, &mut self.undecodable)
-                    {
+                    if let Some(event) = robot_status_event(&self.keys, &s, &mut self.undecodable) {
                         self.handle(event).await;
                     }
                 }

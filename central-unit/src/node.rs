@@ -29,6 +29,7 @@ mod admin;
 mod args;
 mod endpoints;
 mod event_loop;
+mod latest_inbox;
 mod reload;
 mod samples;
 mod survey_file;
@@ -205,6 +206,13 @@ pub async fn run(
     if failed_puts + undecodable > 0 {
         tracing::info!(
             "central unit stopped; {failed_puts} triggers or schedules not sent, {undecodable} reports undecodable or refused"
+        );
+    }
+    let (superseded, refused) = node.ends.summaries.dropped();
+    if superseded + refused > 0 {
+        tracing::info!(
+            "{superseded} robot summaries superseded by a newer one of the same robot before they \
+             were taken, {refused} refused with too many robots waiting"
         );
     }
     Ok(())

@@ -16,6 +16,7 @@ use zenoh::query::{Query, Queryable};
 use zenoh::sample::Sample;
 use zenoh::{Session, Wait};
 
+use super::latest_inbox::LatestInbox;
 use crate::core::{CentralCore, Output};
 
 /// A subscriber or queryable with its queue.
@@ -37,9 +38,13 @@ pub(super) struct Endpoints {
     pub(super) air_sub: Subscriber<Queue<Sample>>,
     /// The robots' summaries: all the central unit hears of a robot but
     /// its token and status (never its poses and fixes, which come at the
-    /// odometry and cycle rates).
-    pub(super) summary_sub: Subscriber<Queue<Sample>>,
-    pub(super) robot_status_sub: Subscriber<Queue<Sample>>,
+    /// odometry and cycle rates). Kept newest per robot: see
+    /// [`LatestInbox`].
+    pub(super) summaries: LatestInbox,
+    pub(super) _summary_sub: Subscriber<()>,
+    /// The robots' agents' statuses, newest per robot likewise.
+    pub(super) robot_statuses: LatestInbox,
+    pub(super) _robot_status_sub: Subscriber<()>,
     /// Each node's link to its router, as the node reports it.
     pub(super) cell_link_sub: Subscriber<Queue<Sample>>,
     pub(super) robot_link_sub: Subscriber<Queue<Sample>>,
@@ -100,6 +105,10 @@ impl Endpoints {
             .history(true)
             .await
             .map_err(zerr)?;
+        let (summaries, _summary_sub) =
+            latest_subscriber(session, keys.robot_summary_all()).await?;
+        let (robot_statuses, _robot_status_sub) =
+            latest_subscriber(session, keys.robot_status_all()).await?;
         Ok(Self {
             site_q,
             schedule_q,
@@ -112,8 +121,10 @@ impl Endpoints {
             status_sub: subscriber(session, keys.cell_status_all()).await?,
             burst_sub: subscriber(session, keys.cell_burst_all()).await?,
             air_sub: subscriber(session, keys.cell_air_all()).await?,
-            summary_sub: subscriber(session, keys.robot_summary_all()).await?,
-            robot_status_sub: subscriber(session, keys.robot_status_all()).await?,
+            summaries,
+            _summary_sub,
+            robot_statuses,
+            _robot_status_sub,
             cell_link_sub: subscriber(session, keys.cell_link_all()).await?,
             robot_link_sub: subscriber(session, keys.robot_link_all()).await?,
             truth_sub: if for_viewers {
@@ -157,6 +168,22 @@ async fn subscriber(
     key: String,
 ) -> Result<Subscriber<Queue<Sample>>, NodeError> {
     session.declare_subscriber(key).await.map_err(zerr)
+}
+
+/// A subscriber on `key` whose samples wait in a [`LatestInbox`], newest
+/// per key: the receive path never waits for the loop.
+async fn latest_subscriber(
+    session: &Session,
+    key: String,
+) -> Result<(LatestInbox, Subscriber<()>), NodeError> {
+    let inbox = LatestInbox::new();
+    let put = inbox.clone();
+    let sub = session
+        .declare_subscriber(key)
+        .callback(move |s| put.put(s))
+        .await
+        .map_err(zerr)?;
+    Ok((inbox, sub))
 }
 
 /// The next sample of `sub`; never, without one.

@@ -42,15 +42,29 @@ pub(super) enum Input {
     Status(Sample),
     Air(Sample),
     Burst(Sample),
-    Summary(Sample),
+    /// Robots' summaries, newest per robot, a few at a time.
+    Summaries(Vec<Sample>),
     Truth(Sample),
-    RobotStatus(Sample),
+    /// Robots' agents' statuses, likewise.
+    RobotStatuses(Vec<Sample>),
     /// A node's report of its router link.
     Link(Sample),
     /// Its own trigger or schedule, come back (or another's).
     TriggerSeen(Sample),
     ScheduleSeen(Sample),
 }
+
+/// Most samples of one kind the loop takes from an inbox at once: a
+/// wait among the loop's many inputs costs more than handling a summary,
+/// and a batch is handled in well under a millisecond, so the core's
+/// wake-up is never held back by more than that (the core triggers a due
+/// cycle from any event anyway).
+const BATCH: usize = 64;
+
+/// The runtime's timer counts whole milliseconds and rounds a wait up to
+/// the next: the core's wake-up is waited for by the timer until one such
+/// grain before it, the rest on the thread.
+const TIMER_GRAIN: std::time::Duration = std::time::Duration::from_millis(1);
 
 /// What the loop holds between two inputs.
 pub(super) struct NodeLoop<'a> {
@@ -86,7 +100,12 @@ impl NodeLoop<'_> {
         let wake = if self.core.tick_pending() {
             std::time::Duration::ZERO
         } else {
-            self.core.next_wake().since(self.clock.now()).to_std()
+            // The last grain is waited in `Input::Wake`'s handling.
+            self.core
+                .next_wake()
+                .since(self.clock.now())
+                .to_std()
+                .saturating_sub(TIMER_GRAIN)
         };
         tokio::select! {
             biased;
@@ -110,9 +129,9 @@ impl NodeLoop<'_> {
             Ok(s) = ends.status_sub.recv_async() => Input::Status(s),
             Ok(s) = ends.air_sub.recv_async() => Input::Air(s),
             Ok(s) = ends.burst_sub.recv_async() => Input::Burst(s),
-            Ok(s) = ends.summary_sub.recv_async() => Input::Summary(s),
+            batch = ends.summaries.next_batch(BATCH) => Input::Summaries(batch),
             Some(s) = next_sample(&ends.truth_sub) => Input::Truth(s),
-            Ok(s) = ends.robot_status_sub.recv_async() => Input::RobotStatus(s),
+            batch = ends.robot_statuses.next_batch(BATCH) => Input::RobotStatuses(batch),
             Ok(s) = ends.cell_link_sub.recv_async() => Input::Link(s),
             Ok(s) = ends.robot_link_sub.recv_async() => Input::Link(s),
             Ok(s) = ends.cycle_sub.recv_async() => Input::TriggerSeen(s),
@@ -122,8 +141,29 @@ impl NodeLoop<'_> {
         }
     }
 
-    /// Handles one input whole: answers it, or hands the core its event.
+    /// Handles one input whole: answers it, or hands the core its events.
     pub async fn take(&mut self, input: Input) {
+        match input {
+            Input::Summaries(batch) => {
+                for s in batch {
+                    if let Some(event) = summary_event(&self.keys, &s, &mut self.undecodable) {
+                        self.handle(event).await;
+                    }
+                }
+            }
+            Input::RobotStatuses(batch) => {
+                for s in batch {
+                    if let Some(event) = robot_status_event(&self.keys, &s, &mut self.undecodable) {
+                        self.handle(event).await;
+                    }
+                }
+            }
+            input => self.take_one(input).await,
+        }
+    }
+
+    /// Handles one input that is not a batch.
+    async fn take_one(&mut self, input: Input) {
         if let Some(event) = self.event_of(input).await {
             // A cell coming or going changes what the viewers draw at once:
             // it is not left to the next status tick (half a second, more
@@ -150,7 +190,10 @@ impl NodeLoop<'_> {
     async fn event_of(&mut self, input: Input) -> Option<Event> {
         let (keys, bad) = (&self.keys, &mut self.undecodable);
         match input {
-            Input::Wake => Some(Event::Tick),
+            Input::Wake => {
+                self.wait_last_grain();
+                Some(Event::Tick)
+            }
             Input::SaveSurvey => {
                 self.survey_file.save(&self.core);
                 None
@@ -187,14 +230,14 @@ impl NodeLoop<'_> {
                 }
                 e
             }
-            Input::Summary(s) => summary_event(keys, &s, bad),
             Input::Truth(s) => {
                 if let Some((robot, truth)) = truth_of(keys, &s) {
                     self.viewers.truth(&robot, truth);
                 }
                 None
             }
-            Input::RobotStatus(s) => robot_status_event(keys, &s, bad),
+            // Taken apart in `take`.
+            Input::Summaries(_) | Input::RobotStatuses(_) => None,
             Input::Link(s) => {
                 if let Some((kind, id, link)) = link_report(keys, &s, bad)
                     && !self.links.observe(kind, id, link)
@@ -207,6 +250,19 @@ impl NodeLoop<'_> {
                 decode_counted::<CycleTrigger>(&s, bad).map(Event::TriggerSeen)
             }
             Input::ScheduleSeen(s) => decode_counted::<Schedule>(&s, bad).map(Event::ScheduleSeen),
+        }
+    }
+
+    /// Waits on the thread until the core's wake-up is due, when it is at
+    /// most [`TIMER_GRAIN`] away: the trigger then leaves within the
+    /// operating system's timer slack of its time (tens of microseconds)
+    /// instead of up to the timer's whole millisecond late. It blocks the
+    /// loop's thread, which has nothing else to do that is due sooner
+    /// than a trigger, for at most a millisecond a cycle.
+    fn wait_last_grain(&self) {
+        let left = self.core.next_wake().since(self.clock.now()).to_std();
+        if !self.core.tick_pending() && left <= TIMER_GRAIN {
+            std::thread::sleep(left);
         }
     }
 

@@ -498,7 +498,7 @@ struct Observed {
     live_s: f64,
     /// Each trigger's arrival: (epoch, cycle), cycle start (master time,
     /// ns), when it arrived.
-    triggers: Vec<((u64, u64), i64, Instant)>,
+    triggers: Vec<TriggerArrival>,
     cells: CellStats,
     admin_ms: Vec<f64>,
     admin_asked: usize,
@@ -510,9 +510,15 @@ struct Observed {
     usage_to: Vec<(String, ProcUsage)>,
 }
 
+/// Each trigger's arrival as [`Observed::triggers`] keeps it.
+type TriggerArrival = ((u64, u64), i64, Instant);
+
 /// Watches the triggers and the bursts for the run's duration while the
 /// admin status and the web API are asked, and reads every process's
-/// CPU at both ends.
+/// CPU at both ends. A trigger's arrival is stamped in Zenoh's receive
+/// path, and the admin status is asked from a task of its own: stamped in
+/// the observer's loop, a trigger that came while the loop waited for an
+/// answer would count the answer's wait as the trigger's lateness.
 async fn observe(
     args: &CentralArgs,
     keys: &Keys,
@@ -521,8 +527,18 @@ async fn observe(
     sup: &mut Supervisor,
 ) -> Result<(Observed, Option<String>), CommandError> {
     let failed = |e: &dyn std::fmt::Display| CommandError::failure(format!("{e:#}"));
+    let arrivals: Arc<std::sync::Mutex<Vec<TriggerArrival>>> = Arc::default();
+    let stamped = arrivals.clone();
     let triggers = session
         .declare_subscriber(keys.central_cycle())
+        .callback(move |s| {
+            let at = Instant::now();
+            if let Ok(t) = decode::<CycleTrigger>(&s.payload().to_bytes())
+                && let Ok(mut kept) = stamped.lock()
+            {
+                kept.push(((t.epoch, t.cycle), t.start.as_nanos(), at));
+            }
+        })
         .await
         .map_err(|e| failed(&e))?;
     let bursts = session
@@ -534,33 +550,23 @@ async fn observe(
         let stop = stop.clone();
         tokio::task::spawn_blocking(move || probe_web(addr, &stop))
     });
+    let status_key = keys.central_admin("status").map_err(|e| failed(&e))?;
+    let admin_probe = tokio::spawn(probe_admin(session.clone(), status_key, stop.clone()));
     let mut seen = Observed {
         usage_from: sup.usage(),
         ..Observed::default()
     };
     let started = Instant::now();
     let until = started + Duration::from_secs_f64(args.duration);
-    let mut probes = tokio::time::interval(PROBE_PERIOD);
+    let mut checks = tokio::time::interval(PROBE_PERIOD);
     let mut failure = None;
-    let status_key = keys.central_admin("status").map_err(|e| failed(&e))?;
     while Instant::now() < until {
         tokio::select! {
             _ = tokio::time::sleep_until(until.into()) => break,
-            _ = probes.tick() => {
+            _ = checks.tick() => {
                 if let Some(dead) = sup.first_dead() {
                     failure = Some(format!("process {} {}", dead.name, dead.status));
                     break;
-                }
-                seen.admin_asked += 1;
-                let asked = Instant::now();
-                if let Some(status) = ask_status(session, &status_key).await {
-                    seen.admin_ms.push(asked.elapsed().as_secs_f64() * 1e3);
-                    seen.last_status = Some(status);
-                }
-            }
-            Ok(s) = triggers.recv_async() => {
-                if let Ok(t) = decode::<CycleTrigger>(&s.payload().to_bytes()) {
-                    seen.triggers.push(((t.epoch, t.cycle), t.start.as_nanos(), Instant::now()));
                 }
             }
             Ok(s) = bursts.recv_async() => {
@@ -573,13 +579,42 @@ async fn observe(
     seen.duration_s = started.elapsed().as_secs_f64();
     seen.usage_to = sup.usage();
     stop.store(true, Ordering::Relaxed);
+    drop(triggers);
+    seen.triggers = std::mem::take(&mut *arrivals.lock().unwrap_or_else(|e| e.into_inner()));
     if let Some(probe) = web_probe
         && let Ok((ms, asked)) = probe.await
     {
         seen.web_ms = ms;
         seen.web_asked = asked;
     }
+    if let Ok(admin) = admin_probe.await {
+        (seen.admin_ms, seen.admin_asked, seen.last_status) = admin;
+    }
     Ok((seen, failure))
+}
+
+/// Asks the central unit's admin status every [`PROBE_PERIOD`] until
+/// `stop` (one question at a time, as an operator's console does): how
+/// long each answer took, ms, how many were asked, and the last answer.
+async fn probe_admin(
+    session: zenoh::Session,
+    key: String,
+    stop: Arc<AtomicBool>,
+) -> (Vec<f64>, usize, Option<StatusReport>) {
+    let (mut ms, mut asked, mut last) = (Vec::new(), 0, None);
+    let mut probes = tokio::time::interval(PROBE_PERIOD);
+    loop {
+        probes.tick().await;
+        if stop.load(Ordering::Relaxed) {
+            return (ms, asked, last);
+        }
+        asked += 1;
+        let started = Instant::now();
+        if let Some(status) = ask_status(&session, &key).await {
+            ms.push(started.elapsed().as_secs_f64() * 1e3);
+            last = Some(status);
+        }
+    }
 }
 
 /// The central unit's status, or `None` when it did not answer in time.
@@ -706,7 +741,7 @@ impl Observed {
 /// the time between their cycle starts, µs (the absolute value; only
 /// consecutive cycles of one epoch), and the mean time between cycle
 /// starts, ms.
-fn trigger_jitter(triggers: &[((u64, u64), i64, Instant)]) -> (Vec<f64>, Option<f64>) {
+fn trigger_jitter(triggers: &[TriggerArrival]) -> (Vec<f64>, Option<f64>) {
     let mut jitter_us = Vec::new();
     let mut periods_ms = Vec::new();
     for w in triggers.windows(2) {

@@ -87,6 +87,10 @@ pub struct FixSolver {
     /// The site's speed of sound, m/s: what is solved with when no
     /// calibration says otherwise.
     site_speed_of_sound_m_s: f64,
+    /// The relative sigma of the learnt speed of sound solved with, when
+    /// the calibration published one (`None`: the site's, whose sigma the
+    /// estimators take from their own sheet).
+    speed_rel_sigma: Option<f64>,
     /// `(epoch, version)` of the survey calibration the table carries.
     survey: Option<(u64, u32)>,
     /// A calibration and sync sigmas taken while triggers are followed,
@@ -107,6 +111,7 @@ impl FixSolver {
             late_m: std::collections::BTreeMap::new(),
             left_out: std::collections::BTreeSet::new(),
             site_speed_of_sound_m_s: config.speed_of_sound_m_s,
+            speed_rel_sigma: None,
             survey: None,
             pending: PendingControl::default(),
             config,
@@ -189,6 +194,9 @@ impl FixSolver {
         self.config.speed_of_sound_m_s = calibration.map_or(self.site_speed_of_sound_m_s, |c| {
             c.speed_of_sound_or(self.site_speed_of_sound_m_s)
         });
+        self.speed_rel_sigma = calibration
+            .filter(|c| c.speed_of_sound_m_s > 0.0 && c.speed_of_sound_sigma_m_s > 0.0)
+            .map(|c| c.speed_of_sound_sigma_m_s / c.speed_of_sound_m_s);
         self.survey = calibration.map(|c| (c.epoch, c.version));
     }
 
@@ -631,6 +639,7 @@ impl FixSolver {
                     self.transmitter_clock(pair[0]),
                     self.transmitter_clock(pair[1]),
                 ]),
+                speed_rel_sigma: self.speed_rel_sigma,
             })
             .collect()
     }

@@ -156,6 +156,7 @@ fn sample(t_s: f64, a_m: [f64; 3], b_m: [f64; 3], d_m: f64, sigma_m: f64) -> Ran
         d_m,
         sigma_m,
         clocks: None,
+        speed_rel_sigma: None,
     }
 }
 

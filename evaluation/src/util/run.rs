@@ -525,6 +525,7 @@ fn sample(
         d_m: m.d_m,
         sigma_m: MEASUREMENT_SIGMA_M,
         clocks: None,
+        speed_rel_sigma: None,
     })
 }
 

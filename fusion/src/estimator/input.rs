@@ -96,6 +96,12 @@ pub struct RangeDifferenceSample {
     /// residual synchronisation error, which `tdoa-ekf` estimates per clock;
     /// `None` when not known (or not applicable: radio anchors).
     pub clocks: Option<[TransmitterClock; 2]>,
+    /// One-sigma relative uncertainty of the propagation speed `d_m` was
+    /// computed with, when the source knows it: for ultrasound, that of the
+    /// speed of sound the MSU solves with (the fleet's published one, or
+    /// the site file's). Every range of a cycle is off by that same share,
+    /// which no number of cycles averages away.
+    pub speed_rel_sigma: Option<f64>,
 }
 
 /// One distance from a beacon to the receiver, measured by the time of
@@ -146,6 +152,7 @@ impl RangeDifferenceSample {
             d_m: dt_s * speed_m_s,
             sigma_m: sigma_s * speed_m_s,
             clocks: None,
+            speed_rel_sigma: None,
         }
     }
 
@@ -253,6 +260,9 @@ impl Input {
                     finite("b_m", v)?;
                 }
                 finite("d_m", s.d_m)?;
+                if let Some(v) = s.speed_rel_sigma {
+                    non_negative("speed_rel_sigma", v)?;
+                }
                 positive("sigma_m", s.sigma_m)
             }
             Input::BeaconRange(s) => {
@@ -272,6 +282,18 @@ fn finite(field: &'static str, v: f64) -> Result<(), EstimatorError> {
         Ok(())
     } else {
         Err(EstimatorError::NonFinite { field })
+    }
+}
+
+fn non_negative(field: &'static str, v: f64) -> Result<(), EstimatorError> {
+    finite(field, v)?;
+    if v >= 0.0 {
+        Ok(())
+    } else {
+        Err(EstimatorError::OutOfRange {
+            field,
+            reason: "must not be negative",
+        })
     }
 }
 

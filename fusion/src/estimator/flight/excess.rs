@@ -270,6 +270,7 @@ mod tests {
             d_m: 0.0,
             sigma_m: 0.1,
             clocks: None,
+            speed_rel_sigma: None,
         }
     }
 

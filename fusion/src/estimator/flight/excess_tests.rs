@@ -59,6 +59,7 @@ fn hover(excess: ExcessParams, late_m: f64) -> Hover {
             d_m,
             sigma_m: 0.05,
             clocks: None,
+            speed_rel_sigma: None,
         });
         let err = (f.position_m() - truth).norm();
         worst_m = worst_m.max(err);

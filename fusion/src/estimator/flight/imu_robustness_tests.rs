@@ -86,6 +86,7 @@ fn fly(
             d_m: (p - pb).norm() - (p - pa).norm() + range_noise.sample(&mut rng) + extra,
             sigma_m: 0.05,
             clocks: None,
+            speed_rel_sigma: None,
         };
         out.fed += 1;
         if let Some(e) = guard.step(&m).published_m {

@@ -61,6 +61,7 @@ mod tests {
             d_m: 0.0,
             sigma_m: 0.1,
             clocks: None,
+            speed_rel_sigma: None,
         };
         let p = Vector3::new(0.0, 0.0, 1.0);
         let l = linearise(&p, &m, 0.1).unwrap();

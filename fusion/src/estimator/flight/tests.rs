@@ -43,6 +43,7 @@ fn range_difference(
         d_m: (p - Vector3::from(b)).norm() - (p - Vector3::from(a)).norm() + noise,
         sigma_m: 0.05,
         clocks: None,
+        speed_rel_sigma: None,
     }
 }
 

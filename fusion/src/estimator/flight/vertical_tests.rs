@@ -61,6 +61,7 @@ fn worst_height_error_m(vertical_psd_ratio: f64, sine_m: f64, late_m: f64) -> f6
             d_m: range(b) - range(a) + noise.sample(&mut rng),
             sigma_m: 0.1,
             clocks: None,
+            speed_rel_sigma: None,
         });
         if t_s >= 1.0 {
             worst_m = worst_m.max((f.position_m().z - p.z).abs());

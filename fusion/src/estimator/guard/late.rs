@@ -113,6 +113,7 @@ impl LateArrivals {
             d_m: 0.0,
             sigma_m: 1.0,
             clocks: None,
+            speed_rel_sigma: None,
         })
     }
 
@@ -192,6 +193,7 @@ mod tests {
             d_m: 0.0,
             sigma_m: 0.1,
             clocks: None,
+            speed_rel_sigma: None,
         }
     }
 

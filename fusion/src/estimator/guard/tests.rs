@@ -85,6 +85,7 @@ fn fly(
             d_m: d + noise.sample(&mut rng) + extra,
             sigma_m: 0.05,
             clocks: None,
+            speed_rel_sigma: None,
         };
         out.fed += 1;
         if let Some(e) = guard.step(&m).published_m {
@@ -255,6 +256,7 @@ fn a_filter_stuck_far_away_is_declared_lost_and_replaced() {
             d_m: d + noise.sample(&mut rng),
             sigma_m: 0.05,
             clocks: None,
+            speed_rel_sigma: None,
         };
         match g.step(&m).published_m {
             Some(e) if (Vector3::from(e) - p).norm() > 0.2 => lost_for += 1,

@@ -260,6 +260,7 @@ mod tests {
                 d_m: d,
                 sigma_m: 0.05,
                 clocks: None,
+                speed_rel_sigma: None,
             });
         }
         w
@@ -306,6 +307,7 @@ mod tests {
                 d_m: if k % 2 == 0 { 1.0 } else { -1.0 },
                 sigma_m: 0.05,
                 clocks: None,
+                speed_rel_sigma: None,
             });
         }
         assert_eq!(w.solve(&room, None), WindowFix::Inconsistent);

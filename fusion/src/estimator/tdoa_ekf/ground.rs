@@ -62,7 +62,7 @@ use super::ground_state::{
 use super::observation::Outcome;
 use super::recovery::{RecoveryParams, RejectionWatch};
 use super::standstill::Standstill;
-use super::systematic::HeardLately;
+use super::systematic::{AirErrors, HeardLately};
 use crate::angle;
 use crate::estimator::dead_reckoning::IncrementTracker;
 use crate::estimator::guard::{LateArrivals, LateParams};
@@ -284,6 +284,9 @@ pub struct TdoaEkf {
     heard_lately: HeardLately,
     /// The cells whose clock bias the state holds.
     clocks: ClockSlots,
+    /// The relative sigma of the speed of sound the newest range
+    /// difference was computed with, when its source said.
+    solved_speed_rel_sigma: Option<f64>,
 }
 
 /// A fix of one cycle waiting for the next cycle to confirm it.
@@ -361,6 +364,7 @@ impl TdoaEkf {
             gated_late: false,
             heard_lately: HeardLately::default(),
             clocks: ClockSlots::default(),
+            solved_speed_rel_sigma: None,
         }
     }
 
@@ -490,6 +494,28 @@ impl TdoaEkf {
             sensors.speed_of_sound_rel_sigma()
         }
     }
+
+    /// The air's errors the published covariance adds (`systematic.rs`).
+    /// The speed of sound the ranges are computed with is the site-wide
+    /// one (the fleet's published speed, or the site file's), known only
+    /// to its own sigma: the local speed state holds the air where the
+    /// robot is against that speed, not that speed's own error, so the
+    /// latter is counted here whether the state is on or not. Its sigma is
+    /// the one the ranges came with (the fleet's, 0.5 % while it has
+    /// learnt little, 0.15-0.3 % later), else the sheet's temperature's.
+    fn systematic_air(&self) -> AirErrors {
+        let sensors = &self.params.sensors;
+        let speed_rel_sigma = if sensors.learns_local_air() {
+            self.solved_speed_rel_sigma
+                .unwrap_or_else(|| sensors.speed_of_sound_rel_sigma())
+        } else {
+            sensors.speed_of_sound_rel_sigma()
+        };
+        AirErrors {
+            speed_rel_sigma,
+            wind_rel_sigma: sensors.unmodelled_wind_rel_sigma(),
+        }
+    }
 }
 
 /// The data sheet's scale error of the heading source.
@@ -512,6 +538,9 @@ impl InOrderFilter for TdoaEkf {
             Input::Gyro(g) => self.gyro_sample(g.t_s, g.rate_rad_s),
             Input::Odometry(_) | Input::Encoders(_) => self.relative(input),
             Input::RangeDifference(m) => {
+                if m.speed_rel_sigma.is_some() {
+                    self.solved_speed_rel_sigma = m.speed_rel_sigma;
+                }
                 let outcome = self.range_difference(m);
                 if outcome.is_accepted() {
                     self.heard_lately.note(m.t_s, m.a_m);
@@ -547,8 +576,7 @@ impl InOrderFilter for TdoaEkf {
             at,
             sensors.survey_sigma_m,
             self.unexplained_m2,
-            self.unmodelled_speed_rel_sigma(),
-            sensors.unmodelled_wind_rel_sigma(),
+            self.systematic_air(),
         ) {
             let mut xy = covariance.fixed_view_mut::<2, 2>(0, 0);
             xy += c;

@@ -198,6 +198,7 @@ mod tests {
             d_m,
             sigma_m: 0.1,
             clocks: None,
+            speed_rel_sigma: None,
         }
     }
 

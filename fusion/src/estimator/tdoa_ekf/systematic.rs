@@ -69,15 +69,14 @@ impl HeardLately {
         position_m: Vector3<f64>,
         survey_sigma_m: f64,
         unexplained_m2: f64,
-        speed_rel_sigma: f64,
-        wind_rel_sigma: f64,
+        air: AirErrors,
     ) -> Option<Matrix2<f64>> {
         let valid = |v: f64| v.is_finite() && v >= 0.0;
         if !(valid(survey_sigma_m)
-            && valid(speed_rel_sigma)
-            && valid(wind_rel_sigma)
+            && valid(air.speed_rel_sigma)
+            && valid(air.wind_rel_sigma)
             && !unexplained_m2.is_nan())
-            || survey_sigma_m + speed_rel_sigma + wind_rel_sigma <= 0.0
+            || survey_sigma_m + air.speed_rel_sigma + air.wind_rel_sigma <= 0.0
         {
             return None;
         }
@@ -95,10 +94,6 @@ impl HeardLately {
         let n = tx.len() as f64;
         let shown = ((n - 3.0) / n).max(0.25);
         let sigma_m = (survey_sigma_m.powi(2) + unexplained_m2.max(0.0) / shown).sqrt();
-        let air = AirErrors {
-            speed_rel_sigma,
-            wind_rel_sigma,
-        };
         fix_covariance(&tx, position_m, sigma_m, air)
     }
 }
@@ -106,12 +101,12 @@ impl HeardLately {
 /// The errors of the air every range of a fix shares, over the speed of
 /// sound.
 #[derive(Debug, Clone, Copy)]
-struct AirErrors {
+pub(super) struct AirErrors {
     /// Sigma of the speed's relative error: `k r_i` on each range `r_i`.
-    speed_rel_sigma: f64,
+    pub(super) speed_rel_sigma: f64,
     /// Sigma of the wind along each horizontal axis: `u . h_i` on each
     /// range, `h_i` the horizontal path from the transmitter.
-    wind_rel_sigma: f64,
+    pub(super) wind_rel_sigma: f64,
 }
 
 /// The covariance of the least-squares fix `(x, y, offset)` from
@@ -162,6 +157,13 @@ mod tests {
     use super::*;
     use crate::tdoa;
 
+    fn air(speed_rel_sigma: f64, wind_rel_sigma: f64) -> AirErrors {
+        AirErrors {
+            speed_rel_sigma,
+            wind_rel_sigma,
+        }
+    }
+
     fn speed_only(speed_rel_sigma: f64) -> AirErrors {
         AirErrors {
             speed_rel_sigma,
@@ -185,7 +187,7 @@ mod tests {
             h.note(k as f64 * 0.1, p);
         }
         let c = h
-            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
+            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, air(0.0, 0.0))
             .unwrap();
         let rms_m = c.trace().sqrt();
         // Four transmitters round the robot: the CRLB is of the order of
@@ -193,7 +195,7 @@ mod tests {
         assert!((0.005..0.05).contains(&rms_m), "{rms_m}");
         // Doubling the survey error doubles the floor.
         let c2 = h
-            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.02, 0.0, 0.0, 0.0)
+            .covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.02, 0.0, air(0.0, 0.0))
             .unwrap();
         assert!((c2.trace().sqrt() / rms_m - 2.0).abs() < 1e-9);
     }
@@ -258,7 +260,7 @@ mod tests {
             h.note(0.0, p);
         }
         let published = h
-            .covariance(0.5, middle, 0.01, 0.0, 0.0, 0.5 / 343.0)
+            .covariance(0.5, middle, 0.01, 0.0, air(0.0, 0.5 / 343.0))
             .unwrap();
         assert!((published - windy).norm() < 1e-15);
     }
@@ -270,13 +272,13 @@ mod tests {
             h.note(0.0, p);
         }
         let at = Vector3::new(1.5, 2.5, 0.5);
-        let survey = h.covariance(0.5, at, 0.01, 0.0, 0.0, 0.0).unwrap();
+        let survey = h.covariance(0.5, at, 0.01, 0.0, air(0.0, 0.0)).unwrap();
         // Four transmitters: a fix shows a quarter of each one's error, so
         // 1 cm^2 shown is 4 cm^2 in all, 5 cm^2 with the survey's.
-        let wider = h.covariance(0.5, at, 0.01, 1e-4, 0.0, 0.0).unwrap();
+        let wider = h.covariance(0.5, at, 0.01, 1e-4, air(0.0, 0.0)).unwrap();
         assert!((wider.trace() / survey.trace() - 5.0).abs() < 1e-9);
         // A negative estimate (arrivals better than predicted) narrows nothing.
-        let same = h.covariance(0.5, at, 0.01, -1e-4, 0.0, 0.0).unwrap();
+        let same = h.covariance(0.5, at, 0.01, -1e-4, air(0.0, 0.0)).unwrap();
         assert_eq!(same, survey);
     }
 
@@ -287,27 +289,33 @@ mod tests {
             h.note(0.0, p);
         }
         assert!(
-            h.covariance(0.1, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
+            h.covariance(0.1, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, air(0.0, 0.0))
                 .is_none()
         );
         for p in square() {
             h.note(0.0, p);
         }
         assert!(
-            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
+            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, air(0.0, 0.0))
                 .is_some()
         );
         assert!(
-            h.covariance(1.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, 0.0, 0.0)
+            h.covariance(1.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, air(0.0, 0.0))
                 .is_none()
         );
         assert!(
-            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.0, 0.0, 0.0, 0.0)
+            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.0, 0.0, air(0.0, 0.0))
                 .is_none()
         );
         assert!(
-            h.covariance(0.5, Vector3::new(2.0, 2.0, 0.5), 0.01, 0.0, f64::NAN, 0.0)
-                .is_none()
+            h.covariance(
+                0.5,
+                Vector3::new(2.0, 2.0, 0.5),
+                0.01,
+                0.0,
+                air(f64::NAN, 0.0)
+            )
+            .is_none()
         );
     }
 

@@ -30,6 +30,7 @@ fn measure(t_s: f64, p: [f64; 3], a: [f64; 3], b: [f64; 3], noise_m: f64) -> Ran
         d_m: (p - vb).norm() - (p - va).norm() + noise_m,
         sigma_m: 0.05,
         clocks: None,
+        speed_rel_sigma: None,
     }
 }
 

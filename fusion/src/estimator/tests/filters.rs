@@ -211,6 +211,7 @@ fn non_finite_inputs_are_rejected_and_change_nothing() {
             d_m: f64::NAN,
             sigma_m: 0.02,
             clocks: None,
+            speed_rel_sigma: None,
         }),
     ];
     for name in names() {

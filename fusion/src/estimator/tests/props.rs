@@ -107,6 +107,7 @@ fn input(t_s: f64) -> BoxedStrategy<Input> {
                     d_m,
                     sigma_m,
                     clocks: None,
+                    speed_rel_sigma: None,
                 })
             }),
         ([number(), number(), number()], number(), number()).prop_map(

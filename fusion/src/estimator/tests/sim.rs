@@ -143,6 +143,7 @@ pub(super) fn circling_run(
                         d_m: range(*b) - range(TRANSMITTERS[0]) + sigma * unit.sample(&mut rng),
                         sigma_m: sigma.max(0.001),
                         clocks: None,
+                        speed_rel_sigma: None,
                     }),
                 ));
             }

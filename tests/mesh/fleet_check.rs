@@ -35,11 +35,8 @@ use zenoh::handlers::FifoChannel;
 /// From `ickon sim` to its run file (the nodes built, started and live).
 const START_TIMEOUT: Duration = Duration::from_secs(90);
 /// Each run, once every node is live, seconds: time for the robots to
-/// settle and the forger to be judged (quarantined about 4 s after its
-/// first fix, then forging 3 s on), short for the test command. The
-/// calibration's drift toward a forgery that got in does not shrink with
-/// the run (the forger's share of the fixes is what moves it).
-const RUN_S: u64 = 15;
+/// settle and the forger to be judged, short for the test command.
+const RUN_S: u64 = 20;
 /// How many fixes each of the forger's summaries carries: six a second
 /// at an agent's two summaries a second, an MSU's rate on `lab` (about 7
 /// fixes a second), within the central unit's share of 1.25 a cycle.

@@ -1,7 +1,7 @@
 //! `ickon`: the command line of ICKON-rs (the program is the library's
 //! `main`). The checks of the command line against its documentation, of
-//! every crate's imports and of its functions' lengths run as this binary's
-//! unit tests.
+//! every crate's imports, of its functions' lengths and of the workspace's
+//! build profile run as this binary's unit tests.
 
 #[cfg(test)]
 mod docs_check;
@@ -9,6 +9,8 @@ mod docs_check;
 mod fn_length_check;
 #[cfg(test)]
 mod import_check;
+#[cfg(test)]
+mod profile_check;
 
 use std::process::ExitCode;
 

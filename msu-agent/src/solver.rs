@@ -330,9 +330,9 @@ impl FixSolver {
         for s in &mut cycle.signals {
             s.pseudo_range_m -= self.late_m.get(&s.tx_id).copied().unwrap_or(0.0);
         }
-        // Every signal heard, to measure the unused ones against the fix.
-        let heard = cycle.signals.clone();
-        leave_out(&mut cycle, &self.left_out);
+        // The signals left out stay at hand: with the others, every signal
+        // heard, to measure the unused ones against the fix.
+        let left_out = leave_out(&mut cycle, &self.left_out);
         let reference_s = clock.to_fusion(cycle.stamp);
         let hidden = self.hidden(&cycle.signals, reference_s);
         let range_differences = self.range_differences(&cycle.signals, &hidden, clock);
@@ -406,7 +406,7 @@ impl FixSolver {
         let mut wire = wire_fix(&sol, cycle.stamp, msg.seq, self.config.height_m, &unmatched);
         wire.survey_version = self.survey.map_or(0, |(_, version)| version);
         (wire.unused, wire.unused_residuals_m) =
-            crate::unused_residuals::measured(&sol, &heard, &wire.rejected);
+            crate::unused_residuals::measured(&sol, &[&cycle.signals, &left_out], &wire.rejected);
         Ok(SolvedCycle {
             fix: Some((sol, wire)),
             range_differences,
@@ -736,22 +736,21 @@ pub fn wire_fix(
     }
 }
 
-/// Takes the left-out transmitters' signals out of `cycle`: heard, but not
-/// solved with. They are listed as rejected, so that the central unit sees
-/// when a left-out transmitter is heard again.
+/// Takes the left-out transmitters' signals out of `cycle` and returns
+/// them (in their order): heard, but not solved with. They are listed as
+/// rejected, so that the central unit sees when a left-out transmitter is
+/// heard again.
 fn leave_out(
     cycle: &mut crate::assembly::CycleSignals,
     left_out: &std::collections::BTreeSet<u32>,
-) {
+) -> Vec<crate::assembly::Signal> {
     if left_out.is_empty() {
-        return;
+        return Vec::new();
     }
-    cycle.rejected.extend(
-        cycle
-            .signals
-            .iter()
-            .filter(|s| left_out.contains(&s.tx_id))
-            .map(|s| s.tx_id),
-    );
-    cycle.signals.retain(|s| !left_out.contains(&s.tx_id));
+    let left: Vec<_> = cycle
+        .signals
+        .extract_if(.., |s| left_out.contains(&s.tx_id))
+        .collect();
+    cycle.rejected.extend(left.iter().map(|s| s.tx_id));
+    left
 }

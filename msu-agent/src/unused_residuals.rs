@@ -9,8 +9,10 @@ use nalgebra::Vector3;
 
 use crate::assembly::Signal;
 
-/// The transmitters of `rejected` that have a signal in `signals` (their
-/// pseudo-ranges as the fix's were taken: lateness removed), each with its
+/// The transmitters of `rejected` that have a signal in `heard` (the
+/// signals of the cycle, in parts: those solved with, those left out;
+/// their pseudo-ranges as the fix's were taken: lateness removed), the
+/// first one found of each transmitter, each with its
 /// residual `rho - |s - p| - b` against `fix`, in the order of `rejected`,
 /// each id once. A residual that is not a number is left out.
 ///
@@ -19,7 +21,7 @@ use crate::assembly::Signal;
 /// corrected, as it is not for the used signals' published residuals.
 pub(crate) fn measured(
     fix: &tdoa::Fix,
-    signals: &[Signal],
+    heard: &[&[Signal]],
     rejected: &[u32],
 ) -> (Vec<u32>, Vec<f64>) {
     let mut ids = Vec::new();
@@ -28,7 +30,11 @@ pub(crate) fn measured(
         if ids.contains(&id) {
             continue;
         }
-        let Some(s) = signals.iter().find(|s| s.tx_id == id) else {
+        let Some(s) = heard
+            .iter()
+            .flat_map(|part| part.iter())
+            .find(|s| s.tx_id == id)
+        else {
             continue;
         };
         let range = (Vector3::from(s.tx_m) - fix.position_m).norm();
@@ -74,7 +80,7 @@ mod tests {
         ];
         // 9 was heard but never reached the solver (no signal): not measured;
         // 7 is listed twice (rejected by a gate and left out): once.
-        let (ids, residuals) = measured(&fix, &signals, &[9, 7, 8, 7]);
+        let (ids, residuals) = measured(&fix, &[&signals[..]], &[9, 7, 8, 7]);
         assert_eq!(ids, [7, 8]);
         let expected = true_range - (Vector3::from(surveyed) - p).norm();
         assert!((residuals[0] - expected).abs() < 1e-12, "{residuals:?}");
@@ -83,10 +89,24 @@ mod tests {
     }
 
     #[test]
+    fn a_signal_left_out_of_the_fix_is_measured_from_its_own_part() {
+        let p = Vector3::new(2.0, 1.0, 0.3);
+        let mut fix = tdoa::Fix::from_position(0.0, p.x, p.y, nalgebra::Matrix2::identity());
+        fix.position_m = p;
+        let (a, b) = ([2.0, 4.0, 3.3], [5.0, 1.0, 3.3]);
+        let solved = [signal(8, a, (Vector3::from(a) - p).norm() + 0.02, 0.0)];
+        let left_out = [signal(7, b, (Vector3::from(b) - p).norm() - 0.03, 0.0)];
+        let (ids, residuals) = measured(&fix, &[&solved, &left_out], &[7, 8]);
+        assert_eq!(ids, [7, 8]);
+        assert!((residuals[0] + 0.03).abs() < 1e-12, "{residuals:?}");
+        assert!((residuals[1] - 0.02).abs() < 1e-12, "{residuals:?}");
+    }
+
+    #[test]
     fn a_residual_that_is_not_a_number_is_left_out() {
         let fix = tdoa::Fix::from_position(0.0, 0.0, 0.0, nalgebra::Matrix2::identity());
         let mut s = signal(3, [1.0, 0.0, 3.0], 3.0, 0.0);
         s.pseudo_range_m = f64::NAN;
-        assert_eq!(measured(&fix, &[s], &[3]), (vec![], vec![]));
+        assert_eq!(measured(&fix, &[&[s][..]], &[3]), (vec![], vec![]));
     }
 }

@@ -83,6 +83,32 @@ pub fn decode<T: DeserializeOwned>(payload: &[u8]) -> Result<T, DecodeError> {
     Ok(value)
 }
 
+/// A reader of one older layout of the message `T` (see [`decode_layouts`]).
+pub type OlderLayout<T> = fn(&[u8]) -> Result<T, DecodeError>;
+
+/// Reads a payload in the older layout `O` as the current message `T`:
+/// one of the older layouts [`decode_layouts`] tries.
+pub fn decode_older<O: DeserializeOwned + Into<T>, T>(payload: &[u8]) -> Result<T, DecodeError> {
+    decode::<O>(payload).map(Into::into)
+}
+
+/// Decodes a message whose layout grew over time: the current layout
+/// `T`, else each of `older` in turn (newest first, each a
+/// [`decode_older`]). A payload of none fails with the current layout's
+/// error, the one a sender of today needs to read. Each layout must be
+/// one no other can be mistaken for (each longer than the one before).
+pub fn decode_layouts<T: DeserializeOwned>(
+    payload: &[u8],
+    older: &[OlderLayout<T>],
+) -> Result<T, DecodeError> {
+    decode::<T>(payload).or_else(|current| {
+        older
+            .iter()
+            .find_map(|read| read(payload).ok())
+            .ok_or(current)
+    })
+}
+
 fn classify(error: cdr::Error, len: usize) -> DecodeError {
     match error {
         cdr::Error::Io(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {

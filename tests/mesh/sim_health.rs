@@ -15,14 +15,15 @@ use zenoh::Wait;
 
 use support::sim_run::{admin_status, finish, start_sim};
 
-/// Long enough for several looks after the start-up (14 s), short
-/// enough for the test command.
-const RUN_S: u64 = 24;
+/// Long enough for several looks and 4 s after the last one for its
+/// answer, short enough for the test command.
+const RUN_S: u64 = 21;
 /// Looks at the admin status once the site has run this long, then every
-/// [`LOOK_EVERY`] until [`LAST_LOOK_S`].
+/// [`LOOK_EVERY`] until [`LAST_LOOK_S`]: at least three looks with
+/// answers as slow as 2 s each.
 const FIRST_LOOK_S: u64 = 8;
 const LOOK_EVERY: Duration = Duration::from_secs(2);
-const LAST_LOOK_S: u64 = 18;
+const LAST_LOOK_S: u64 = 17;
 /// The run: one robot on `lab`.
 const ONE_ROBOT: &[&str] = &["--robots", "1", "--seed", "1"];
 

@@ -2,11 +2,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::codec::{DecodeError, decode};
+use crate::codec::{DecodeError, decode_layouts, decode_older};
 use crate::time::{Duration, Time};
 
 pub mod survey_before_air;
 pub mod survey_before_lateness;
+pub mod survey_older;
 
 /// One row of the transmitter lookup table the MSU uses to turn an id into a position.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -106,15 +107,13 @@ impl SurveyCalibration {
     /// than the one before's. A payload of none fails with the current
     /// layout's error.
     pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
-        decode::<Self>(payload).or_else(|current| {
-            decode::<survey_before_air::CalibrationWithoutAir>(payload)
-                .map(Self::from)
-                .or_else(|_| {
-                    decode::<survey_before_lateness::CalibrationWithoutLateness>(payload)
-                        .map(Self::from)
-                })
-                .map_err(|_| current)
-        })
+        decode_layouts(
+            payload,
+            &[
+                decode_older::<survey_before_air::CalibrationWithoutAir, _>,
+                decode_older::<survey_before_lateness::CalibrationWithoutLateness, _>,
+            ],
+        )
     }
 
     /// The speed of sound to solve with on a site whose own is

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::codec::{DecodeError, decode};
+use crate::codec::{DecodeError, decode_layouts, decode_older};
 use crate::time::Time;
 
 pub mod fix_before_unused;
@@ -153,11 +153,10 @@ impl Fix {
     /// arrays' lengths. A payload of neither fails with the current
     /// layout's error.
     pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
-        decode::<Self>(payload).or_else(|current| {
-            decode::<fix_before_unused::FixWithoutUnused>(payload)
-                .map(Self::from)
-                .map_err(|_| current)
-        })
+        decode_layouts(
+            payload,
+            &[decode_older::<fix_before_unused::FixWithoutUnused, _>],
+        )
     }
 }
 
@@ -265,11 +264,10 @@ impl RobotSummary {
     /// Decodes a `robot/<id>/summary` payload: the current layout, or the
     /// one whose fixes carried no unused arrivals (see [`Fix::decode`]).
     pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
-        decode::<Self>(payload).or_else(|current| {
-            decode::<fix_before_unused::SummaryWithoutUnused>(payload)
-                .map(Self::from)
-                .map_err(|_| current)
-        })
+        decode_layouts(
+            payload,
+            &[decode_older::<fix_before_unused::SummaryWithoutUnused, _>],
+        )
     }
 
     /// The newest pose it summarises.

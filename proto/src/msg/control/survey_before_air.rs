@@ -5,7 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{SurveyCalibration, TransmitterOffset};
+use super::TransmitterOffset;
+use super::survey_older::OlderCalibration;
 
 /// One transmitter's correction, without `left_out` (the fields mean what
 /// [`TransmitterOffset`]'s of the same name do).
@@ -23,41 +24,18 @@ pub struct OffsetWithoutHealth {
     pub late_sigma_m: f64,
 }
 
-/// The calibration without the speed of sound (the fields mean what
-/// [`SurveyCalibration`]'s of the same name do).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CalibrationWithoutAir {
-    /// The epoch of the central unit that made it.
-    pub epoch: u64,
-    /// Its version in that epoch.
-    pub version: u32,
-    /// Fixes of the fleet behind it.
-    pub fixes_taken: u64,
-    /// One per transmitter of the site.
-    pub offsets: Vec<OffsetWithoutHealth>,
-}
+/// The calibration without the speed of sound (see [`OlderCalibration`]).
+pub type CalibrationWithoutAir = OlderCalibration<OffsetWithoutHealth>;
 
-impl From<CalibrationWithoutAir> for SurveyCalibration {
-    fn from(old: CalibrationWithoutAir) -> Self {
-        let offsets = old
-            .offsets
-            .into_iter()
-            .map(|o| TransmitterOffset {
-                tx_id: o.tx_id,
-                offset_m: o.offset_m,
-                sigma_m: o.sigma_m,
-                late_m: o.late_m,
-                late_sigma_m: o.late_sigma_m,
-                left_out: false,
-            })
-            .collect();
-        SurveyCalibration {
-            epoch: old.epoch,
-            version: old.version,
-            fixes_taken: old.fixes_taken,
-            offsets,
-            speed_of_sound_m_s: 0.0,
-            speed_of_sound_sigma_m_s: 0.0,
+impl From<OffsetWithoutHealth> for TransmitterOffset {
+    fn from(o: OffsetWithoutHealth) -> Self {
+        TransmitterOffset {
+            tx_id: o.tx_id,
+            offset_m: o.offset_m,
+            sigma_m: o.sigma_m,
+            late_m: o.late_m,
+            late_sigma_m: o.late_sigma_m,
+            left_out: false,
         }
     }
 }
@@ -66,6 +44,7 @@ impl From<CalibrationWithoutAir> for SurveyCalibration {
 mod tests {
     use super::*;
     use crate::codec::{decode, encode};
+    use crate::msg::control::SurveyCalibration;
 
     fn old(offsets: usize) -> CalibrationWithoutAir {
         CalibrationWithoutAir {

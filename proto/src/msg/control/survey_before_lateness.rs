@@ -7,7 +7,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{SurveyCalibration, TransmitterOffset};
+use super::TransmitterOffset;
+use super::survey_older::OlderCalibration;
 
 /// One transmitter's correction, without the lateness (the fields mean
 /// what [`TransmitterOffset`]'s of the same name do).
@@ -21,41 +22,18 @@ pub struct OffsetWithoutLateness {
     pub sigma_m: [f64; 3],
 }
 
-/// The calibration, without the lateness (the fields mean what
-/// [`SurveyCalibration`]'s of the same name do).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CalibrationWithoutLateness {
-    /// The epoch of the central unit that made it.
-    pub epoch: u64,
-    /// Its version in that epoch.
-    pub version: u32,
-    /// Fixes of the fleet behind it.
-    pub fixes_taken: u64,
-    /// One per transmitter of the site.
-    pub offsets: Vec<OffsetWithoutLateness>,
-}
+/// The calibration, without the lateness (see [`OlderCalibration`]).
+pub type CalibrationWithoutLateness = OlderCalibration<OffsetWithoutLateness>;
 
-impl From<CalibrationWithoutLateness> for SurveyCalibration {
-    fn from(old: CalibrationWithoutLateness) -> Self {
-        let offsets = old
-            .offsets
-            .into_iter()
-            .map(|o| TransmitterOffset {
-                tx_id: o.tx_id,
-                offset_m: o.offset_m,
-                sigma_m: o.sigma_m,
-                late_m: 0.0,
-                late_sigma_m: 0.0,
-                left_out: false,
-            })
-            .collect();
-        SurveyCalibration {
-            epoch: old.epoch,
-            version: old.version,
-            fixes_taken: old.fixes_taken,
-            offsets,
-            speed_of_sound_m_s: 0.0,
-            speed_of_sound_sigma_m_s: 0.0,
+impl From<OffsetWithoutLateness> for TransmitterOffset {
+    fn from(o: OffsetWithoutLateness) -> Self {
+        TransmitterOffset {
+            tx_id: o.tx_id,
+            offset_m: o.offset_m,
+            sigma_m: o.sigma_m,
+            late_m: 0.0,
+            late_sigma_m: 0.0,
+            left_out: false,
         }
     }
 }
@@ -64,6 +42,7 @@ impl From<CalibrationWithoutLateness> for SurveyCalibration {
 mod tests {
     use super::*;
     use crate::codec::{DecodeError, decode, encode};
+    use crate::msg::control::SurveyCalibration;
 
     fn old(offsets: usize) -> CalibrationWithoutLateness {
         CalibrationWithoutLateness {

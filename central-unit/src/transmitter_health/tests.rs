@@ -190,52 +190,88 @@ fn a_fleet_that_hears_everything_flags_nothing_and_garbage_fixes_change_nothing(
     assert_eq!(h.report(now), before);
 }
 
-#[test]
-fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back() {
-    let site = Site::default_site();
-    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
-    let moved = site.transmitters[2].id;
-    let surveyed = site.transmitter(moved).unwrap().position_m;
-    let truth = [surveyed[0] + 0.3, surveyed[1], surveyed[2]];
-    let p = near(&site, moved);
-    let mut now = feed(&mut h, Time::ZERO, 100, |k| {
-        let rejected: &[u32] = if k % 5 == 0 { &[] } else { &[moved] };
-        fix_at(&site, p, &[], rejected, |id| {
-            if id == moved { 0.08 } else { 0.0 }
-        })
-    });
-    assert_eq!(condition(&h, moved), Condition::Moved);
-    let dist = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
-    // Fixes around it that list it as left out, with its residual against
-    // the position each was solved with.
-    let drive = |h: &mut TransmitterHealth, now: Time, solved_at: [f64; 3], n: u32| {
-        let offset: [f64; 3] = std::array::from_fn(|a| solved_at[a] - surveyed[a]);
-        let solved_with = BTreeMap::from([(moved, offset)]);
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// A transmitter of the default site that is 0.3 m east of its surveyed
+/// place, and the spot beside it the fixes that flag it are taken at.
+struct MovedScene {
+    site: Site,
+    id: u32,
+    surveyed: [f64; 3],
+    truth: [f64; 3],
+    p: [f64; 2],
+}
+
+impl MovedScene {
+    fn new() -> Self {
+        let site = Site::default_site();
+        let id = site.transmitters[2].id;
+        let surveyed = site.transmitter(id).unwrap().position_m;
+        let p = near(&site, id);
+        Self {
+            id,
+            surveyed,
+            truth: [surveyed[0] + 0.3, surveyed[1], surveyed[2]],
+            p,
+            site,
+        }
+    }
+
+    /// 100 fixes at `p` that mostly reject it, 8 cm late: it is flagged
+    /// moved. The time after them.
+    fn flag(&self, h: &mut TransmitterHealth) -> Time {
+        let moved = self.id;
+        let now = feed(h, Time::ZERO, 100, |k| {
+            let rejected: &[u32] = if k % 5 == 0 { &[] } else { &[moved] };
+            fix_at(&self.site, self.p, &[], rejected, |id| {
+                if id == moved { 0.08 } else { 0.0 }
+            })
+        });
+        assert_eq!(condition(h, moved), Condition::Moved);
+        now
+    }
+
+    /// `n` fixes around it that list it as left out, with its residual
+    /// against `solved_at`, the place each was solved with. The time after
+    /// them.
+    fn drive(&self, h: &mut TransmitterHealth, now: Time, solved_at: [f64; 3], n: u32) -> Time {
+        let offset: [f64; 3] = std::array::from_fn(|a| solved_at[a] - self.surveyed[a]);
+        let solved_with = BTreeMap::from([(self.id, offset)]);
         let mut now = now;
         for k in 0..n {
             let a = f64::from(k) * 0.37;
             // An ellipse on the room's side of the transmitter.
-            let at = [p[0] + 1.0 * a.cos(), p[1] - 0.75 + 0.75 * a.sin()];
-            let mut fix = fix_at(&site, at, &[], &[moved], |_| 0.0);
+            let at = [self.p[0] + 1.0 * a.cos(), self.p[1] - 0.75 + 0.75 * a.sin()];
+            let mut fix = fix_at(&self.site, at, &[], &[self.id], |_| 0.0);
             let receiver = [fix.x_m, fix.y_m, fix.z_m];
-            fix.unused = vec![moved];
-            fix.unused_residuals_m = vec![dist(truth, receiver) - dist(solved_at, receiver)];
+            fix.unused = vec![self.id];
+            fix.unused_residuals_m = vec![dist(self.truth, receiver) - dist(solved_at, receiver)];
             h.observe(&fix, now);
             h.observe_unused("r1", &fix, &solved_with, now);
             now = now + Duration::from_millis(100);
         }
         now
-    };
-    now = drive(&mut h, now, surveyed, 30);
+    }
+}
+
+#[test]
+fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back() {
+    let scene = MovedScene::new();
+    let (site, moved, truth, p) = (&scene.site, scene.id, scene.truth, scene.p);
+    let mut h = TransmitterHealth::new(site, HealthConfig::default());
+    let mut now = scene.flag(&mut h);
+    now = scene.drive(&mut h, now, scene.surveyed, 30);
     assert!(h.resurveyed(moved).is_none(), "30 fixes are too few");
-    now = drive(&mut h, now, surveyed, 20);
+    now = scene.drive(&mut h, now, scene.surveyed, 20);
     let placed = h.resurveyed(moved).expect("placed");
     assert!(dist(placed.position_m, truth) < 0.005, "{placed:?}");
     assert_eq!(condition(&h, moved), Condition::Moved);
     // Published there: the fixes solved with it there agree, and it is
     // taken back; none of its neighbours was ever flagged.
     h.mark_resurveyed(moved, placed.position_m);
-    now = drive(&mut h, now, placed.position_m, 19);
+    now = scene.drive(&mut h, now, placed.position_m, 19);
     assert_eq!(
         condition(&h, moved),
         Condition::Moved,
@@ -258,7 +294,7 @@ fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back
         )),
         "{evidence}"
     );
-    now = drive(&mut h, now, placed.position_m, 1);
+    now = scene.drive(&mut h, now, placed.position_m, 1);
     assert_eq!(condition(&h, moved), Condition::Healthy);
     assert_eq!(report(&h, now).resurveyed_m, None, "taken back");
     assert!(h.left_out().is_empty(), "{:?}", h.left_out());
@@ -266,7 +302,7 @@ fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back
     // Until the MSUs have the calibration that takes it back, their fixes
     // still leave it out and list its arrivals as rejected: that is no
     // evidence of a move. Counted as rejections, they would flag it again.
-    let in_flight = |_| fix_at(&site, p, &[], &[moved], |_| 0.0);
+    let in_flight = |_| fix_at(site, p, &[], &[moved], |_| 0.0);
     let mut counted = h.clone();
     feed(&mut counted, now, 20, in_flight);
     assert_eq!(condition(&counted, moved), Condition::Moved);
@@ -277,7 +313,7 @@ fn a_moved_transmitter_is_surveyed_again_from_its_unused_arrivals_and_taken_back
     }
     assert_eq!(condition(&h, moved), Condition::Healthy);
     // Used again, with its residuals centred: it stays healthy.
-    feed(&mut h, now, 100, |_| fix_at(&site, p, &[], &[], |_| 0.0));
+    feed(&mut h, now, 100, |_| fix_at(site, p, &[], &[], |_| 0.0));
     assert_eq!(condition(&h, moved), Condition::Healthy);
 }
 
@@ -308,51 +344,24 @@ fn unused_residuals_of_a_healthy_transmitter_or_a_bad_fix_survey_nothing() {
 
 #[test]
 fn a_transmitter_published_where_the_fleet_no_longer_places_it_is_not_taken_back() {
-    let site = Site::default_site();
-    let mut h = TransmitterHealth::new(&site, HealthConfig::default());
-    let moved = site.transmitters[2].id;
-    let surveyed = site.transmitter(moved).unwrap().position_m;
-    let truth = [surveyed[0] + 0.3, surveyed[1], surveyed[2]];
-    let p = near(&site, moved);
-    let mut now = feed(&mut h, Time::ZERO, 100, |k| {
-        let rejected: &[u32] = if k % 5 == 0 { &[] } else { &[moved] };
-        fix_at(&site, p, &[], rejected, |id| {
-            if id == moved { 0.08 } else { 0.0 }
-        })
-    });
-    assert_eq!(condition(&h, moved), Condition::Moved);
-    let dist = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
-    let drive = |h: &mut TransmitterHealth, now: Time, solved_at: [f64; 3], n: u32| {
-        let offset: [f64; 3] = std::array::from_fn(|a| solved_at[a] - surveyed[a]);
-        let solved_with = BTreeMap::from([(moved, offset)]);
-        let mut now = now;
-        for k in 0..n {
-            let a = f64::from(k) * 0.37;
-            let at = [p[0] + 1.0 * a.cos(), p[1] - 0.75 + 0.75 * a.sin()];
-            let mut fix = fix_at(&site, at, &[], &[moved], |_| 0.0);
-            let receiver = [fix.x_m, fix.y_m, fix.z_m];
-            fix.unused = vec![moved];
-            fix.unused_residuals_m = vec![dist(truth, receiver) - dist(solved_at, receiver)];
-            h.observe(&fix, now);
-            h.observe_unused("r1", &fix, &solved_with, now);
-            now = now + Duration::from_millis(100);
-        }
-        now
-    };
-    now = drive(&mut h, now, surveyed, 60);
+    let scene = MovedScene::new();
+    let (site, moved, truth) = (&scene.site, scene.id, scene.truth);
+    let mut h = TransmitterHealth::new(site, HealthConfig::default());
+    let mut now = scene.flag(&mut h);
+    now = scene.drive(&mut h, now, scene.surveyed, 60);
     assert!(h.resurveyed(moved).is_some());
     // Published 5 cm along the room from where it is: seen from below and
     // from both sides, its ranges barely change (the residuals' mean is
     // millimetres), but the fleet's fixes place it elsewhere.
     let off = [truth[0] + 0.05, truth[1], truth[2]];
     h.mark_resurveyed(moved, off);
-    now = drive(&mut h, now, off, 20);
+    now = scene.drive(&mut h, now, off, 20);
     assert_eq!(condition(&h, moved), Condition::Moved);
     assert_eq!(h.resurveyed_at(moved), None, "to be surveyed again");
     // Published where it is: taken back.
     let placed = h.resurveyed(moved).expect("placed");
     assert!(dist(placed.position_m, truth) < 0.005, "{placed:?}");
     h.mark_resurveyed(moved, placed.position_m);
-    drive(&mut h, now, placed.position_m, 20);
+    scene.drive(&mut h, now, placed.position_m, 20);
     assert_eq!(condition(&h, moved), Condition::Healthy);
 }
